@@ -1,0 +1,210 @@
+//! `relief bench`: primary-ray throughput of the pyramid traversal (with and without the tile
+//! pre-pass) against a fixed-step march (½ cell + 10 bisections) on the same rays, same run,
+//! same adapter, plus the full frame with shadows. Depth error of each method is measured
+//! against the f64 CPU traversal on a grid of sample pixels.
+
+use crate::cpu;
+use crate::gpu::{FrameOutput, Gpu, RenderSettings, TerrainRenderer, TraceMode};
+use crate::scene::{Camera, Scene};
+use crate::terrain::Terrain;
+use crate::{Error, Result};
+use rayon::prelude::*;
+use serde::Serialize;
+use std::io::Write;
+use std::path::Path;
+use std::time::Instant;
+
+/// One measured configuration.
+#[derive(Clone, Debug, Serialize)]
+pub struct ConfigResult {
+    /// Short name: `pyramid+tiles`, `pyramid`, `march`, `pyramid+tiles+shadows`.
+    pub name: String,
+    /// Mean wall-clock milliseconds per frame (submit to GPU idle, no readback).
+    pub ms_per_frame: f64,
+    /// Primary rays per second (pixels / frame time).
+    pub rays_per_second: f64,
+    /// Mean traversal steps (cells visited, or march samples) per primary ray.
+    pub mean_steps_per_ray: f64,
+    /// Mean exact patch tests per primary ray.
+    pub mean_patch_tests_per_ray: f64,
+    /// Depth error against the f64 CPU traversal over the sample pixels.
+    pub depth_error: DepthError,
+}
+
+/// Depth agreement with the CPU reference.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct DepthError {
+    /// Sample pixels compared.
+    pub pixels: usize,
+    /// Pixels where GPU and CPU disagree on hit vs sky.
+    pub class_mismatches: usize,
+    /// Relative depth error |gpu - cpu| / cpu over pixels both hit: median, 99th percentile, max.
+    pub median_rel: f64,
+    pub p99_rel: f64,
+    pub max_rel: f64,
+    /// Pixels with relative error above 1e-3.
+    pub over_1e3: usize,
+}
+
+/// The whole benchmark report (`relief bench --json`).
+#[derive(Clone, Debug, Serialize)]
+pub struct BenchReport {
+    pub adapter: String,
+    pub backend: String,
+    pub scene: String,
+    pub width: u32,
+    pub height: u32,
+    pub frames: u32,
+    pub configs: Vec<ConfigResult>,
+    /// rays/s of `pyramid+tiles` over rays/s of `march`.
+    pub speedup_vs_march: f64,
+    /// mean steps per ray of `march` over `pyramid+tiles`.
+    pub step_ratio_vs_march: f64,
+    /// rays/s of `pyramid+tiles` over `pyramid` (what the tile pre-pass buys).
+    pub tile_prepass_speedup: f64,
+    /// Milliseconds to build the maximum pyramid on the CPU.
+    pub pyramid_build_ms: f64,
+}
+
+fn depth_error(terrain: &Terrain, cam: &Camera, out: &FrameOutput, reference: &[(u32, u32, Option<f64>)]) -> DepthError {
+    let mut rel = Vec::new();
+    let mut mism = 0;
+    for &(x, y, cpu_t) in reference {
+        let g = out.depth[(y * out.width + x) as usize];
+        match (cpu_t, g.is_finite()) {
+            (Some(c), true) => rel.push(((g as f64 - c).abs() / c.max(1e-9)).min(1e9)),
+            (None, false) => {}
+            _ => mism += 1,
+        }
+    }
+    let _ = (terrain, cam);
+    rel.sort_by(|a, b| a.total_cmp(b));
+    let q = |f: f64| rel.get(((rel.len() as f64 - 1.0) * f).round() as usize).copied().unwrap_or(0.0);
+    DepthError {
+        pixels: reference.len(),
+        class_mismatches: mism,
+        median_rel: q(0.5),
+        p99_rel: q(0.99),
+        max_rel: rel.last().copied().unwrap_or(0.0),
+        over_1e3: rel.iter().filter(|r| **r > 1e-3).count(),
+    }
+}
+
+/// Runs the benchmark on `scene_path` at `size` with `frames` timed frames per configuration.
+pub fn run(scene_path: &Path, size: (u32, u32), frames: u32, dump: Option<&Path>) -> Result<BenchReport> {
+    let mut scene = Scene::load(scene_path)?;
+    scene.desc.output.width = size.0;
+    scene.desc.output.height = size.1;
+    scene.desc.validate()?;
+    let terrain = scene.load_terrain()?;
+    let t = Instant::now();
+    let _ = crate::terrain::MaxPyramid::build(&terrain.field);
+    let pyramid_build_ms = t.elapsed().as_secs_f64() * 1e3;
+    let gpu = Gpu::new()?;
+    let mut renderer = TerrainRenderer::new(&gpu, &terrain)?;
+    let cam = scene.camera(0, &terrain);
+    let (w, h) = size;
+
+    // CPU reference on a grid of sample pixels (every 8th pixel in each direction).
+    let samples: Vec<(u32, u32)> = (0..h).step_by(8).flat_map(|y| (0..w).step_by(8).map(move |x| (x + 3, y + 5))).filter(|&(x, y)| x < w && y < h).collect();
+    let reference: Vec<(u32, u32, Option<f64>)> = samples
+        .par_iter()
+        .map(|&(x, y)| (x, y, cpu::cast_ray(&terrain, cam.pose.position, cam.pixel_ray(x, y), 0.0, f64::INFINITY).map(|hit| hit.t)))
+        .collect();
+
+    let base = RenderSettings { mode: TraceMode::Pyramid, shadows: false, tile_prepass: true, max_steps: scene.desc.render.max_steps };
+    let march = TraceMode::March { step_cells: 0.5, bisections: 10 };
+    let configs = [
+        ("pyramid+tiles", base),
+        ("pyramid", RenderSettings { tile_prepass: false, ..base }),
+        ("march", RenderSettings { mode: march, tile_prepass: false, max_steps: 1 << 20, ..base }),
+        ("pyramid+tiles+shadows", RenderSettings { shadows: true, ..base }),
+    ];
+    let mut results = Vec::new();
+    for (name, s) in configs {
+        // Warm-up: shader compilation on first use, target allocation.
+        let out = renderer.capture(&gpu, &terrain, &scene.desc, &cam, &s)?;
+        renderer.render(&gpu, &terrain, &scene.desc, &cam, &s)?;
+        gpu.wait()?;
+        let start = Instant::now();
+        for _ in 0..frames {
+            renderer.render(&gpu, &terrain, &scene.desc, &cam, &s)?;
+        }
+        gpu.wait()?;
+        let ms = start.elapsed().as_secs_f64() * 1e3 / frames as f64;
+        let px = (w * h) as f64;
+        let r = ConfigResult {
+            name: name.to_string(),
+            ms_per_frame: ms,
+            rays_per_second: px / (ms * 1e-3),
+            mean_steps_per_ray: out.steps.iter().map(|&v| v as f64).sum::<f64>() / px,
+            mean_patch_tests_per_ray: out.patch_tests.iter().map(|&v| v as f64).sum::<f64>() / px,
+            depth_error: depth_error(&terrain, &cam, &out, &reference),
+        };
+        log::info!("{name}: {:.2} ms/frame, {:.2} M rays/s, {:.1} steps/ray", r.ms_per_frame, r.rays_per_second / 1e6, r.mean_steps_per_ray);
+        if let (Some(dir), "pyramid+tiles") = (dump, name) {
+            dump_rays(dir, &cam, &out)?;
+        }
+        results.push(r);
+    }
+    let get = |n: &str| results.iter().find(|r| r.name == n).expect("configuration measured");
+    let (pt, p, m) = (get("pyramid+tiles"), get("pyramid"), get("march"));
+    Ok(BenchReport {
+        adapter: gpu.info.name.clone(),
+        backend: format!("{:?}", gpu.info.backend),
+        scene: scene_path.display().to_string(),
+        width: w,
+        height: h,
+        frames,
+        speedup_vs_march: pt.rays_per_second / m.rays_per_second,
+        step_ratio_vs_march: m.mean_steps_per_ray / pt.mean_steps_per_ray.max(1e-9),
+        tile_prepass_speedup: pt.rays_per_second / p.rays_per_second,
+        pyramid_build_ms,
+        configs: results,
+    })
+}
+
+/// Writes `rays.f32` (per pixel: origin xyz, direction xyz, row-major from the top-left) and
+/// `depth.f32` (relief's ray distance, +inf for sky) for outside comparisons.
+fn dump_rays(dir: &Path, cam: &Camera, out: &FrameOutput) -> Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    let o = cam.pose.position;
+    let mut rays = Vec::with_capacity((out.width * out.height * 6) as usize);
+    for y in 0..out.height {
+        for x in 0..out.width {
+            let d = cam.pixel_ray(x, y);
+            rays.extend([o.x as f32, o.y as f32, o.z as f32, d.x as f32, d.y as f32, d.z as f32]);
+        }
+    }
+    let write = |name: &str, data: &[f32]| -> Result<()> {
+        let p = dir.join(name);
+        let mut f = std::io::BufWriter::new(std::fs::File::create(&p).map_err(|e| Error::io(&p, e))?);
+        f.write_all(bytemuck::cast_slice(data)).map_err(|e| Error::io(&p, e))
+    };
+    write("rays.f32", &rays)?;
+    write("depth.f32", &out.depth)
+}
+
+/// Prints the report as a table.
+pub fn print_table(r: &BenchReport) {
+    println!("relief bench: {} at {}x{}, {} frames per configuration", r.scene, r.width, r.height, r.frames);
+    println!("adapter: {} ({})", r.adapter, r.backend);
+    println!("{:<24} {:>10} {:>12} {:>11} {:>10} {:>12} {:>12} {:>9}", "configuration", "ms/frame", "M rays/s", "steps/ray", "patch/ray", "median err", "p99 err", "class≠");
+    for c in &r.configs {
+        println!(
+            "{:<24} {:>10.2} {:>12.2} {:>11.1} {:>10.2} {:>12.2e} {:>12.2e} {:>9}",
+            c.name,
+            c.ms_per_frame,
+            c.rays_per_second / 1e6,
+            c.mean_steps_per_ray,
+            c.mean_patch_tests_per_ray,
+            c.depth_error.median_rel,
+            c.depth_error.p99_rel,
+            c.depth_error.class_mismatches
+        );
+    }
+    println!(
+        "pyramid+tiles vs march: {:.1}x rays/s, {:.1}x fewer steps per ray; tile pre-pass alone: {:.2}x; pyramid build {:.1} ms",
+        r.speedup_vs_march, r.step_ratio_vs_march, r.tile_prepass_speedup, r.pyramid_build_ms
+    );
+}

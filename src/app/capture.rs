@@ -1,0 +1,181 @@
+//! Headless frame capture: `frame_NNNN.png`, `depth_NNNN.tiff` (f32 ray distance, +inf sky)
+//! and `frame_NNNN.json` (camera model, terrain mapping, timings, adapter).
+//! Files are written to a temporary name and renamed, so nothing is left half-written.
+
+use crate::gpu::{FrameOutput, Gpu, RenderSettings, TerrainRenderer};
+use crate::scene::{Camera, Scene};
+use crate::terrain::Terrain;
+use crate::{Error, Result};
+use serde_json::json;
+use std::path::{Path, PathBuf};
+
+fn write_atomic(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+    let tmp = path.with_extension(format!("{}.partial", path.extension().and_then(|e| e.to_str()).unwrap_or("")));
+    match write(&tmp) {
+        Ok(()) => std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e)),
+        Err(e) => {
+            let _ = std::fs::remove_file(&tmp);
+            Err(e)
+        }
+    }
+}
+
+/// Writes an sRGB RGBA8 image as PNG.
+pub fn write_png(path: &Path, width: u32, height: u32, rgba: &[u8]) -> Result<()> {
+    write_atomic(path, |tmp| {
+        let img = image::RgbaImage::from_raw(width, height, rgba.to_vec())
+            .ok_or_else(|| Error::invalid("image", format!("{} bytes do not make a {width}x{height} RGBA image", rgba.len())))?;
+        img.save_with_format(tmp, image::ImageFormat::Png).map_err(|e| Error::format(path, format!("writing PNG: {e}")))
+    })
+}
+
+/// Writes a single-channel f32 TIFF (the depth image).
+pub fn write_depth_tiff(path: &Path, width: u32, height: u32, depth: &[f32]) -> Result<()> {
+    write_atomic(path, |tmp| {
+        let file = std::fs::File::create(tmp).map_err(|e| Error::io(tmp, e))?;
+        let mut enc = tiff::encoder::TiffEncoder::new(std::io::BufWriter::new(file))
+            .map_err(|e| Error::format(path, format!("writing TIFF: {e}")))?;
+        enc.write_image::<tiff::encoder::colortype::Gray32Float>(width, height, depth)
+            .map_err(|e| Error::format(path, format!("writing TIFF: {e}")))
+    })
+}
+
+/// Reads a depth TIFF written by [`write_depth_tiff`].
+pub fn read_depth_tiff(path: &Path) -> Result<(u32, u32, Vec<f32>)> {
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut dec = tiff::decoder::Decoder::new(std::io::BufReader::new(file)).map_err(|e| Error::format(path, format!("{e}")))?;
+    let (w, h) = dec.dimensions().map_err(|e| Error::format(path, format!("{e}")))?;
+    match dec.read_image().map_err(|e| Error::format(path, format!("{e}")))? {
+        tiff::decoder::DecodingResult::F32(v) => Ok((w, h, v)),
+        _ => Err(Error::format(path, "not an f32 depth image")),
+    }
+}
+
+fn mat_rows(m: glam::DMat4) -> Vec<[f64; 4]> {
+    let t = m.transpose();
+    vec![t.x_axis.to_array(), t.y_axis.to_array(), t.z_axis.to_array(), t.w_axis.to_array()]
+}
+
+/// Metadata describing exactly how a frame's pixels were made.
+pub fn frame_metadata(
+    gpu: &Gpu,
+    scene: &Scene,
+    terrain: &Terrain,
+    cam: &Camera,
+    settings: &RenderSettings,
+    frame: u32,
+    out: &FrameOutput,
+) -> serde_json::Value {
+    let (fx, fy, cx, cy) = cam.intrinsics();
+    let t = &out.times;
+    let cast_ms = t.raygen_ms + t.tile_ms + t.terrain_ms;
+    let pixels = (out.width * out.height) as f64;
+    let hits = out.flags.iter().filter(|f| *f & 1 != 0).count();
+    json!({
+        "frame": frame,
+        "time_s": scene.desc.path.as_ref().map(|p| frame as f64 / p.fps),
+        "width": out.width,
+        "height": out.height,
+        "camera": {
+            "model": "pinhole",
+            "camera_axes": "x right, y down, z forward",
+            "world_axes": "metres; x east, y north, z up unless the terrain's base plane says otherwise",
+            "world_from_camera": mat_rows(cam.world_from_camera()),
+            "intrinsics": { "fx": fx, "fy": fy, "cx": cx, "cy": cy },
+            "pixel_centre": "pixel (i, j), counted from the top-left, has its centre at image point (i + 0.5, j + 0.5); \
+                             its ray is normalize(R * ((u - cx) / fx, (v - cy) / fy, 1)) with R the rotation of world_from_camera",
+            "position": cam.pose.position.to_array(),
+            "heading_deg": cam.pose.heading,
+            "pitch_deg": cam.pose.pitch,
+            "roll_deg": cam.pose.roll,
+            "hfov_deg": cam.pose.fov,
+        },
+        "depth": {
+            "file": format!("depth_{frame:04}.tiff"),
+            "quantity": "distance in metres from the camera centre along the pixel's unit ray to the terrain; +inf where the ray meets no terrain",
+        },
+        "terrain": {
+            "samples": [terrain.field.width, terrain.field.height],
+            "spacing_m": terrain.field.spacing,
+            "world_from_grid": mat_rows(terrain.frame.world_from_grid()),
+            "grid": "sample (i, j) is at grid point (i, j, height); j runs north (row 0 is the southern edge); the surface is bilinear in each cell",
+            "height_range_m": [terrain.min_height, terrain.max_height],
+            "vertical_scale": scene.desc.terrain.vertical_scale,
+            "voids_filled": terrain.field.voids_filled,
+            "geo": terrain.field.geo,
+        },
+        "timing_ms": t,
+        "rays_per_second": pixels / (cast_ms * 1e-3),
+        "mean_steps_per_ray": out.steps.iter().map(|&s| s as f64).sum::<f64>() / pixels,
+        "terrain_pixels": hits,
+        "settings": settings,
+        "adapter": {
+            "name": gpu.info.name,
+            "backend": format!("{:?}", gpu.info.backend),
+            "device_type": format!("{:?}", gpu.info.device_type),
+            "driver": gpu.info.driver,
+            "driver_info": gpu.info.driver_info,
+        },
+        "relief_version": env!("CARGO_PKG_VERSION"),
+    })
+}
+
+/// Options of a headless render run.
+#[derive(Clone, Debug)]
+pub struct RenderJob {
+    pub scene: PathBuf,
+    pub size: Option<(u32, u32)>,
+    pub frames: u32,
+    pub first_frame: u32,
+    pub out_dir: PathBuf,
+    pub shadows: Option<bool>,
+    pub tile_prepass: Option<bool>,
+}
+
+/// Renders `job.frames` frames and writes them to `job.out_dir`; returns the file paths.
+pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
+    let mut scene = Scene::load(&job.scene)?;
+    if let Some((w, h)) = job.size {
+        scene.desc.output.width = w;
+        scene.desc.output.height = h;
+        scene.desc.validate()?;
+    }
+    if job.frames == 0 || job.frames > 100_000 {
+        return Err(Error::invalid("--frames", format!("must be 1..=100000, got {}", job.frames)));
+    }
+    let terrain = scene.load_terrain()?;
+    let gpu = Gpu::new()?;
+    log::info!("adapter: {}", gpu.describe());
+    let mut renderer = TerrainRenderer::new(&gpu, &terrain)?;
+    let mut settings = RenderSettings::from_scene(&scene.desc);
+    if let Some(s) = job.shadows {
+        settings.shadows = s;
+    }
+    if let Some(t) = job.tile_prepass {
+        settings.tile_prepass = t;
+    }
+    std::fs::create_dir_all(&job.out_dir).map_err(|e| Error::io(&job.out_dir, e))?;
+    let mut written = Vec::new();
+    for frame in job.first_frame..job.first_frame + job.frames {
+        let cam = scene.camera(frame, &terrain);
+        let out = renderer.capture(&gpu, &terrain, &scene.desc, &cam, &settings)?;
+        let png = job.out_dir.join(format!("frame_{frame:04}.png"));
+        let tif = job.out_dir.join(format!("depth_{frame:04}.tiff"));
+        let meta = job.out_dir.join(format!("frame_{frame:04}.json"));
+        write_png(&png, out.width, out.height, &out.rgba)?;
+        write_depth_tiff(&tif, out.width, out.height, &out.depth)?;
+        let m = frame_metadata(&gpu, &scene, &terrain, &cam, &settings, frame, &out);
+        write_atomic(&meta, |tmp| {
+            std::fs::write(tmp, serde_json::to_string_pretty(&m).expect("metadata serialises")).map_err(|e| Error::io(tmp, e))
+        })?;
+        log::info!(
+            "frame {frame}: raygen {:.1} ms, tile {:.1} ms, terrain {:.1} ms -> {}",
+            out.times.raygen_ms,
+            out.times.tile_ms,
+            out.times.terrain_ms,
+            png.display()
+        );
+        written.extend([png, tif, meta]);
+    }
+    Ok(written)
+}

@@ -1,0 +1,4 @@
+//! Application layer: headless capture, benchmark, command line.
+
+pub mod bench;
+pub mod capture;

@@ -1,0 +1,10 @@
+//! CPU reference algorithms (f64). They answer queries (height of terrain, line of sight) and
+//! are the oracle the GPU output is tested against. The traversal here is the same algorithm
+//! as `gpu/shaders/terrain_traverse.wgsl`, step for step.
+
+pub mod march;
+pub mod query;
+pub mod traverse;
+
+pub use query::{cast_ray, height_above_terrain, line_of_sight, sun_visible, terrain_point_below};
+pub use traverse::{GridRay, Hit, TraversalStats};

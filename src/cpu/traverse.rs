@@ -1,0 +1,218 @@
+//! Top-down maximum-pyramid traversal with exact bilinear-patch intersection.
+//!
+//! Per ray, in the grid frame: clip to the terrain's box; start at the top level; at each cell
+//! compute the ray's exit; skip the cell when the lower end of the ray segment over it is above
+//! the cell's maximum; otherwise descend to the child containing the entry point; at level 0
+//! intersect the bilinear patch exactly (a quadratic in t, re-centred on the entry point).
+//! After a crossing climb while the new cell's parent differs from the old one's.
+
+use crate::terrain::pyramid::PAD;
+use crate::terrain::Terrain;
+use glam::DVec3;
+
+/// A ray in the grid frame: `p(t) = o + d t`, with `t` in world metres.
+#[derive(Clone, Copy, Debug)]
+pub struct GridRay {
+    pub o: DVec3,
+    pub d: DVec3,
+}
+
+impl GridRay {
+    /// The grid-frame ray of a world ray (`dir` must be unit length for `t` in metres).
+    pub fn from_world(terrain: &Terrain, origin: DVec3, dir: DVec3) -> GridRay {
+        GridRay { o: terrain.frame.world_to_grid(origin), d: terrain.frame.world_dir_to_grid(dir) }
+    }
+    #[inline]
+    pub fn at(&self, t: f64) -> DVec3 {
+        self.o + self.d * t
+    }
+}
+
+/// A ray–terrain hit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// Distance along the (unit, world) ray in metres.
+    pub t: f64,
+    /// World position.
+    pub point: DVec3,
+    /// World unit normal of the bilinear patch.
+    pub normal: DVec3,
+    /// Grid cell hit.
+    pub cell: [usize; 2],
+}
+
+/// Work done by one traversal.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TraversalStats {
+    /// Loop iterations (cells visited at any level).
+    pub steps: u32,
+    /// Exact bilinear-patch tests.
+    pub patch_tests: u32,
+    /// True when the step limit ended the walk.
+    pub exhausted: bool,
+}
+
+/// Clips a grid ray to the terrain's bounding box intersected with `[t_min, t_max]`.
+pub fn clip_to_box(terrain: &Terrain, r: &GridRay, t_min: f64, t_max: f64) -> Option<(f64, f64)> {
+    let [cw, ch] = terrain.cells();
+    let lo = DVec3::new(0.0, 0.0, terrain.min_height as f64);
+    let hi = DVec3::new(cw as f64, ch as f64, terrain.max_height as f64);
+    let (mut t0, mut t1) = (t_min, t_max);
+    for a in 0..3 {
+        let (o, d) = (r.o[a], r.d[a]);
+        if d.abs() < 1e-300 {
+            if o < lo[a] || o > hi[a] {
+                return None;
+            }
+        } else {
+            let (mut ta, mut tb) = ((lo[a] - o) / d, (hi[a] - o) / d);
+            if ta > tb {
+                std::mem::swap(&mut ta, &mut tb);
+            }
+            t0 = t0.max(ta);
+            t1 = t1.min(tb);
+        }
+    }
+    (t0 <= t1).then_some((t0, t1))
+}
+
+/// First `s` in `[0, s_max]` where `A s² + B s + C` reaches 0 from above, given `C > 0`.
+/// Stable quadratic formula with a linear fallback.
+#[inline]
+pub fn first_root(a: f64, b: f64, c: f64, s_max: f64) -> Option<f64> {
+    let mut best = f64::INFINITY;
+    if a.abs() < 1e-12 * (b.abs() + c.abs()).max(1e-300) {
+        if b < 0.0 {
+            best = -c / b;
+        }
+    } else {
+        let disc = b * b - 4.0 * a * c;
+        if disc >= 0.0 {
+            let q = -0.5 * (b + b.signum() * disc.sqrt());
+            for r in [q / a, if q != 0.0 { c / q } else { f64::INFINITY }] {
+                if r >= 0.0 && r < best {
+                    best = r;
+                }
+            }
+        }
+    }
+    (best <= s_max).then_some(best)
+}
+
+/// Exact intersection with the bilinear patch of cell `(i, j)` for `t` in `[t_a, t_b]`.
+pub fn patch_hit(terrain: &Terrain, r: &GridRay, i: usize, j: usize, t_a: f64, t_b: f64) -> Option<f64> {
+    let f = &terrain.field;
+    let (h00, h10, h01, h11) = (f.at(i, j) as f64, f.at(i + 1, j) as f64, f.at(i, j + 1) as f64, f.at(i + 1, j + 1) as f64);
+    let (a, b, c, e) = (h00, h10 - h00, h01 - h00, h00 - h10 - h01 + h11);
+    let p = r.at(t_a);
+    let (u0, v0) = (p.x - i as f64, p.y - j as f64);
+    let qa = -e * r.d.x * r.d.y;
+    let qb = r.d.z - b * r.d.x - c * r.d.y - e * (u0 * r.d.y + v0 * r.d.x);
+    let qc = p.z - (a + b * u0 + c * v0 + e * u0 * v0);
+    if qc <= 0.0 {
+        return Some(t_a);
+    }
+    first_root(qa, qb, qc, t_b - t_a).map(|s| t_a + s)
+}
+
+/// Traverses the pyramid; returns the first hit `(t, cell)` in `[t_min, t_max]`.
+pub fn intersect(
+    terrain: &Terrain,
+    r: &GridRay,
+    t_min: f64,
+    t_max: f64,
+    max_steps: u32,
+    stats: &mut TraversalStats,
+) -> Option<(f64, [usize; 2])> {
+    let (t0, t1) = clip_to_box(terrain, r, t_min, t_max)?;
+    let pyr = &terrain.pyramid;
+    let top = pyr.top();
+    let mut level = top;
+    let mut t = t0;
+    let cell_at = |level: usize, p: DVec3| -> (i64, i64) {
+        let l = &pyr.levels[level];
+        let s = (1u64 << level) as f64;
+        (
+            ((p.x / s).floor() as i64).clamp(0, l.cells[0] as i64 - 1),
+            ((p.y / s).floor() as i64).clamp(0, l.cells[1] as i64 - 1),
+        )
+    };
+    let (mut ix, mut iy) = cell_at(level, r.at(t));
+    let (sx, sy) = (if r.d.x >= 0.0 { 1 } else { -1 }, if r.d.y >= 0.0 { 1 } else { -1 });
+    while stats.steps < max_steps {
+        stats.steps += 1;
+        let s = (1u64 << level) as f64;
+        let tx = if r.d.x.abs() < 1e-300 {
+            f64::INFINITY
+        } else {
+            (((ix + (sx > 0) as i64) as f64) * s - r.o.x) / r.d.x
+        };
+        let ty = if r.d.y.abs() < 1e-300 {
+            f64::INFINITY
+        } else {
+            (((iy + (sy > 0) as i64) as f64) * s - r.o.y) / r.d.y
+        };
+        let t_exit = tx.min(ty).min(t1).max(t);
+        let cell_max = pyr.get(level, ix, iy) as f64;
+        let z_low = (r.o.z + r.d.z * t).min(r.o.z + r.d.z * t_exit);
+        if z_low <= cell_max && cell_max > PAD as f64 {
+            if level > 0 {
+                // Descend to the child holding the entry point.
+                let p = r.at(t);
+                let half = s * 0.5;
+                let (mx, my) = ((2 * ix + 1) as f64 * half, (2 * iy + 1) as f64 * half);
+                let cx = 2 * ix + (p.x > mx || (p.x == mx && sx > 0)) as i64;
+                let cy = 2 * iy + (p.y > my || (p.y == my && sy > 0)) as i64;
+                level -= 1;
+                let l = &pyr.levels[level];
+                ix = cx.min(l.cells[0] as i64 - 1);
+                iy = cy.min(l.cells[1] as i64 - 1);
+                continue;
+            }
+            stats.patch_tests += 1;
+            if let Some(th) = patch_hit(terrain, r, ix as usize, iy as usize, t, t_exit) {
+                return Some((th, [ix as usize, iy as usize]));
+            }
+        }
+        // Advance to the next cell.
+        if t_exit >= t1 {
+            return None;
+        }
+        let (ox, oy) = (ix, iy);
+        if tx <= ty {
+            ix += sx;
+        }
+        if ty <= tx {
+            iy += sy;
+        }
+        t = t_exit;
+        // Climb while the new cell's parent differs from the old one's.
+        let (mut ox, mut oy) = (ox, oy);
+        while level < top && ((ix >> 1) != (ox >> 1) || (iy >> 1) != (oy >> 1)) {
+            level += 1;
+            ix >>= 1;
+            iy >>= 1;
+            ox >>= 1;
+            oy >>= 1;
+        }
+        let l = &pyr.levels[level];
+        if ix < 0 || iy < 0 || ix >= l.cells[0] as i64 || iy >= l.cells[1] as i64 {
+            return None;
+        }
+    }
+    stats.exhausted = true;
+    None
+}
+
+/// Full hit record for a grid-space hit.
+pub fn make_hit(terrain: &Terrain, r: &GridRay, t: f64, cell: [usize; 2]) -> Hit {
+    let p = r.at(t);
+    let f = &terrain.field;
+    let [i, j] = cell;
+    let (h00, h10, h01, h11) = (f.at(i, j) as f64, f.at(i + 1, j) as f64, f.at(i, j + 1) as f64, f.at(i + 1, j + 1) as f64);
+    let (u, v) = ((p.x - i as f64).clamp(0.0, 1.0), (p.y - j as f64).clamp(0.0, 1.0));
+    let e = h00 - h10 - h01 + h11;
+    let dhdx = h10 - h00 + e * v;
+    let dhdy = h01 - h00 + e * u;
+    Hit { t, point: terrain.frame.grid_to_world(p), normal: terrain.frame.normal_from_gradient(dhdx, dhdy), cell }
+}

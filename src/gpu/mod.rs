@@ -1,0 +1,96 @@
+//! GPU layer (wgpu): device selection, the terrain renderer's passes and readback.
+//!
+//! Passes per frame: ray generation (compute, writes the ray table) → tile pre-pass
+//! (fragment, one fragment per 8x8 tile) → terrain cast + shade (fragment, full screen) →
+//! copy to readback buffers when capturing.
+
+pub mod renderer;
+pub mod shaders;
+pub mod types;
+
+pub use renderer::{FrameOutput, PassTimes, RenderSettings, TerrainRenderer, TraceMode};
+
+use crate::{Error, Result};
+
+/// A wgpu device and queue with the adapter they came from.
+pub struct Gpu {
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    pub info: wgpu::AdapterInfo,
+    pub limits: wgpu::Limits,
+}
+
+impl Gpu {
+    /// Opens a device. Honors `WGPU_BACKEND` (vulkan, gl, ...) and `WGPU_ADAPTER_NAME`
+    /// (substring of the adapter name); otherwise takes wgpu's default adapter, which on a
+    /// machine without a GPU is Mesa's lavapipe (Vulkan) or llvmpipe (GL).
+    pub fn new() -> Result<Gpu> {
+        pollster::block_on(Self::new_async())
+    }
+
+    async fn new_async() -> Result<Gpu> {
+        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let adapter = match std::env::var("WGPU_ADAPTER_NAME") {
+            Ok(want) => {
+                let want = want.to_lowercase();
+                let adapters = instance.enumerate_adapters(wgpu::Backends::all()).await;
+                let names: Vec<String> = adapters.iter().map(|a| a.get_info().name).collect();
+                adapters.into_iter().find(|a| a.get_info().name.to_lowercase().contains(&want)).ok_or_else(|| {
+                    Error::Gpu(format!("WGPU_ADAPTER_NAME={want} matches no adapter; available: {names:?}"))
+                })?
+            }
+            Err(_) => instance
+                .request_adapter(&wgpu::RequestAdapterOptions {
+                    power_preference: wgpu::PowerPreference::from_env().unwrap_or(wgpu::PowerPreference::HighPerformance),
+                    ..Default::default()
+                })
+                .await
+                .map_err(|e| {
+                    Error::Gpu(format!(
+                        "no graphics adapter found ({e}); install Mesa's software drivers \
+                         (Debian: mesa-vulkan-drivers libvulkan1, or libegl-mesa0 for GL)"
+                    ))
+                })?,
+        };
+        let info = adapter.get_info();
+        log::info!("adapter: {} ({:?}, {:?})", info.name, info.backend, info.device_type);
+        let alimits = adapter.limits();
+        // Ask for what the adapter has where terrains need it: big storage buffers.
+        let limits = wgpu::Limits {
+            max_storage_buffer_binding_size: alimits.max_storage_buffer_binding_size,
+            max_buffer_size: alimits.max_buffer_size,
+            max_texture_dimension_2d: alimits.max_texture_dimension_2d,
+            ..wgpu::Limits::downlevel_defaults()
+        };
+        let (device, queue) = adapter
+            .request_device(&wgpu::DeviceDescriptor {
+                label: Some("relief"),
+                required_features: wgpu::Features::empty(),
+                required_limits: limits.clone(),
+                experimental_features: wgpu::ExperimentalFeatures::disabled(),
+                memory_hints: wgpu::MemoryHints::Performance,
+                trace: wgpu::Trace::Off,
+            })
+            .await
+            .map_err(|e| Error::Gpu(format!("cannot open a device on {}: {e}", info.name)))?;
+        Ok(Gpu { device, queue, info, limits })
+    }
+
+    /// "name (backend)" for logs and metadata.
+    pub fn describe(&self) -> String {
+        format!("{} ({:?})", self.info.name, self.info.backend)
+    }
+
+    /// Waits for all submitted work. The GL backend gives up an indefinite wait after a few
+    /// seconds, so long frames are waited for in a loop.
+    pub fn wait(&self) -> Result<()> {
+        for _ in 0..120 {
+            match self.device.poll(wgpu::PollType::Wait { submission_index: None, timeout: Some(std::time::Duration::from_secs(5)) }) {
+                Ok(_) => return Ok(()),
+                Err(wgpu::PollError::Timeout) => continue,
+                Err(e) => return Err(Error::Gpu(format!("waiting for the GPU: {e}"))),
+            }
+        }
+        Err(Error::Gpu("the GPU did not finish within 10 minutes".into()))
+    }
+}

@@ -1,0 +1,560 @@
+//! The terrain renderer: GPU resources uploaded once per terrain, size-dependent targets,
+//! per-frame uniforms, the three passes and readback.
+
+use super::types::{FrameUniforms, RayGenUniforms, MAX_LEVELS};
+use super::{shaders, Gpu};
+use crate::scene::{Camera, SceneDesc};
+use crate::terrain::Terrain;
+use crate::{Error, Result};
+use std::time::Instant;
+use wgpu::util::DeviceExt;
+
+/// Screen tile side of the tile pre-pass (WGSL `TILE`).
+pub const TILE: u32 = 8;
+
+/// How primary rays find the terrain.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub enum TraceMode {
+    /// Maximum-pyramid traversal with exact bilinear patches (the product).
+    Pyramid,
+    /// Fixed-step march with bisection (benchmark baseline).
+    March { step_cells: f32, bisections: u32 },
+}
+
+/// Per-frame switches.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct RenderSettings {
+    pub mode: TraceMode,
+    pub shadows: bool,
+    pub tile_prepass: bool,
+    pub max_steps: u32,
+}
+
+impl RenderSettings {
+    /// Settings from the scene's `[render]` table.
+    pub fn from_scene(desc: &SceneDesc) -> RenderSettings {
+        RenderSettings {
+            mode: TraceMode::Pyramid,
+            shadows: desc.render.shadows,
+            tile_prepass: desc.render.tile_prepass,
+            max_steps: desc.render.max_steps,
+        }
+    }
+}
+
+/// Wall-clock milliseconds per pass (each pass submitted and waited for on its own).
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct PassTimes {
+    pub raygen_ms: f64,
+    pub tile_ms: f64,
+    pub terrain_ms: f64,
+    pub readback_ms: f64,
+}
+
+/// What a captured frame holds.
+#[derive(Clone, Debug)]
+pub struct FrameOutput {
+    pub width: u32,
+    pub height: u32,
+    /// sRGB RGBA8, row 0 at the top.
+    pub rgba: Vec<u8>,
+    /// Ray distance in metres per pixel, `+inf` for sky.
+    pub depth: Vec<f32>,
+    /// Primary traversal steps per pixel.
+    pub steps: Vec<u32>,
+    /// Exact patch tests per pixel.
+    pub patch_tests: Vec<u32>,
+    /// Shadow-ray traversal steps per pixel.
+    pub shadow_steps: Vec<u32>,
+    /// Flags per pixel: 1 hit, 2 in shadow, 4 step limit reached.
+    pub flags: Vec<u32>,
+    pub times: PassTimes,
+}
+
+struct Targets {
+    width: u32,
+    height: u32,
+    tiles: [u32; 2],
+    raygen_bg: wgpu::BindGroup,
+    tile_bg: wgpu::BindGroup,
+    terrain_bg: wgpu::BindGroup,
+    tile_view: wgpu::TextureView,
+    colour: wgpu::Texture,
+    colour_view: wgpu::TextureView,
+    data: wgpu::Texture,
+    data_view: wgpu::TextureView,
+    colour_rb: wgpu::Buffer,
+    data_rb: wgpu::Buffer,
+}
+
+/// Terrain data on the GPU and the pipelines that render it.
+pub struct TerrainRenderer {
+    heights: wgpu::Buffer,
+    pyramid: wgpu::Buffer,
+    drape: wgpu::Buffer,
+    frame_ub: wgpu::Buffer,
+    raygen_ub: wgpu::Buffer,
+    raygen_bgl: wgpu::BindGroupLayout,
+    tile_bgl: wgpu::BindGroupLayout,
+    terrain_bgl: wgpu::BindGroupLayout,
+    raygen_pipeline: wgpu::ComputePipeline,
+    tile_pipeline: wgpu::RenderPipeline,
+    terrain_pipeline: wgpu::RenderPipeline,
+    targets: Option<Targets>,
+}
+
+fn storage_entry(binding: u32, vis: wgpu::ShaderStages, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: vis,
+        ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Storage { read_only }, has_dynamic_offset: false, min_binding_size: None },
+        count: None,
+    }
+}
+
+fn uniform_entry(binding: u32, vis: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: vis,
+        ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
+        count: None,
+    }
+}
+
+/// Checks that a buffer of `bytes` fits the device; the error names the data and the limit.
+pub fn check_buffer_limit(gpu: &Gpu, what: &str, bytes: u64) -> Result<()> {
+    let limit = (gpu.limits.max_storage_buffer_binding_size as u64).min(gpu.limits.max_buffer_size);
+    if bytes > limit {
+        return Err(Error::Limit {
+            what: what.to_string(),
+            msg: format!(
+                "{bytes} bytes needed, the adapter {} allows {limit} bytes per storage buffer; use a smaller or cropped height map",
+                gpu.info.name
+            ),
+        });
+    }
+    Ok(())
+}
+
+impl TerrainRenderer {
+    /// Uploads the terrain (heights, pyramid, drape) and builds the pipelines.
+    pub fn new(gpu: &Gpu, terrain: &Terrain) -> Result<TerrainRenderer> {
+        let dev = &gpu.device;
+        if terrain.pyramid.levels.len() > MAX_LEVELS {
+            return Err(Error::Limit {
+                what: "terrain size".into(),
+                msg: format!(
+                    "{}x{} samples need {} pyramid levels, the shaders address {MAX_LEVELS} (at most {} cells per side)",
+                    terrain.field.width,
+                    terrain.field.height,
+                    terrain.pyramid.levels.len(),
+                    1u32 << (MAX_LEVELS - 1)
+                ),
+            });
+        }
+        check_buffer_limit(gpu, "height table", terrain.field.heights.len() as u64 * 4)?;
+        check_buffer_limit(gpu, "maximum pyramid", terrain.pyramid.data.len() as u64 * 4)?;
+        let storage = wgpu::BufferUsages::STORAGE;
+        let heights = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("heights"),
+            contents: bytemuck::cast_slice(&terrain.field.heights),
+            usage: storage,
+        });
+        let pyramid = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("max pyramid"),
+            contents: bytemuck::cast_slice(&terrain.pyramid.data),
+            usage: storage,
+        });
+        let drape_words: Vec<u32> = match &terrain.drape {
+            Some((d, _)) => {
+                check_buffer_limit(gpu, "drape image", d.rgba.len() as u64)?;
+                d.rgba.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect()
+            }
+            None => vec![0],
+        };
+        let drape = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("drape"),
+            contents: bytemuck::cast_slice(&drape_words),
+            usage: storage,
+        });
+        let frame_ub = dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("frame uniforms"),
+            size: std::mem::size_of::<FrameUniforms>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let raygen_ub = dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("raygen uniforms"),
+            size: std::mem::size_of::<RayGenUniforms>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let cs = wgpu::ShaderStages::COMPUTE;
+        let fs = wgpu::ShaderStages::FRAGMENT;
+        let raygen_bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("raygen"),
+            entries: &[uniform_entry(0, cs), storage_entry(1, cs, false)],
+        });
+        let common = [uniform_entry(0, fs), storage_entry(1, fs, true), storage_entry(2, fs, true), storage_entry(3, fs, true)];
+        let tile_bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("tile"), entries: &common });
+        let mut terrain_entries = common.to_vec();
+        terrain_entries.push(wgpu::BindGroupLayoutEntry {
+            binding: 4,
+            visibility: fs,
+            ty: wgpu::BindingType::Texture {
+                sample_type: wgpu::TextureSampleType::Uint,
+                view_dimension: wgpu::TextureViewDimension::D2,
+                multisampled: false,
+            },
+            count: None,
+        });
+        terrain_entries.push(storage_entry(5, fs, true));
+        let terrain_bgl =
+            dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("terrain"), entries: &terrain_entries });
+
+        let module = |label: &str, src: String| {
+            dev.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some(label), source: wgpu::ShaderSource::Wgsl(src.into()) })
+        };
+        let raygen_mod = module("raygen.wgsl", shaders::raygen());
+        let tile_mod = module("tile.wgsl", shaders::tile());
+        let terrain_mod = module("terrain.wgsl", shaders::terrain());
+        let layout = |bgl: &wgpu::BindGroupLayout| {
+            dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: None, bind_group_layouts: &[Some(bgl)], immediate_size: 0 })
+        };
+        let raygen_pipeline = dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("raygen"),
+            layout: Some(&layout(&raygen_bgl)),
+            module: &raygen_mod,
+            entry_point: Some("cs_raygen"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        let fullscreen = |label: &str, m: &wgpu::ShaderModule, entry: &str, bgl: &wgpu::BindGroupLayout, targets: &[Option<wgpu::ColorTargetState>]| {
+            dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(label),
+                layout: Some(&layout(bgl)),
+                vertex: wgpu::VertexState { module: m, entry_point: Some("vs_fullscreen"), compilation_options: Default::default(), buffers: &[] },
+                primitive: wgpu::PrimitiveState::default(),
+                depth_stencil: None,
+                multisample: wgpu::MultisampleState::default(),
+                fragment: Some(wgpu::FragmentState { module: m, entry_point: Some(entry), compilation_options: Default::default(), targets }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        let target = |format| Some(wgpu::ColorTargetState { format, blend: None, write_mask: wgpu::ColorWrites::ALL });
+        let tile_pipeline = fullscreen("tile", &tile_mod, "fs_tile", &tile_bgl, &[target(wgpu::TextureFormat::R32Uint)]);
+        let terrain_pipeline = fullscreen(
+            "terrain",
+            &terrain_mod,
+            "fs_terrain",
+            &terrain_bgl,
+            &[target(wgpu::TextureFormat::Rgba8Unorm), target(wgpu::TextureFormat::Rgba32Uint)],
+        );
+        Ok(TerrainRenderer {
+            heights,
+            pyramid,
+            drape,
+            frame_ub,
+            raygen_ub,
+            raygen_bgl,
+            tile_bgl,
+            terrain_bgl,
+            raygen_pipeline,
+            tile_pipeline,
+            terrain_pipeline,
+            targets: None,
+        })
+    }
+
+    fn ensure_targets(&mut self, gpu: &Gpu, width: u32, height: u32) -> Result<()> {
+        if self.targets.as_ref().is_some_and(|t| t.width == width && t.height == height) {
+            return Ok(());
+        }
+        let max = gpu.limits.max_texture_dimension_2d;
+        if width > max || height > max {
+            return Err(Error::Limit {
+                what: "output size".into(),
+                msg: format!("{width}x{height} is larger than the adapter's {max}x{max} texture limit"),
+            });
+        }
+        check_buffer_limit(gpu, "ray table", width as u64 * height as u64 * 16)?;
+        let dev = &gpu.device;
+        let rays = dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("ray table"),
+            size: width as u64 * height as u64 * 16,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        let tiles = [width.div_ceil(TILE), height.div_ceil(TILE)];
+        let tex = |label, w, h, format| {
+            dev.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size: wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_SRC,
+                view_formats: &[],
+            })
+        };
+        let tile_tex = tex("tile start", tiles[0], tiles[1], wgpu::TextureFormat::R32Uint);
+        let colour = tex("colour", width, height, wgpu::TextureFormat::Rgba8Unorm);
+        let data = tex("data", width, height, wgpu::TextureFormat::Rgba32Uint);
+        let tile_view = tile_tex.create_view(&Default::default());
+        let rb = |label, bpp: u32| {
+            dev.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: padded_row(width * bpp) as u64 * height as u64,
+                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+                mapped_at_creation: false,
+            })
+        };
+        let raygen_bg = dev.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("raygen"),
+            layout: &self.raygen_bgl,
+            entries: &[buf(0, &self.raygen_ub), buf(1, &rays)],
+        });
+        let common = [buf(0, &self.frame_ub), buf(1, &self.heights), buf(2, &self.pyramid), buf(3, &rays)];
+        let tile_bg = dev.create_bind_group(&wgpu::BindGroupDescriptor { label: Some("tile"), layout: &self.tile_bgl, entries: &common });
+        let mut entries = common.to_vec();
+        entries.push(wgpu::BindGroupEntry { binding: 4, resource: wgpu::BindingResource::TextureView(&tile_view) });
+        entries.push(buf(5, &self.drape));
+        let terrain_bg = dev.create_bind_group(&wgpu::BindGroupDescriptor { label: Some("terrain"), layout: &self.terrain_bgl, entries: &entries });
+        self.targets = Some(Targets {
+            width,
+            height,
+            tiles,
+            raygen_bg,
+            tile_bg,
+            terrain_bg,
+            tile_view,
+            colour_view: colour.create_view(&Default::default()),
+            data_view: data.create_view(&Default::default()),
+            colour,
+            data,
+            colour_rb: rb("colour readback", 4),
+            data_rb: rb("data readback", 16),
+        });
+        Ok(())
+    }
+
+    fn encode_raygen(&self, enc: &mut wgpu::CommandEncoder, t: &Targets) {
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("raygen"), timestamp_writes: None });
+        pass.set_pipeline(&self.raygen_pipeline);
+        pass.set_bind_group(0, &t.raygen_bg, &[]);
+        pass.dispatch_workgroups(t.width.div_ceil(8), t.height.div_ceil(8), 1);
+    }
+
+    fn encode_fullscreen(
+        enc: &mut wgpu::CommandEncoder,
+        label: &str,
+        pipeline: &wgpu::RenderPipeline,
+        bg: &wgpu::BindGroup,
+        views: &[&wgpu::TextureView],
+    ) {
+        let attachments: Vec<_> = views
+            .iter()
+            .map(|v| {
+                Some(wgpu::RenderPassColorAttachment {
+                    view: v,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT), store: wgpu::StoreOp::Store },
+                })
+            })
+            .collect();
+        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some(label),
+            color_attachments: &attachments,
+            depth_stencil_attachment: None,
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, bg, &[]);
+        pass.draw(0..3, 0..1);
+    }
+
+    /// Uploads the frame's uniforms and records the passes. With `timed`, each pass is
+    /// submitted and waited for separately and its wall time returned.
+    fn run_passes(&mut self, gpu: &Gpu, terrain: &Terrain, scene: &SceneDesc, cam: &Camera, s: &RenderSettings, timed: bool) -> Result<PassTimes> {
+        self.ensure_targets(gpu, cam.width, cam.height)?;
+        let t = self.targets.as_ref().expect("targets just ensured");
+        let fu = frame_uniforms(terrain, scene, cam, s, t.tiles);
+        gpu.queue.write_buffer(&self.frame_ub, 0, bytemuck::bytes_of(&fu));
+        gpu.queue.write_buffer(&self.raygen_ub, 0, bytemuck::bytes_of(&raygen_uniforms(cam)));
+        let mut times = PassTimes::default();
+        let tile_on = s.tile_prepass && s.mode == TraceMode::Pyramid;
+        let mut enc = gpu.device.create_command_encoder(&Default::default());
+        let lap = |enc: &mut wgpu::CommandEncoder, slot: &mut f64| -> Result<()> {
+            if timed {
+                let start = Instant::now();
+                let done = std::mem::replace(enc, gpu.device.create_command_encoder(&Default::default()));
+                gpu.queue.submit([done.finish()]);
+                gpu.wait()?;
+                *slot = start.elapsed().as_secs_f64() * 1e3;
+            }
+            Ok(())
+        };
+        self.encode_raygen(&mut enc, t);
+        lap(&mut enc, &mut times.raygen_ms)?;
+        if tile_on {
+            Self::encode_fullscreen(&mut enc, "tile", &self.tile_pipeline, &t.tile_bg, &[&t.tile_view]);
+        }
+        lap(&mut enc, &mut times.tile_ms)?;
+        Self::encode_fullscreen(&mut enc, "terrain", &self.terrain_pipeline, &t.terrain_bg, &[&t.colour_view, &t.data_view]);
+        lap(&mut enc, &mut times.terrain_ms)?;
+        gpu.queue.submit([enc.finish()]);
+        Ok(times)
+    }
+
+    /// Renders one frame without reading it back (for benchmarks: the caller waits).
+    pub fn render(&mut self, gpu: &Gpu, terrain: &Terrain, scene: &SceneDesc, cam: &Camera, s: &RenderSettings) -> Result<()> {
+        self.run_passes(gpu, terrain, scene, cam, s, false).map(|_| ())
+    }
+
+    /// Renders one frame, timing each pass, and reads colour and data back.
+    pub fn capture(&mut self, gpu: &Gpu, terrain: &Terrain, scene: &SceneDesc, cam: &Camera, s: &RenderSettings) -> Result<FrameOutput> {
+        let mut times = self.run_passes(gpu, terrain, scene, cam, s, true)?;
+        let start = Instant::now();
+        let t = self.targets.as_ref().expect("targets exist after a render");
+        let (w, h) = (t.width, t.height);
+        let mut enc = gpu.device.create_command_encoder(&Default::default());
+        for (tex, buf, bpp) in [(&t.colour, &t.colour_rb, 4u32), (&t.data, &t.data_rb, 16u32)] {
+            enc.copy_texture_to_buffer(
+                tex.as_image_copy(),
+                wgpu::TexelCopyBufferInfo {
+                    buffer: buf,
+                    layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(padded_row(w * bpp)), rows_per_image: Some(h) },
+                },
+                wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
+            );
+        }
+        gpu.queue.submit([enc.finish()]);
+        let rgba = read_buffer(gpu, &t.colour_rb, w * 4, h)?;
+        let data = read_buffer(gpu, &t.data_rb, w * 16, h)?;
+        times.readback_ms = start.elapsed().as_secs_f64() * 1e3;
+        let words: &[u32] = bytemuck::cast_slice(&data);
+        let n = (w * h) as usize;
+        let mut out = FrameOutput {
+            width: w,
+            height: h,
+            rgba,
+            depth: Vec::with_capacity(n),
+            steps: Vec::with_capacity(n),
+            patch_tests: Vec::with_capacity(n),
+            shadow_steps: Vec::with_capacity(n),
+            flags: Vec::with_capacity(n),
+            times,
+        };
+        for px in words.chunks_exact(4) {
+            out.depth.push(f32::from_bits(px[0]));
+            out.steps.push(px[1]);
+            out.patch_tests.push(px[2] & 0xffff);
+            out.shadow_steps.push(px[2] >> 16);
+            out.flags.push(px[3]);
+        }
+        Ok(out)
+    }
+}
+
+fn buf(binding: u32, b: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry { binding, resource: b.as_entire_binding() }
+}
+
+fn padded_row(bytes: u32) -> u32 {
+    bytes.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT
+}
+
+/// Maps a readback buffer and returns its rows without padding.
+fn read_buffer(gpu: &Gpu, buf: &wgpu::Buffer, row_bytes: u32, rows: u32) -> Result<Vec<u8>> {
+    let (tx, rx) = std::sync::mpsc::channel();
+    buf.slice(..).map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    gpu.wait()?;
+    rx.recv()
+        .map_err(|_| Error::Gpu("readback callback never ran".into()))?
+        .map_err(|e| Error::Gpu(format!("mapping the readback buffer: {e}")))?;
+    let out = {
+        let view = buf.get_mapped_range(..).map_err(|e| Error::Gpu(format!("readback range: {e}")))?;
+        let stride = padded_row(row_bytes) as usize;
+        let mut out = Vec::with_capacity(row_bytes as usize * rows as usize);
+        for r in 0..rows as usize {
+            out.extend_from_slice(&view[r * stride..r * stride + row_bytes as usize]);
+        }
+        out
+    };
+    buf.unmap();
+    Ok(out)
+}
+
+fn v4(v: glam::DVec3, w: f64) -> [f32; 4] {
+    [v.x as f32, v.y as f32, v.z as f32, w as f32]
+}
+
+/// Pinhole ray-generation uniforms for a camera.
+pub fn raygen_uniforms(cam: &Camera) -> RayGenUniforms {
+    let (r, d, f) = cam.basis();
+    let (fx, fy, cx, cy) = cam.intrinsics();
+    RayGenUniforms {
+        right: v4(r, 0.0),
+        down: v4(d, 0.0),
+        forward: v4(f, 0.0),
+        intrinsics: [fx as f32, fy as f32, cx as f32, cy as f32],
+        size: [cam.width, cam.height, 0, 0],
+    }
+}
+
+/// The frame uniform block for a terrain, scene, camera and settings.
+pub fn frame_uniforms(terrain: &Terrain, scene: &SceneDesc, cam: &Camera, s: &RenderSettings, tiles: [u32; 2]) -> FrameUniforms {
+    let fr = &terrain.frame;
+    let [sx, sy] = fr.spacing;
+    let eye = fr.world_to_grid(cam.pose.position);
+    let sun = scene.sun.direction();
+    let local = |v: glam::DVec3| glam::DVec3::new(v.dot(fr.axis_x), v.dot(fr.axis_y), v.dot(fr.normal));
+    let fog_colour = scene.fog.colour.unwrap_or(scene.sky.horizon);
+    let sigma = if scene.fog.visibility > 0.0 { 3.912 / scene.fog.visibility } else { 0.0 };
+    let mut levels = [[0u32; 4]; MAX_LEVELS];
+    for (dst, l) in levels.iter_mut().zip(&terrain.pyramid.levels) {
+        *dst = [l.cells[0], l.cells[1], l.stored[0], l.offset];
+    }
+    let (drape_map, drape_size, has_drape) = match &terrain.drape {
+        Some((d, m)) => (
+            [m.offset[0] as f32, m.offset[1] as f32, m.scale[0] as f32, m.scale[1] as f32],
+            [d.width as u32, d.height as u32, 0, 0],
+            1,
+        ),
+        None => ([0.0; 4], [1, 1, 0, 0], 0),
+    };
+    let (mode, march) = match s.mode {
+        TraceMode::Pyramid => (0, [0.0; 4]),
+        TraceMode::March { step_cells, bisections } => (1, [step_cells, bisections as f32, 0.0, 0.0]),
+    };
+    let c = |v: [f32; 3], w: f32| [v[0], v[1], v[2], w];
+    FrameUniforms {
+        eye: v4(eye, 1.0),
+        grid_from_world: [v4(fr.axis_x / sx, 0.0), v4(fr.axis_y / sy, 0.0), v4(fr.normal, 0.0)],
+        local_from_world: [v4(fr.axis_x, 0.0), v4(fr.axis_y, 0.0), v4(fr.normal, 0.0)],
+        sun_local: v4(local(sun), scene.sun.intensity as f64),
+        sun_grid: v4(fr.world_dir_to_grid(sun), 0.0),
+        sun_colour: c(scene.sun.colour, (0.27f64).to_radians().cos() as f32),
+        up_local: v4(local(glam::DVec3::Z), 0.0),
+        sky_zenith: c(scene.sky.zenith, scene.sky.ambient),
+        sky_horizon: c(scene.sky.horizon, 0.0),
+        fog_colour: c(fog_colour, sigma as f32),
+        fog: [scene.fog.scale_height as f32, 0.0, 0.0, 0.0],
+        spacing: [sx as f32, sy as f32, (1.0 / sx) as f32, (1.0 / sy) as f32],
+        heights_range: [terrain.min_height, terrain.max_height, crate::cpu::query::shadow_offset(terrain) as f32, 0.0],
+        drape_map,
+        size: [cam.width, cam.height, tiles[0], tiles[1]],
+        grid: [terrain.field.width as u32, terrain.field.height as u32, terrain.pyramid.levels.len() as u32, has_drape],
+        mode: [mode, s.max_steps, s.shadows as u32, s.tile_prepass as u32],
+        drape_size,
+        march,
+        levels,
+    }
+}

@@ -1,0 +1,53 @@
+// Shared declarations: the per-frame uniform block (mirrored by `gpu::types::FrameUniforms`).
+
+struct Frame {
+    // Eye position in the grid frame (x, y in samples, z in metres along the base normal).
+    eye: vec4<f32>,
+    // Rows of the linear map world direction -> grid direction (t stays in metres).
+    grid_from_world_0: vec4<f32>,
+    grid_from_world_1: vec4<f32>,
+    grid_from_world_2: vec4<f32>,
+    // Rows of the rotation world -> metric local frame (axis_x, axis_y, normal).
+    local_from_world_0: vec4<f32>,
+    local_from_world_1: vec4<f32>,
+    local_from_world_2: vec4<f32>,
+    // Sun direction in the local frame; w = intensity.
+    sun_local: vec4<f32>,
+    // Sun direction in the grid frame (for shadow rays).
+    sun_grid: vec4<f32>,
+    // Sun colour (linear); w = cosine of the sun disc's angular radius.
+    sun_colour: vec4<f32>,
+    // World up in the local frame.
+    up_local: vec4<f32>,
+    // Sky colours (linear); zenith.w = ambient strength.
+    sky_zenith: vec4<f32>,
+    sky_horizon: vec4<f32>,
+    // Haze colour (linear); w = extinction per metre at the base plane (0 = no fog).
+    fog_colour: vec4<f32>,
+    // x = haze scale height in metres (0 = uniform).
+    fog: vec4<f32>,
+    // Sample spacing: sx, sy, 1/sx, 1/sy (metres).
+    spacing: vec4<f32>,
+    // min height, max height, shadow-ray offset (m), unused.
+    heights_range: vec4<f32>,
+    // Drape texel = offset + scale * grid: offset.xy, scale.xy.
+    drape_map: vec4<f32>,
+    // width, height, tiles x, tiles y.
+    size: vec4<u32>,
+    // samples x, samples y, pyramid levels, drape present (0/1).
+    grid: vec4<u32>,
+    // x: 0 = pyramid traversal, 1 = fixed-step march; y: max steps; z: shadows on; w: tile pre-pass on.
+    mode: vec4<u32>,
+    // drape width, height.
+    drape_size: vec4<u32>,
+    // x: march step in cells, y: bisection count.
+    march: vec4<f32>,
+    // Per level: cells x, cells y, row stride, offset into `pyramid`.
+    levels: array<vec4<u32>, 16>,
+}
+
+// Pixels per screen tile side in the tile pre-pass.
+const TILE: u32 = 8u;
+// Finite stand-ins for infinity (WGSL lets drivers assume no Inf/NaN).
+const BIG: f32 = 1.0e30;
+const PAD: f32 = -1.0e30;

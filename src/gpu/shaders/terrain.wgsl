@@ -1,0 +1,180 @@
+// Terrain pass: per pixel, cast the ray from the ray table through the pyramid (starting where
+// the tile pre-pass allows), shade (smooth normals, sun with a shadow ray through the same
+// pyramid, sky ambient, elevation/slope ramp or drape), apply aerial perspective, write sRGB
+// colour and the data target (ray distance bits, steps, patch tests, flags).
+
+@group(0) @binding(0) var<uniform> frame: Frame;
+@group(0) @binding(1) var<storage, read> heights: array<f32>;
+@group(0) @binding(2) var<storage, read> pyramid: array<f32>;
+@group(0) @binding(3) var<storage, read> rays: array<vec4<f32>>;
+@group(0) @binding(4) var tile_start: texture_2d<u32>;
+@group(0) @binding(5) var<storage, read> drape: array<u32>;
+
+struct Out {
+    @location(0) colour: vec4<f32>,
+    // x: f32 bits of the ray distance (+inf bits for sky), y: traversal steps,
+    // z: patch tests (low 16 bits) and shadow-ray steps (high 16 bits), w: flags (1 hit, 2 in shadow, 4 step limit reached).
+    @location(1) data: vec4<u32>,
+}
+
+const INF_BITS: u32 = 0x7f800000u;
+
+fn srgb_encode(c: vec3<f32>) -> vec3<f32> {
+    let x = clamp(c, vec3<f32>(0.0), vec3<f32>(1.0));
+    return select(1.055 * pow(x, vec3<f32>(1.0 / 2.4)) - 0.055, 12.92 * x, x <= vec3<f32>(0.0031308));
+}
+
+fn srgb_decode(c: vec3<f32>) -> vec3<f32> {
+    return select(pow((c + 0.055) / 1.055, vec3<f32>(2.4)), c / 12.92, c <= vec3<f32>(0.04045));
+}
+
+fn to_local(d: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(dot(frame.local_from_world_0.xyz, d), dot(frame.local_from_world_1.xyz, d), dot(frame.local_from_world_2.xyz, d));
+}
+
+fn sky(dl: vec3<f32>) -> vec3<f32> {
+    let up = dot(dl, frame.up_local.xyz);
+    var c = mix(frame.sky_horizon.xyz, frame.sky_zenith.xyz, pow(clamp(up, 0.0, 1.0), 0.5));
+    if (up < 0.0) {
+        c = frame.sky_horizon.xyz * mix(1.0, 0.6, clamp(-up * 4.0, 0.0, 1.0));
+    }
+    let cs = dot(dl, frame.sun_local.xyz);
+    c += frame.sun_colour.xyz * (0.35 * pow(max(cs, 0.0), 64.0));
+    if (cs > frame.sun_colour.w) {
+        c += frame.sun_colour.xyz * 20.0;
+    }
+    return c;
+}
+
+// Height gradient (metres per grid unit) at sample (i, j) by central differences.
+fn sample_gradient(i: i32, j: i32) -> vec2<f32> {
+    let wx = i32(frame.grid.x) - 1;
+    let wy = i32(frame.grid.y) - 1;
+    let i0 = u32(max(i - 1, 0));
+    let i1 = u32(min(i + 1, wx));
+    let j0 = u32(max(j - 1, 0));
+    let j1 = u32(min(j + 1, wy));
+    let gx = (sample_height(i1, u32(j)) - sample_height(i0, u32(j))) / f32(i1 - i0);
+    let gy = (sample_height(u32(i), j1) - sample_height(u32(i), j0)) / f32(j1 - j0);
+    return vec2<f32>(gx, gy);
+}
+
+fn local_normal(g: vec2<f32>) -> vec3<f32> {
+    return normalize(vec3<f32>(-g.x * frame.spacing.z, -g.y * frame.spacing.w, 1.0));
+}
+
+fn drape_texel(x: i32, y: i32) -> vec3<f32> {
+    let w = i32(frame.drape_size.x);
+    let h = i32(frame.drape_size.y);
+    let p = drape[u32(clamp(y, 0, h - 1) * w + clamp(x, 0, w - 1))];
+    return srgb_decode(unpack4x8unorm(p).xyz);
+}
+
+fn albedo(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
+    if (frame.grid.w != 0u) {
+        let q = frame.drape_map.xy + frame.drape_map.zw * p.xy;
+        let f = floor(q);
+        let a = q - f;
+        let i = vec2<i32>(f);
+        let c0 = mix(drape_texel(i.x, i.y), drape_texel(i.x + 1, i.y), a.x);
+        let c1 = mix(drape_texel(i.x, i.y + 1), drape_texel(i.x + 1, i.y + 1), a.x);
+        return mix(c0, c1, a.y);
+    }
+    let e = clamp((p.z - frame.heights_range.x) / max(frame.heights_range.y - frame.heights_range.x, 1.0), 0.0, 1.0);
+    let slope = 1.0 - n.z;
+    let low = vec3<f32>(0.10, 0.17, 0.05);
+    let mid = vec3<f32>(0.20, 0.22, 0.10);
+    let rock = vec3<f32>(0.28, 0.25, 0.22);
+    let snow = vec3<f32>(0.85, 0.88, 0.92);
+    var c = mix(low, mid, smoothstep(0.15, 0.55, e));
+    c = mix(c, rock, smoothstep(0.12, 0.3, slope + 0.6 * smoothstep(0.55, 0.8, e)));
+    c = mix(c, snow, smoothstep(0.78, 0.9, e) * (1.0 - smoothstep(0.25, 0.45, slope)));
+    return c;
+}
+
+// Transmittance of the haze between the eye and a point at distance t and local height zp.
+fn haze_transmittance(t: f32, ze: f32, zp: f32) -> f32 {
+    let sigma = frame.fog_colour.w;
+    if (sigma <= 0.0) {
+        return 1.0;
+    }
+    let hs = frame.fog.x;
+    var tau = sigma * t;
+    if (hs > 0.0) {
+        let dz = zp - ze;
+        if (abs(dz) > 1.0e-3 * hs) {
+            tau = sigma * t * (exp(-ze / hs) - exp(-zp / hs)) / (dz / hs);
+        } else {
+            tau = sigma * t * exp(-ze / hs);
+        }
+    }
+    return exp(-tau);
+}
+
+@fragment
+fn fs_terrain(@builtin(position) pos: vec4<f32>) -> Out {
+    let px = vec2<u32>(pos.xy);
+    let dir_w = rays[px.y * frame.size.x + px.x].xyz;
+    let dl = to_local(dir_w);
+    var r: Ray;
+    r.o = frame.eye.xyz;
+    r.d = to_grid_dir(dir_w);
+    var tr: Trace;
+    if (frame.mode.x == 1u) {
+        tr = march(r, 0.0, BIG, frame.mode.y);
+    } else {
+        var t_min = 0.0;
+        if (frame.mode.w != 0u) {
+            t_min = bitcast<f32>(textureLoad(tile_start, vec2<i32>(px / TILE), 0).x);
+        }
+        tr = traverse(r, t_min, BIG, frame.mode.y);
+    }
+    var out: Out;
+    var flags = select(0u, 4u, tr.exhausted);
+    if (!tr.hit) {
+        out.colour = vec4<f32>(srgb_encode(sky(dl)), 1.0);
+        out.data = vec4<u32>(INF_BITS, tr.steps, tr.patches, flags);
+        return out;
+    }
+    flags |= 1u;
+    let p = r.o + r.d * tr.t;
+    // Geometric (patch) normal for the shadow ray, smooth normal for shading.
+    let i = tr.cell.x;
+    let j = tr.cell.y;
+    let h00 = sample_height(u32(i), u32(j));
+    let h10 = sample_height(u32(i + 1), u32(j));
+    let h01 = sample_height(u32(i), u32(j + 1));
+    let h11 = sample_height(u32(i + 1), u32(j + 1));
+    let u = clamp(p.x - f32(i), 0.0, 1.0);
+    let v = clamp(p.y - f32(j), 0.0, 1.0);
+    let e = h00 - h10 - h01 + h11;
+    let n_geom = local_normal(vec2<f32>(h10 - h00 + e * v, h01 - h00 + e * u));
+    let g = mix(mix(sample_gradient(i, j), sample_gradient(i + 1, j), u), mix(sample_gradient(i, j + 1), sample_gradient(i + 1, j + 1), u), v);
+    let n = local_normal(g);
+    let sun = frame.sun_local.xyz;
+    var lit = select(0.0, 1.0, dot(n_geom, sun) > 0.0);
+    var shadow_steps = 0u;
+    if (frame.mode.z != 0u && lit > 0.0) {
+        var sr: Ray;
+        let off = frame.heights_range.z;
+        sr.o = p + vec3<f32>(n_geom.x * off * frame.spacing.z, n_geom.y * off * frame.spacing.w, n_geom.z * off);
+        sr.d = frame.sun_grid.xyz;
+        let st = traverse(sr, 0.0, BIG, frame.mode.y);
+        shadow_steps = st.steps;
+        if (st.hit) {
+            lit = 0.0;
+            flags |= 2u;
+        }
+    }
+    let base = albedo(p, n);
+    let diffuse = frame.sun_colour.xyz * (frame.sun_local.w * max(dot(n, sun), 0.0) * lit);
+    let sky_up = dot(n, frame.up_local.xyz);
+    let ambient = mix(frame.sky_horizon.xyz, frame.sky_zenith.xyz, 0.5 + 0.5 * sky_up) * (frame.sky_zenith.w * (0.6 + 0.4 * sky_up));
+    var c = base * (diffuse + ambient);
+    let tau = haze_transmittance(tr.t, r.o.z, p.z);
+    let scatter = frame.fog_colour.xyz + frame.sun_colour.xyz * (0.25 * pow(max(dot(dl, sun), 0.0), 8.0));
+    c = c * tau + scatter * (1.0 - tau);
+    out.colour = vec4<f32>(srgb_encode(c), 1.0);
+    out.data = vec4<u32>(bitcast<u32>(tr.t), tr.steps, min(tr.patches, 0xffffu) | (min(shadow_steps, 0xffffu) << 16u), flags);
+    return out;
+}

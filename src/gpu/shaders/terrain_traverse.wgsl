@@ -1,0 +1,376 @@
+// Ray-terrain traversal through the maximum pyramid; the same algorithm as
+// `src/cpu/traverse.rs`, step for step. Expects module-scope `frame`, `heights`, `pyramid`.
+
+struct Ray {
+    o: vec3<f32>,
+    d: vec3<f32>,
+}
+
+struct Trace {
+    t: f32,
+    cell: vec2<i32>,
+    steps: u32,
+    patches: u32,
+    hit: bool,
+    exhausted: bool,
+}
+
+fn safe_inv(x: f32) -> f32 {
+    if (abs(x) < 1.0e-30) {
+        return select(-BIG, BIG, x >= 0.0);
+    }
+    return 1.0 / x;
+}
+
+fn pyr_get(level: u32, ix: i32, iy: i32) -> f32 {
+    let l = frame.levels[level];
+    if (ix < 0 || iy < 0 || u32(ix) >= l.x || u32(iy) >= l.y) {
+        return PAD;
+    }
+    return pyramid[l.w + u32(iy) * l.z + u32(ix)];
+}
+
+fn sample_height(i: u32, j: u32) -> f32 {
+    return heights[j * frame.grid.x + i];
+}
+
+fn cells_x() -> f32 {
+    return f32(frame.grid.x - 1u);
+}
+
+fn cells_y() -> f32 {
+    return f32(frame.grid.y - 1u);
+}
+
+// Bilinear surface height at grid (x, y), clamped to the grid.
+fn surface_height(x: f32, y: f32) -> f32 {
+    let cx = clamp(x, 0.0, cells_x());
+    let cy = clamp(y, 0.0, cells_y());
+    let i = min(u32(cx), frame.grid.x - 2u);
+    let j = min(u32(cy), frame.grid.y - 2u);
+    let u = cx - f32(i);
+    let v = cy - f32(j);
+    let h00 = sample_height(i, j);
+    let h10 = sample_height(i + 1u, j);
+    let h01 = sample_height(i, j + 1u);
+    let h11 = sample_height(i + 1u, j + 1u);
+    return mix(mix(h00, h10, u), mix(h01, h11, u), v);
+}
+
+// Clip to the terrain box; returns (t0, t1), empty when t0 > t1.
+fn clip_box(r: Ray, t_min: f32, t_max: f32) -> vec2<f32> {
+    let lo = vec3<f32>(0.0, 0.0, frame.heights_range.x);
+    let hi = vec3<f32>(cells_x(), cells_y(), frame.heights_range.y);
+    let inv = vec3<f32>(safe_inv(r.d.x), safe_inv(r.d.y), safe_inv(r.d.z));
+    let ta = (lo - r.o) * inv;
+    let tb = (hi - r.o) * inv;
+    let tn = min(ta, tb);
+    let tf = max(ta, tb);
+    return vec2<f32>(max(max(tn.x, tn.y), max(tn.z, t_min)), min(min(tf.x, tf.y), min(tf.z, t_max)));
+}
+
+// Exact intersection with the bilinear patch of cell (i, j) over [ta, tb]: the quadratic
+// A s^2 + B s + C in s = t - ta (re-centred on the entry point), stable root formula.
+// Returns the hit t, or -1.
+fn patch_hit(r: Ray, i: i32, j: i32, ta: f32, tb: f32) -> f32 {
+    let w = frame.grid.x;
+    let base = u32(j) * w + u32(i);
+    let h00 = heights[base];
+    let h10 = heights[base + 1u];
+    let h01 = heights[base + w];
+    let h11 = heights[base + w + 1u];
+    let b = h10 - h00;
+    let c = h01 - h00;
+    let e = h00 - h10 - h01 + h11;
+    let p = r.o + r.d * ta;
+    let u0 = p.x - f32(i);
+    let v0 = p.y - f32(j);
+    let qa = -e * r.d.x * r.d.y;
+    let qb = r.d.z - b * r.d.x - c * r.d.y - e * (u0 * r.d.y + v0 * r.d.x);
+    let qc = p.z - (h00 + b * u0 + c * v0 + e * u0 * v0);
+    if (qc <= 0.0) {
+        return ta;
+    }
+    var best = BIG;
+    let disc = qb * qb - 4.0 * qa * qc;
+    if (disc >= 0.0) {
+        let q = -0.5 * (qb + select(-1.0, 1.0, qb >= 0.0) * sqrt(disc));
+        if (abs(qa) > 1.0e-30) {
+            let r1 = q / qa;
+            if (r1 >= 0.0) {
+                best = r1;
+            }
+        }
+        if (q != 0.0) {
+            let r2 = qc / q;
+            if (r2 >= 0.0 && r2 < best) {
+                best = r2;
+            }
+        }
+    }
+    if (best <= tb - ta) {
+        return ta + best;
+    }
+    return -1.0;
+}
+
+fn cell_at(level: u32, p: vec2<f32>) -> vec2<i32> {
+    let s = f32(1u << level);
+    let l = frame.levels[level];
+    return vec2<i32>(
+        clamp(i32(floor(p.x / s)), 0, i32(l.x) - 1),
+        clamp(i32(floor(p.y / s)), 0, i32(l.y) - 1),
+    );
+}
+
+// Top-down pyramid traversal: skip cells the ray segment stays above, descend otherwise,
+// exact patch test at level 0, climb after crossings while the parent changes.
+fn traverse(r: Ray, t_min: f32, t_max: f32, max_steps: u32) -> Trace {
+    var res: Trace;
+    res.t = BIG;
+    res.hit = false;
+    res.exhausted = false;
+    res.steps = 0u;
+    res.patches = 0u;
+    let tt = clip_box(r, t_min, t_max);
+    if (tt.x > tt.y) {
+        return res;
+    }
+    let t1 = tt.y;
+    let top = frame.grid.z - 1u;
+    var level = top;
+    var t = tt.x;
+    let sx = select(-1, 1, r.d.x >= 0.0);
+    let sy = select(-1, 1, r.d.y >= 0.0);
+    let inv = vec2<f32>(safe_inv(r.d.x), safe_inv(r.d.y));
+    var c = cell_at(level, (r.o + r.d * t).xy);
+    var ix = c.x;
+    var iy = c.y;
+    loop {
+        if (res.steps >= max_steps) {
+            res.exhausted = true;
+            break;
+        }
+        res.steps += 1u;
+        let s = f32(1u << level);
+        let tx = (f32(ix + select(0, 1, sx > 0)) * s - r.o.x) * inv.x;
+        let ty = (f32(iy + select(0, 1, sy > 0)) * s - r.o.y) * inv.y;
+        let t_exit = max(min(min(tx, ty), t1), t);
+        let cmax = pyr_get(level, ix, iy);
+        let z_low = min(r.o.z + r.d.z * t, r.o.z + r.d.z * t_exit);
+        if (z_low <= cmax) {
+            if (level > 0u) {
+                let p = r.o + r.d * t;
+                let half = s * 0.5;
+                let mx = f32(2 * ix + 1) * half;
+                let my = f32(2 * iy + 1) * half;
+                let cx = 2 * ix + select(0, 1, p.x > mx || (p.x == mx && sx > 0));
+                let cy = 2 * iy + select(0, 1, p.y > my || (p.y == my && sy > 0));
+                level -= 1u;
+                let l = frame.levels[level];
+                ix = min(cx, i32(l.x) - 1);
+                iy = min(cy, i32(l.y) - 1);
+                continue;
+            }
+            res.patches += 1u;
+            let th = patch_hit(r, ix, iy, t, t_exit);
+            if (th >= 0.0) {
+                res.hit = true;
+                res.t = th;
+                res.cell = vec2<i32>(ix, iy);
+                return res;
+            }
+        }
+        if (t_exit >= t1) {
+            break;
+        }
+        var ox = ix;
+        var oy = iy;
+        if (tx <= ty) {
+            ix += sx;
+        }
+        if (ty <= tx) {
+            iy += sy;
+        }
+        t = t_exit;
+        loop {
+            if (level >= top || ((ix >> 1u) == (ox >> 1u) && (iy >> 1u) == (oy >> 1u))) {
+                break;
+            }
+            level += 1u;
+            ix = ix >> 1u;
+            iy = iy >> 1u;
+            ox = ox >> 1u;
+            oy = oy >> 1u;
+        }
+        let l = frame.levels[level];
+        if (ix < 0 || iy < 0 || ix >= i32(l.x) || iy >= i32(l.y)) {
+            break;
+        }
+    }
+    return res;
+}
+
+// Baseline for the benchmark: fixed steps of `frame.march.x` cells plus bisection.
+fn march(r: Ray, t_min: f32, t_max: f32, max_steps: u32) -> Trace {
+    var res: Trace;
+    res.t = BIG;
+    res.hit = false;
+    res.exhausted = false;
+    res.steps = 0u;
+    res.patches = 0u;
+    let tt = clip_box(r, t_min, t_max);
+    if (tt.x > tt.y) {
+        return res;
+    }
+    let dt = frame.march.x / max(max(abs(r.d.x), abs(r.d.y)), 1.0e-6);
+    var t = tt.x;
+    loop {
+        if (res.steps >= max_steps) {
+            res.exhausted = true;
+            break;
+        }
+        res.steps += 1u;
+        let tn = min(t + dt, tt.y);
+        let p = r.o + r.d * tn;
+        if (p.z <= surface_height(p.x, p.y)) {
+            var lo = t;
+            var hi = tn;
+            for (var k = 0u; k < u32(frame.march.y); k += 1u) {
+                let mid = 0.5 * (lo + hi);
+                let q = r.o + r.d * mid;
+                if (q.z <= surface_height(q.x, q.y)) {
+                    hi = mid;
+                } else {
+                    lo = mid;
+                }
+            }
+            res.hit = true;
+            res.t = hi;
+            res.cell = vec2<i32>(i32(min(p.x, cells_x() - 0.5)), i32(min(p.y, cells_y() - 0.5)));
+            return res;
+        }
+        if (tn >= tt.y) {
+            break;
+        }
+        t = tn;
+    }
+    return res;
+}
+
+// Maximum over the 3x3 block of cells around (ix, iy) at `level`.
+fn max3x3(level: u32, ix: i32, iy: i32) -> f32 {
+    var m = PAD;
+    for (var dy = -1; dy <= 1; dy += 1) {
+        for (var dx = -1; dx <= 1; dx += 1) {
+            m = max(m, pyr_get(level, ix + dx, iy + dy));
+        }
+    }
+    return m;
+}
+
+// Tile pre-pass: traverse the pyramid with a cone around the tile's central ray `r`.
+// Every ray of the tile stays within `theta * t` of the central ray's point at t (theta is the
+// largest chord |d_i - d_c| over the tile's unit directions), so while the cone radius is below
+// the cell size the 3x3 neighbourhood maximum bounds what any tile ray can meet. Returns a
+// distance before which no tile ray can hit the terrain (BIG: none can ever hit).
+fn cone_start(r: Ray, theta: f32, max_steps: u32) -> f32 {
+    let zmax = frame.heights_range.y;
+    if (r.o.z > zmax && r.d.z >= theta) {
+        return BIG;
+    }
+    let inv = vec2<f32>(safe_inv(r.d.x), safe_inv(r.d.y));
+    let ta = (vec2<f32>(0.0, 0.0) - r.o.xy) * inv;
+    let tb = (vec2<f32>(cells_x(), cells_y()) - r.o.xy) * inv;
+    let t0 = max(max(min(ta.x, tb.x), min(ta.y, tb.y)), 0.0);
+    let t1 = min(max(ta.x, tb.x), max(ta.y, tb.y));
+    if (t0 > 0.0 || t0 > t1) {
+        return 0.0;
+    }
+    // Below this distance the whole cone is above the highest sample.
+    var t = 0.0;
+    if (r.o.z > zmax) {
+        t = (r.o.z - zmax) / (theta - r.d.z);
+    }
+    if (t >= t1) {
+        return t1;
+    }
+    let rg = theta * min(frame.spacing.z, frame.spacing.w);
+    let top = frame.grid.z - 1u;
+    var level = top;
+    let sx = select(-1, 1, r.d.x >= 0.0);
+    let sy = select(-1, 1, r.d.y >= 0.0);
+    var c = cell_at(level, (r.o + r.d * t).xy);
+    var ix = c.x;
+    var iy = c.y;
+    var steps = 0u;
+    loop {
+        steps += 1u;
+        if (steps > max_steps) {
+            return t;
+        }
+        let s = f32(1u << level);
+        let tx = (f32(ix + select(0, 1, sx > 0)) * s - r.o.x) * inv.x;
+        let ty = (f32(iy + select(0, 1, sy > 0)) * s - r.o.y) * inv.y;
+        let t_exit = max(min(min(tx, ty), t1), t);
+        if (level < top && rg * t_exit > s) {
+            level += 1u;
+            ix = ix >> 1u;
+            iy = iy >> 1u;
+            continue;
+        }
+        var m = pyr_get(top, 0, 0);
+        if (level < top) {
+            m = max3x3(level, ix, iy);
+        }
+        let z_low = min(r.o.z + r.d.z * t, r.o.z + r.d.z * t_exit) - theta * t_exit;
+        if (z_low <= m) {
+            if (level > 0u && rg * t_exit <= s * 0.5) {
+                let p = r.o + r.d * t;
+                let half = s * 0.5;
+                let mx = f32(2 * ix + 1) * half;
+                let my = f32(2 * iy + 1) * half;
+                let cx = 2 * ix + select(0, 1, p.x > mx || (p.x == mx && sx > 0));
+                let cy = 2 * iy + select(0, 1, p.y > my || (p.y == my && sy > 0));
+                level -= 1u;
+                let l = frame.levels[level];
+                ix = min(cx, i32(l.x) - 1);
+                iy = min(cy, i32(l.y) - 1);
+                continue;
+            }
+            return t;
+        }
+        if (t_exit >= t1) {
+            return t1;
+        }
+        var ox = ix;
+        var oy = iy;
+        if (tx <= ty) {
+            ix += sx;
+        }
+        if (ty <= tx) {
+            iy += sy;
+        }
+        t = t_exit;
+        loop {
+            if (level >= top || ((ix >> 1u) == (ox >> 1u) && (iy >> 1u) == (oy >> 1u))) {
+                break;
+            }
+            level += 1u;
+            ix = ix >> 1u;
+            iy = iy >> 1u;
+            ox = ox >> 1u;
+            oy = oy >> 1u;
+        }
+        let l = frame.levels[level];
+        if (ix < 0 || iy < 0 || ix >= i32(l.x) || iy >= i32(l.y)) {
+            return t1;
+        }
+    }
+    return t;
+}
+
+// World unit direction -> grid-frame direction.
+fn to_grid_dir(d: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(dot(frame.grid_from_world_0.xyz, d), dot(frame.grid_from_world_1.xyz, d), dot(frame.grid_from_world_2.xyz, d));
+}

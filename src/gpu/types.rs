@@ -1,0 +1,46 @@
+//! `#[repr(C)]` GPU structs. Each mirrors a WGSL struct named in its doc comment.
+
+use bytemuck::{Pod, Zeroable};
+
+/// Maximum pyramid levels the shaders address (`Frame.levels` length).
+pub const MAX_LEVELS: usize = 16;
+
+/// Mirrors WGSL `Frame` in `shaders/frame.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct FrameUniforms {
+    pub eye: [f32; 4],
+    pub grid_from_world: [[f32; 4]; 3],
+    pub local_from_world: [[f32; 4]; 3],
+    pub sun_local: [f32; 4],
+    pub sun_grid: [f32; 4],
+    pub sun_colour: [f32; 4],
+    pub up_local: [f32; 4],
+    pub sky_zenith: [f32; 4],
+    pub sky_horizon: [f32; 4],
+    pub fog_colour: [f32; 4],
+    pub fog: [f32; 4],
+    pub spacing: [f32; 4],
+    pub heights_range: [f32; 4],
+    pub drape_map: [f32; 4],
+    pub size: [u32; 4],
+    pub grid: [u32; 4],
+    pub mode: [u32; 4],
+    pub drape_size: [u32; 4],
+    pub march: [f32; 4],
+    pub levels: [[u32; 4]; MAX_LEVELS],
+}
+
+/// Mirrors WGSL `RayGen` in `shaders/raygen.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct RayGenUniforms {
+    pub right: [f32; 4],
+    pub down: [f32; 4],
+    pub forward: [f32; 4],
+    pub intrinsics: [f32; 4],
+    pub size: [u32; 4],
+}
+
+const _: () = assert!(std::mem::size_of::<FrameUniforms>() == 16 * (23 + MAX_LEVELS));
+const _: () = assert!(std::mem::size_of::<RayGenUniforms>() == 80);

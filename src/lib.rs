@@ -1,0 +1,20 @@
+//! relief: a polygon-free terrain image generator.
+//!
+//! Layout (each folder is one layer of the data flow):
+//! * [`scene`]: the TOML scene model (camera, sun, fog, output, camera path). No GPU types.
+//! * [`terrain`]: height-field loaders (SRTM `.hgt`, GeoTIFF, 16-bit PNG, procedural),
+//!   placement in the world and the maximum-LOD pyramid.
+//! * [`cpu`]: the CPU reference algorithms (f64): ray–terrain traversal, queries
+//!   (height of terrain, line of sight), dense marching oracle. These answer queries and are
+//!   the oracle the GPU output is tested against.
+//! * [`gpu`]: wgpu passes (ray generation, tile pre-pass, terrain cast + shade) and readback.
+//! * [`app`]: headless capture, benchmark and command-line front end.
+
+pub mod app;
+pub mod cpu;
+pub mod error;
+pub mod gpu;
+pub mod scene;
+pub mod terrain;
+
+pub use error::{Error, Result};

@@ -1,0 +1,169 @@
+//! `relief`: headless rendering, benchmarks and terrain queries from the command line.
+
+use anyhow::{bail, Context, Result};
+use clap::{Parser, Subcommand};
+use relief::app::{bench, capture};
+use std::path::PathBuf;
+
+const DEFAULT_SCENE: &str = "terrains/alps.toml";
+
+#[derive(Parser)]
+#[command(name = "relief", version, about = "Polygon-free terrain image generator (max-LOD pyramid ray casting on wgpu)")]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render frames headless: frame_NNNN.png, depth_NNNN.tiff, frame_NNNN.json.
+    Render {
+        /// Scene file (TOML).
+        scene: PathBuf,
+        /// Output size WxH (overrides [output]).
+        #[arg(long, value_parser = parse_size)]
+        size: Option<(u32, u32)>,
+        /// Number of frames (along the scene's [path] if it has one).
+        #[arg(long, default_value_t = 1)]
+        frames: u32,
+        /// First frame number.
+        #[arg(long, default_value_t = 0)]
+        first: u32,
+        /// Output directory.
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+        /// Turn terrain self-shadowing off.
+        #[arg(long)]
+        no_shadows: bool,
+        /// Turn the screen-tile pre-pass off.
+        #[arg(long)]
+        no_tile_prepass: bool,
+    },
+    /// Benchmark the pyramid traversal against a fixed-step march on the same rays.
+    Bench {
+        /// Scene file (default: terrains/alps.toml).
+        scene: Option<PathBuf>,
+        #[arg(long, value_parser = parse_size, default_value = "1280x720")]
+        size: (u32, u32),
+        /// Timed frames per configuration.
+        #[arg(long, default_value_t = 10)]
+        frames: u32,
+        /// Print one JSON object instead of a table.
+        #[arg(long)]
+        json: bool,
+        /// Also write the fixed rays and the pyramid depths (raw little-endian f32) to this directory.
+        #[arg(long)]
+        dump_rays: Option<PathBuf>,
+    },
+    /// Terrain queries on the CPU reference: height at (x, y), line of sight.
+    Query {
+        scene: PathBuf,
+        /// World x,y: prints the terrain height there.
+        #[arg(long, value_parser = parse_vec::<2>)]
+        at: Option<[f64; 2]>,
+        /// Line of sight between two world points x,y,z (give twice).
+        #[arg(long, value_parser = parse_vec::<3>, num_args = 2)]
+        los: Option<Vec<[f64; 3]>>,
+    },
+}
+
+fn parse_size(s: &str) -> std::result::Result<(u32, u32), String> {
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| format!("`{s}` is not WIDTHxHEIGHT"))?;
+    let w: u32 = w.trim().parse().map_err(|_| format!("bad width in `{s}`"))?;
+    let h: u32 = h.trim().parse().map_err(|_| format!("bad height in `{s}`"))?;
+    if !(1..=16384).contains(&w) || !(1..=16384).contains(&h) {
+        return Err(format!("size {w}x{h} must be within 1..=16384 per side"));
+    }
+    Ok((w, h))
+}
+
+fn parse_vec<const N: usize>(s: &str) -> std::result::Result<[f64; N], String> {
+    let v: Vec<f64> = s.split(',').map(|x| x.trim().parse::<f64>()).collect::<std::result::Result<_, _>>().map_err(|e| format!("`{s}`: {e}"))?;
+    let arr: [f64; N] = v.try_into().map_err(|_| format!("`{s}` needs {N} comma-separated numbers"))?;
+    if arr.iter().any(|x| !x.is_finite()) {
+        return Err(format!("`{s}` has a non-finite number"));
+    }
+    Ok(arr)
+}
+
+fn default_scene() -> PathBuf {
+    let local = PathBuf::from(DEFAULT_SCENE);
+    if local.exists() {
+        local
+    } else {
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(DEFAULT_SCENE)
+    }
+}
+
+fn main() {
+    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("info,wgpu_core=warn,wgpu_hal=warn,naga=warn"))
+        .format_timestamp(None)
+        .init();
+    if let Err(e) = run(Cli::parse()) {
+        eprintln!("error: {e:#}");
+        std::process::exit(1);
+    }
+}
+
+fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        None => {
+            let job = capture::RenderJob {
+                scene: default_scene(),
+                size: None,
+                frames: 1,
+                first_frame: 0,
+                out_dir: "out".into(),
+                shadows: None,
+                tile_prepass: None,
+            };
+            let files = capture::run(&job).with_context(|| format!("rendering {}", job.scene.display()))?;
+            println!("wrote {}", files.iter().map(|f| f.display().to_string()).collect::<Vec<_>>().join(", "));
+        }
+        Some(Command::Render { scene, size, frames, first, out, no_shadows, no_tile_prepass }) => {
+            let job = capture::RenderJob {
+                scene,
+                size,
+                frames,
+                first_frame: first,
+                out_dir: out,
+                shadows: no_shadows.then_some(false),
+                tile_prepass: no_tile_prepass.then_some(false),
+            };
+            let files = capture::run(&job).with_context(|| format!("rendering {}", job.scene.display()))?;
+            println!("wrote {} files to {}", files.len(), job.out_dir.display());
+        }
+        Some(Command::Bench { scene, size, frames, json, dump_rays }) => {
+            let scene = scene.unwrap_or_else(default_scene);
+            if frames == 0 {
+                bail!("--frames must be at least 1");
+            }
+            let report = bench::run(&scene, size, frames, dump_rays.as_deref()).with_context(|| format!("benchmarking {}", scene.display()))?;
+            if json {
+                println!("{}", serde_json::to_string_pretty(&report)?);
+            } else {
+                bench::print_table(&report);
+            }
+        }
+        Some(Command::Query { scene, at, los }) => {
+            let s = relief::scene::Scene::load(&scene)?;
+            let terrain = s.load_terrain()?;
+            if at.is_none() && los.is_none() {
+                bail!("give --at X,Y and/or --los X1,Y1,Z1 X2,Y2,Z2");
+            }
+            if let Some([x, y]) = at {
+                let p = glam::DVec3::new(x, y, 0.0);
+                match relief::cpu::terrain_point_below(&terrain, p) {
+                    Some(q) => println!("terrain at ({x}, {y}): z = {:.3} m", q.z),
+                    None => bail!("({x}, {y}) is outside the height grid"),
+                }
+            }
+            if let Some(pts) = los {
+                let (a, b) = (glam::DVec3::from(pts[0]), glam::DVec3::from(pts[1]));
+                let clear = relief::cpu::line_of_sight(&terrain, a, b);
+                println!("line of sight {a} -> {b}: {}", if clear { "clear" } else { "blocked" });
+            }
+        }
+    }
+    Ok(())
+}

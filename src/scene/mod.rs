@@ -1,0 +1,337 @@
+//! The scene file (TOML): terrain, sun, sky, fog, camera, output size and an optional camera
+//! path. Unknown keys are errors that name the key. No GPU types live here.
+
+mod camera;
+
+pub use camera::{Camera, CameraPath, Keyframe, Pose};
+
+use crate::terrain::procedural::RidgedFbm;
+use crate::terrain::Terrain;
+use crate::{Error, Result};
+use glam::DVec3;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// A whole scene file.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneDesc {
+    pub terrain: TerrainDesc,
+    #[serde(default)]
+    pub sun: Sun,
+    #[serde(default)]
+    pub sky: Sky,
+    #[serde(default)]
+    pub fog: Fog,
+    pub camera: CameraDesc,
+    #[serde(default)]
+    pub output: Output,
+    /// Optional camera path; frame `n` is at time `n / fps`.
+    #[serde(default)]
+    pub path: Option<CameraPath>,
+    #[serde(default)]
+    pub render: RenderOptions,
+}
+
+/// `[terrain]`: height source and its placement.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct TerrainDesc {
+    /// Height file relative to the scene file: `.hgt`, `.tif`/`.tiff` or `.png`.
+    pub source: Option<PathBuf>,
+    /// Procedural terrain instead of a file.
+    pub procedural: Option<RidgedFbm>,
+    /// Sample spacing in metres `[dx, dy]`; overrides the file's georeference (required for PNG).
+    pub cell_size: Option<[f64; 2]>,
+    /// No-data value; overrides GDAL_NODATA.
+    pub nodata: Option<f64>,
+    /// PNG only: metres per grey level.
+    #[serde(default = "one")]
+    pub png_scale: f64,
+    /// PNG only: height of grey level 0.
+    #[serde(default)]
+    pub png_offset: f64,
+    /// Vertical exaggeration.
+    #[serde(default = "one")]
+    pub vertical_scale: f64,
+    /// World position of sample (0, 0) at height 0 (the base plane's origin).
+    #[serde(default)]
+    pub origin: [f64; 3],
+    /// Base-plane normal (heights are measured along it).
+    #[serde(default = "up")]
+    pub normal: [f64; 3],
+    /// Direction of grid +x in the world (made orthogonal to the normal).
+    #[serde(default = "east")]
+    pub axis_x: [f64; 3],
+    /// RGB image draped over the terrain instead of the elevation/slope ramp.
+    pub drape: Option<PathBuf>,
+}
+
+fn one() -> f64 {
+    1.0
+}
+fn up() -> [f64; 3] {
+    [0.0, 0.0, 1.0]
+}
+fn east() -> [f64; 3] {
+    [1.0, 0.0, 0.0]
+}
+
+impl TerrainDesc {
+    /// Orthonormal (x, y, normal) axes of the base plane.
+    pub fn axes(&self) -> Result<(DVec3, DVec3, DVec3)> {
+        let n = DVec3::from(self.normal);
+        let ax = DVec3::from(self.axis_x);
+        if !n.is_finite() || n.length() < 1e-9 {
+            return Err(Error::invalid("terrain.normal", "must be a finite non-zero vector"));
+        }
+        let n = n.normalize();
+        let x = ax - n * ax.dot(n);
+        if !x.is_finite() || x.length() < 1e-6 {
+            return Err(Error::invalid("terrain.axis_x", "must be finite and not parallel to terrain.normal"));
+        }
+        let x = x.normalize();
+        Ok((x, n.cross(x), n))
+    }
+}
+
+/// `[sun]`: direction and colour of the sun.
+#[derive(Clone, Copy, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Sun {
+    /// Degrees clockwise from north (+y).
+    pub azimuth: f64,
+    /// Degrees above the horizon.
+    pub elevation: f64,
+    /// Linear RGB colour.
+    pub colour: [f32; 3],
+    /// Irradiance scale.
+    pub intensity: f32,
+}
+
+impl Default for Sun {
+    fn default() -> Self {
+        Sun { azimuth: 135.0, elevation: 30.0, colour: [1.0, 0.95, 0.85], intensity: 2.6 }
+    }
+}
+
+impl Sun {
+    /// Unit vector towards the sun in the world frame.
+    pub fn direction(&self) -> DVec3 {
+        let (a, e) = (self.azimuth.to_radians(), self.elevation.to_radians());
+        DVec3::new(a.sin() * e.cos(), a.cos() * e.cos(), e.sin())
+    }
+}
+
+/// `[sky]`: sky gradient and ambient light.
+#[derive(Clone, Copy, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Sky {
+    /// Linear RGB at the zenith.
+    pub zenith: [f32; 3],
+    /// Linear RGB at the horizon.
+    pub horizon: [f32; 3],
+    /// Sky (ambient) light on the terrain.
+    pub ambient: f32,
+}
+
+impl Default for Sky {
+    fn default() -> Self {
+        Sky { zenith: [0.10, 0.22, 0.55], horizon: [0.62, 0.74, 0.88], ambient: 0.55 }
+    }
+}
+
+/// `[fog]`: aerial perspective.
+#[derive(Clone, Copy, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Fog {
+    /// Meteorological visibility in metres (5% contrast); 0 disables fog.
+    pub visibility: f64,
+    /// Linear RGB of the haze; defaults to the sky's horizon colour.
+    pub colour: Option<[f32; 3]>,
+    /// Scale height of the haze in metres (denser low down); 0 = uniform.
+    pub scale_height: f64,
+}
+
+impl Default for Fog {
+    fn default() -> Self {
+        Fog { visibility: 80_000.0, colour: None, scale_height: 0.0 }
+    }
+}
+
+/// `[camera]`: the pose and field of view (the static camera, or the default for a path).
+#[derive(Clone, Copy, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraDesc {
+    /// World position in metres.
+    pub position: [f64; 3],
+    /// If set, the position's z is replaced by the terrain height below plus this many metres.
+    pub above_terrain: Option<f64>,
+    /// Degrees clockwise from north (+y).
+    #[serde(default)]
+    pub heading: f64,
+    /// Degrees, nose up positive.
+    #[serde(default)]
+    pub pitch: f64,
+    /// Degrees, right wing down positive.
+    #[serde(default)]
+    pub roll: f64,
+    /// Horizontal field of view in degrees.
+    #[serde(default = "default_fov")]
+    pub fov: f64,
+}
+
+fn default_fov() -> f64 {
+    60.0
+}
+
+/// `[output]`: image size.
+#[derive(Clone, Copy, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Output {
+    pub width: u32,
+    pub height: u32,
+}
+
+impl Default for Output {
+    fn default() -> Self {
+        Output { width: 1280, height: 720 }
+    }
+}
+
+/// `[render]`: quality and algorithm switches.
+#[derive(Clone, Copy, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RenderOptions {
+    /// Terrain self-shadowing by a second ray through the pyramid.
+    pub shadows: bool,
+    /// Screen-tile pre-pass: a cone per 8x8 tile through the pyramid finds where its rays may start.
+    pub tile_prepass: bool,
+    /// Safety bound on traversal steps per ray.
+    pub max_steps: u32,
+}
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        RenderOptions { shadows: true, tile_prepass: true, max_steps: 4096 }
+    }
+}
+
+/// A scene file together with the directory its relative paths start from.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    pub desc: SceneDesc,
+    pub base_dir: PathBuf,
+    pub path: PathBuf,
+}
+
+fn check_finite(field: &str, v: &[f64]) -> Result<()> {
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(())
+    } else {
+        Err(Error::invalid(field, format!("must be finite numbers, got {v:?}")))
+    }
+}
+
+impl Scene {
+    /// Reads and validates a scene file.
+    pub fn load(path: &Path) -> Result<Scene> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        Self::parse(&text, path)
+    }
+
+    /// Parses scene text; `path` names the file in errors and anchors relative paths.
+    pub fn parse(text: &str, path: &Path) -> Result<Scene> {
+        let desc: SceneDesc = toml::from_str(text).map_err(|e| Error::format(path, format!("scene error: {e}")))?;
+        desc.validate()?;
+        let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        Ok(Scene { desc, base_dir, path: path.to_path_buf() })
+    }
+
+    /// Loads the terrain the scene names.
+    pub fn load_terrain(&self) -> Result<Terrain> {
+        Terrain::from_desc(&self.desc.terrain, &self.base_dir)
+    }
+
+    /// The camera for frame `frame` (the path if there is one, else the static camera).
+    pub fn camera(&self, frame: u32, terrain: &Terrain) -> Camera {
+        let d = &self.desc;
+        let pose = match &d.path {
+            Some(p) => p.pose_at(frame as f64 / p.fps),
+            None => Pose {
+                position: DVec3::from(d.camera.position),
+                heading: d.camera.heading,
+                pitch: d.camera.pitch,
+                roll: d.camera.roll,
+                fov: d.camera.fov,
+            },
+        };
+        let mut pose = pose;
+        if let Some(agl) = d.camera.above_terrain.filter(|_| d.path.is_none()) {
+            if let Some(h) = crate::cpu::query::terrain_point_below(terrain, pose.position) {
+                pose.position = h + terrain.frame.normal * agl;
+            }
+        }
+        Camera::new(pose, d.output.width, d.output.height)
+    }
+}
+
+impl SceneDesc {
+    /// Checks ranges and consistency; errors name the field.
+    pub fn validate(&self) -> Result<()> {
+        let c = &self.camera;
+        check_finite("camera.position", &c.position)?;
+        check_finite("camera.heading/pitch/roll", &[c.heading, c.pitch, c.roll])?;
+        camera::check_fov("camera.fov", c.fov)?;
+        if let Some(a) = c.above_terrain {
+            check_finite("camera.above_terrain", &[a])?;
+        }
+        let o = &self.output;
+        if !(1..=16384).contains(&o.width) || !(1..=16384).contains(&o.height) {
+            return Err(Error::invalid(
+                "output.width/height",
+                format!("must be 1..=16384 pixels, got {}x{}", o.width, o.height),
+            ));
+        }
+        let s = &self.sun;
+        check_finite("sun.azimuth/elevation", &[s.azimuth, s.elevation])?;
+        if !(-90.0..=90.0).contains(&s.elevation) {
+            return Err(Error::invalid("sun.elevation", format!("must be in -90..=90 degrees, got {}", s.elevation)));
+        }
+        let colours = [("sun.colour", s.colour), ("sky.zenith", self.sky.zenith), ("sky.horizon", self.sky.horizon)];
+        for (name, col) in colours.iter().chain(self.fog.colour.iter().map(|c| ("fog.colour", *c)).collect::<Vec<_>>().iter()) {
+            if col.iter().any(|v| !v.is_finite() || *v < 0.0 || *v > 100.0) {
+                return Err(Error::invalid(*name, format!("must be linear RGB in 0..=100, got {col:?}")));
+            }
+        }
+        for (name, v) in [("sun.intensity", s.intensity), ("sky.ambient", self.sky.ambient)] {
+            if !v.is_finite() || !(0.0..=100.0).contains(&v) {
+                return Err(Error::invalid(name, format!("must be in 0..=100, got {v}")));
+            }
+        }
+        let f = &self.fog;
+        if !f.visibility.is_finite() || f.visibility < 0.0 {
+            return Err(Error::invalid("fog.visibility", format!("must be ≥ 0 metres (0 = no fog), got {}", f.visibility)));
+        }
+        if !f.scale_height.is_finite() || f.scale_height < 0.0 {
+            return Err(Error::invalid("fog.scale_height", format!("must be ≥ 0 metres, got {}", f.scale_height)));
+        }
+        let r = &self.render;
+        if !(16..=1 << 20).contains(&r.max_steps) {
+            return Err(Error::invalid("render.max_steps", format!("must be 16..=1048576, got {}", r.max_steps)));
+        }
+        let t = &self.terrain;
+        check_finite("terrain.origin", &t.origin)?;
+        t.axes()?;
+        if let Some(cs) = t.cell_size {
+            if cs.iter().any(|v| !v.is_finite() || *v <= 0.0) {
+                return Err(Error::invalid("terrain.cell_size", format!("must be positive metres, got {cs:?}")));
+            }
+        }
+        check_finite("terrain.png_scale/png_offset", &[t.png_scale, t.png_offset])?;
+        if let Some(p) = &self.path {
+            p.validate()?;
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,155 @@
+//! The regular height grid every loader produces.
+
+use crate::{Error, Result};
+
+/// Geographic reference of a grid: longitude/latitude of sample (0, 0) and the step per sample.
+/// Samples are point values (pixel centres for area rasters).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct GeoRef {
+    /// Longitude of sample (0, 0), degrees east.
+    pub lon0: f64,
+    /// Latitude of sample (0, 0), degrees north (row 0 is the southern edge).
+    pub lat0: f64,
+    /// Degrees of longitude per sample step along +x.
+    pub dlon: f64,
+    /// Degrees of latitude per sample step along +y (positive: +y is north).
+    pub dlat: f64,
+}
+
+/// A regular grid of heights in metres.
+///
+/// Sample `(i, j)` is at grid position `(i, j)`: `i` runs east (columns), `j` runs north
+/// (row 0 is the southern edge, so rows are flipped from the usual north-up raster order).
+#[derive(Clone, Debug)]
+pub struct Heightfield {
+    /// Samples along x.
+    pub width: usize,
+    /// Samples along y.
+    pub height: usize,
+    /// `width * height` heights in metres, row-major, row 0 = south.
+    pub heights: Vec<f32>,
+    /// Metres between neighbouring samples along x and y.
+    pub spacing: [f64; 2],
+    /// Geographic reference, where the source has one.
+    pub geo: Option<GeoRef>,
+    /// Number of void / no-data samples that were filled.
+    pub voids_filled: usize,
+}
+
+impl Heightfield {
+    /// Height of sample `(i, j)`.
+    #[inline]
+    pub fn at(&self, i: usize, j: usize) -> f32 {
+        self.heights[j * self.width + i]
+    }
+
+    /// (min, max) of all samples.
+    pub fn range(&self) -> (f32, f32) {
+        self.heights
+            .iter()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &h| (lo.min(h), hi.max(h)))
+    }
+
+    /// Builds a field from raw samples where `None` marks a void; voids are filled and counted.
+    /// `what` names the source in errors and the warning.
+    pub fn from_samples_with_voids(
+        what: &str,
+        width: usize,
+        height: usize,
+        samples: Vec<Option<f32>>,
+        spacing: [f64; 2],
+        geo: Option<GeoRef>,
+    ) -> Result<Self> {
+        if width < 2 || height < 2 {
+            return Err(Error::invalid(
+                what,
+                format!("a height field needs at least 2x2 samples, got {width}x{height}"),
+            ));
+        }
+        if samples.len() != width * height {
+            return Err(Error::invalid(
+                what,
+                format!("expected {} samples, got {}", width * height, samples.len()),
+            ));
+        }
+        for (k, s) in spacing.iter().enumerate() {
+            if !s.is_finite() || *s <= 0.0 {
+                return Err(Error::invalid(
+                    what,
+                    format!("sample spacing along {} must be a positive number of metres, got {s}", ["x", "y"][k]),
+                ));
+            }
+        }
+        let voids = samples.iter().filter(|s| s.is_none()).count();
+        if voids == samples.len() {
+            return Err(Error::invalid(
+                what,
+                "contains no valid height sample (every value is void, no-data or not finite)",
+            ));
+        }
+        let heights = if voids > 0 {
+            log::warn!("{what}: filled {voids} void/no-data samples of {}", samples.len());
+            fill_voids(width, height, &samples)
+        } else {
+            samples.into_iter().map(|s| s.unwrap_or(0.0)).collect()
+        };
+        Ok(Heightfield { width, height, heights, spacing, geo, voids_filled: voids })
+    }
+}
+
+/// Pull-push hole filling: valid samples are averaged down a pyramid, holes take the
+/// interpolated coarser value. Large voids get smooth fills; valid samples are untouched.
+fn fill_voids(width: usize, height: usize, samples: &[Option<f32>]) -> Vec<f32> {
+    // Level 0: (value*weight, weight).
+    let mut levels: Vec<(usize, usize, Vec<(f64, f64)>)> = vec![(
+        width,
+        height,
+        samples.iter().map(|s| s.map_or((0.0, 0.0), |v| (v as f64, 1.0))).collect(),
+    )];
+    while {
+        let (w, h, _) = levels.last().unwrap();
+        *w > 1 || *h > 1
+    } {
+        let (w, h, data) = levels.last().unwrap();
+        let (nw, nh) = (w.div_ceil(2), h.div_ceil(2));
+        let mut next = vec![(0.0, 0.0); nw * nh];
+        for j in 0..*h {
+            for i in 0..*w {
+                let (s, wt) = data[j * w + i];
+                let c = &mut next[(j / 2) * nw + i / 2];
+                c.0 += s;
+                c.1 += wt;
+            }
+        }
+        levels.push((nw, nh, next));
+    }
+    // Push: fill every empty cell from its parent (bilinear would be smoother; nearest parent
+    // with repeated smoothing at each level is enough for voids, which are rare and flagged).
+    for l in (0..levels.len() - 1).rev() {
+        let (pw, _, parent) = {
+            let (w, h, d) = &levels[l + 1];
+            (*w, *h, d.clone())
+        };
+        let (w, h, data) = &mut levels[l];
+        for j in 0..*h {
+            for i in 0..*w {
+                let c = &mut data[j * *w + i];
+                if c.1 == 0.0 {
+                    let p = parent[(j / 2) * pw + i / 2];
+                    *c = (p.0 / p.1.max(1e-300), 1.0);
+                } else {
+                    *c = (c.0 / c.1, 1.0);
+                }
+            }
+        }
+    }
+    levels[0].2.iter().map(|c| c.0 as f32).collect()
+}
+
+/// Metres per degree of longitude and latitude at latitude `lat_deg` (WGS84 series).
+pub fn metres_per_degree(lat_deg: f64) -> (f64, f64) {
+    let p = lat_deg.to_radians();
+    let lat = 111_132.92 - 559.82 * (2.0 * p).cos() + 1.175 * (4.0 * p).cos() - 0.0023 * (6.0 * p).cos();
+    let lon = 111_412.84 * p.cos() - 93.5 * (3.0 * p).cos() + 0.118 * (5.0 * p).cos();
+    (lon, lat)
+}

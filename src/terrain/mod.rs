@@ -1,0 +1,215 @@
+//! Terrain: a base plane perturbed by a height table, its loaders and its maximum pyramid.
+//!
+//! Coordinates: the *grid frame* has x, y in sample units (sample `(i, j)` at `(i, j)`) and z
+//! in metres along the base plane's normal. [`TerrainFrame`] maps it to and from the world
+//! (metres, x east, y north, z up by default).
+
+pub mod geotiff;
+pub mod heightfield;
+pub mod hgt;
+pub mod png16;
+pub mod procedural;
+pub mod pyramid;
+
+pub use geotiff::Drape;
+pub use heightfield::{GeoRef, Heightfield};
+pub use pyramid::MaxPyramid;
+
+use crate::scene::TerrainDesc;
+use crate::{Error, Result};
+use glam::{DMat4, DVec3, DVec4};
+use std::path::Path;
+
+/// Placement of the height grid in the world: the base plane's origin (world position of
+/// sample (0, 0) at height 0), its orthonormal axes and the sample spacing.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TerrainFrame {
+    pub origin: DVec3,
+    /// Unit vector along grid +x.
+    pub axis_x: DVec3,
+    /// Unit vector along grid +y.
+    pub axis_y: DVec3,
+    /// Unit normal of the base plane (heights are measured along it).
+    pub normal: DVec3,
+    /// Metres per sample along x and y.
+    pub spacing: [f64; 2],
+}
+
+impl TerrainFrame {
+    /// World point → grid frame.
+    pub fn world_to_grid(&self, p: DVec3) -> DVec3 {
+        let d = p - self.origin;
+        DVec3::new(d.dot(self.axis_x) / self.spacing[0], d.dot(self.axis_y) / self.spacing[1], d.dot(self.normal))
+    }
+    /// World direction → grid frame (not renormalised: the ray parameter stays in metres).
+    pub fn world_dir_to_grid(&self, d: DVec3) -> DVec3 {
+        DVec3::new(d.dot(self.axis_x) / self.spacing[0], d.dot(self.axis_y) / self.spacing[1], d.dot(self.normal))
+    }
+    /// Grid frame → world point.
+    pub fn grid_to_world(&self, g: DVec3) -> DVec3 {
+        self.origin + self.axis_x * (g.x * self.spacing[0]) + self.axis_y * (g.y * self.spacing[1]) + self.normal * g.z
+    }
+    /// World normal from the height gradient `(dh/dx, dh/dy)` in metres per grid unit.
+    pub fn normal_from_gradient(&self, dhdx: f64, dhdy: f64) -> DVec3 {
+        (self.normal - self.axis_x * (dhdx / self.spacing[0]) - self.axis_y * (dhdy / self.spacing[1])).normalize()
+    }
+    /// The affine matrix taking homogeneous world points to grid coordinates.
+    pub fn grid_from_world(&self) -> DMat4 {
+        let m = DMat4::from_cols(
+            (self.axis_x * self.spacing[0]).extend(0.0),
+            (self.axis_y * self.spacing[1]).extend(0.0),
+            self.normal.extend(0.0),
+            self.origin.extend(1.0),
+        );
+        m.inverse()
+    }
+    /// The affine matrix taking grid coordinates to world points.
+    pub fn world_from_grid(&self) -> DMat4 {
+        DMat4::from_cols(
+            (self.axis_x * self.spacing[0]).extend(0.0),
+            (self.axis_y * self.spacing[1]).extend(0.0),
+            self.normal.extend(0.0),
+            DVec4::new(self.origin.x, self.origin.y, self.origin.z, 1.0),
+        )
+    }
+}
+
+/// How a drape image maps onto the grid: texel = `offset + scale * grid`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DrapeMapping {
+    pub offset: [f64; 2],
+    pub scale: [f64; 2],
+}
+
+/// A loaded, placed terrain with its pyramid.
+#[derive(Clone, Debug)]
+pub struct Terrain {
+    /// Heights (already multiplied by the vertical scale).
+    pub field: Heightfield,
+    pub frame: TerrainFrame,
+    pub pyramid: MaxPyramid,
+    /// Lowest and highest sample.
+    pub min_height: f32,
+    pub max_height: f32,
+    /// Optional draped colour image and its texel mapping.
+    pub drape: Option<(Drape, DrapeMapping)>,
+}
+
+impl Terrain {
+    /// Places a height field in the world and builds its pyramid.
+    pub fn new(mut field: Heightfield, frame: TerrainFrame, vertical_scale: f64) -> Result<Terrain> {
+        if !vertical_scale.is_finite() || vertical_scale <= 0.0 || vertical_scale > 1000.0 {
+            return Err(Error::invalid("terrain.vertical_scale", format!("must be in (0, 1000], got {vertical_scale}")));
+        }
+        if vertical_scale != 1.0 {
+            for h in &mut field.heights {
+                *h = (*h as f64 * vertical_scale) as f32;
+            }
+        }
+        let (min_height, max_height) = field.range();
+        if !min_height.is_finite() || !max_height.is_finite() {
+            return Err(Error::invalid("terrain", "heights are not finite"));
+        }
+        let t = std::time::Instant::now();
+        let pyramid = MaxPyramid::build(&field);
+        log::info!(
+            "terrain {}x{} samples, {:.2}x{:.2} m spacing, heights {min_height}..{max_height} m; pyramid of {} levels in {:.1} ms",
+            field.width,
+            field.height,
+            field.spacing[0],
+            field.spacing[1],
+            pyramid.levels.len(),
+            t.elapsed().as_secs_f64() * 1e3
+        );
+        let frame = TerrainFrame { spacing: field.spacing, ..frame };
+        Ok(Terrain { field, frame, pyramid, min_height, max_height, drape: None })
+    }
+
+    /// Loads and places the terrain a scene describes. Relative paths are resolved from `base_dir`.
+    pub fn from_desc(desc: &TerrainDesc, base_dir: &Path) -> Result<Terrain> {
+        let field = match (&desc.source, &desc.procedural) {
+            (Some(_), Some(_)) => {
+                return Err(Error::invalid("terrain", "set either `source` or `procedural`, not both"))
+            }
+            (None, None) => {
+                return Err(Error::invalid("terrain", "set `source = \"file.hgt|tif|png\"` or a `[terrain.procedural]` table"))
+            }
+            (None, Some(p)) => p.generate()?,
+            (Some(src), None) => {
+                let path = base_dir.join(src);
+                load_heightfield(&path, desc.cell_size, desc.nodata, desc.png_scale, desc.png_offset)?
+            }
+        };
+        let (axis_x, axis_y, normal) = desc.axes()?;
+        let frame = TerrainFrame { origin: DVec3::from(desc.origin), axis_x, axis_y, normal, spacing: field.spacing };
+        let mut terrain = Terrain::new(field, frame, desc.vertical_scale)?;
+        if let Some(d) = &desc.drape {
+            let drape = geotiff::load_drape(&base_dir.join(d))?;
+            let mapping = drape_mapping(&terrain.field, &drape);
+            terrain.drape = Some((drape, mapping));
+        }
+        Ok(terrain)
+    }
+
+    /// Cells along x and y.
+    pub fn cells(&self) -> [usize; 2] {
+        [self.field.width - 1, self.field.height - 1]
+    }
+
+    /// Height of the bilinear surface at grid position `(x, y)`, or `None` outside the grid.
+    pub fn height_at_grid(&self, x: f64, y: f64) -> Option<f64> {
+        let [cw, ch] = self.cells();
+        if !(x >= 0.0 && y >= 0.0 && x <= cw as f64 && y <= ch as f64) {
+            return None;
+        }
+        let i = (x.floor() as usize).min(cw - 1);
+        let j = (y.floor() as usize).min(ch - 1);
+        let (u, v) = (x - i as f64, y - j as f64);
+        let f = &self.field;
+        let (h00, h10, h01, h11) =
+            (f.at(i, j) as f64, f.at(i + 1, j) as f64, f.at(i, j + 1) as f64, f.at(i + 1, j + 1) as f64);
+        Some(h00 * (1.0 - u) * (1.0 - v) + h10 * u * (1.0 - v) + h01 * (1.0 - u) * v + h11 * u * v)
+    }
+}
+
+fn drape_mapping(field: &Heightfield, drape: &Drape) -> DrapeMapping {
+    match (field.geo, drape.geo) {
+        (Some(t), Some(d)) => DrapeMapping {
+            offset: [(t.lon0 - d.lon0) / d.dlon, (t.lat0 - d.lat0) / d.dlat],
+            scale: [t.dlon / d.dlon, t.dlat / d.dlat],
+        },
+        _ => DrapeMapping {
+            offset: [0.0, 0.0],
+            scale: [
+                (drape.width - 1) as f64 / (field.width - 1) as f64,
+                (drape.height - 1) as f64 / (field.height - 1) as f64,
+            ],
+        },
+    }
+}
+
+/// Loads a height file by extension: `.hgt`, `.tif`/`.tiff`, `.png`.
+pub fn load_heightfield(
+    path: &Path,
+    cell_size: Option<[f64; 2]>,
+    nodata: Option<f64>,
+    png_scale: f64,
+    png_offset: f64,
+) -> Result<Heightfield> {
+    let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).unwrap_or_default();
+    let mut field = match ext.as_str() {
+        "hgt" => hgt::load(path)?,
+        "tif" | "tiff" => geotiff::load_heights(path, cell_size, nodata)?,
+        "png" => png16::load(path, cell_size, png_scale, png_offset)?,
+        _ => {
+            return Err(Error::format(
+                path,
+                format!("unknown height file type `.{ext}`: use .hgt (SRTM), .tif/.tiff (GeoTIFF) or .png (grey 8/16-bit)"),
+            ))
+        }
+    };
+    if let Some(cs) = cell_size {
+        field.spacing = cs;
+    }
+    Ok(field)
+}
