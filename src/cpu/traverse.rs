@@ -52,11 +52,18 @@ pub struct TraversalStats {
     pub exhausted: bool,
 }
 
+/// Tolerance (metres) added to the box and to every cell maximum so that rounding never skips
+/// a cell the ray touches (a flat terrain has a box of zero height). Shared with the shader.
+pub fn height_slack(terrain: &Terrain) -> f64 {
+    1e-6 * (1.0 + (terrain.min_height.abs().max(terrain.max_height.abs())) as f64)
+}
+
 /// Clips a grid ray to the terrain's bounding box intersected with `[t_min, t_max]`.
 pub fn clip_to_box(terrain: &Terrain, r: &GridRay, t_min: f64, t_max: f64) -> Option<(f64, f64)> {
     let [cw, ch] = terrain.cells();
-    let lo = DVec3::new(0.0, 0.0, terrain.min_height as f64);
-    let hi = DVec3::new(cw as f64, ch as f64, terrain.max_height as f64);
+    let slack = height_slack(terrain);
+    let lo = DVec3::new(0.0, 0.0, terrain.min_height as f64 - slack);
+    let hi = DVec3::new(cw as f64, ch as f64, terrain.max_height as f64 + slack);
     let (mut t0, mut t1) = (t_min, t_max);
     for a in 0..3 {
         let (o, d) = (r.o[a], r.d[a]);
@@ -127,6 +134,7 @@ pub fn intersect(
     let (t0, t1) = clip_to_box(terrain, r, t_min, t_max)?;
     let pyr = &terrain.pyramid;
     let top = pyr.top();
+    let slack = height_slack(terrain);
     let mut level = top;
     let mut t = t0;
     let cell_at = |level: usize, p: DVec3| -> (i64, i64) {
@@ -155,7 +163,7 @@ pub fn intersect(
         let t_exit = tx.min(ty).min(t1).max(t);
         let cell_max = pyr.get(level, ix, iy) as f64;
         let z_low = (r.o.z + r.d.z * t).min(r.o.z + r.d.z * t_exit);
-        if z_low <= cell_max && cell_max > PAD as f64 {
+        if z_low <= cell_max + slack && cell_max > PAD as f64 {
             if level > 0 {
                 // Descend to the child holding the entry point.
                 let p = r.at(t);

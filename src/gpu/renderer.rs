@@ -548,7 +548,7 @@ pub fn frame_uniforms(terrain: &Terrain, scene: &SceneDesc, cam: &Camera, s: &Re
         fog_colour: c(fog_colour, sigma as f32),
         fog: [scene.fog.scale_height as f32, 0.0, 0.0, 0.0],
         spacing: [sx as f32, sy as f32, (1.0 / sx) as f32, (1.0 / sy) as f32],
-        heights_range: [terrain.min_height, terrain.max_height, crate::cpu::query::shadow_offset(terrain) as f32, 0.0],
+        heights_range: [terrain.min_height, terrain.max_height, crate::cpu::query::shadow_offset(terrain) as f32, (4.0 * crate::cpu::traverse::height_slack(terrain)).max(1e-3) as f32],
         drape_map,
         size: [cam.width, cam.height, tiles[0], tiles[1]],
         grid: [terrain.field.width as u32, terrain.field.height as u32, terrain.pyramid.levels.len() as u32, has_drape],

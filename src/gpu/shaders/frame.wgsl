@@ -28,7 +28,7 @@ struct Frame {
     fog: vec4<f32>,
     // Sample spacing: sx, sy, 1/sx, 1/sy (metres).
     spacing: vec4<f32>,
-    // min height, max height, shadow-ray offset (m), unused.
+    // min height, max height, shadow-ray offset (m), height slack (m) added to box and cell maxima.
     heights_range: vec4<f32>,
     // Drape texel = offset + scale * grid: offset.xy, scale.xy.
     drape_map: vec4<f32>,

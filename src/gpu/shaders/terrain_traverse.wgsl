@@ -59,8 +59,8 @@ fn surface_height(x: f32, y: f32) -> f32 {
 
 // Clip to the terrain box; returns (t0, t1), empty when t0 > t1.
 fn clip_box(r: Ray, t_min: f32, t_max: f32) -> vec2<f32> {
-    let lo = vec3<f32>(0.0, 0.0, frame.heights_range.x);
-    let hi = vec3<f32>(cells_x(), cells_y(), frame.heights_range.y);
+    let lo = vec3<f32>(0.0, 0.0, frame.heights_range.x - frame.heights_range.w);
+    let hi = vec3<f32>(cells_x(), cells_y(), frame.heights_range.y + frame.heights_range.w);
     let inv = vec3<f32>(safe_inv(r.d.x), safe_inv(r.d.y), safe_inv(r.d.z));
     let ta = (lo - r.o) * inv;
     let tb = (hi - r.o) * inv;
@@ -156,7 +156,7 @@ fn traverse(r: Ray, t_min: f32, t_max: f32, max_steps: u32) -> Trace {
         let tx = (f32(ix + select(0, 1, sx > 0)) * s - r.o.x) * inv.x;
         let ty = (f32(iy + select(0, 1, sy > 0)) * s - r.o.y) * inv.y;
         let t_exit = max(min(min(tx, ty), t1), t);
-        let cmax = pyr_get(level, ix, iy);
+        let cmax = pyr_get(level, ix, iy) + frame.heights_range.w;
         let z_low = min(r.o.z + r.d.z * t, r.o.z + r.d.z * t_exit);
         if (z_low <= cmax) {
             if (level > 0u) {

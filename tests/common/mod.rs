@@ -1,0 +1,93 @@
+//! Shared helpers for the integration tests.
+#![allow(dead_code)]
+
+use relief::scene::{Scene, SceneDesc};
+use relief::terrain::{Heightfield, Terrain, TerrainFrame};
+use std::path::{Path, PathBuf};
+
+pub fn project_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+pub fn terrains() -> PathBuf {
+    project_dir().join("terrains")
+}
+
+/// The shared GPU, or `None` with a printed reason when `RELIEF_SKIP_GPU_TESTS=1` and no
+/// adapter exists. Without that variable a missing adapter fails the test.
+pub fn gpu() -> Option<&'static relief::gpu::Gpu> {
+    static GPU: std::sync::OnceLock<Option<relief::gpu::Gpu>> = std::sync::OnceLock::new();
+    GPU.get_or_init(|| match relief::gpu::Gpu::new() {
+        Ok(g) => {
+            eprintln!("GPU tests on {}", g.describe());
+            Some(g)
+        }
+        Err(e) if std::env::var("RELIEF_SKIP_GPU_TESTS").as_deref() == Ok("1") => {
+            eprintln!("Skipping GPU tests: {e}");
+            None
+        }
+        Err(e) => panic!("no GPU adapter ({e}); install mesa-vulkan-drivers, or set RELIEF_SKIP_GPU_TESTS=1 to skip GPU tests"),
+    })
+    .as_ref()
+}
+
+/// Serialises GPU tests (the software adapter uses both cores per frame anyway).
+pub fn gpu_lock() -> std::sync::MutexGuard<'static, ()> {
+    static LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    LOCK.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// A flat-ish scene description for synthetic terrains (its own terrain is never loaded).
+pub fn synthetic_scene(width: u32, height: u32, camera: &str) -> SceneDesc {
+    let text = format!(
+        "[terrain.procedural]\nsize = 2\n[camera]\n{camera}\n[output]\nwidth = {width}\nheight = {height}\n[fog]\nvisibility = 0.0\n"
+    );
+    Scene::parse(&text, Path::new("synthetic.toml")).expect("synthetic scene parses").desc
+}
+
+/// Terrain from a height function on an `n x n` grid with `spacing` metres.
+pub fn terrain_from_fn(n: usize, spacing: f64, f: impl Fn(f64, f64) -> f64) -> Terrain {
+    let mut samples = Vec::with_capacity(n * n);
+    for j in 0..n {
+        for i in 0..n {
+            samples.push(Some(f(i as f64 * spacing, j as f64 * spacing) as f32));
+        }
+    }
+    let field = Heightfield::from_samples_with_voids("test", n, n, samples, [spacing, spacing], None).unwrap();
+    let frame = TerrainFrame {
+        origin: glam::DVec3::ZERO,
+        axis_x: glam::DVec3::X,
+        axis_y: glam::DVec3::Y,
+        normal: glam::DVec3::Z,
+        spacing: [spacing, spacing],
+    };
+    Terrain::new(field, frame, 1.0).unwrap()
+}
+
+/// Writes `-actual` PNGs for a failed image test into `target/test-output/`.
+pub fn save_failure_image(name: &str, width: u32, height: u32, rgba: &[u8]) -> PathBuf {
+    let dir = project_dir().join("target").join("test-output");
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = dir.join(format!("{name}-actual.png"));
+    relief::app::capture::write_png(&p, width, height, rgba).unwrap();
+    p
+}
+
+/// Small deterministic RNG (xorshift64*) so tests need no extra crate.
+pub struct Rng(u64);
+
+impl Rng {
+    pub fn new(seed: u64) -> Rng {
+        Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1)
+    }
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
+    }
+    /// Uniform in [lo, hi).
+    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * ((self.next_u64() >> 11) as f64 / (1u64 << 53) as f64)
+    }
+}
