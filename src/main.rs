@@ -59,10 +59,10 @@ enum Command {
     Query {
         scene: PathBuf,
         /// World x,y: prints the terrain height there.
-        #[arg(long, value_parser = parse_vec::<2>)]
+        #[arg(long, value_parser = parse_vec::<2>, allow_hyphen_values = true)]
         at: Option<[f64; 2]>,
         /// Line of sight between two world points x,y,z (give twice).
-        #[arg(long, value_parser = parse_vec::<3>, num_args = 2)]
+        #[arg(long, value_parser = parse_vec::<3>, num_args = 2, allow_hyphen_values = true)]
         los: Option<Vec<[f64; 3]>>,
     },
 }

@@ -321,6 +321,13 @@ impl SceneDesc {
             return Err(Error::invalid("render.max_steps", format!("must be 16..=1048576, got {}", r.max_steps)));
         }
         let t = &self.terrain;
+        match (&t.source, &t.procedural) {
+            (Some(_), Some(_)) => return Err(Error::invalid("terrain", "set either `source` or `procedural`, not both")),
+            (None, None) => {
+                return Err(Error::invalid("terrain", "set `source = \"file.hgt|tif|png\"` or a `[terrain.procedural]` table"))
+            }
+            _ => {}
+        }
         check_finite("terrain.origin", &t.origin)?;
         t.axes()?;
         if let Some(cs) = t.cell_size {

@@ -59,6 +59,8 @@ struct Raster {
     /// `width * height * channels` values, rows north to south as stored.
     values: Vec<f64>,
     bits: u8,
+    /// Samples were f32: no-data values are compared at f32 precision.
+    f32_samples: bool,
     geo: GeoTags,
 }
 
@@ -83,6 +85,7 @@ fn read_raster(path: &Path) -> Result<Raster> {
     let data = dec.read_image().map_err(|e| {
         Error::format(path, format!("cannot decode the TIFF image data (corrupt or unsupported compression/sample format): {e}"))
     })?;
+    let f32_samples = matches!(data, DecodingResult::F32(_));
     let values: Vec<f64> = match data {
         DecodingResult::U8(v) => v.into_iter().map(f64::from).collect(),
         DecodingResult::U16(v) => v.into_iter().map(f64::from).collect(),
@@ -106,7 +109,7 @@ fn read_raster(path: &Path) -> Result<Raster> {
             format!("decoded {} values, expected {width}x{height}x{channels}", values.len()),
         ));
     }
-    Ok(Raster { width, height, channels, values, bits, geo })
+    Ok(Raster { width, height, channels, values, bits, f32_samples, geo })
 }
 
 /// Georeference of a raster: GeoRef of the south-west pixel centre plus metric spacing.
@@ -150,7 +153,8 @@ pub fn load_heights(path: &Path, spacing_override: Option<[f64; 2]>, nodata: Opt
         ));
     }
     let (spacing, geo) = georef(path, &r, spacing_override)?;
-    let nodata = nodata.or(r.geo.nodata);
+    // An f32 raster stores its no-data value rounded to f32 (GDAL_NODATA "-9999.9" is -9999.900390625).
+    let nodata = nodata.or(r.geo.nodata).map(|nd| if r.f32_samples { nd as f32 as f64 } else { nd });
     let (w, h) = (r.width, r.height);
     let mut samples = vec![None; w * h];
     for row in 0..h {
