@@ -32,12 +32,21 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 
 impl Error {
     pub(crate) fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
-        Error::Io { path: path.into(), source }
+        Error::Io {
+            path: path.into(),
+            source,
+        }
     }
     pub(crate) fn format(path: impl Into<PathBuf>, msg: impl Into<String>) -> Self {
-        Error::Format { path: path.into(), msg: msg.into() }
+        Error::Format {
+            path: path.into(),
+            msg: msg.into(),
+        }
     }
     pub(crate) fn invalid(field: impl Into<String>, msg: impl Into<String>) -> Self {
-        Error::Invalid { field: field.into(), msg: msg.into() }
+        Error::Invalid {
+            field: field.into(),
+            msg: msg.into(),
+        }
     }
 }

@@ -8,7 +8,11 @@ use std::path::PathBuf;
 const DEFAULT_SCENE: &str = "terrains/alps.toml";
 
 #[derive(Parser)]
-#[command(name = "relief", version, about = "Polygon-free terrain image generator (max-LOD pyramid ray casting on wgpu)")]
+#[command(
+    name = "relief",
+    version,
+    about = "Polygon-free terrain image generator (max-LOD pyramid ray casting on wgpu)"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Option<Command>,
@@ -68,9 +72,17 @@ enum Command {
 }
 
 fn parse_size(s: &str) -> std::result::Result<(u32, u32), String> {
-    let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| format!("`{s}` is not WIDTHxHEIGHT"))?;
-    let w: u32 = w.trim().parse().map_err(|_| format!("bad width in `{s}`"))?;
-    let h: u32 = h.trim().parse().map_err(|_| format!("bad height in `{s}`"))?;
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("`{s}` is not WIDTHxHEIGHT"))?;
+    let w: u32 = w
+        .trim()
+        .parse()
+        .map_err(|_| format!("bad width in `{s}`"))?;
+    let h: u32 = h
+        .trim()
+        .parse()
+        .map_err(|_| format!("bad height in `{s}`"))?;
     if !(1..=16384).contains(&w) || !(1..=16384).contains(&h) {
         return Err(format!("size {w}x{h} must be within 1..=16384 per side"));
     }
@@ -78,8 +90,14 @@ fn parse_size(s: &str) -> std::result::Result<(u32, u32), String> {
 }
 
 fn parse_vec<const N: usize>(s: &str) -> std::result::Result<[f64; N], String> {
-    let v: Vec<f64> = s.split(',').map(|x| x.trim().parse::<f64>()).collect::<std::result::Result<_, _>>().map_err(|e| format!("`{s}`: {e}"))?;
-    let arr: [f64; N] = v.try_into().map_err(|_| format!("`{s}` needs {N} comma-separated numbers"))?;
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<std::result::Result<_, _>>()
+        .map_err(|e| format!("`{s}`: {e}"))?;
+    let arr: [f64; N] = v
+        .try_into()
+        .map_err(|_| format!("`{s}` needs {N} comma-separated numbers"))?;
     if arr.iter().any(|x| !x.is_finite()) {
         return Err(format!("`{s}` has a non-finite number"));
     }
@@ -96,9 +114,11 @@ fn default_scene() -> PathBuf {
 }
 
 fn main() {
-    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("info,wgpu_core=warn,wgpu_hal=warn,naga=warn"))
-        .format_timestamp(None)
-        .init();
+    env_logger::Builder::from_env(
+        env_logger::Env::default().default_filter_or("info,wgpu_core=warn,wgpu_hal=warn,naga=warn"),
+    )
+    .format_timestamp(None)
+    .init();
     if let Err(e) = run(Cli::parse()) {
         eprintln!("error: {e:#}");
         std::process::exit(1);
@@ -117,10 +137,26 @@ fn run(cli: Cli) -> Result<()> {
                 shadows: None,
                 tile_prepass: None,
             };
-            let files = capture::run(&job).with_context(|| format!("rendering {}", job.scene.display()))?;
-            println!("wrote {}", files.iter().map(|f| f.display().to_string()).collect::<Vec<_>>().join(", "));
+            let files =
+                capture::run(&job).with_context(|| format!("rendering {}", job.scene.display()))?;
+            println!(
+                "wrote {}",
+                files
+                    .iter()
+                    .map(|f| f.display().to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
         }
-        Some(Command::Render { scene, size, frames, first, out, no_shadows, no_tile_prepass }) => {
+        Some(Command::Render {
+            scene,
+            size,
+            frames,
+            first,
+            out,
+            no_shadows,
+            no_tile_prepass,
+        }) => {
             let job = capture::RenderJob {
                 scene,
                 size,
@@ -130,15 +166,23 @@ fn run(cli: Cli) -> Result<()> {
                 shadows: no_shadows.then_some(false),
                 tile_prepass: no_tile_prepass.then_some(false),
             };
-            let files = capture::run(&job).with_context(|| format!("rendering {}", job.scene.display()))?;
+            let files =
+                capture::run(&job).with_context(|| format!("rendering {}", job.scene.display()))?;
             println!("wrote {} files to {}", files.len(), job.out_dir.display());
         }
-        Some(Command::Bench { scene, size, frames, json, dump_rays }) => {
+        Some(Command::Bench {
+            scene,
+            size,
+            frames,
+            json,
+            dump_rays,
+        }) => {
             let scene = scene.unwrap_or_else(default_scene);
             if frames == 0 {
                 bail!("--frames must be at least 1");
             }
-            let report = bench::run(&scene, size, frames, dump_rays.as_deref()).with_context(|| format!("benchmarking {}", scene.display()))?;
+            let report = bench::run(&scene, size, frames, dump_rays.as_deref())
+                .with_context(|| format!("benchmarking {}", scene.display()))?;
             if json {
                 println!("{}", serde_json::to_string_pretty(&report)?);
             } else {
@@ -161,7 +205,10 @@ fn run(cli: Cli) -> Result<()> {
             if let Some(pts) = los {
                 let (a, b) = (glam::DVec3::from(pts[0]), glam::DVec3::from(pts[1]));
                 let clear = relief::cpu::line_of_sight(&terrain, a, b);
-                println!("line of sight {a} -> {b}: {}", if clear { "clear" } else { "blocked" });
+                println!(
+                    "line of sight {a} -> {b}: {}",
+                    if clear { "clear" } else { "blocked" }
+                );
             }
         }
     }

@@ -23,15 +23,25 @@ fn relief(args: &[&str]) -> Output {
 }
 
 fn text(o: &Output) -> (String, String) {
-    (String::from_utf8_lossy(&o.stdout).into_owned(), String::from_utf8_lossy(&o.stderr).into_owned())
+    (
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
 }
 
 /// Asserts a failing exit whose stderr mentions every needle; returns stderr.
 fn assert_fails(what: &str, o: &Output, needles: &[&str]) -> String {
     let (out, err) = text(o);
-    assert!(!o.status.success(), "{what}: expected a non-zero exit, got {}\nstdout: {out}\nstderr: {err}", o.status);
+    assert!(
+        !o.status.success(),
+        "{what}: expected a non-zero exit, got {}\nstdout: {out}\nstderr: {err}",
+        o.status
+    );
     for n in needles {
-        assert!(err.contains(n), "{what}: stderr should mention `{n}`\nstderr: {err}");
+        assert!(
+            err.contains(n),
+            "{what}: stderr should mention `{n}`\nstderr: {err}"
+        );
     }
     err
 }
@@ -57,7 +67,11 @@ fn render_missing_scene_fails_and_writes_nothing() {
     let out = dir.join("out");
     let o = relief(&["render", "does-not-exist.toml", "--out", &s(&out)]);
     assert_fails("missing scene", &o, &["does-not-exist.toml"]);
-    assert_eq!(frame_files(&out), Vec::<String>::new(), "no frame files for a missing scene");
+    assert_eq!(
+        frame_files(&out),
+        Vec::<String>::new(),
+        "no frame files for a missing scene"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -73,8 +87,16 @@ fn render_invalid_fov_fails_and_writes_nothing() {
     let out = dir.join("out");
     let o = relief(&["render", &s(&scene), "--out", &s(&out)]);
     assert_fails("fov = 0", &o, &["camera.fov"]);
-    assert_eq!(frame_files(&out), Vec::<String>::new(), "no frame files for an invalid scene");
-    assert_eq!(frame_files(&dir), Vec::<String>::new(), "nothing written next to the scene either");
+    assert_eq!(
+        frame_files(&out),
+        Vec::<String>::new(),
+        "no frame files for an invalid scene"
+    );
+    assert_eq!(
+        frame_files(&dir),
+        Vec::<String>::new(),
+        "nothing written next to the scene either"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -85,11 +107,19 @@ fn render_truncated_hgt_fails_naming_the_file() {
     let bytes = std::fs::read(terrains().join("N47E009.hgt")).unwrap();
     std::fs::write(&hgt, &bytes[..1000]).unwrap();
     let scene = dir.join("trunc.toml");
-    std::fs::write(&scene, "[terrain]\nsource = \"N47E009.hgt\"\n[camera]\nposition = [20000.0, 20000.0, 4000.0]\n").unwrap();
+    std::fs::write(
+        &scene,
+        "[terrain]\nsource = \"N47E009.hgt\"\n[camera]\nposition = [20000.0, 20000.0, 4000.0]\n",
+    )
+    .unwrap();
     let out = dir.join("out");
     let o = relief(&["render", &s(&scene), "--out", &s(&out)]);
     assert_fails("truncated .hgt", &o, &[&s(&hgt), "truncated"]);
-    assert_eq!(frame_files(&out), Vec::<String>::new(), "no frame files for a truncated terrain");
+    assert_eq!(
+        frame_files(&out),
+        Vec::<String>::new(),
+        "no frame files for a truncated terrain"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -108,8 +138,15 @@ fn render_zero_size_is_rejected() {
 
 /// Parses `z = <number> m` from the `query --at` output.
 fn parse_height(stdout: &str) -> f64 {
-    let z = stdout.split("z = ").nth(1).unwrap_or_else(|| panic!("no `z = ` in query output: {stdout}"));
-    z.split_whitespace().next().unwrap().parse().unwrap_or_else(|e| panic!("bad height in `{stdout}`: {e}"))
+    let z = stdout
+        .split("z = ")
+        .nth(1)
+        .unwrap_or_else(|| panic!("no `z = ` in query output: {stdout}"));
+    z.split_whitespace()
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap_or_else(|e| panic!("bad height in `{stdout}`: {e}"))
 }
 
 #[test]
@@ -119,9 +156,15 @@ fn query_height_inside_and_outside() {
     let (out, err) = text(&o);
     assert!(o.status.success(), "query --at 26000,28000 failed: {err}");
     let z = parse_height(&out);
-    assert!((388.0..=2937.0).contains(&z), "height {z} outside the tile's range 388..2937 m");
+    assert!(
+        (388.0..=2937.0).contains(&z),
+        "height {z} outside the tile's range 388..2937 m"
+    );
     // Both spellings of a negative coordinate.
-    for args in [&["query", &alps, "--at=-5,-5"][..], &["query", &alps, "--at", "-5,-5"][..]] {
+    for args in [
+        &["query", &alps, "--at=-5,-5"][..],
+        &["query", &alps, "--at", "-5,-5"][..],
+    ] {
         let o = relief(args);
         assert_fails(&format!("{args:?}"), &o, &["outside"]);
     }
@@ -133,17 +176,41 @@ fn query_line_of_sight() {
     let o = relief(&["query", &alps, "--los", "1000,1000,5000", "2000,2000,5000"]);
     let (out, err) = text(&o);
     assert!(o.status.success(), "los query failed: {err}");
-    assert!(out.contains("clear") && !out.contains("blocked"), "5000 m above the tile must be clear: {out}");
+    assert!(
+        out.contains("clear") && !out.contains("blocked"),
+        "5000 m above the tile must be clear: {out}"
+    );
     // Negative coordinates are values, not flags (the start is off the grid, south-west).
-    let o = relief(&["query", &alps, "--los", "-1000,-1000,5000", "2000,2000,5000"]);
+    let o = relief(&[
+        "query",
+        &alps,
+        "--los",
+        "-1000,-1000,5000",
+        "2000,2000,5000",
+    ]);
     let (out, err) = text(&o);
-    assert!(o.status.success(), "los query with negative coordinates failed: {err}");
-    assert!(out.contains("clear"), "5000 m from off the grid must be clear: {out}");
+    assert!(
+        o.status.success(),
+        "los query with negative coordinates failed: {err}"
+    );
+    assert!(
+        out.contains("clear"),
+        "5000 m from off the grid must be clear: {out}"
+    );
     // 500 m high across the Alpstein (Säntis 2502 m): blocked.
-    let o = relief(&["query", &alps, "--los", "15000,28000,500", "40000,28000,500"]);
+    let o = relief(&[
+        "query",
+        &alps,
+        "--los",
+        "15000,28000,500",
+        "40000,28000,500",
+    ]);
     let (out, err) = text(&o);
     assert!(o.status.success(), "los query failed: {err}");
-    assert!(out.contains("blocked") && !out.contains("clear"), "a 500 m line through the Alpstein must be blocked: {out}");
+    assert!(
+        out.contains("blocked") && !out.contains("clear"),
+        "a 500 m line through the Alpstein must be blocked: {out}"
+    );
 }
 
 #[test]

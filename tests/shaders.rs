@@ -7,7 +7,10 @@ fn all_shaders_validate_with_naga() {
             Ok(m) => m,
             Err(e) => panic!("{name}.wgsl does not parse:\n{}", e.emit_to_string(&src)),
         };
-        let mut v = naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default());
+        let mut v = naga::valid::Validator::new(
+            naga::valid::ValidationFlags::all(),
+            naga::valid::Capabilities::default(),
+        );
         if let Err(e) = v.validate(&module) {
             panic!("{name}.wgsl does not validate:\n{}", e.emit_to_string(&src));
         }
@@ -17,11 +20,16 @@ fn all_shaders_validate_with_naga() {
 #[test]
 fn naga_rejects_a_broken_shader() {
     // The check above can fail: a type error is reported.
-    let src = relief::gpu::shaders::terrain().replace("let t1 = tt.y;", "let t1: u32 = tt.y;");
+    let src = relief::gpu::shaders::cast().replace("let t1 = tt.y;", "let t1: u32 = tt.y;");
     let module = naga::front::wgsl::parse_str(&src);
     let invalid = match module {
         Err(_) => true,
-        Ok(m) => naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default()).validate(&m).is_err(),
+        Ok(m) => naga::valid::Validator::new(
+            naga::valid::ValidationFlags::all(),
+            naga::valid::Capabilities::default(),
+        )
+        .validate(&m)
+        .is_err(),
     };
     assert!(invalid);
 }

@@ -4,7 +4,7 @@
 //! against the f64 CPU traversal on a grid of sample pixels.
 
 use crate::cpu;
-use crate::gpu::{FrameOutput, Gpu, RenderSettings, TerrainRenderer, TraceMode};
+use crate::gpu::{FrameOutput, Gpu, RenderSettings, Stage, TerrainRenderer, TraceMode};
 use crate::scene::{Camera, Scene};
 use crate::terrain::Terrain;
 use crate::{Error, Result};
@@ -19,10 +19,13 @@ use std::time::Instant;
 pub struct ConfigResult {
     /// Short name: `pyramid+tiles`, `pyramid`, `march`, `pyramid+tiles+shadows`.
     pub name: String,
-    /// Mean wall-clock milliseconds per frame (submit to GPU idle, no readback).
-    pub ms_per_frame: f64,
-    /// Primary rays per second (pixels / frame time).
+    /// Mean wall-clock milliseconds to find every primary hit (ray table, tile pre-pass,
+    /// cast), submit to GPU idle, no readback.
+    pub primary_ms: f64,
+    /// Primary rays per second (pixels / `primary_ms`).
     pub rays_per_second: f64,
+    /// Mean wall-clock milliseconds for the whole frame (all passes, shading included).
+    pub frame_ms: f64,
     /// Mean traversal steps (cells visited, or march samples) per primary ray.
     pub mean_steps_per_ray: f64,
     /// Mean exact patch tests per primary ray.
@@ -66,7 +69,12 @@ pub struct BenchReport {
     pub pyramid_build_ms: f64,
 }
 
-fn depth_error(terrain: &Terrain, cam: &Camera, out: &FrameOutput, reference: &[(u32, u32, Option<f64>)]) -> DepthError {
+fn depth_error(
+    terrain: &Terrain,
+    cam: &Camera,
+    out: &FrameOutput,
+    reference: &[(u32, u32, Option<f64>)],
+) -> DepthError {
     let mut rel = Vec::new();
     let mut mism = 0;
     for &(x, y, cpu_t) in reference {
@@ -79,7 +87,11 @@ fn depth_error(terrain: &Terrain, cam: &Camera, out: &FrameOutput, reference: &[
     }
     let _ = (terrain, cam);
     rel.sort_by(|a, b| a.total_cmp(b));
-    let q = |f: f64| rel.get(((rel.len() as f64 - 1.0) * f).round() as usize).copied().unwrap_or(0.0);
+    let q = |f: f64| {
+        rel.get(((rel.len() as f64 - 1.0) * f).round() as usize)
+            .copied()
+            .unwrap_or(0.0)
+    };
     DepthError {
         pixels: reference.len(),
         class_mismatches: mism,
@@ -91,7 +103,12 @@ fn depth_error(terrain: &Terrain, cam: &Camera, out: &FrameOutput, reference: &[
 }
 
 /// Runs the benchmark on `scene_path` at `size` with `frames` timed frames per configuration.
-pub fn run(scene_path: &Path, size: (u32, u32), frames: u32, dump: Option<&Path>) -> Result<BenchReport> {
+pub fn run(
+    scene_path: &Path,
+    size: (u32, u32),
+    frames: u32,
+    dump: Option<&Path>,
+) -> Result<BenchReport> {
     let mut scene = Scene::load(scene_path)?;
     scene.desc.output.width = size.0;
     scene.desc.output.height = size.1;
@@ -106,48 +123,109 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32, dump: Option<&Path>
     let (w, h) = size;
 
     // CPU reference on a grid of sample pixels (every 8th pixel in each direction).
-    let samples: Vec<(u32, u32)> = (0..h).step_by(8).flat_map(|y| (0..w).step_by(8).map(move |x| (x + 3, y + 5))).filter(|&(x, y)| x < w && y < h).collect();
+    let samples: Vec<(u32, u32)> = (0..h)
+        .step_by(8)
+        .flat_map(|y| (0..w).step_by(8).map(move |x| (x + 3, y + 5)))
+        .filter(|&(x, y)| x < w && y < h)
+        .collect();
     let reference: Vec<(u32, u32, Option<f64>)> = samples
         .par_iter()
-        .map(|&(x, y)| (x, y, cpu::cast_ray(&terrain, cam.pose.position, cam.pixel_ray(x, y), 0.0, f64::INFINITY).map(|hit| hit.t)))
+        .map(|&(x, y)| {
+            (
+                x,
+                y,
+                cpu::cast_ray(
+                    &terrain,
+                    cam.pose.position,
+                    cam.pixel_ray(x, y),
+                    0.0,
+                    f64::INFINITY,
+                )
+                .map(|hit| hit.t),
+            )
+        })
         .collect();
 
-    let base = RenderSettings { mode: TraceMode::Pyramid, shadows: false, tile_prepass: true, max_steps: scene.desc.render.max_steps };
-    let march = TraceMode::March { step_cells: 0.5, bisections: 10 };
+    let base = RenderSettings {
+        mode: TraceMode::Pyramid,
+        shadows: false,
+        tile_prepass: true,
+        max_steps: scene.desc.render.max_steps,
+    };
+    let march = TraceMode::March {
+        step_cells: 0.5,
+        bisections: 10,
+    };
     let configs = [
         ("pyramid+tiles", base),
-        ("pyramid", RenderSettings { tile_prepass: false, ..base }),
-        ("march", RenderSettings { mode: march, tile_prepass: false, max_steps: 1 << 20, ..base }),
-        ("pyramid+tiles+shadows", RenderSettings { shadows: true, ..base }),
+        (
+            "pyramid",
+            RenderSettings {
+                tile_prepass: false,
+                ..base
+            },
+        ),
+        (
+            "march",
+            RenderSettings {
+                mode: march,
+                tile_prepass: false,
+                max_steps: 1 << 20,
+                ..base
+            },
+        ),
+        (
+            "pyramid+tiles+shadows",
+            RenderSettings {
+                shadows: true,
+                ..base
+            },
+        ),
     ];
     let mut results = Vec::new();
     for (name, s) in configs {
         // Warm-up: shader compilation on first use, target allocation.
         let out = renderer.capture(&gpu, &terrain, &scene.desc, &cam, &s)?;
-        renderer.render(&gpu, &terrain, &scene.desc, &cam, &s)?;
-        gpu.wait()?;
-        let start = Instant::now();
-        for _ in 0..frames {
-            renderer.render(&gpu, &terrain, &scene.desc, &cam, &s)?;
-        }
-        gpu.wait()?;
-        let ms = start.elapsed().as_secs_f64() * 1e3 / frames as f64;
+        let mut time = |stage: Stage| -> Result<f64> {
+            renderer.render(&gpu, &terrain, &scene.desc, &cam, &s, stage)?;
+            gpu.wait()?;
+            let start = Instant::now();
+            for _ in 0..frames {
+                renderer.render(&gpu, &terrain, &scene.desc, &cam, &s, stage)?;
+            }
+            gpu.wait()?;
+            Ok(start.elapsed().as_secs_f64() * 1e3 / frames as f64)
+        };
+        let primary_ms = time(Stage::Cast)?;
+        let frame_ms = time(Stage::Shade)?;
         let px = (w * h) as f64;
         let r = ConfigResult {
             name: name.to_string(),
-            ms_per_frame: ms,
-            rays_per_second: px / (ms * 1e-3),
+            primary_ms,
+            rays_per_second: px / (primary_ms * 1e-3),
+            frame_ms,
             mean_steps_per_ray: out.steps.iter().map(|&v| v as f64).sum::<f64>() / px,
             mean_patch_tests_per_ray: out.patch_tests.iter().map(|&v| v as f64).sum::<f64>() / px,
             depth_error: depth_error(&terrain, &cam, &out, &reference),
         };
-        log::info!("{name}: {:.2} ms/frame, {:.2} M rays/s, {:.1} steps/ray", r.ms_per_frame, r.rays_per_second / 1e6, r.mean_steps_per_ray);
+        log::info!(
+            "{name}: primary {:.2} ms ({:.2} M rays/s), frame {:.2} ms, {:.1} steps/ray",
+            r.primary_ms,
+            r.rays_per_second / 1e6,
+            r.frame_ms,
+            r.mean_steps_per_ray
+        );
         if let (Some(dir), "pyramid+tiles") = (dump, name) {
-            dump_rays(dir, &cam, &out)?;
+            dump_rays(dir, &terrain, &cam, &out)?;
         }
         results.push(r);
     }
-    let get = |n: &str| results.iter().find(|r| r.name == n).expect("configuration measured");
+    let get = |n: &str| {
+        results
+            .iter()
+            .find(|r| r.name == n)
+            .expect("configuration measured")
+    };
     let (pt, p, m) = (get("pyramid+tiles"), get("pyramid"), get("march"));
     Ok(BenchReport {
         adapter: gpu.info.name.clone(),
@@ -164,38 +242,68 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32, dump: Option<&Path>
     })
 }
 
-/// Writes `rays.f32` (per pixel: origin xyz, direction xyz, row-major from the top-left) and
-/// `depth.f32` (relief's ray distance, +inf for sky) for outside comparisons.
-fn dump_rays(dir: &Path, cam: &Camera, out: &FrameOutput) -> Result<()> {
+/// Writes, for outside comparisons (benches/embree_compare.py): `rays.f32` (per pixel: origin
+/// xyz, direction xyz, row-major from the top-left), `depth.f32` (relief's ray distance, +inf
+/// for sky), `heights.f32` (the height grid, row 0 south) and `grid.json` (its size and
+/// world placement).
+fn dump_rays(dir: &Path, terrain: &Terrain, cam: &Camera, out: &FrameOutput) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     let o = cam.pose.position;
     let mut rays = Vec::with_capacity((out.width * out.height * 6) as usize);
     for y in 0..out.height {
         for x in 0..out.width {
             let d = cam.pixel_ray(x, y);
-            rays.extend([o.x as f32, o.y as f32, o.z as f32, d.x as f32, d.y as f32, d.z as f32]);
+            rays.extend([
+                o.x as f32, o.y as f32, o.z as f32, d.x as f32, d.y as f32, d.z as f32,
+            ]);
         }
     }
     let write = |name: &str, data: &[f32]| -> Result<()> {
         let p = dir.join(name);
-        let mut f = std::io::BufWriter::new(std::fs::File::create(&p).map_err(|e| Error::io(&p, e))?);
-        f.write_all(bytemuck::cast_slice(data)).map_err(|e| Error::io(&p, e))
+        let mut f =
+            std::io::BufWriter::new(std::fs::File::create(&p).map_err(|e| Error::io(&p, e))?);
+        f.write_all(bytemuck::cast_slice(data))
+            .map_err(|e| Error::io(&p, e))
     };
     write("rays.f32", &rays)?;
-    write("depth.f32", &out.depth)
+    write("depth.f32", &out.depth)?;
+    write("heights.f32", &terrain.field.heights)?;
+    let grid = serde_json::json!({
+        "width": terrain.field.width,
+        "height": terrain.field.height,
+        "world_from_grid": terrain.frame.world_from_grid().transpose().to_cols_array_2d(),
+        "image": [out.width, out.height],
+    });
+    let p = dir.join("grid.json");
+    std::fs::write(&p, grid.to_string()).map_err(|e| Error::io(&p, e))
 }
 
 /// Prints the report as a table.
 pub fn print_table(r: &BenchReport) {
-    println!("relief bench: {} at {}x{}, {} frames per configuration", r.scene, r.width, r.height, r.frames);
+    println!(
+        "relief bench: {} at {}x{}, {} frames per configuration",
+        r.scene, r.width, r.height, r.frames
+    );
     println!("adapter: {} ({})", r.adapter, r.backend);
-    println!("{:<24} {:>10} {:>12} {:>11} {:>10} {:>12} {:>12} {:>9}", "configuration", "ms/frame", "M rays/s", "steps/ray", "patch/ray", "median err", "p99 err", "class≠");
+    println!(
+        "{:<24} {:>11} {:>10} {:>10} {:>10} {:>10} {:>11} {:>10} {:>7}",
+        "configuration",
+        "primary ms",
+        "M rays/s",
+        "frame ms",
+        "steps/ray",
+        "patch/ray",
+        "median err",
+        "p99 err",
+        "class≠"
+    );
     for c in &r.configs {
         println!(
-            "{:<24} {:>10.2} {:>12.2} {:>11.1} {:>10.2} {:>12.2e} {:>12.2e} {:>9}",
+            "{:<24} {:>11.2} {:>10.2} {:>10.2} {:>10.1} {:>10.2} {:>11.2e} {:>10.2e} {:>7}",
             c.name,
-            c.ms_per_frame,
+            c.primary_ms,
             c.rays_per_second / 1e6,
+            c.frame_ms,
             c.mean_steps_per_ray,
             c.mean_patch_tests_per_ray,
             c.depth_error.median_rel,

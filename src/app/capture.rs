@@ -10,7 +10,10 @@ use serde_json::json;
 use std::path::{Path, PathBuf};
 
 fn write_atomic(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
-    let tmp = path.with_extension(format!("{}.partial", path.extension().and_then(|e| e.to_str()).unwrap_or("")));
+    let tmp = path.with_extension(format!(
+        "{}.partial",
+        path.extension().and_then(|e| e.to_str()).unwrap_or("")
+    ));
     match write(&tmp) {
         Ok(()) => std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e)),
         Err(e) => {
@@ -23,9 +26,17 @@ fn write_atomic(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<
 /// Writes an sRGB RGBA8 image as PNG.
 pub fn write_png(path: &Path, width: u32, height: u32, rgba: &[u8]) -> Result<()> {
     write_atomic(path, |tmp| {
-        let img = image::RgbaImage::from_raw(width, height, rgba.to_vec())
-            .ok_or_else(|| Error::invalid("image", format!("{} bytes do not make a {width}x{height} RGBA image", rgba.len())))?;
-        img.save_with_format(tmp, image::ImageFormat::Png).map_err(|e| Error::format(path, format!("writing PNG: {e}")))
+        let img = image::RgbaImage::from_raw(width, height, rgba.to_vec()).ok_or_else(|| {
+            Error::invalid(
+                "image",
+                format!(
+                    "{} bytes do not make a {width}x{height} RGBA image",
+                    rgba.len()
+                ),
+            )
+        })?;
+        img.save_with_format(tmp, image::ImageFormat::Png)
+            .map_err(|e| Error::format(path, format!("writing PNG: {e}")))
     })
 }
 
@@ -43,9 +54,15 @@ pub fn write_depth_tiff(path: &Path, width: u32, height: u32, depth: &[f32]) -> 
 /// Reads a depth TIFF written by [`write_depth_tiff`].
 pub fn read_depth_tiff(path: &Path) -> Result<(u32, u32, Vec<f32>)> {
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-    let mut dec = tiff::decoder::Decoder::new(std::io::BufReader::new(file)).map_err(|e| Error::format(path, format!("{e}")))?;
-    let (w, h) = dec.dimensions().map_err(|e| Error::format(path, format!("{e}")))?;
-    match dec.read_image().map_err(|e| Error::format(path, format!("{e}")))? {
+    let mut dec = tiff::decoder::Decoder::new(std::io::BufReader::new(file))
+        .map_err(|e| Error::format(path, format!("{e}")))?;
+    let (w, h) = dec
+        .dimensions()
+        .map_err(|e| Error::format(path, format!("{e}")))?;
+    match dec
+        .read_image()
+        .map_err(|e| Error::format(path, format!("{e}")))?
+    {
         tiff::decoder::DecodingResult::F32(v) => Ok((w, h, v)),
         _ => Err(Error::format(path, "not an f32 depth image")),
     }
@@ -53,7 +70,12 @@ pub fn read_depth_tiff(path: &Path) -> Result<(u32, u32, Vec<f32>)> {
 
 fn mat_rows(m: glam::DMat4) -> Vec<[f64; 4]> {
     let t = m.transpose();
-    vec![t.x_axis.to_array(), t.y_axis.to_array(), t.z_axis.to_array(), t.w_axis.to_array()]
+    vec![
+        t.x_axis.to_array(),
+        t.y_axis.to_array(),
+        t.z_axis.to_array(),
+        t.w_axis.to_array(),
+    ]
 }
 
 /// Metadata describing exactly how a frame's pixels were made.
@@ -68,7 +90,7 @@ pub fn frame_metadata(
 ) -> serde_json::Value {
     let (fx, fy, cx, cy) = cam.intrinsics();
     let t = &out.times;
-    let cast_ms = t.raygen_ms + t.tile_ms + t.terrain_ms;
+    let cast_ms = t.primary_ms();
     let pixels = (out.width * out.height) as f64;
     let hits = out.flags.iter().filter(|f| *f & 1 != 0).count();
     json!({
@@ -105,7 +127,7 @@ pub fn frame_metadata(
             "geo": terrain.field.geo,
         },
         "timing_ms": t,
-        "rays_per_second": pixels / (cast_ms * 1e-3),
+        "primary_rays_per_second": pixels / (cast_ms * 1e-3),
         "mean_steps_per_ray": out.steps.iter().map(|&s| s as f64).sum::<f64>() / pixels,
         "terrain_pixels": hits,
         "settings": settings,
@@ -141,7 +163,10 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
         scene.desc.validate()?;
     }
     if job.frames == 0 || job.frames > 100_000 {
-        return Err(Error::invalid("--frames", format!("must be 1..=100000, got {}", job.frames)));
+        return Err(Error::invalid(
+            "--frames",
+            format!("must be 1..=100000, got {}", job.frames),
+        ));
     }
     let terrain = scene.load_terrain()?;
     let gpu = Gpu::new()?;
@@ -166,13 +191,18 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
         write_depth_tiff(&tif, out.width, out.height, &out.depth)?;
         let m = frame_metadata(&gpu, &scene, &terrain, &cam, &settings, frame, &out);
         write_atomic(&meta, |tmp| {
-            std::fs::write(tmp, serde_json::to_string_pretty(&m).expect("metadata serialises")).map_err(|e| Error::io(tmp, e))
+            std::fs::write(
+                tmp,
+                serde_json::to_string_pretty(&m).expect("metadata serialises"),
+            )
+            .map_err(|e| Error::io(tmp, e))
         })?;
         log::info!(
-            "frame {frame}: raygen {:.1} ms, tile {:.1} ms, terrain {:.1} ms -> {}",
+            "frame {frame}: raygen {:.1} ms, tile {:.1} ms, cast {:.1} ms, shade {:.1} ms -> {}",
             out.times.raygen_ms,
             out.times.tile_ms,
-            out.times.terrain_ms,
+            out.times.cast_ms,
+            out.times.shade_ms,
             png.display()
         );
         written.extend([png, tif, meta]);

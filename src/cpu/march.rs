@@ -7,7 +7,13 @@ use glam::DVec3;
 /// First crossing of the surface found by stepping `step_cells` grid cells at a time (measured
 /// along the larger horizontal axis) and refining by bisection to f64 precision.
 /// Returns the distance in metres along the unit world ray.
-pub fn march(terrain: &Terrain, origin: DVec3, dir: DVec3, t_max: f64, step_cells: f64) -> Option<f64> {
+pub fn march(
+    terrain: &Terrain,
+    origin: DVec3,
+    dir: DVec3,
+    t_max: f64,
+    step_cells: f64,
+) -> Option<f64> {
     let r = GridRay::from_world(terrain, origin, dir.normalize());
     let (t0, t1) = clip_to_box(terrain, &r, 0.0, t_max)?;
     let f = |t: f64| {

@@ -9,11 +9,18 @@ use glam::DVec3;
 pub const QUERY_MAX_STEPS: u32 = 1 << 20;
 
 /// First hit of the ray `origin + t dir` (`dir` is normalised here) with `t` in `[t_min, t_max]`.
-pub fn cast_ray(terrain: &Terrain, origin: DVec3, dir: DVec3, t_min: f64, t_max: f64) -> Option<Hit> {
+pub fn cast_ray(
+    terrain: &Terrain,
+    origin: DVec3,
+    dir: DVec3,
+    t_min: f64,
+    t_max: f64,
+) -> Option<Hit> {
     let dir = dir.normalize();
     let r = GridRay::from_world(terrain, origin, dir);
     let mut stats = TraversalStats::default();
-    intersect(terrain, &r, t_min, t_max, QUERY_MAX_STEPS, &mut stats).map(|(t, cell)| make_hit(terrain, &r, t, cell))
+    intersect(terrain, &r, t_min, t_max, QUERY_MAX_STEPS, &mut stats)
+        .map(|(t, cell)| make_hit(terrain, &r, t, cell))
 }
 
 /// The terrain surface point on the base-plane normal through `p` (for the default horizontal
@@ -45,7 +52,8 @@ pub fn line_of_sight(terrain: &Terrain, a: DVec3, b: DVec3) -> bool {
 /// Offset (metres along the surface normal) from which shadow rays leave a surface point,
 /// shared with the GPU shader so both sides agree on acne-free self-shadowing.
 pub fn shadow_offset(terrain: &Terrain) -> f64 {
-    0.02 * terrain.field.spacing[0].min(terrain.field.spacing[1]) + 1e-4 * (terrain.max_height.abs() as f64)
+    0.02 * terrain.field.spacing[0].min(terrain.field.spacing[1])
+        + 1e-4 * (terrain.max_height.abs() as f64)
 }
 
 /// True when the sun (unit direction `to_sun`) is visible from surface point `p` with normal `n`.
@@ -53,5 +61,12 @@ pub fn sun_visible(terrain: &Terrain, p: DVec3, n: DVec3, to_sun: DVec3) -> bool
     if n.dot(to_sun) <= 0.0 {
         return false;
     }
-    cast_ray(terrain, p + n * shadow_offset(terrain), to_sun, 0.0, f64::INFINITY).is_none()
+    cast_ray(
+        terrain,
+        p + n * shadow_offset(terrain),
+        to_sun,
+        0.0,
+        f64::INFINITY,
+    )
+    .is_none()
 }

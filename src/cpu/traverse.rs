@@ -20,7 +20,10 @@ pub struct GridRay {
 impl GridRay {
     /// The grid-frame ray of a world ray (`dir` must be unit length for `t` in metres).
     pub fn from_world(terrain: &Terrain, origin: DVec3, dir: DVec3) -> GridRay {
-        GridRay { o: terrain.frame.world_to_grid(origin), d: terrain.frame.world_dir_to_grid(dir) }
+        GridRay {
+            o: terrain.frame.world_to_grid(origin),
+            d: terrain.frame.world_dir_to_grid(dir),
+        }
     }
     #[inline]
     pub fn at(&self, t: f64) -> DVec3 {
@@ -107,9 +110,21 @@ pub fn first_root(a: f64, b: f64, c: f64, s_max: f64) -> Option<f64> {
 }
 
 /// Exact intersection with the bilinear patch of cell `(i, j)` for `t` in `[t_a, t_b]`.
-pub fn patch_hit(terrain: &Terrain, r: &GridRay, i: usize, j: usize, t_a: f64, t_b: f64) -> Option<f64> {
+pub fn patch_hit(
+    terrain: &Terrain,
+    r: &GridRay,
+    i: usize,
+    j: usize,
+    t_a: f64,
+    t_b: f64,
+) -> Option<f64> {
     let f = &terrain.field;
-    let (h00, h10, h01, h11) = (f.at(i, j) as f64, f.at(i + 1, j) as f64, f.at(i, j + 1) as f64, f.at(i + 1, j + 1) as f64);
+    let (h00, h10, h01, h11) = (
+        f.at(i, j) as f64,
+        f.at(i + 1, j) as f64,
+        f.at(i, j + 1) as f64,
+        f.at(i + 1, j + 1) as f64,
+    );
     let (a, b, c, e) = (h00, h10 - h00, h01 - h00, h00 - h10 - h01 + h11);
     let p = r.at(t_a);
     let (u0, v0) = (p.x - i as f64, p.y - j as f64);
@@ -146,7 +161,10 @@ pub fn intersect(
         )
     };
     let (mut ix, mut iy) = cell_at(level, r.at(t));
-    let (sx, sy) = (if r.d.x >= 0.0 { 1 } else { -1 }, if r.d.y >= 0.0 { 1 } else { -1 });
+    let (sx, sy) = (
+        if r.d.x >= 0.0 { 1 } else { -1 },
+        if r.d.y >= 0.0 { 1 } else { -1 },
+    );
     while stats.steps < max_steps {
         stats.steps += 1;
         let s = (1u64 << level) as f64;
@@ -217,10 +235,23 @@ pub fn make_hit(terrain: &Terrain, r: &GridRay, t: f64, cell: [usize; 2]) -> Hit
     let p = r.at(t);
     let f = &terrain.field;
     let [i, j] = cell;
-    let (h00, h10, h01, h11) = (f.at(i, j) as f64, f.at(i + 1, j) as f64, f.at(i, j + 1) as f64, f.at(i + 1, j + 1) as f64);
-    let (u, v) = ((p.x - i as f64).clamp(0.0, 1.0), (p.y - j as f64).clamp(0.0, 1.0));
+    let (h00, h10, h01, h11) = (
+        f.at(i, j) as f64,
+        f.at(i + 1, j) as f64,
+        f.at(i, j + 1) as f64,
+        f.at(i + 1, j + 1) as f64,
+    );
+    let (u, v) = (
+        (p.x - i as f64).clamp(0.0, 1.0),
+        (p.y - j as f64).clamp(0.0, 1.0),
+    );
     let e = h00 - h10 - h01 + h11;
     let dhdx = h10 - h00 + e * v;
     let dhdy = h01 - h00 + e * u;
-    Hit { t, point: terrain.frame.grid_to_world(p), normal: terrain.frame.normal_from_gradient(dhdx, dhdy), cell }
+    Hit {
+        t,
+        point: terrain.frame.grid_to_world(p),
+        normal: terrain.frame.normal_from_gradient(dhdx, dhdy),
+        cell,
+    }
 }

@@ -1,14 +1,15 @@
 //! GPU layer (wgpu): device selection, the terrain renderer's passes and readback.
 //!
 //! Passes per frame: ray generation (compute, writes the ray table) → tile pre-pass
-//! (fragment, one fragment per 8x8 tile) → terrain cast + shade (fragment, full screen) →
-//! copy to readback buffers when capturing.
+//! (fragment, one fragment per 8x8 tile) → cast (fragment, full screen, writes the G-buffer)
+//! → shade (fragment, full screen: lighting, shadow rays, fog, sky) → copy to readback
+//! buffers when capturing.
 
 pub mod renderer;
 pub mod shaders;
 pub mod types;
 
-pub use renderer::{FrameOutput, PassTimes, RenderSettings, TerrainRenderer, TraceMode};
+pub use renderer::{FrameOutput, PassTimes, RenderSettings, Stage, TerrainRenderer, TraceMode};
 
 use crate::{Error, Result};
 
@@ -29,19 +30,26 @@ impl Gpu {
     }
 
     async fn new_async() -> Result<Gpu> {
-        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let instance =
+            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
         let adapter = match std::env::var("WGPU_ADAPTER_NAME") {
             Ok(want) => {
                 let want = want.to_lowercase();
                 let adapters = instance.enumerate_adapters(wgpu::Backends::all()).await;
                 let names: Vec<String> = adapters.iter().map(|a| a.get_info().name).collect();
-                adapters.into_iter().find(|a| a.get_info().name.to_lowercase().contains(&want)).ok_or_else(|| {
-                    Error::Gpu(format!("WGPU_ADAPTER_NAME={want} matches no adapter; available: {names:?}"))
-                })?
+                adapters
+                    .into_iter()
+                    .find(|a| a.get_info().name.to_lowercase().contains(&want))
+                    .ok_or_else(|| {
+                        Error::Gpu(format!(
+                            "WGPU_ADAPTER_NAME={want} matches no adapter; available: {names:?}"
+                        ))
+                    })?
             }
             Err(_) => instance
                 .request_adapter(&wgpu::RequestAdapterOptions {
-                    power_preference: wgpu::PowerPreference::from_env().unwrap_or(wgpu::PowerPreference::HighPerformance),
+                    power_preference: wgpu::PowerPreference::from_env()
+                        .unwrap_or(wgpu::PowerPreference::HighPerformance),
                     ..Default::default()
                 })
                 .await
@@ -53,7 +61,12 @@ impl Gpu {
                 })?,
         };
         let info = adapter.get_info();
-        log::info!("adapter: {} ({:?}, {:?})", info.name, info.backend, info.device_type);
+        log::info!(
+            "adapter: {} ({:?}, {:?})",
+            info.name,
+            info.backend,
+            info.device_type
+        );
         let alimits = adapter.limits();
         // Ask for what the adapter has where terrains need it: big storage buffers.
         let limits = wgpu::Limits {
@@ -73,7 +86,12 @@ impl Gpu {
             })
             .await
             .map_err(|e| Error::Gpu(format!("cannot open a device on {}: {e}", info.name)))?;
-        Ok(Gpu { device, queue, info, limits })
+        Ok(Gpu {
+            device,
+            queue,
+            info,
+            limits,
+        })
     }
 
     /// "name (backend)" for logs and metadata.
@@ -85,12 +103,17 @@ impl Gpu {
     /// seconds, so long frames are waited for in a loop.
     pub fn wait(&self) -> Result<()> {
         for _ in 0..120 {
-            match self.device.poll(wgpu::PollType::Wait { submission_index: None, timeout: Some(std::time::Duration::from_secs(5)) }) {
+            match self.device.poll(wgpu::PollType::Wait {
+                submission_index: None,
+                timeout: Some(std::time::Duration::from_secs(5)),
+            }) {
                 Ok(_) => return Ok(()),
                 Err(wgpu::PollError::Timeout) => continue,
                 Err(e) => return Err(Error::Gpu(format!("waiting for the GPU: {e}"))),
             }
         }
-        Err(Error::Gpu("the GPU did not finish within 10 minutes".into()))
+        Err(Error::Gpu(
+            "the GPU did not finish within 10 minutes".into(),
+        ))
     }
 }

@@ -47,8 +47,25 @@ impl RenderSettings {
 pub struct PassTimes {
     pub raygen_ms: f64,
     pub tile_ms: f64,
-    pub terrain_ms: f64,
+    pub cast_ms: f64,
+    pub shade_ms: f64,
     pub readback_ms: f64,
+}
+
+impl PassTimes {
+    /// Time to find every primary ray's hit (ray generation, tile pre-pass, cast).
+    pub fn primary_ms(&self) -> f64 {
+        self.raygen_ms + self.tile_ms + self.cast_ms
+    }
+}
+
+/// How far a frame is rendered.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stage {
+    /// Ray table, tile pre-pass and cast: primary-ray hits only (the G-buffer).
+    Cast,
+    /// Everything: shading, shadow rays, fog, sky.
+    Shade,
 }
 
 /// What a captured frame holds.
@@ -77,8 +94,10 @@ struct Targets {
     tiles: [u32; 2],
     raygen_bg: wgpu::BindGroup,
     tile_bg: wgpu::BindGroup,
-    terrain_bg: wgpu::BindGroup,
+    cast_bg: wgpu::BindGroup,
+    shade_bg: wgpu::BindGroup,
     tile_view: wgpu::TextureView,
+    gbuffer_view: wgpu::TextureView,
     colour: wgpu::Texture,
     colour_view: wgpu::TextureView,
     data: wgpu::Texture,
@@ -96,18 +115,29 @@ pub struct TerrainRenderer {
     raygen_ub: wgpu::Buffer,
     raygen_bgl: wgpu::BindGroupLayout,
     tile_bgl: wgpu::BindGroupLayout,
-    terrain_bgl: wgpu::BindGroupLayout,
+    cast_bgl: wgpu::BindGroupLayout,
+    shade_bgl: wgpu::BindGroupLayout,
     raygen_pipeline: wgpu::ComputePipeline,
     tile_pipeline: wgpu::RenderPipeline,
-    terrain_pipeline: wgpu::RenderPipeline,
+    cast_pipeline: wgpu::RenderPipeline,
+    march_pipeline: wgpu::RenderPipeline,
+    shade_pipeline: wgpu::RenderPipeline,
     targets: Option<Targets>,
 }
 
-fn storage_entry(binding: u32, vis: wgpu::ShaderStages, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+fn storage_entry(
+    binding: u32,
+    vis: wgpu::ShaderStages,
+    read_only: bool,
+) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility: vis,
-        ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Storage { read_only }, has_dynamic_offset: false, min_binding_size: None },
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
         count: None,
     }
 }
@@ -116,7 +146,11 @@ fn uniform_entry(binding: u32, vis: wgpu::ShaderStages) -> wgpu::BindGroupLayout
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility: vis,
-        ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Uniform,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
         count: None,
     }
 }
@@ -153,7 +187,11 @@ impl TerrainRenderer {
             });
         }
         check_buffer_limit(gpu, "height table", terrain.field.heights.len() as u64 * 4)?;
-        check_buffer_limit(gpu, "maximum pyramid", terrain.pyramid.data.len() as u64 * 4)?;
+        check_buffer_limit(
+            gpu,
+            "maximum pyramid",
+            terrain.pyramid.data.len() as u64 * 4,
+        )?;
         let storage = wgpu::BufferUsages::STORAGE;
         let heights = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("heights"),
@@ -168,7 +206,10 @@ impl TerrainRenderer {
         let drape_words: Vec<u32> = match &terrain.drape {
             Some((d, _)) => {
                 check_buffer_limit(gpu, "drape image", d.rgba.len() as u64)?;
-                d.rgba.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect()
+                d.rgba
+                    .chunks_exact(4)
+                    .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+                    .collect()
             }
             None => vec![0],
         };
@@ -195,10 +236,17 @@ impl TerrainRenderer {
             label: Some("raygen"),
             entries: &[uniform_entry(0, cs), storage_entry(1, cs, false)],
         });
-        let common = [uniform_entry(0, fs), storage_entry(1, fs, true), storage_entry(2, fs, true), storage_entry(3, fs, true)];
-        let tile_bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("tile"), entries: &common });
-        let mut terrain_entries = common.to_vec();
-        terrain_entries.push(wgpu::BindGroupLayoutEntry {
+        let common = [
+            uniform_entry(0, fs),
+            storage_entry(1, fs, true),
+            storage_entry(2, fs, true),
+            storage_entry(3, fs, true),
+        ];
+        let tile_bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("tile"),
+            entries: &common,
+        });
+        let uint_texture = wgpu::BindGroupLayoutEntry {
             binding: 4,
             visibility: fs,
             ty: wgpu::BindingType::Texture {
@@ -207,19 +255,36 @@ impl TerrainRenderer {
                 multisampled: false,
             },
             count: None,
+        };
+        let mut cast_entries = common.to_vec();
+        cast_entries.push(uint_texture);
+        let cast_bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("cast"),
+            entries: &cast_entries,
         });
-        terrain_entries.push(storage_entry(5, fs, true));
-        let terrain_bgl =
-            dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("terrain"), entries: &terrain_entries });
+        let mut shade_entries = cast_entries.clone();
+        shade_entries.push(storage_entry(5, fs, true));
+        let shade_bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("shade"),
+            entries: &shade_entries,
+        });
 
         let module = |label: &str, src: String| {
-            dev.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some(label), source: wgpu::ShaderSource::Wgsl(src.into()) })
+            dev.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(label),
+                source: wgpu::ShaderSource::Wgsl(src.into()),
+            })
         };
         let raygen_mod = module("raygen.wgsl", shaders::raygen());
         let tile_mod = module("tile.wgsl", shaders::tile());
-        let terrain_mod = module("terrain.wgsl", shaders::terrain());
+        let cast_mod = module("cast.wgsl", shaders::cast());
+        let shade_mod = module("shade.wgsl", shaders::shade());
         let layout = |bgl: &wgpu::BindGroupLayout| {
-            dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: None, bind_group_layouts: &[Some(bgl)], immediate_size: 0 })
+            dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: None,
+                bind_group_layouts: &[Some(bgl)],
+                immediate_size: 0,
+            })
         };
         let raygen_pipeline = dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some("raygen"),
@@ -229,27 +294,70 @@ impl TerrainRenderer {
             compilation_options: Default::default(),
             cache: None,
         });
-        let fullscreen = |label: &str, m: &wgpu::ShaderModule, entry: &str, bgl: &wgpu::BindGroupLayout, targets: &[Option<wgpu::ColorTargetState>]| {
+        let fullscreen = |label: &str,
+                          m: &wgpu::ShaderModule,
+                          entry: &str,
+                          bgl: &wgpu::BindGroupLayout,
+                          targets: &[Option<wgpu::ColorTargetState>]| {
             dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                 label: Some(label),
                 layout: Some(&layout(bgl)),
-                vertex: wgpu::VertexState { module: m, entry_point: Some("vs_fullscreen"), compilation_options: Default::default(), buffers: &[] },
+                vertex: wgpu::VertexState {
+                    module: m,
+                    entry_point: Some("vs_fullscreen"),
+                    compilation_options: Default::default(),
+                    buffers: &[],
+                },
                 primitive: wgpu::PrimitiveState::default(),
                 depth_stencil: None,
                 multisample: wgpu::MultisampleState::default(),
-                fragment: Some(wgpu::FragmentState { module: m, entry_point: Some(entry), compilation_options: Default::default(), targets }),
+                fragment: Some(wgpu::FragmentState {
+                    module: m,
+                    entry_point: Some(entry),
+                    compilation_options: Default::default(),
+                    targets,
+                }),
                 multiview_mask: None,
                 cache: None,
             })
         };
-        let target = |format| Some(wgpu::ColorTargetState { format, blend: None, write_mask: wgpu::ColorWrites::ALL });
-        let tile_pipeline = fullscreen("tile", &tile_mod, "fs_tile", &tile_bgl, &[target(wgpu::TextureFormat::R32Uint)]);
-        let terrain_pipeline = fullscreen(
-            "terrain",
-            &terrain_mod,
-            "fs_terrain",
-            &terrain_bgl,
-            &[target(wgpu::TextureFormat::Rgba8Unorm), target(wgpu::TextureFormat::Rgba32Uint)],
+        let target = |format| {
+            Some(wgpu::ColorTargetState {
+                format,
+                blend: None,
+                write_mask: wgpu::ColorWrites::ALL,
+            })
+        };
+        let tile_pipeline = fullscreen(
+            "tile",
+            &tile_mod,
+            "fs_tile",
+            &tile_bgl,
+            &[target(wgpu::TextureFormat::Rg32Uint)],
+        );
+        let cast_pipeline = fullscreen(
+            "cast",
+            &cast_mod,
+            "fs_cast",
+            &cast_bgl,
+            &[target(wgpu::TextureFormat::Rgba32Uint)],
+        );
+        let march_pipeline = fullscreen(
+            "march",
+            &cast_mod,
+            "fs_cast_march",
+            &cast_bgl,
+            &[target(wgpu::TextureFormat::Rgba32Uint)],
+        );
+        let shade_pipeline = fullscreen(
+            "shade",
+            &shade_mod,
+            "fs_shade",
+            &shade_bgl,
+            &[
+                target(wgpu::TextureFormat::Rgba8Unorm),
+                target(wgpu::TextureFormat::Rgba32Uint),
+            ],
         );
         Ok(TerrainRenderer {
             heights,
@@ -259,23 +367,32 @@ impl TerrainRenderer {
             raygen_ub,
             raygen_bgl,
             tile_bgl,
-            terrain_bgl,
+            cast_bgl,
+            shade_bgl,
             raygen_pipeline,
             tile_pipeline,
-            terrain_pipeline,
+            cast_pipeline,
+            march_pipeline,
+            shade_pipeline,
             targets: None,
         })
     }
 
     fn ensure_targets(&mut self, gpu: &Gpu, width: u32, height: u32) -> Result<()> {
-        if self.targets.as_ref().is_some_and(|t| t.width == width && t.height == height) {
+        if self
+            .targets
+            .as_ref()
+            .is_some_and(|t| t.width == width && t.height == height)
+        {
             return Ok(());
         }
         let max = gpu.limits.max_texture_dimension_2d;
         if width > max || height > max {
             return Err(Error::Limit {
                 what: "output size".into(),
-                msg: format!("{width}x{height} is larger than the adapter's {max}x{max} texture limit"),
+                msg: format!(
+                    "{width}x{height} is larger than the adapter's {max}x{max} texture limit"
+                ),
             });
         }
         check_buffer_limit(gpu, "ray table", width as u64 * height as u64 * 16)?;
@@ -290,19 +407,32 @@ impl TerrainRenderer {
         let tex = |label, w, h, format| {
             dev.create_texture(&wgpu::TextureDescriptor {
                 label: Some(label),
-                size: wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
+                size: wgpu::Extent3d {
+                    width: w,
+                    height: h,
+                    depth_or_array_layers: 1,
+                },
                 mip_level_count: 1,
                 sample_count: 1,
                 dimension: wgpu::TextureDimension::D2,
                 format,
-                usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_SRC,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                    | wgpu::TextureUsages::TEXTURE_BINDING
+                    | wgpu::TextureUsages::COPY_SRC,
                 view_formats: &[],
             })
         };
-        let tile_tex = tex("tile start", tiles[0], tiles[1], wgpu::TextureFormat::R32Uint);
+        let tile_tex = tex(
+            "tile start",
+            tiles[0],
+            tiles[1],
+            wgpu::TextureFormat::Rg32Uint,
+        );
         let colour = tex("colour", width, height, wgpu::TextureFormat::Rgba8Unorm);
         let data = tex("data", width, height, wgpu::TextureFormat::Rgba32Uint);
         let tile_view = tile_tex.create_view(&Default::default());
+        let gbuffer = tex("g-buffer", width, height, wgpu::TextureFormat::Rgba32Uint);
+        let gbuffer_view = gbuffer.create_view(&Default::default());
         let rb = |label, bpp: u32| {
             dev.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
@@ -316,20 +446,48 @@ impl TerrainRenderer {
             layout: &self.raygen_bgl,
             entries: &[buf(0, &self.raygen_ub), buf(1, &rays)],
         });
-        let common = [buf(0, &self.frame_ub), buf(1, &self.heights), buf(2, &self.pyramid), buf(3, &rays)];
-        let tile_bg = dev.create_bind_group(&wgpu::BindGroupDescriptor { label: Some("tile"), layout: &self.tile_bgl, entries: &common });
+        let common = [
+            buf(0, &self.frame_ub),
+            buf(1, &self.heights),
+            buf(2, &self.pyramid),
+            buf(3, &rays),
+        ];
+        let tile_bg = dev.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("tile"),
+            layout: &self.tile_bgl,
+            entries: &common,
+        });
         let mut entries = common.to_vec();
-        entries.push(wgpu::BindGroupEntry { binding: 4, resource: wgpu::BindingResource::TextureView(&tile_view) });
+        entries.push(wgpu::BindGroupEntry {
+            binding: 4,
+            resource: wgpu::BindingResource::TextureView(&tile_view),
+        });
+        let cast_bg = dev.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("cast"),
+            layout: &self.cast_bgl,
+            entries: &entries,
+        });
+        let mut entries = common.to_vec();
+        entries.push(wgpu::BindGroupEntry {
+            binding: 4,
+            resource: wgpu::BindingResource::TextureView(&gbuffer_view),
+        });
         entries.push(buf(5, &self.drape));
-        let terrain_bg = dev.create_bind_group(&wgpu::BindGroupDescriptor { label: Some("terrain"), layout: &self.terrain_bgl, entries: &entries });
+        let shade_bg = dev.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("shade"),
+            layout: &self.shade_bgl,
+            entries: &entries,
+        });
         self.targets = Some(Targets {
             width,
             height,
             tiles,
             raygen_bg,
             tile_bg,
-            terrain_bg,
+            cast_bg,
+            shade_bg,
             tile_view,
+            gbuffer_view,
             colour_view: colour.create_view(&Default::default()),
             data_view: data.create_view(&Default::default()),
             colour,
@@ -341,7 +499,10 @@ impl TerrainRenderer {
     }
 
     fn encode_raygen(&self, enc: &mut wgpu::CommandEncoder, t: &Targets) {
-        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("raygen"), timestamp_writes: None });
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("raygen"),
+            timestamp_writes: None,
+        });
         pass.set_pipeline(&self.raygen_pipeline);
         pass.set_bind_group(0, &t.raygen_bg, &[]);
         pass.dispatch_workgroups(t.width.div_ceil(8), t.height.div_ceil(8), 1);
@@ -361,7 +522,10 @@ impl TerrainRenderer {
                     view: v,
                     depth_slice: None,
                     resolve_target: None,
-                    ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT), store: wgpu::StoreOp::Store },
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                        store: wgpu::StoreOp::Store,
+                    },
                 })
             })
             .collect();
@@ -380,19 +544,34 @@ impl TerrainRenderer {
 
     /// Uploads the frame's uniforms and records the passes. With `timed`, each pass is
     /// submitted and waited for separately and its wall time returned.
-    fn run_passes(&mut self, gpu: &Gpu, terrain: &Terrain, scene: &SceneDesc, cam: &Camera, s: &RenderSettings, timed: bool) -> Result<PassTimes> {
+    fn run_passes(
+        &mut self,
+        gpu: &Gpu,
+        terrain: &Terrain,
+        scene: &SceneDesc,
+        cam: &Camera,
+        s: &RenderSettings,
+        stage: Stage,
+        timed: bool,
+    ) -> Result<PassTimes> {
         self.ensure_targets(gpu, cam.width, cam.height)?;
         let t = self.targets.as_ref().expect("targets just ensured");
         let fu = frame_uniforms(terrain, scene, cam, s, t.tiles);
-        gpu.queue.write_buffer(&self.frame_ub, 0, bytemuck::bytes_of(&fu));
-        gpu.queue.write_buffer(&self.raygen_ub, 0, bytemuck::bytes_of(&raygen_uniforms(cam)));
+        gpu.queue
+            .write_buffer(&self.frame_ub, 0, bytemuck::bytes_of(&fu));
+        gpu.queue.write_buffer(
+            &self.raygen_ub,
+            0,
+            bytemuck::bytes_of(&raygen_uniforms(cam)),
+        );
         let mut times = PassTimes::default();
         let tile_on = s.tile_prepass && s.mode == TraceMode::Pyramid;
         let mut enc = gpu.device.create_command_encoder(&Default::default());
         let lap = |enc: &mut wgpu::CommandEncoder, slot: &mut f64| -> Result<()> {
             if timed {
                 let start = Instant::now();
-                let done = std::mem::replace(enc, gpu.device.create_command_encoder(&Default::default()));
+                let done =
+                    std::mem::replace(enc, gpu.device.create_command_encoder(&Default::default()));
                 gpu.queue.submit([done.finish()]);
                 gpu.wait()?;
                 *slot = start.elapsed().as_secs_f64() * 1e3;
@@ -402,35 +581,84 @@ impl TerrainRenderer {
         self.encode_raygen(&mut enc, t);
         lap(&mut enc, &mut times.raygen_ms)?;
         if tile_on {
-            Self::encode_fullscreen(&mut enc, "tile", &self.tile_pipeline, &t.tile_bg, &[&t.tile_view]);
+            Self::encode_fullscreen(
+                &mut enc,
+                "tile",
+                &self.tile_pipeline,
+                &t.tile_bg,
+                &[&t.tile_view],
+            );
         }
         lap(&mut enc, &mut times.tile_ms)?;
-        Self::encode_fullscreen(&mut enc, "terrain", &self.terrain_pipeline, &t.terrain_bg, &[&t.colour_view, &t.data_view]);
-        lap(&mut enc, &mut times.terrain_ms)?;
+        let cast = if tile_on || s.mode == TraceMode::Pyramid {
+            &self.cast_pipeline
+        } else {
+            &self.march_pipeline
+        };
+        Self::encode_fullscreen(&mut enc, "cast", cast, &t.cast_bg, &[&t.gbuffer_view]);
+        lap(&mut enc, &mut times.cast_ms)?;
+        if stage == Stage::Shade {
+            Self::encode_fullscreen(
+                &mut enc,
+                "shade",
+                &self.shade_pipeline,
+                &t.shade_bg,
+                &[&t.colour_view, &t.data_view],
+            );
+            lap(&mut enc, &mut times.shade_ms)?;
+        }
         gpu.queue.submit([enc.finish()]);
         Ok(times)
     }
 
-    /// Renders one frame without reading it back (for benchmarks: the caller waits).
-    pub fn render(&mut self, gpu: &Gpu, terrain: &Terrain, scene: &SceneDesc, cam: &Camera, s: &RenderSettings) -> Result<()> {
-        self.run_passes(gpu, terrain, scene, cam, s, false).map(|_| ())
+    /// Renders one frame up to `stage` without reading it back (for benchmarks and the frame
+    /// loop: the caller waits or presents).
+    pub fn render(
+        &mut self,
+        gpu: &Gpu,
+        terrain: &Terrain,
+        scene: &SceneDesc,
+        cam: &Camera,
+        s: &RenderSettings,
+        stage: Stage,
+    ) -> Result<()> {
+        self.run_passes(gpu, terrain, scene, cam, s, stage, false)
+            .map(|_| ())
     }
 
     /// Renders one frame, timing each pass, and reads colour and data back.
-    pub fn capture(&mut self, gpu: &Gpu, terrain: &Terrain, scene: &SceneDesc, cam: &Camera, s: &RenderSettings) -> Result<FrameOutput> {
-        let mut times = self.run_passes(gpu, terrain, scene, cam, s, true)?;
+    pub fn capture(
+        &mut self,
+        gpu: &Gpu,
+        terrain: &Terrain,
+        scene: &SceneDesc,
+        cam: &Camera,
+        s: &RenderSettings,
+    ) -> Result<FrameOutput> {
+        let mut times = self.run_passes(gpu, terrain, scene, cam, s, Stage::Shade, true)?;
         let start = Instant::now();
         let t = self.targets.as_ref().expect("targets exist after a render");
         let (w, h) = (t.width, t.height);
         let mut enc = gpu.device.create_command_encoder(&Default::default());
-        for (tex, buf, bpp) in [(&t.colour, &t.colour_rb, 4u32), (&t.data, &t.data_rb, 16u32)] {
+        for (tex, buf, bpp) in [
+            (&t.colour, &t.colour_rb, 4u32),
+            (&t.data, &t.data_rb, 16u32),
+        ] {
             enc.copy_texture_to_buffer(
                 tex.as_image_copy(),
                 wgpu::TexelCopyBufferInfo {
                     buffer: buf,
-                    layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(padded_row(w * bpp)), rows_per_image: Some(h) },
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(padded_row(w * bpp)),
+                        rows_per_image: Some(h),
+                    },
                 },
-                wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
+                wgpu::Extent3d {
+                    width: w,
+                    height: h,
+                    depth_or_array_layers: 1,
+                },
             );
         }
         gpu.queue.submit([enc.finish()]);
@@ -462,7 +690,10 @@ impl TerrainRenderer {
 }
 
 fn buf(binding: u32, b: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
-    wgpu::BindGroupEntry { binding, resource: b.as_entire_binding() }
+    wgpu::BindGroupEntry {
+        binding,
+        resource: b.as_entire_binding(),
+    }
 }
 
 fn padded_row(bytes: u32) -> u32 {
@@ -480,7 +711,9 @@ fn read_buffer(gpu: &Gpu, buf: &wgpu::Buffer, row_bytes: u32, rows: u32) -> Resu
         .map_err(|_| Error::Gpu("readback callback never ran".into()))?
         .map_err(|e| Error::Gpu(format!("mapping the readback buffer: {e}")))?;
     let out = {
-        let view = buf.get_mapped_range(..).map_err(|e| Error::Gpu(format!("readback range: {e}")))?;
+        let view = buf
+            .get_mapped_range(..)
+            .map_err(|e| Error::Gpu(format!("readback range: {e}")))?;
         let stride = padded_row(row_bytes) as usize;
         let mut out = Vec::with_capacity(row_bytes as usize * rows as usize);
         for r in 0..rows as usize {
@@ -510,21 +743,37 @@ pub fn raygen_uniforms(cam: &Camera) -> RayGenUniforms {
 }
 
 /// The frame uniform block for a terrain, scene, camera and settings.
-pub fn frame_uniforms(terrain: &Terrain, scene: &SceneDesc, cam: &Camera, s: &RenderSettings, tiles: [u32; 2]) -> FrameUniforms {
+pub fn frame_uniforms(
+    terrain: &Terrain,
+    scene: &SceneDesc,
+    cam: &Camera,
+    s: &RenderSettings,
+    tiles: [u32; 2],
+) -> FrameUniforms {
     let fr = &terrain.frame;
     let [sx, sy] = fr.spacing;
     let eye = fr.world_to_grid(cam.pose.position);
     let sun = scene.sun.direction();
-    let local = |v: glam::DVec3| glam::DVec3::new(v.dot(fr.axis_x), v.dot(fr.axis_y), v.dot(fr.normal));
+    let local =
+        |v: glam::DVec3| glam::DVec3::new(v.dot(fr.axis_x), v.dot(fr.axis_y), v.dot(fr.normal));
     let fog_colour = scene.fog.colour.unwrap_or(scene.sky.horizon);
-    let sigma = if scene.fog.visibility > 0.0 { 3.912 / scene.fog.visibility } else { 0.0 };
+    let sigma = if scene.fog.visibility > 0.0 {
+        3.912 / scene.fog.visibility
+    } else {
+        0.0
+    };
     let mut levels = [[0u32; 4]; MAX_LEVELS];
     for (dst, l) in levels.iter_mut().zip(&terrain.pyramid.levels) {
         *dst = [l.cells[0], l.cells[1], l.stored[0], l.offset];
     }
     let (drape_map, drape_size, has_drape) = match &terrain.drape {
         Some((d, m)) => (
-            [m.offset[0] as f32, m.offset[1] as f32, m.scale[0] as f32, m.scale[1] as f32],
+            [
+                m.offset[0] as f32,
+                m.offset[1] as f32,
+                m.scale[0] as f32,
+                m.scale[1] as f32,
+            ],
             [d.width as u32, d.height as u32, 0, 0],
             1,
         ),
@@ -532,12 +781,19 @@ pub fn frame_uniforms(terrain: &Terrain, scene: &SceneDesc, cam: &Camera, s: &Re
     };
     let (mode, march) = match s.mode {
         TraceMode::Pyramid => (0, [0.0; 4]),
-        TraceMode::March { step_cells, bisections } => (1, [step_cells, bisections as f32, 0.0, 0.0]),
+        TraceMode::March {
+            step_cells,
+            bisections,
+        } => (1, [step_cells, bisections as f32, 0.0, 0.0]),
     };
     let c = |v: [f32; 3], w: f32| [v[0], v[1], v[2], w];
     FrameUniforms {
         eye: v4(eye, 1.0),
-        grid_from_world: [v4(fr.axis_x / sx, 0.0), v4(fr.axis_y / sy, 0.0), v4(fr.normal, 0.0)],
+        grid_from_world: [
+            v4(fr.axis_x / sx, 0.0),
+            v4(fr.axis_y / sy, 0.0),
+            v4(fr.normal, 0.0),
+        ],
         local_from_world: [v4(fr.axis_x, 0.0), v4(fr.axis_y, 0.0), v4(fr.normal, 0.0)],
         sun_local: v4(local(sun), scene.sun.intensity as f64),
         sun_grid: v4(fr.world_dir_to_grid(sun), 0.0),
@@ -548,10 +804,20 @@ pub fn frame_uniforms(terrain: &Terrain, scene: &SceneDesc, cam: &Camera, s: &Re
         fog_colour: c(fog_colour, sigma as f32),
         fog: [scene.fog.scale_height as f32, 0.0, 0.0, 0.0],
         spacing: [sx as f32, sy as f32, (1.0 / sx) as f32, (1.0 / sy) as f32],
-        heights_range: [terrain.min_height, terrain.max_height, crate::cpu::query::shadow_offset(terrain) as f32, (4.0 * crate::cpu::traverse::height_slack(terrain)).max(1e-3) as f32],
+        heights_range: [
+            terrain.min_height,
+            terrain.max_height,
+            crate::cpu::query::shadow_offset(terrain) as f32,
+            (4.0 * crate::cpu::traverse::height_slack(terrain)).max(1e-3) as f32,
+        ],
         drape_map,
         size: [cam.width, cam.height, tiles[0], tiles[1]],
-        grid: [terrain.field.width as u32, terrain.field.height as u32, terrain.pyramid.levels.len() as u32, has_drape],
+        grid: [
+            terrain.field.width as u32,
+            terrain.field.height as u32,
+            terrain.pyramid.levels.len() as u32,
+            has_drape,
+        ],
         mode: [mode, s.max_steps, s.shadows as u32, s.tile_prepass as u32],
         drape_size,
         march,

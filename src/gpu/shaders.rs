@@ -4,6 +4,7 @@
 const FRAME: &str = include_str!("shaders/frame.wgsl");
 const FULLSCREEN: &str = include_str!("shaders/fullscreen.wgsl");
 const TRAVERSE: &str = include_str!("shaders/terrain_traverse.wgsl");
+const GBUFFER: &str = include_str!("shaders/gbuffer.wgsl");
 
 /// Ray generation (compute): pinhole ray table.
 pub fn raygen() -> String {
@@ -12,15 +13,45 @@ pub fn raygen() -> String {
 
 /// Tile pre-pass (fragment).
 pub fn tile() -> String {
-    [FRAME, FULLSCREEN, TRAVERSE, include_str!("shaders/tile.wgsl")].concat()
+    [
+        FRAME,
+        FULLSCREEN,
+        TRAVERSE,
+        include_str!("shaders/tile.wgsl"),
+    ]
+    .concat()
 }
 
-/// Terrain cast + shade pass (fragment).
-pub fn terrain() -> String {
-    [FRAME, FULLSCREEN, TRAVERSE, include_str!("shaders/terrain.wgsl")].concat()
+/// Terrain cast pass (fragment): traversal only, writes the G-buffer.
+pub fn cast() -> String {
+    [
+        FRAME,
+        FULLSCREEN,
+        TRAVERSE,
+        GBUFFER,
+        include_str!("shaders/cast.wgsl"),
+    ]
+    .concat()
+}
+
+/// Shade pass (fragment): lighting, shadow rays, fog, sky from the G-buffer.
+pub fn shade() -> String {
+    [
+        FRAME,
+        FULLSCREEN,
+        TRAVERSE,
+        GBUFFER,
+        include_str!("shaders/shade.wgsl"),
+    ]
+    .concat()
 }
 
 /// Every composed pass source with its name, for validation.
 pub fn all() -> Vec<(&'static str, String)> {
-    vec![("raygen", raygen()), ("tile", tile()), ("terrain", terrain())]
+    vec![
+        ("raygen", raygen()),
+        ("tile", tile()),
+        ("cast", cast()),
+        ("shade", shade()),
+    ]
 }

@@ -10,7 +10,10 @@ use serde::{Deserialize, Serialize};
 
 pub(crate) fn check_fov(field: &str, fov: f64) -> Result<()> {
     if !fov.is_finite() || fov <= 0.0 || fov > 179.0 {
-        return Err(Error::invalid(field, format!("horizontal field of view must be in (0, 179] degrees, got {fov}")));
+        return Err(Error::invalid(
+            field,
+            format!("horizontal field of view must be in (0, 179] degrees, got {fov}"),
+        ));
     }
     Ok(())
 }
@@ -35,13 +38,21 @@ pub struct Camera {
 
 impl Camera {
     pub fn new(pose: Pose, width: u32, height: u32) -> Camera {
-        Camera { pose, width, height }
+        Camera {
+            pose,
+            width,
+            height,
+        }
     }
 
     /// (right, down, forward) unit vectors in the world.
     /// Heading turns clockwise from north (+y), pitch raises the nose, roll lowers the right wing.
     pub fn basis(&self) -> (DVec3, DVec3, DVec3) {
-        let (h, p, r) = (self.pose.heading.to_radians(), self.pose.pitch.to_radians(), self.pose.roll.to_radians());
+        let (h, p, r) = (
+            self.pose.heading.to_radians(),
+            self.pose.pitch.to_radians(),
+            self.pose.roll.to_radians(),
+        );
         let fwd = DVec3::new(h.sin() * p.cos(), h.cos() * p.cos(), p.sin());
         let right0 = DVec3::new(h.cos(), -h.sin(), 0.0);
         let up0 = right0.cross(fwd);
@@ -59,7 +70,12 @@ impl Camera {
     /// World-from-camera affine matrix.
     pub fn world_from_camera(&self) -> DMat4 {
         let r = self.rotation();
-        DMat4::from_cols(r.x_axis.extend(0.0), r.y_axis.extend(0.0), r.z_axis.extend(0.0), self.pose.position.extend(1.0))
+        DMat4::from_cols(
+            r.x_axis.extend(0.0),
+            r.y_axis.extend(0.0),
+            r.z_axis.extend(0.0),
+            self.pose.position.extend(1.0),
+        )
     }
 
     /// Intrinsics `(fx, fy, cx, cy)` in pixels (square pixels, principal point at the centre).
@@ -129,14 +145,28 @@ fn default_fps() -> f64 {
 impl CameraPath {
     pub(crate) fn validate(&self) -> Result<()> {
         if !self.fps.is_finite() || self.fps <= 0.0 || self.fps > 10_000.0 {
-            return Err(Error::invalid("path.fps", format!("must be in (0, 10000], got {}", self.fps)));
+            return Err(Error::invalid(
+                "path.fps",
+                format!("must be in (0, 10000], got {}", self.fps),
+            ));
         }
         if self.keyframes.is_empty() {
-            return Err(Error::invalid("path.keyframes", "needs at least one keyframe"));
+            return Err(Error::invalid(
+                "path.keyframes",
+                "needs at least one keyframe",
+            ));
         }
         for (i, k) in self.keyframes.iter().enumerate() {
             let f = format!("path.keyframes[{i}]");
-            let vals = [k.time, k.position[0], k.position[1], k.position[2], k.heading, k.pitch, k.roll];
+            let vals = [
+                k.time,
+                k.position[0],
+                k.position[1],
+                k.position[2],
+                k.heading,
+                k.pitch,
+                k.roll,
+            ];
             if vals.iter().any(|v| !v.is_finite()) {
                 return Err(Error::invalid(f, "has a non-finite value"));
             }
@@ -174,7 +204,10 @@ impl CameraPath {
         let s2 = s * s;
         let s3 = s2 * s;
         let position = 0.5
-            * ((2.0 * p1) + (-p0 + p2) * s + (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3) * s2 + (-p0 + 3.0 * p1 - 3.0 * p2 + p3) * s3);
+            * ((2.0 * p1)
+                + (-p0 + p2) * s
+                + (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3) * s2
+                + (-p0 + 3.0 * p1 - 3.0 * p2 + p3) * s3);
         let dh = (b.heading - a.heading + 540.0).rem_euclid(360.0) - 180.0;
         Pose {
             position,

@@ -83,12 +83,18 @@ impl TerrainDesc {
         let n = DVec3::from(self.normal);
         let ax = DVec3::from(self.axis_x);
         if !n.is_finite() || n.length() < 1e-9 {
-            return Err(Error::invalid("terrain.normal", "must be a finite non-zero vector"));
+            return Err(Error::invalid(
+                "terrain.normal",
+                "must be a finite non-zero vector",
+            ));
         }
         let n = n.normalize();
         let x = ax - n * ax.dot(n);
         if !x.is_finite() || x.length() < 1e-6 {
-            return Err(Error::invalid("terrain.axis_x", "must be finite and not parallel to terrain.normal"));
+            return Err(Error::invalid(
+                "terrain.axis_x",
+                "must be finite and not parallel to terrain.normal",
+            ));
         }
         let x = x.normalize();
         Ok((x, n.cross(x), n))
@@ -111,7 +117,12 @@ pub struct Sun {
 
 impl Default for Sun {
     fn default() -> Self {
-        Sun { azimuth: 135.0, elevation: 30.0, colour: [1.0, 0.95, 0.85], intensity: 2.6 }
+        Sun {
+            azimuth: 135.0,
+            elevation: 30.0,
+            colour: [1.0, 0.95, 0.85],
+            intensity: 2.6,
+        }
     }
 }
 
@@ -137,7 +148,11 @@ pub struct Sky {
 
 impl Default for Sky {
     fn default() -> Self {
-        Sky { zenith: [0.10, 0.22, 0.55], horizon: [0.62, 0.74, 0.88], ambient: 0.55 }
+        Sky {
+            zenith: [0.10, 0.22, 0.55],
+            horizon: [0.62, 0.74, 0.88],
+            ambient: 0.55,
+        }
     }
 }
 
@@ -155,7 +170,11 @@ pub struct Fog {
 
 impl Default for Fog {
     fn default() -> Self {
-        Fog { visibility: 80_000.0, colour: None, scale_height: 0.0 }
+        Fog {
+            visibility: 80_000.0,
+            colour: None,
+            scale_height: 0.0,
+        }
     }
 }
 
@@ -195,7 +214,10 @@ pub struct Output {
 
 impl Default for Output {
     fn default() -> Self {
-        Output { width: 1280, height: 720 }
+        Output {
+            width: 1280,
+            height: 720,
+        }
     }
 }
 
@@ -213,7 +235,11 @@ pub struct RenderOptions {
 
 impl Default for RenderOptions {
     fn default() -> Self {
-        RenderOptions { shadows: true, tile_prepass: true, max_steps: 4096 }
+        RenderOptions {
+            shadows: true,
+            tile_prepass: true,
+            max_steps: 4096,
+        }
     }
 }
 
@@ -229,7 +255,10 @@ fn check_finite(field: &str, v: &[f64]) -> Result<()> {
     if v.iter().all(|x| x.is_finite()) {
         Ok(())
     } else {
-        Err(Error::invalid(field, format!("must be finite numbers, got {v:?}")))
+        Err(Error::invalid(
+            field,
+            format!("must be finite numbers, got {v:?}"),
+        ))
     }
 }
 
@@ -242,10 +271,15 @@ impl Scene {
 
     /// Parses scene text; `path` names the file in errors and anchors relative paths.
     pub fn parse(text: &str, path: &Path) -> Result<Scene> {
-        let desc: SceneDesc = toml::from_str(text).map_err(|e| Error::format(path, format!("scene error: {e}")))?;
+        let desc: SceneDesc =
+            toml::from_str(text).map_err(|e| Error::format(path, format!("scene error: {e}")))?;
         desc.validate()?;
         let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-        Ok(Scene { desc, base_dir, path: path.to_path_buf() })
+        Ok(Scene {
+            desc,
+            base_dir,
+            path: path.to_path_buf(),
+        })
     }
 
     /// Loads the terrain the scene names.
@@ -296,35 +330,72 @@ impl SceneDesc {
         let s = &self.sun;
         check_finite("sun.azimuth/elevation", &[s.azimuth, s.elevation])?;
         if !(-90.0..=90.0).contains(&s.elevation) {
-            return Err(Error::invalid("sun.elevation", format!("must be in -90..=90 degrees, got {}", s.elevation)));
+            return Err(Error::invalid(
+                "sun.elevation",
+                format!("must be in -90..=90 degrees, got {}", s.elevation),
+            ));
         }
-        let colours = [("sun.colour", s.colour), ("sky.zenith", self.sky.zenith), ("sky.horizon", self.sky.horizon)];
-        for (name, col) in colours.iter().chain(self.fog.colour.iter().map(|c| ("fog.colour", *c)).collect::<Vec<_>>().iter()) {
+        let colours = [
+            ("sun.colour", s.colour),
+            ("sky.zenith", self.sky.zenith),
+            ("sky.horizon", self.sky.horizon),
+        ];
+        for (name, col) in colours.iter().chain(
+            self.fog
+                .colour
+                .iter()
+                .map(|c| ("fog.colour", *c))
+                .collect::<Vec<_>>()
+                .iter(),
+        ) {
             if col.iter().any(|v| !v.is_finite() || *v < 0.0 || *v > 100.0) {
-                return Err(Error::invalid(*name, format!("must be linear RGB in 0..=100, got {col:?}")));
+                return Err(Error::invalid(
+                    *name,
+                    format!("must be linear RGB in 0..=100, got {col:?}"),
+                ));
             }
         }
-        for (name, v) in [("sun.intensity", s.intensity), ("sky.ambient", self.sky.ambient)] {
+        for (name, v) in [
+            ("sun.intensity", s.intensity),
+            ("sky.ambient", self.sky.ambient),
+        ] {
             if !v.is_finite() || !(0.0..=100.0).contains(&v) {
                 return Err(Error::invalid(name, format!("must be in 0..=100, got {v}")));
             }
         }
         let f = &self.fog;
         if !f.visibility.is_finite() || f.visibility < 0.0 {
-            return Err(Error::invalid("fog.visibility", format!("must be ≥ 0 metres (0 = no fog), got {}", f.visibility)));
+            return Err(Error::invalid(
+                "fog.visibility",
+                format!("must be ≥ 0 metres (0 = no fog), got {}", f.visibility),
+            ));
         }
         if !f.scale_height.is_finite() || f.scale_height < 0.0 {
-            return Err(Error::invalid("fog.scale_height", format!("must be ≥ 0 metres, got {}", f.scale_height)));
+            return Err(Error::invalid(
+                "fog.scale_height",
+                format!("must be ≥ 0 metres, got {}", f.scale_height),
+            ));
         }
         let r = &self.render;
         if !(16..=1 << 20).contains(&r.max_steps) {
-            return Err(Error::invalid("render.max_steps", format!("must be 16..=1048576, got {}", r.max_steps)));
+            return Err(Error::invalid(
+                "render.max_steps",
+                format!("must be 16..=1048576, got {}", r.max_steps),
+            ));
         }
         let t = &self.terrain;
         match (&t.source, &t.procedural) {
-            (Some(_), Some(_)) => return Err(Error::invalid("terrain", "set either `source` or `procedural`, not both")),
+            (Some(_), Some(_)) => {
+                return Err(Error::invalid(
+                    "terrain",
+                    "set either `source` or `procedural`, not both",
+                ))
+            }
             (None, None) => {
-                return Err(Error::invalid("terrain", "set `source = \"file.hgt|tif|png\"` or a `[terrain.procedural]` table"))
+                return Err(Error::invalid(
+                    "terrain",
+                    "set `source = \"file.hgt|tif|png\"` or a `[terrain.procedural]` table",
+                ))
             }
             _ => {}
         }
@@ -332,7 +403,10 @@ impl SceneDesc {
         t.axes()?;
         if let Some(cs) = t.cell_size {
             if cs.iter().any(|v| !v.is_finite() || *v <= 0.0) {
-                return Err(Error::invalid("terrain.cell_size", format!("must be positive metres, got {cs:?}")));
+                return Err(Error::invalid(
+                    "terrain.cell_size",
+                    format!("must be positive metres, got {cs:?}"),
+                ));
             }
         }
         check_finite("terrain.png_scale/png_offset", &[t.png_scale, t.png_offset])?;

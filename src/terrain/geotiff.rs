@@ -34,21 +34,37 @@ fn read_geo_tags<R: Read + Seek>(dec: &mut Decoder<R>) -> GeoTags {
     let scale = dec
         .get_tag_f64_vec(Tag::ModelPixelScaleTag)
         .ok()
-        .filter(|v| v.len() >= 2 && v[0] > 0.0 && v[1] > 0.0 && v[0].is_finite() && v[1].is_finite())
+        .filter(|v| {
+            v.len() >= 2 && v[0] > 0.0 && v[1] > 0.0 && v[0].is_finite() && v[1].is_finite()
+        })
         .map(|v| [v[0], v[1]]);
-    let tie = dec.get_tag_f64_vec(Tag::ModelTiepointTag).ok().filter(|v| v.len() >= 6);
+    let tie = dec
+        .get_tag_f64_vec(Tag::ModelTiepointTag)
+        .ok()
+        .filter(|v| v.len() >= 6);
     let top_left = match (tie, scale) {
         (Some(t), Some(s)) => Some([t[3] - t[0] * s[0], t[4] + t[1] * s[1]]),
         _ => None,
     };
-    let geographic = dec.get_tag_u16_vec(Tag::GeoKeyDirectoryTag).ok().and_then(|keys| {
-        keys.chunks_exact(4).skip(1).find(|k| k[0] == 1024).map(|k| k[3] == 2)
-    });
+    let geographic = dec
+        .get_tag_u16_vec(Tag::GeoKeyDirectoryTag)
+        .ok()
+        .and_then(|keys| {
+            keys.chunks_exact(4)
+                .skip(1)
+                .find(|k| k[0] == 1024)
+                .map(|k| k[3] == 2)
+        });
     let nodata = dec
         .get_tag_ascii_string(Tag::GdalNodata)
         .ok()
         .and_then(|s| s.trim().trim_end_matches('\0').trim().parse::<f64>().ok());
-    GeoTags { scale, top_left, geographic, nodata }
+    GeoTags {
+        scale,
+        top_left,
+        geographic,
+        nodata,
+    }
 }
 
 /// Decoded raster: one channel as f64 or several as u8-scaled.
@@ -67,8 +83,12 @@ struct Raster {
 fn read_raster(path: &Path) -> Result<Raster> {
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let mut dec = decoder(path, BufReader::new(file))?;
-    let (w, h) = dec.dimensions().map_err(|e| Error::format(path, format!("bad TIFF header: {e}")))?;
-    let colour = dec.colortype().map_err(|e| Error::format(path, format!("unsupported TIFF colour type: {e}")))?;
+    let (w, h) = dec
+        .dimensions()
+        .map_err(|e| Error::format(path, format!("bad TIFF header: {e}")))?;
+    let colour = dec
+        .colortype()
+        .map_err(|e| Error::format(path, format!("unsupported TIFF colour type: {e}")))?;
     let (channels, bits) = match colour {
         ColorType::Gray(b) => (1, b),
         ColorType::GrayA(b) => (2, b),
@@ -86,34 +106,48 @@ fn read_raster(path: &Path) -> Result<Raster> {
         Error::format(path, format!("cannot decode the TIFF image data (corrupt or unsupported compression/sample format): {e}"))
     })?;
     let f32_samples = matches!(data, DecodingResult::F32(_));
-    let values: Vec<f64> = match data {
-        DecodingResult::U8(v) => v.into_iter().map(f64::from).collect(),
-        DecodingResult::U16(v) => v.into_iter().map(f64::from).collect(),
-        DecodingResult::I16(v) => v.into_iter().map(f64::from).collect(),
-        DecodingResult::U32(v) => v.into_iter().map(f64::from).collect(),
-        DecodingResult::I32(v) => v.into_iter().map(f64::from).collect(),
-        DecodingResult::F32(v) => v.into_iter().map(f64::from).collect(),
-        DecodingResult::F64(v) => v,
-        DecodingResult::I8(v) => v.into_iter().map(f64::from).collect(),
-        _ => {
-            return Err(Error::format(
+    let values: Vec<f64> =
+        match data {
+            DecodingResult::U8(v) => v.into_iter().map(f64::from).collect(),
+            DecodingResult::U16(v) => v.into_iter().map(f64::from).collect(),
+            DecodingResult::I16(v) => v.into_iter().map(f64::from).collect(),
+            DecodingResult::U32(v) => v.into_iter().map(f64::from).collect(),
+            DecodingResult::I32(v) => v.into_iter().map(f64::from).collect(),
+            DecodingResult::F32(v) => v.into_iter().map(f64::from).collect(),
+            DecodingResult::F64(v) => v,
+            DecodingResult::I8(v) => v.into_iter().map(f64::from).collect(),
+            _ => return Err(Error::format(
                 path,
                 "unsupported TIFF sample format: use u8, u16, i16, u32, i32, f32 or f64 samples",
-            ))
-        }
-    };
+            )),
+        };
     let (width, height) = (w as usize, h as usize);
     if values.len() != width * height * channels {
         return Err(Error::format(
             path,
-            format!("decoded {} values, expected {width}x{height}x{channels}", values.len()),
+            format!(
+                "decoded {} values, expected {width}x{height}x{channels}",
+                values.len()
+            ),
         ));
     }
-    Ok(Raster { width, height, channels, values, bits, f32_samples, geo })
+    Ok(Raster {
+        width,
+        height,
+        channels,
+        values,
+        bits,
+        f32_samples,
+        geo,
+    })
 }
 
 /// Georeference of a raster: GeoRef of the south-west pixel centre plus metric spacing.
-fn georef(path: &Path, r: &Raster, spacing_override: Option<[f64; 2]>) -> Result<([f64; 2], Option<GeoRef>)> {
+fn georef(
+    path: &Path,
+    r: &Raster,
+    spacing_override: Option<[f64; 2]>,
+) -> Result<([f64; 2], Option<GeoRef>)> {
     let (Some(scale), Some(tl)) = (r.geo.scale, r.geo.top_left) else {
         return match spacing_override {
             Some(s) => Ok((s, None)),
@@ -124,7 +158,10 @@ fn georef(path: &Path, r: &Raster, spacing_override: Option<[f64; 2]>) -> Result
         };
     };
     // Geographic when the GeoKey says so, or (no keys) when the numbers only make sense as degrees.
-    let geographic = r.geo.geographic.unwrap_or(scale[0] < 0.1 && tl[0].abs() <= 360.0 && tl[1].abs() <= 90.0);
+    let geographic = r
+        .geo
+        .geographic
+        .unwrap_or(scale[0] < 0.1 && tl[0].abs() <= 360.0 && tl[1].abs() <= 90.0);
     let geo = GeoRef {
         lon0: tl[0] + 0.5 * scale[0],
         lat0: tl[1] - (r.height as f64 - 0.5) * scale[1],
@@ -144,17 +181,26 @@ fn georef(path: &Path, r: &Raster, spacing_override: Option<[f64; 2]>) -> Result
 }
 
 /// Loads a single-channel (GeoTIFF) height raster. `nodata` overrides GDAL_NODATA.
-pub fn load_heights(path: &Path, spacing_override: Option<[f64; 2]>, nodata: Option<f64>) -> Result<Heightfield> {
+pub fn load_heights(
+    path: &Path,
+    spacing_override: Option<[f64; 2]>,
+    nodata: Option<f64>,
+) -> Result<Heightfield> {
     let r = read_raster(path)?;
     if r.channels != 1 {
         return Err(Error::format(
             path,
-            format!("a height raster needs one sample per pixel, this one has {}", r.channels),
+            format!(
+                "a height raster needs one sample per pixel, this one has {}",
+                r.channels
+            ),
         ));
     }
     let (spacing, geo) = georef(path, &r, spacing_override)?;
     // An f32 raster stores its no-data value rounded to f32 (GDAL_NODATA "-9999.9" is -9999.900390625).
-    let nodata = nodata.or(r.geo.nodata).map(|nd| if r.f32_samples { nd as f32 as f64 } else { nd });
+    let nodata = nodata
+        .or(r.geo.nodata)
+        .map(|nd| if r.f32_samples { nd as f32 as f64 } else { nd });
     let (w, h) = (r.width, r.height);
     let mut samples = vec![None; w * h];
     for row in 0..h {
@@ -182,7 +228,10 @@ pub struct Drape {
 /// Loads an RGB(A) TIFF or PNG as a drape image.
 pub fn load_drape(path: &Path) -> Result<Drape> {
     let is_tiff = matches!(
-        path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref(),
+        path.extension()
+            .and_then(|e| e.to_str())
+            .map(|e| e.to_ascii_lowercase())
+            .as_deref(),
         Some("tif" | "tiff")
     );
     let (w, h, rows_north_first, geo): (usize, usize, Vec<[u8; 4]>, Option<GeoRef>) = if is_tiff {
@@ -191,7 +240,11 @@ pub fn load_drape(path: &Path) -> Result<Drape> {
             return Err(Error::format(path, "a drape image must be RGB or RGBA"));
         }
         let (_, geo) = georef(path, &r, Some([1.0, 1.0]))?;
-        let max = if r.bits > 8 { ((1u32 << r.bits.min(16)) - 1) as f64 } else { 255.0 };
+        let max = if r.bits > 8 {
+            ((1u32 << r.bits.min(16)) - 1) as f64
+        } else {
+            255.0
+        };
         let px = r
             .values
             .chunks_exact(r.channels)
@@ -202,7 +255,8 @@ pub fn load_drape(path: &Path) -> Result<Drape> {
             .collect();
         (r.width, r.height, px, geo)
     } else {
-        let img = image::open(path).map_err(|e| Error::format(path, format!("cannot read drape image: {e}")))?;
+        let img = image::open(path)
+            .map_err(|e| Error::format(path, format!("cannot read drape image: {e}")))?;
         let img = img.to_rgba8();
         let (w, h) = (img.width() as usize, img.height() as usize);
         (w, h, img.pixels().map(|p| p.0).collect(), None)
@@ -214,5 +268,10 @@ pub fn load_drape(path: &Path) -> Result<Drape> {
             rgba[(j * w + i) * 4..][..4].copy_from_slice(&rows_north_first[row * w + i]);
         }
     }
-    Ok(Drape { width: w, height: h, rgba, geo })
+    Ok(Drape {
+        width: w,
+        height: h,
+        rgba,
+        geo,
+    })
 }

@@ -47,7 +47,9 @@ impl Heightfield {
     pub fn range(&self) -> (f32, f32) {
         self.heights
             .iter()
-            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &h| (lo.min(h), hi.max(h)))
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &h| {
+                (lo.min(h), hi.max(h))
+            })
     }
 
     /// Builds a field from raw samples where `None` marks a void; voids are filled and counted.
@@ -76,7 +78,10 @@ impl Heightfield {
             if !s.is_finite() || *s <= 0.0 {
                 return Err(Error::invalid(
                     what,
-                    format!("sample spacing along {} must be a positive number of metres, got {s}", ["x", "y"][k]),
+                    format!(
+                        "sample spacing along {} must be a positive number of metres, got {s}",
+                        ["x", "y"][k]
+                    ),
                 ));
             }
         }
@@ -88,12 +93,22 @@ impl Heightfield {
             ));
         }
         let heights = if voids > 0 {
-            log::warn!("{what}: filled {voids} void/no-data samples of {}", samples.len());
+            log::warn!(
+                "{what}: filled {voids} void/no-data samples of {}",
+                samples.len()
+            );
             fill_voids(width, height, &samples)
         } else {
             samples.into_iter().map(|s| s.unwrap_or(0.0)).collect()
         };
-        Ok(Heightfield { width, height, heights, spacing, geo, voids_filled: voids })
+        Ok(Heightfield {
+            width,
+            height,
+            heights,
+            spacing,
+            geo,
+            voids_filled: voids,
+        })
     }
 }
 
@@ -104,7 +119,10 @@ fn fill_voids(width: usize, height: usize, samples: &[Option<f32>]) -> Vec<f32> 
     let mut levels: Vec<(usize, usize, Vec<(f64, f64)>)> = vec![(
         width,
         height,
-        samples.iter().map(|s| s.map_or((0.0, 0.0), |v| (v as f64, 1.0))).collect(),
+        samples
+            .iter()
+            .map(|s| s.map_or((0.0, 0.0), |v| (v as f64, 1.0)))
+            .collect(),
     )];
     while {
         let (w, h, _) = levels.last().unwrap();
@@ -149,7 +167,8 @@ fn fill_voids(width: usize, height: usize, samples: &[Option<f32>]) -> Vec<f32> 
 /// Metres per degree of longitude and latitude at latitude `lat_deg` (WGS84 series).
 pub fn metres_per_degree(lat_deg: f64) -> (f64, f64) {
     let p = lat_deg.to_radians();
-    let lat = 111_132.92 - 559.82 * (2.0 * p).cos() + 1.175 * (4.0 * p).cos() - 0.0023 * (6.0 * p).cos();
+    let lat =
+        111_132.92 - 559.82 * (2.0 * p).cos() + 1.175 * (4.0 * p).cos() - 0.0023 * (6.0 * p).cos();
     let lon = 111_412.84 * p.cos() - 93.5 * (3.0 * p).cos() + 0.118 * (5.0 * p).cos();
     (lon, lat)
 }

@@ -74,6 +74,11 @@ pub fn load(path: &Path) -> Result<Heightfield> {
         n,
         samples,
         [step * mx, step * my],
-        Some(GeoRef { lon0: lon_w, lat0: lat_s, dlon: step, dlat: step }),
+        Some(GeoRef {
+            lon0: lon_w,
+            lat0: lat_s,
+            dlon: step,
+            dlat: step,
+        }),
     )
 }

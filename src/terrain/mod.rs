@@ -39,19 +39,33 @@ impl TerrainFrame {
     /// World point → grid frame.
     pub fn world_to_grid(&self, p: DVec3) -> DVec3 {
         let d = p - self.origin;
-        DVec3::new(d.dot(self.axis_x) / self.spacing[0], d.dot(self.axis_y) / self.spacing[1], d.dot(self.normal))
+        DVec3::new(
+            d.dot(self.axis_x) / self.spacing[0],
+            d.dot(self.axis_y) / self.spacing[1],
+            d.dot(self.normal),
+        )
     }
     /// World direction → grid frame (not renormalised: the ray parameter stays in metres).
     pub fn world_dir_to_grid(&self, d: DVec3) -> DVec3 {
-        DVec3::new(d.dot(self.axis_x) / self.spacing[0], d.dot(self.axis_y) / self.spacing[1], d.dot(self.normal))
+        DVec3::new(
+            d.dot(self.axis_x) / self.spacing[0],
+            d.dot(self.axis_y) / self.spacing[1],
+            d.dot(self.normal),
+        )
     }
     /// Grid frame → world point.
     pub fn grid_to_world(&self, g: DVec3) -> DVec3 {
-        self.origin + self.axis_x * (g.x * self.spacing[0]) + self.axis_y * (g.y * self.spacing[1]) + self.normal * g.z
+        self.origin
+            + self.axis_x * (g.x * self.spacing[0])
+            + self.axis_y * (g.y * self.spacing[1])
+            + self.normal * g.z
     }
     /// World normal from the height gradient `(dh/dx, dh/dy)` in metres per grid unit.
     pub fn normal_from_gradient(&self, dhdx: f64, dhdy: f64) -> DVec3 {
-        (self.normal - self.axis_x * (dhdx / self.spacing[0]) - self.axis_y * (dhdy / self.spacing[1])).normalize()
+        (self.normal
+            - self.axis_x * (dhdx / self.spacing[0])
+            - self.axis_y * (dhdy / self.spacing[1]))
+            .normalize()
     }
     /// The affine matrix taking homogeneous world points to grid coordinates.
     pub fn grid_from_world(&self) -> DMat4 {
@@ -97,9 +111,16 @@ pub struct Terrain {
 
 impl Terrain {
     /// Places a height field in the world and builds its pyramid.
-    pub fn new(mut field: Heightfield, frame: TerrainFrame, vertical_scale: f64) -> Result<Terrain> {
+    pub fn new(
+        mut field: Heightfield,
+        frame: TerrainFrame,
+        vertical_scale: f64,
+    ) -> Result<Terrain> {
         if !vertical_scale.is_finite() || vertical_scale <= 0.0 || vertical_scale > 1000.0 {
-            return Err(Error::invalid("terrain.vertical_scale", format!("must be in (0, 1000], got {vertical_scale}")));
+            return Err(Error::invalid(
+                "terrain.vertical_scale",
+                format!("must be in (0, 1000], got {vertical_scale}"),
+            ));
         }
         if vertical_scale != 1.0 {
             for h in &mut field.heights {
@@ -121,27 +142,55 @@ impl Terrain {
             pyramid.levels.len(),
             t.elapsed().as_secs_f64() * 1e3
         );
-        let frame = TerrainFrame { spacing: field.spacing, ..frame };
-        Ok(Terrain { field, frame, pyramid, min_height, max_height, drape: None })
+        let frame = TerrainFrame {
+            spacing: field.spacing,
+            ..frame
+        };
+        Ok(Terrain {
+            field,
+            frame,
+            pyramid,
+            min_height,
+            max_height,
+            drape: None,
+        })
     }
 
     /// Loads and places the terrain a scene describes. Relative paths are resolved from `base_dir`.
     pub fn from_desc(desc: &TerrainDesc, base_dir: &Path) -> Result<Terrain> {
         let field = match (&desc.source, &desc.procedural) {
             (Some(_), Some(_)) => {
-                return Err(Error::invalid("terrain", "set either `source` or `procedural`, not both"))
+                return Err(Error::invalid(
+                    "terrain",
+                    "set either `source` or `procedural`, not both",
+                ))
             }
             (None, None) => {
-                return Err(Error::invalid("terrain", "set `source = \"file.hgt|tif|png\"` or a `[terrain.procedural]` table"))
+                return Err(Error::invalid(
+                    "terrain",
+                    "set `source = \"file.hgt|tif|png\"` or a `[terrain.procedural]` table",
+                ))
             }
             (None, Some(p)) => p.generate()?,
             (Some(src), None) => {
                 let path = base_dir.join(src);
-                load_heightfield(&path, desc.cell_size, desc.nodata, desc.png_scale, desc.png_offset)?
+                load_heightfield(
+                    &path,
+                    desc.cell_size,
+                    desc.nodata,
+                    desc.png_scale,
+                    desc.png_offset,
+                )?
             }
         };
         let (axis_x, axis_y, normal) = desc.axes()?;
-        let frame = TerrainFrame { origin: DVec3::from(desc.origin), axis_x, axis_y, normal, spacing: field.spacing };
+        let frame = TerrainFrame {
+            origin: DVec3::from(desc.origin),
+            axis_x,
+            axis_y,
+            normal,
+            spacing: field.spacing,
+        };
         let mut terrain = Terrain::new(field, frame, desc.vertical_scale)?;
         if let Some(d) = &desc.drape {
             let drape = geotiff::load_drape(&base_dir.join(d))?;
@@ -166,8 +215,12 @@ impl Terrain {
         let j = (y.floor() as usize).min(ch - 1);
         let (u, v) = (x - i as f64, y - j as f64);
         let f = &self.field;
-        let (h00, h10, h01, h11) =
-            (f.at(i, j) as f64, f.at(i + 1, j) as f64, f.at(i, j + 1) as f64, f.at(i + 1, j + 1) as f64);
+        let (h00, h10, h01, h11) = (
+            f.at(i, j) as f64,
+            f.at(i + 1, j) as f64,
+            f.at(i, j + 1) as f64,
+            f.at(i + 1, j + 1) as f64,
+        );
         Some(h00 * (1.0 - u) * (1.0 - v) + h10 * u * (1.0 - v) + h01 * (1.0 - u) * v + h11 * u * v)
     }
 }
@@ -196,7 +249,11 @@ pub fn load_heightfield(
     png_scale: f64,
     png_offset: f64,
 ) -> Result<Heightfield> {
-    let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).unwrap_or_default();
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase())
+        .unwrap_or_default();
     let mut field = match ext.as_str() {
         "hgt" => hgt::load(path)?,
         "tif" | "tiff" => geotiff::load_heights(path, cell_size, nodata)?,

@@ -42,7 +42,9 @@ fn default_wavelength() -> f64 {
 }
 
 fn hash(x: i64, y: i64, seed: u32) -> u32 {
-    let mut h = (x as u32).wrapping_mul(0x8da6_b343) ^ (y as u32).wrapping_mul(0xd816_3841) ^ seed.wrapping_mul(0xcb1a_b31f);
+    let mut h = (x as u32).wrapping_mul(0x8da6_b343)
+        ^ (y as u32).wrapping_mul(0xd816_3841)
+        ^ seed.wrapping_mul(0xcb1a_b31f);
     h ^= h >> 15;
     h = h.wrapping_mul(0x2c1b_3c6d);
     h ^= h >> 12;
@@ -73,14 +75,27 @@ impl RidgedFbm {
     /// Generates the height field.
     pub fn generate(&self) -> Result<Heightfield> {
         if !(2..=16384).contains(&self.size) {
-            return Err(Error::invalid("terrain.procedural.size", format!("must be 2..=16384 samples, got {}", self.size)));
+            return Err(Error::invalid(
+                "terrain.procedural.size",
+                format!("must be 2..=16384 samples, got {}", self.size),
+            ));
         }
         if !(1..=16).contains(&self.octaves) {
-            return Err(Error::invalid("terrain.procedural.octaves", format!("must be 1..=16, got {}", self.octaves)));
+            return Err(Error::invalid(
+                "terrain.procedural.octaves",
+                format!("must be 1..=16, got {}", self.octaves),
+            ));
         }
-        for (name, v) in [("cell_size", self.cell_size), ("height", self.height), ("wavelength", self.wavelength)] {
+        for (name, v) in [
+            ("cell_size", self.cell_size),
+            ("height", self.height),
+            ("wavelength", self.wavelength),
+        ] {
             if !v.is_finite() || v <= 0.0 {
-                return Err(Error::invalid(format!("terrain.procedural.{name}"), format!("must be a positive number, got {v}")));
+                return Err(Error::invalid(
+                    format!("terrain.procedural.{name}"),
+                    format!("must be a positive number, got {v}"),
+                ));
             }
         }
         let n = self.size;
@@ -88,9 +103,11 @@ impl RidgedFbm {
             .into_par_iter()
             .map(|k| {
                 let (i, j) = ((k % n) as f64, (k / n) as f64);
-                let (mut freq, mut amp, mut sum, mut weight) = (1.0 / self.wavelength, 1.0, 0.0, 1.0);
+                let (mut freq, mut amp, mut sum, mut weight) =
+                    (1.0 / self.wavelength, 1.0, 0.0, 1.0);
                 for o in 0..self.octaves {
-                    let r = 1.0 - gradient_noise(i * freq, j * freq, self.seed.wrapping_add(o)).abs();
+                    let r =
+                        1.0 - gradient_noise(i * freq, j * freq, self.seed.wrapping_add(o)).abs();
                     let r = r * r * weight;
                     weight = (r * 2.0).clamp(0.0, 1.0);
                     sum += r * amp;

@@ -46,8 +46,16 @@ impl MaxPyramid {
         let mut levels = Vec::with_capacity(dims.len());
         let mut offset = 0u32;
         for (l, c) in dims.iter().enumerate() {
-            let stored = if l + 1 == dims.len() { [1, 1] } else { [dims[l + 1][0] * 2, dims[l + 1][1] * 2] };
-            levels.push(Level { cells: *c, stored, offset });
+            let stored = if l + 1 == dims.len() {
+                [1, 1]
+            } else {
+                [dims[l + 1][0] * 2, dims[l + 1][1] * 2]
+            };
+            levels.push(Level {
+                cells: *c,
+                stored,
+                offset,
+            });
             offset += stored[0] * stored[1];
         }
         let mut data = vec![PAD; offset as usize];
@@ -56,12 +64,18 @@ impl MaxPyramid {
             let l0 = levels[0];
             let (w, sw) = (field.width, l0.stored[0] as usize);
             let lvl = &mut data[..(l0.stored[0] * l0.stored[1]) as usize];
-            lvl.par_chunks_mut(sw).take(l0.cells[1] as usize).enumerate().for_each(|(j, row)| {
-                let (r0, r1) = (&field.heights[j * w..][..w], &field.heights[(j + 1) * w..][..w]);
-                for i in 0..w - 1 {
-                    row[i] = r0[i].max(r0[i + 1]).max(r1[i]).max(r1[i + 1]);
-                }
-            });
+            lvl.par_chunks_mut(sw)
+                .take(l0.cells[1] as usize)
+                .enumerate()
+                .for_each(|(j, row)| {
+                    let (r0, r1) = (
+                        &field.heights[j * w..][..w],
+                        &field.heights[(j + 1) * w..][..w],
+                    );
+                    for i in 0..w - 1 {
+                        row[i] = r0[i].max(r0[i + 1]).max(r1[i]).max(r1[i + 1]);
+                    }
+                });
         }
         for l in 1..levels.len() {
             let (src, dst) = (levels[l - 1], levels[l]);

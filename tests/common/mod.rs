@@ -42,7 +42,9 @@ pub fn synthetic_scene(width: u32, height: u32, camera: &str) -> SceneDesc {
     let text = format!(
         "[terrain.procedural]\nsize = 2\n[camera]\n{camera}\n[output]\nwidth = {width}\nheight = {height}\n[fog]\nvisibility = 0.0\n"
     );
-    Scene::parse(&text, Path::new("synthetic.toml")).expect("synthetic scene parses").desc
+    Scene::parse(&text, Path::new("synthetic.toml"))
+        .expect("synthetic scene parses")
+        .desc
 }
 
 /// Terrain from a height function on an `n x n` grid with `spacing` metres.
@@ -53,7 +55,9 @@ pub fn terrain_from_fn(n: usize, spacing: f64, f: impl Fn(f64, f64) -> f64) -> T
             samples.push(Some(f(i as f64 * spacing, j as f64 * spacing) as f32));
         }
     }
-    let field = Heightfield::from_samples_with_voids("test", n, n, samples, [spacing, spacing], None).unwrap();
+    let field =
+        Heightfield::from_samples_with_voids("test", n, n, samples, [spacing, spacing], None)
+            .unwrap();
     let frame = TerrainFrame {
         origin: glam::DVec3::ZERO,
         axis_x: glam::DVec3::X,

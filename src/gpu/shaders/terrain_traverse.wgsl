@@ -126,6 +126,12 @@ fn cell_at(level: u32, p: vec2<f32>) -> vec2<i32> {
 // Top-down pyramid traversal: skip cells the ray segment stays above, descend otherwise,
 // exact patch test at level 0, climb after crossings while the parent changes.
 fn traverse(r: Ray, t_min: f32, t_max: f32, max_steps: u32) -> Trace {
+    return traverse_from(r, t_min, t_max, max_steps, frame.grid.z - 1u);
+}
+
+// As `traverse`, starting at pyramid level `start_level` (≤ top) instead of the top: valid from
+// any level, since a cell is only skipped after its own maximum was tested.
+fn traverse_from(r: Ray, t_min: f32, t_max: f32, max_steps: u32, start_level: u32) -> Trace {
     var res: Trace;
     res.t = BIG;
     res.hit = false;
@@ -138,7 +144,7 @@ fn traverse(r: Ray, t_min: f32, t_max: f32, max_steps: u32) -> Trace {
     }
     let t1 = tt.y;
     let top = frame.grid.z - 1u;
-    var level = top;
+    var level = min(start_level, top);
     var t = tt.x;
     let sx = select(-1, 1, r.d.x >= 0.0);
     let sy = select(-1, 1, r.d.y >= 0.0);
@@ -273,11 +279,25 @@ fn max3x3(level: u32, ix: i32, iy: i32) -> f32 {
 // Every ray of the tile stays within `theta * t` of the central ray's point at t (theta is the
 // largest chord |d_i - d_c| over the tile's unit directions), so while the cone radius is below
 // the cell size the 3x3 neighbourhood maximum bounds what any tile ray can meet. Returns a
-// distance before which no tile ray can hit the terrain (BIG: none can ever hit).
-fn cone_start(r: Ray, theta: f32, max_steps: u32) -> f32 {
+// distance before which no tile ray can hit the terrain (BIG: none can ever hit) and the
+// pyramid level at which the pixel rays may start their own traversal there.
+struct ConeStart {
+    t: f32,
+    level: u32,
+}
+
+fn cone_result(t: f32, level: u32) -> ConeStart {
+    var c: ConeStart;
+    c.t = t;
+    c.level = level;
+    return c;
+}
+
+fn cone_start(r: Ray, theta: f32, max_steps: u32) -> ConeStart {
     let zmax = frame.heights_range.y;
+    let top = frame.grid.z - 1u;
     if (r.o.z > zmax && r.d.z >= theta) {
-        return BIG;
+        return cone_result(BIG, top);
     }
     let inv = vec2<f32>(safe_inv(r.d.x), safe_inv(r.d.y));
     let ta = (vec2<f32>(0.0, 0.0) - r.o.xy) * inv;
@@ -285,7 +305,7 @@ fn cone_start(r: Ray, theta: f32, max_steps: u32) -> f32 {
     let t0 = max(max(min(ta.x, tb.x), min(ta.y, tb.y)), 0.0);
     let t1 = min(max(ta.x, tb.x), max(ta.y, tb.y));
     if (t0 > 0.0 || t0 > t1) {
-        return 0.0;
+        return cone_result(0.0, top);
     }
     // Below this distance the whole cone is above the highest sample.
     var t = 0.0;
@@ -293,10 +313,9 @@ fn cone_start(r: Ray, theta: f32, max_steps: u32) -> f32 {
         t = (r.o.z - zmax) / (theta - r.d.z);
     }
     if (t >= t1) {
-        return t1;
+        return cone_result(t1, top);
     }
     let rg = theta * min(frame.spacing.z, frame.spacing.w);
-    let top = frame.grid.z - 1u;
     var level = top;
     let sx = select(-1, 1, r.d.x >= 0.0);
     let sy = select(-1, 1, r.d.y >= 0.0);
@@ -307,7 +326,7 @@ fn cone_start(r: Ray, theta: f32, max_steps: u32) -> f32 {
     loop {
         steps += 1u;
         if (steps > max_steps) {
-            return t;
+            return cone_result(t, level);
         }
         let s = f32(1u << level);
         let tx = (f32(ix + select(0, 1, sx > 0)) * s - r.o.x) * inv.x;
@@ -338,10 +357,10 @@ fn cone_start(r: Ray, theta: f32, max_steps: u32) -> f32 {
                 iy = min(cy, i32(l.y) - 1);
                 continue;
             }
-            return t;
+            return cone_result(t, level);
         }
         if (t_exit >= t1) {
-            return t1;
+            return cone_result(t1, top);
         }
         var ox = ix;
         var oy = iy;
@@ -364,10 +383,10 @@ fn cone_start(r: Ray, theta: f32, max_steps: u32) -> f32 {
         }
         let l = frame.levels[level];
         if (ix < 0 || iy < 0 || ix >= i32(l.x) || iy >= i32(l.y)) {
-            return t1;
+            return cone_result(t1, top);
         }
     }
-    return t;
+    return cone_result(t, level);
 }
 
 // World unit direction -> grid-frame direction.

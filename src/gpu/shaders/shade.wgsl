@@ -1,13 +1,13 @@
-// Terrain pass: per pixel, cast the ray from the ray table through the pyramid (starting where
-// the tile pre-pass allows), shade (smooth normals, sun with a shadow ray through the same
-// pyramid, sky ambient, elevation/slope ramp or drape), apply aerial perspective, write sRGB
-// colour and the data target (ray distance bits, steps, patch tests, flags).
+// Shade pass: per pixel, read the cast pass's G-buffer and shade: smooth normals, sun with a
+// shadow ray through the same pyramid, sky ambient, elevation/slope ramp or drape, aerial
+// perspective, sky. Writes sRGB colour and the capture data (distance bits, steps, patch tests
+// and shadow steps, flags).
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<storage, read> heights: array<f32>;
 @group(0) @binding(2) var<storage, read> pyramid: array<f32>;
 @group(0) @binding(3) var<storage, read> rays: array<vec4<f32>>;
-@group(0) @binding(4) var tile_start: texture_2d<u32>;
+@group(0) @binding(4) var gbuffer: texture_2d<u32>;
 @group(0) @binding(5) var<storage, read> drape: array<u32>;
 
 struct Out {
@@ -16,8 +16,6 @@ struct Out {
     // z: patch tests (low 16 bits) and shadow-ray steps (high 16 bits), w: flags (1 hit, 2 in shadow, 4 step limit reached).
     @location(1) data: vec4<u32>,
 }
-
-const INF_BITS: u32 = 0x7f800000u;
 
 fn srgb_encode(c: vec3<f32>) -> vec3<f32> {
     let x = clamp(c, vec3<f32>(0.0), vec3<f32>(1.0));
@@ -112,35 +110,25 @@ fn haze_transmittance(t: f32, ze: f32, zp: f32) -> f32 {
 }
 
 @fragment
-fn fs_terrain(@builtin(position) pos: vec4<f32>) -> Out {
+fn fs_shade(@builtin(position) pos: vec4<f32>) -> Out {
     let px = vec2<u32>(pos.xy);
+    let g = textureLoad(gbuffer, vec2<i32>(px), 0);
     let dir_w = rays[px.y * frame.size.x + px.x].xyz;
     let dl = to_local(dir_w);
-    var r: Ray;
-    r.o = frame.eye.xyz;
-    r.d = to_grid_dir(dir_w);
-    var tr: Trace;
-    if (frame.mode.x == 1u) {
-        tr = march(r, 0.0, BIG, frame.mode.y);
-    } else {
-        var t_min = 0.0;
-        if (frame.mode.w != 0u) {
-            t_min = bitcast<f32>(textureLoad(tile_start, vec2<i32>(px / TILE), 0).x);
-        }
-        tr = traverse(r, t_min, BIG, frame.mode.y);
-    }
     var out: Out;
-    var flags = select(0u, 4u, tr.exhausted);
-    if (!tr.hit) {
+    var flags = g.w & 0xffu;
+    let patches = g.w >> 8u;
+    if ((flags & 1u) == 0u) {
         out.colour = vec4<f32>(srgb_encode(sky(dl)), 1.0);
-        out.data = vec4<u32>(INF_BITS, tr.steps, tr.patches, flags);
+        out.data = vec4<u32>(INF_BITS, g.z, min(patches, 0xffffu), flags);
         return out;
     }
-    flags |= 1u;
-    let p = r.o + r.d * tr.t;
+    let t = bitcast<f32>(g.x);
+    let i = i32(g.y & 0xffffu);
+    let j = i32(g.y >> 16u);
+    let ro = frame.eye.xyz;
+    let p = ro + to_grid_dir(dir_w) * t;
     // Geometric (patch) normal for the shadow ray, smooth normal for shading.
-    let i = tr.cell.x;
-    let j = tr.cell.y;
     let h00 = sample_height(u32(i), u32(j));
     let h10 = sample_height(u32(i + 1), u32(j));
     let h01 = sample_height(u32(i), u32(j + 1));
@@ -149,8 +137,8 @@ fn fs_terrain(@builtin(position) pos: vec4<f32>) -> Out {
     let v = clamp(p.y - f32(j), 0.0, 1.0);
     let e = h00 - h10 - h01 + h11;
     let n_geom = local_normal(vec2<f32>(h10 - h00 + e * v, h01 - h00 + e * u));
-    let g = mix(mix(sample_gradient(i, j), sample_gradient(i + 1, j), u), mix(sample_gradient(i, j + 1), sample_gradient(i + 1, j + 1), u), v);
-    let n = local_normal(g);
+    let gr = mix(mix(sample_gradient(i, j), sample_gradient(i + 1, j), u), mix(sample_gradient(i, j + 1), sample_gradient(i + 1, j + 1), u), v);
+    let n = local_normal(gr);
     let sun = frame.sun_local.xyz;
     var lit = select(0.0, 1.0, dot(n_geom, sun) > 0.0);
     var shadow_steps = 0u;
@@ -171,10 +159,10 @@ fn fs_terrain(@builtin(position) pos: vec4<f32>) -> Out {
     let sky_up = dot(n, frame.up_local.xyz);
     let ambient = mix(frame.sky_horizon.xyz, frame.sky_zenith.xyz, 0.5 + 0.5 * sky_up) * (frame.sky_zenith.w * (0.6 + 0.4 * sky_up));
     var c = base * (diffuse + ambient);
-    let tau = haze_transmittance(tr.t, r.o.z, p.z);
+    let tau = haze_transmittance(t, ro.z, p.z);
     let scatter = frame.fog_colour.xyz + frame.sun_colour.xyz * (0.25 * pow(max(dot(dl, sun), 0.0), 8.0));
     c = c * tau + scatter * (1.0 - tau);
     out.colour = vec4<f32>(srgb_encode(c), 1.0);
-    out.data = vec4<u32>(bitcast<u32>(tr.t), tr.steps, min(tr.patches, 0xffffu) | (min(shadow_steps, 0xffffu) << 16u), flags);
+    out.data = vec4<u32>(g.x, g.z, min(patches, 0xffffu) | (min(shadow_steps, 0xffffu) << 16u), flags);
     return out;
 }

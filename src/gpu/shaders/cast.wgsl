@@ -1,0 +1,38 @@
+// Cast pass: per pixel, cast the ray from the ray table through the maximum pyramid (starting
+// where the tile pre-pass allows) and write the G-buffer: ray distance, cell, work counters.
+// Shading is a separate pass: on Mesa's SIMD software rasteriser a fragment pays for every
+// instruction of its shader, so the traversal loop runs without the shading code around it.
+
+@group(0) @binding(0) var<uniform> frame: Frame;
+@group(0) @binding(1) var<storage, read> heights: array<f32>;
+@group(0) @binding(2) var<storage, read> pyramid: array<f32>;
+@group(0) @binding(3) var<storage, read> rays: array<vec4<f32>>;
+@group(0) @binding(4) var tile_start: texture_2d<u32>;
+
+fn primary_ray(pos: vec4<f32>) -> Ray {
+    let px = vec2<u32>(pos.xy);
+    var r: Ray;
+    r.o = frame.eye.xyz;
+    r.d = to_grid_dir(rays[px.y * frame.size.x + px.x].xyz);
+    return r;
+}
+
+// The product: pyramid traversal from the tile's start distance.
+@fragment
+fn fs_cast(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
+    var t_min = 0.0;
+    var level = frame.grid.z - 1u;
+    if (frame.mode.w != 0u) {
+        let s = textureLoad(tile_start, vec2<i32>(vec2<u32>(pos.xy) / TILE), 0).xy;
+        t_min = bitcast<f32>(s.x);
+        level = s.y;
+    }
+    return encode_gbuffer(traverse_from(primary_ray(pos), t_min, BIG, frame.mode.y, level));
+}
+
+// Benchmark baseline: fixed-step march (its own entry point, so neither pays for the other's
+// code on SIMD software rasterisers).
+@fragment
+fn fs_cast_march(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
+    return encode_gbuffer(march(primary_ray(pos), 0.0, BIG, frame.mode.y));
+}
