@@ -110,6 +110,7 @@ struct Targets {
 pub struct TerrainRenderer {
     heights: wgpu::Buffer,
     pyramid: wgpu::Buffer,
+    pyramid_side: u32,
     drape: wgpu::Buffer,
     frame_ub: wgpu::Buffer,
     raygen_ub: wgpu::Buffer,
@@ -187,11 +188,8 @@ impl TerrainRenderer {
             });
         }
         check_buffer_limit(gpu, "height table", terrain.field.heights.len() as u64 * 4)?;
-        check_buffer_limit(
-            gpu,
-            "maximum pyramid",
-            terrain.pyramid.data.len() as u64 * 4,
-        )?;
+        let (pyramid_data, pyramid_side) = square_pyramid(terrain);
+        check_buffer_limit(gpu, "maximum pyramid", pyramid_data.len() as u64 * 4)?;
         let storage = wgpu::BufferUsages::STORAGE;
         let heights = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("heights"),
@@ -200,7 +198,7 @@ impl TerrainRenderer {
         });
         let pyramid = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("max pyramid"),
-            contents: bytemuck::cast_slice(&terrain.pyramid.data),
+            contents: bytemuck::cast_slice(&pyramid_data),
             usage: storage,
         });
         let drape_words: Vec<u32> = match &terrain.drape {
@@ -362,6 +360,7 @@ impl TerrainRenderer {
         Ok(TerrainRenderer {
             heights,
             pyramid,
+            pyramid_side,
             drape,
             frame_ub,
             raygen_ub,
@@ -556,7 +555,8 @@ impl TerrainRenderer {
     ) -> Result<PassTimes> {
         self.ensure_targets(gpu, cam.width, cam.height)?;
         let t = self.targets.as_ref().expect("targets just ensured");
-        let fu = frame_uniforms(terrain, scene, cam, s, t.tiles);
+        let mut fu = frame_uniforms(terrain, scene, cam, s, t.tiles);
+        fu.pyramid_dims = [self.pyramid_side, 0, 0, 0];
         gpu.queue
             .write_buffer(&self.frame_ub, 0, bytemuck::bytes_of(&fu));
         gpu.queue.write_buffer(
@@ -821,6 +821,28 @@ pub fn frame_uniforms(
         mode: [mode, s.max_steps, s.shadows as u32, s.tile_prepass as u32],
         drape_size,
         march,
+        pyramid_dims: [0; 4],
         levels,
     }
+}
+
+/// The maximum pyramid re-laid for the GPU as a square power-of-two mip chain: level L has side
+/// `N >> L` (N = the next power of two of the larger cell count), starts at
+/// `4 (N² − (N >> L)²) / 3` and is padded with [`crate::terrain::pyramid::PAD`]. Returns the data and N.
+pub fn square_pyramid(terrain: &Terrain) -> (Vec<f32>, u32) {
+    let pyr = &terrain.pyramid;
+    let cells = pyr.levels[0].cells;
+    let n = cells[0].max(cells[1]).next_power_of_two();
+    debug_assert_eq!(pyr.levels.len() as u32, 32 - n.leading_zeros());
+    let total = (4 * (n as u64 * n as u64) - 1) / 3 + 1;
+    let mut data = vec![crate::terrain::pyramid::PAD; total as usize];
+    for (l, level) in pyr.levels.iter().enumerate() {
+        let side = (n >> l) as u64;
+        let offset = (n as u64 * n as u64 - side * side) / 3 * 4;
+        for j in 0..level.cells[1] as u64 {
+            let src = &pyr.data[(level.offset as u64 + j * level.stored[0] as u64) as usize..][..level.cells[0] as usize];
+            data[(offset + j * side) as usize..][..src.len()].copy_from_slice(src);
+        }
+    }
+    (data, n)
 }

@@ -28,6 +28,7 @@ pub struct FrameUniforms {
     pub mode: [u32; 4],
     pub drape_size: [u32; 4],
     pub march: [f32; 4],
+    pub pyramid_dims: [u32; 4],
     pub levels: [[u32; 4]; MAX_LEVELS],
 }
 
@@ -42,5 +43,5 @@ pub struct RayGenUniforms {
     pub size: [u32; 4],
 }
 
-const _: () = assert!(std::mem::size_of::<FrameUniforms>() == 16 * (23 + MAX_LEVELS));
+const _: () = assert!(std::mem::size_of::<FrameUniforms>() == 16 * (24 + MAX_LEVELS));
 const _: () = assert!(std::mem::size_of::<RayGenUniforms>() == 80);

@@ -42,6 +42,8 @@ struct Frame {
     drape_size: vec4<u32>,
     // x: march step in cells, y: bisection count.
     march: vec4<f32>,
+    // x: side N of the square power-of-two pyramid's level 0 (level L has side N >> L).
+    pyramid_dims: vec4<u32>,
     // Per level: cells x, cells y, row stride, offset into `pyramid`.
     levels: array<vec4<u32>, 16>,
 }

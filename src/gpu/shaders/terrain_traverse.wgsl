@@ -22,12 +22,21 @@ fn safe_inv(x: f32) -> f32 {
     return 1.0 / x;
 }
 
+// The GPU pyramid is a square power-of-two mip chain (side N = frame.pyramid_dims.x at level
+// 0, padded with PAD), so a level's row stride and offset are arithmetic: no per-step table
+// look-up (a per-lane gather on SIMD software rasterisers).
+fn level_side(level: u32) -> u32 {
+    return frame.pyramid_dims.x >> level;
+}
+
 fn pyr_get(level: u32, ix: i32, iy: i32) -> f32 {
-    let l = frame.levels[level];
-    if (ix < 0 || iy < 0 || u32(ix) >= l.x || u32(iy) >= l.y) {
+    let side = level_side(level);
+    if (u32(ix) >= side || u32(iy) >= side) {
         return PAD;
     }
-    return pyramid[l.w + u32(iy) * l.z + u32(ix)];
+    let n = frame.pyramid_dims.x;
+    let offset = (n * n - side * side) / 3u * 4u;
+    return pyramid[offset + u32(iy) * side + u32(ix)];
 }
 
 fn sample_height(i: u32, j: u32) -> f32 {
@@ -173,9 +182,8 @@ fn traverse_from(r: Ray, t_min: f32, t_max: f32, max_steps: u32, start_level: u3
                 let cx = 2 * ix + select(0, 1, p.x > mx || (p.x == mx && sx > 0));
                 let cy = 2 * iy + select(0, 1, p.y > my || (p.y == my && sy > 0));
                 level -= 1u;
-                let l = frame.levels[level];
-                ix = min(cx, i32(l.x) - 1);
-                iy = min(cy, i32(l.y) - 1);
+                ix = cx;
+                iy = cy;
                 continue;
             }
             res.patches += 1u;
@@ -209,8 +217,8 @@ fn traverse_from(r: Ray, t_min: f32, t_max: f32, max_steps: u32, start_level: u3
             ox = ox >> 1u;
             oy = oy >> 1u;
         }
-        let l = frame.levels[level];
-        if (ix < 0 || iy < 0 || ix >= i32(l.x) || iy >= i32(l.y)) {
+        let side = level_side(level);
+        if (u32(ix) >= side || u32(iy) >= side) {
             break;
         }
     }
@@ -352,9 +360,8 @@ fn cone_start(r: Ray, theta: f32, max_steps: u32) -> ConeStart {
                 let cx = 2 * ix + select(0, 1, p.x > mx || (p.x == mx && sx > 0));
                 let cy = 2 * iy + select(0, 1, p.y > my || (p.y == my && sy > 0));
                 level -= 1u;
-                let l = frame.levels[level];
-                ix = min(cx, i32(l.x) - 1);
-                iy = min(cy, i32(l.y) - 1);
+                ix = cx;
+                iy = cy;
                 continue;
             }
             return cone_result(t, level);
@@ -381,8 +388,8 @@ fn cone_start(r: Ray, theta: f32, max_steps: u32) -> ConeStart {
             ox = ox >> 1u;
             oy = oy >> 1u;
         }
-        let l = frame.levels[level];
-        if (ix < 0 || iy < 0 || ix >= i32(l.x) || iy >= i32(l.y)) {
+        let side = level_side(level);
+        if (u32(ix) >= side || u32(iy) >= side) {
             return cone_result(t1, top);
         }
     }
