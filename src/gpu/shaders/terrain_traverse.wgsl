@@ -123,6 +123,13 @@ fn patch_hit(r: Ray, i: i32, j: i32, ta: f32, tb: f32) -> f32 {
     return -1.0;
 }
 
+// Levels to climb after stepping from cell (ox, oy) to (ix, iy): while the parents differ,
+// go up (closed form of that loop: the highest differing index bit), at most `room` levels.
+fn climb_levels(ix: i32, iy: i32, ox: i32, oy: i32, room: u32) -> u32 {
+    let bits = 32u - countLeadingZeros(u32(ix ^ ox) | u32(iy ^ oy));
+    return min(max(bits, 1u) - 1u, room);
+}
+
 fn cell_at(level: u32, p: vec2<f32>) -> vec2<i32> {
     let s = f32(1u << level);
     let l = frame.levels[level];
@@ -198,8 +205,8 @@ fn traverse_from(r: Ray, t_min: f32, t_max: f32, max_steps: u32, start_level: u3
         if (t_exit >= t1) {
             break;
         }
-        var ox = ix;
-        var oy = iy;
+        let ox = ix;
+        let oy = iy;
         if (tx <= ty) {
             ix += sx;
         }
@@ -207,16 +214,10 @@ fn traverse_from(r: Ray, t_min: f32, t_max: f32, max_steps: u32, start_level: u3
             iy += sy;
         }
         t = t_exit;
-        loop {
-            if (level >= top || ((ix >> 1u) == (ox >> 1u) && (iy >> 1u) == (oy >> 1u))) {
-                break;
-            }
-            level += 1u;
-            ix = ix >> 1u;
-            iy = iy >> 1u;
-            ox = ox >> 1u;
-            oy = oy >> 1u;
-        }
+        let up = climb_levels(ix, iy, ox, oy, top - level);
+        level += up;
+        ix = ix >> up;
+        iy = iy >> up;
         let side = level_side(level);
         if (u32(ix) >= side || u32(iy) >= side) {
             break;
@@ -369,8 +370,8 @@ fn cone_start(r: Ray, theta: f32, max_steps: u32) -> ConeStart {
         if (t_exit >= t1) {
             return cone_result(t1, top);
         }
-        var ox = ix;
-        var oy = iy;
+        let ox = ix;
+        let oy = iy;
         if (tx <= ty) {
             ix += sx;
         }
@@ -378,16 +379,10 @@ fn cone_start(r: Ray, theta: f32, max_steps: u32) -> ConeStart {
             iy += sy;
         }
         t = t_exit;
-        loop {
-            if (level >= top || ((ix >> 1u) == (ox >> 1u) && (iy >> 1u) == (oy >> 1u))) {
-                break;
-            }
-            level += 1u;
-            ix = ix >> 1u;
-            iy = iy >> 1u;
-            ox = ox >> 1u;
-            oy = oy >> 1u;
-        }
+        let up = climb_levels(ix, iy, ox, oy, top - level);
+        level += up;
+        ix = ix >> up;
+        iy = iy >> up;
         let side = level_side(level);
         if (u32(ix) >= side || u32(iy) >= side) {
             return cone_result(t1, top);
