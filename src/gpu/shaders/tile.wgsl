@@ -12,22 +12,19 @@ fn fs_tile(@builtin(position) pos: vec4<f32>) -> @location(0) vec2<u32> {
     let tile = vec2<u32>(pos.xy);
     let x0 = tile.x * TILE;
     let y0 = tile.y * TILE;
-    let x1 = min(x0 + TILE, frame.size.x);
-    let y1 = min(y0 + TILE, frame.size.y);
-    // One read per ray: the mean direction c and the spread around the first ray d0; then
-    // |d - c| <= |d - d0| + |d0 - c| bounds every ray's chord to c.
-    let d0 = rays[y0 * frame.size.x + x0].xyz;
-    var sum = vec3<f32>(0.0);
-    var spread = 0.0;
-    for (var y = y0; y < y1; y += 1u) {
-        for (var x = x0; x < x1; x += 1u) {
-            let d = rays[y * frame.size.x + x].xyz;
-            sum += d;
-            spread = max(spread, length(d - d0));
-        }
-    }
-    let c = normalize(sum);
-    let theta = (spread + length(d0 - c)) * 1.001 + 1.0e-6;
+    let x1 = min(x0 + TILE, frame.size.x) - 1u;
+    let y1 = min(y0 + TILE, frame.size.y) - 1u;
+    // The tile's pixel-centre rays of a pinhole ray table fill a spherical quadrilateral whose
+    // edges are great-circle arcs (a convex spherical polygon), so the ray farthest from any
+    // direction inside it is a corner: the four corner rays bound the whole tile's cone.
+    let w = frame.size.x;
+    let d00 = rays[y0 * w + x0].xyz;
+    let d10 = rays[y0 * w + x1].xyz;
+    let d01 = rays[y1 * w + x0].xyz;
+    let d11 = rays[y1 * w + x1].xyz;
+    let c = normalize(d00 + d10 + d01 + d11);
+    let chord = max(max(length(d00 - c), length(d10 - c)), max(length(d01 - c), length(d11 - c)));
+    let theta = chord * 1.001 + 1.0e-6;
     var r: Ray;
     r.o = frame.eye.xyz;
     r.d = to_grid_dir(c);
