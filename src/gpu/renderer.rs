@@ -110,6 +110,7 @@ struct Targets {
 pub struct TerrainRenderer {
     heights: wgpu::Buffer,
     pyramid: wgpu::Buffer,
+    dilated: wgpu::Buffer,
     pyramid_side: u32,
     drape: wgpu::Buffer,
     frame_ub: wgpu::Buffer,
@@ -201,6 +202,12 @@ impl TerrainRenderer {
             contents: bytemuck::cast_slice(&pyramid_data),
             usage: storage,
         });
+        let dilated_data = dilate_square_pyramid(&pyramid_data, pyramid_side);
+        let dilated = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("dilated max pyramid"),
+            contents: bytemuck::cast_slice(&dilated_data),
+            usage: storage,
+        });
         let drape_words: Vec<u32> = match &terrain.drape {
             Some((d, _)) => {
                 check_buffer_limit(gpu, "drape image", d.rgba.len() as u64)?;
@@ -240,9 +247,11 @@ impl TerrainRenderer {
             storage_entry(2, fs, true),
             storage_entry(3, fs, true),
         ];
+        let mut tile_entries = common.to_vec();
+        tile_entries.push(storage_entry(4, fs, true));
         let tile_bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("tile"),
-            entries: &common,
+            entries: &tile_entries,
         });
         let uint_texture = wgpu::BindGroupLayoutEntry {
             binding: 4,
@@ -360,6 +369,7 @@ impl TerrainRenderer {
         Ok(TerrainRenderer {
             heights,
             pyramid,
+            dilated,
             pyramid_side,
             drape,
             frame_ub,
@@ -451,10 +461,12 @@ impl TerrainRenderer {
             buf(2, &self.pyramid),
             buf(3, &rays),
         ];
+        let mut entries = common.to_vec();
+        entries.push(buf(4, &self.dilated));
         let tile_bg = dev.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("tile"),
             layout: &self.tile_bgl,
-            entries: &common,
+            entries: &entries,
         });
         let mut entries = common.to_vec();
         entries.push(wgpu::BindGroupEntry {
@@ -824,6 +836,39 @@ pub fn frame_uniforms(
         pyramid_dims: [0; 4],
         levels,
     }
+}
+
+/// Each cell of every level of a [`square_pyramid`] replaced by the maximum of its 3x3
+/// neighbourhood (cells outside the square count as PAD): the tile pre-pass's cone test.
+pub fn dilate_square_pyramid(data: &[f32], n: u32) -> Vec<f32> {
+    let mut out = vec![crate::terrain::pyramid::PAD; data.len()];
+    let mut side = n as usize;
+    let mut offset = 0usize;
+    loop {
+        let (src, dst) = (&data[offset..offset + side * side], &mut out[offset..offset + side * side]);
+        // Separable: rows then columns.
+        let mut rows = vec![crate::terrain::pyramid::PAD; side * side];
+        for j in 0..side {
+            for i in 0..side {
+                let lo = i.saturating_sub(1);
+                let hi = (i + 1).min(side - 1);
+                rows[j * side + i] = src[j * side + lo..=j * side + hi].iter().copied().fold(f32::MIN, f32::max);
+            }
+        }
+        for j in 0..side {
+            for i in 0..side {
+                let lo = j.saturating_sub(1);
+                let hi = (j + 1).min(side - 1);
+                dst[j * side + i] = (lo..=hi).map(|jj| rows[jj * side + i]).fold(f32::MIN, f32::max);
+            }
+        }
+        offset += side * side;
+        if side == 1 {
+            break;
+        }
+        side /= 2;
+    }
+    out
 }
 
 /// The maximum pyramid re-laid for the GPU as a square power-of-two mip chain: level L has side
