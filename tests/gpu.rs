@@ -317,6 +317,22 @@ fn tile_prepass_changes_nothing_and_frames_are_deterministic() {
 }
 
 #[test]
+fn compute_and_fragment_ray_generation_give_the_same_frame() {
+    let _l = gpu_lock();
+    let Some(g) = gpu() else { return };
+    let (scene, terrain) = alps();
+    let cam = Camera::new(scene.camera(0, &terrain).pose, 200, 120);
+    let mut frames = Vec::new();
+    for k in [relief::gpu::KernelPath::Compute, relief::gpu::KernelPath::Fragment] {
+        let mut r = TerrainRenderer::with_kernels(g, &terrain, k).expect("renderer");
+        frames.push(r.capture(g, &terrain, &scene.desc, &cam, &settings(true, true)).expect("capture"));
+    }
+    let differ = frames[0].depth.iter().zip(&frames[1].depth).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
+    assert!(differ <= 200 * 120 / 1000, "{differ} pixels differ between compute and fragment ray generation");
+    assert!(frames[0].depth.iter().any(|d| d.is_finite()));
+}
+
+#[test]
 fn march_baseline_agrees_with_pyramid_on_most_pixels() {
     let _l = gpu_lock();
     let (scene, terrain) = alps();

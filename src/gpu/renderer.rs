@@ -93,6 +93,7 @@ struct Targets {
     height: u32,
     tiles: [u32; 2],
     raygen_bg: wgpu::BindGroup,
+    ray_table_view: wgpu::TextureView,
     tile_bg: wgpu::BindGroup,
     cast_bg: wgpu::BindGroup,
     shade_bg: wgpu::BindGroup,
@@ -104,6 +105,34 @@ struct Targets {
     data_view: wgpu::TextureView,
     colour_rb: wgpu::Buffer,
     data_rb: wgpu::Buffer,
+}
+
+/// Which entry points run the per-pixel kernels that have both (ray generation today).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum KernelPath {
+    /// Compute dispatches: best on GPUs.
+    Compute,
+    /// Full-screen fragment passes: best on Mesa's CPU adapters, which run fragments on every
+    /// core but hand each compute thread a fixed block of workgroups.
+    Fragment,
+}
+
+impl KernelPath {
+    /// Fragment on CPU adapters, compute elsewhere; `RELIEF_KERNELS=compute|fragment` overrides.
+    pub fn for_adapter(info: &wgpu::AdapterInfo) -> KernelPath {
+        match std::env::var("RELIEF_KERNELS").as_deref() {
+            Ok("compute") => KernelPath::Compute,
+            Ok("fragment") => KernelPath::Fragment,
+            _ if info.device_type == wgpu::DeviceType::Cpu => KernelPath::Fragment,
+            _ => KernelPath::Compute,
+        }
+    }
+}
+
+/// The ray-generation pass in the form that suits the adapter.
+enum RayGen {
+    Compute(wgpu::ComputePipeline),
+    Fragment(wgpu::RenderPipeline),
 }
 
 /// Terrain data on the GPU and the pipelines that render it.
@@ -119,7 +148,7 @@ pub struct TerrainRenderer {
     tile_bgl: wgpu::BindGroupLayout,
     cast_bgl: wgpu::BindGroupLayout,
     shade_bgl: wgpu::BindGroupLayout,
-    raygen_pipeline: wgpu::ComputePipeline,
+    raygen: RayGen,
     tile_pipeline: wgpu::RenderPipeline,
     cast_pipeline: wgpu::RenderPipeline,
     march_pipeline: wgpu::RenderPipeline,
@@ -173,8 +202,14 @@ pub fn check_buffer_limit(gpu: &Gpu, what: &str, bytes: u64) -> Result<()> {
 }
 
 impl TerrainRenderer {
-    /// Uploads the terrain (heights, pyramid, drape) and builds the pipelines.
+    /// Uploads the terrain (heights, pyramid, drape) and builds the pipelines, with the kernel
+    /// path [`KernelPath::for_adapter`] picks.
     pub fn new(gpu: &Gpu, terrain: &Terrain) -> Result<TerrainRenderer> {
+        Self::with_kernels(gpu, terrain, KernelPath::for_adapter(&gpu.info))
+    }
+
+    /// As [`TerrainRenderer::new`] with an explicit kernel path.
+    pub fn with_kernels(gpu: &Gpu, terrain: &Terrain, kernels: KernelPath) -> Result<TerrainRenderer> {
         let dev = &gpu.device;
         if terrain.pyramid.levels.len() > MAX_LEVELS {
             return Err(Error::Limit {
@@ -237,24 +272,29 @@ impl TerrainRenderer {
         });
         let cs = wgpu::ShaderStages::COMPUTE;
         let fs = wgpu::ShaderStages::FRAGMENT;
+        let raygen_compute = kernels == KernelPath::Compute;
         let raygen_bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("raygen"),
-            entries: &[uniform_entry(0, cs), storage_entry(1, cs, false)],
+            entries: &if raygen_compute {
+                vec![
+                    uniform_entry(0, cs),
+                    wgpu::BindGroupLayoutEntry {
+                        binding: 1,
+                        visibility: cs,
+                        ty: wgpu::BindingType::StorageTexture {
+                            access: wgpu::StorageTextureAccess::WriteOnly,
+                            format: wgpu::TextureFormat::Rgba32Uint,
+                            view_dimension: wgpu::TextureViewDimension::D2,
+                        },
+                        count: None,
+                    },
+                ]
+            } else {
+                vec![uniform_entry(0, fs)]
+            },
         });
-        let common = [
-            uniform_entry(0, fs),
-            storage_entry(1, fs, true),
-            storage_entry(2, fs, true),
-            storage_entry(3, fs, true),
-        ];
-        let mut tile_entries = common.to_vec();
-        tile_entries.push(storage_entry(4, fs, true));
-        let tile_bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("tile"),
-            entries: &tile_entries,
-        });
-        let uint_texture = wgpu::BindGroupLayoutEntry {
-            binding: 4,
+        let uint_texture = |binding| wgpu::BindGroupLayoutEntry {
+            binding,
             visibility: fs,
             ty: wgpu::BindingType::Texture {
                 sample_type: wgpu::TextureSampleType::Uint,
@@ -263,8 +303,15 @@ impl TerrainRenderer {
             },
             count: None,
         };
+        let common = [uniform_entry(0, fs), storage_entry(1, fs, true), storage_entry(2, fs, true), uint_texture(3)];
+        let mut tile_entries = common.to_vec();
+        tile_entries.push(storage_entry(4, fs, true));
+        let tile_bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("tile"),
+            entries: &tile_entries,
+        });
         let mut cast_entries = common.to_vec();
-        cast_entries.push(uint_texture);
+        cast_entries.push(uint_texture(4));
         let cast_bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("cast"),
             entries: &cast_entries,
@@ -293,14 +340,6 @@ impl TerrainRenderer {
                 immediate_size: 0,
             })
         };
-        let raygen_pipeline = dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("raygen"),
-            layout: Some(&layout(&raygen_bgl)),
-            module: &raygen_mod,
-            entry_point: Some("cs_raygen"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
         let fullscreen = |label: &str,
                           m: &wgpu::ShaderModule,
                           entry: &str,
@@ -342,6 +381,18 @@ impl TerrainRenderer {
             &tile_bgl,
             &[target(wgpu::TextureFormat::Rg32Uint)],
         );
+        let raygen = if raygen_compute {
+            RayGen::Compute(dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some("raygen"),
+                layout: Some(&layout(&raygen_bgl)),
+                module: &raygen_mod,
+                entry_point: Some("cs_raygen"),
+                compilation_options: Default::default(),
+                cache: None,
+            }))
+        } else {
+            RayGen::Fragment(fullscreen("raygen", &raygen_mod, "fs_raygen", &raygen_bgl, &[target(wgpu::TextureFormat::Rgba32Uint)]))
+        };
         let cast_pipeline = fullscreen(
             "cast",
             &cast_mod,
@@ -378,7 +429,7 @@ impl TerrainRenderer {
             tile_bgl,
             cast_bgl,
             shade_bgl,
-            raygen_pipeline,
+            raygen,
             tile_pipeline,
             cast_pipeline,
             march_pipeline,
@@ -404,14 +455,22 @@ impl TerrainRenderer {
                 ),
             });
         }
-        check_buffer_limit(gpu, "ray table", width as u64 * height as u64 * 16)?;
         let dev = &gpu.device;
-        let rays = dev.create_buffer(&wgpu::BufferDescriptor {
+        let mut usage = wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::RENDER_ATTACHMENT;
+        if matches!(self.raygen, RayGen::Compute(_)) {
+            usage |= wgpu::TextureUsages::STORAGE_BINDING;
+        }
+        let ray_table = dev.create_texture(&wgpu::TextureDescriptor {
             label: Some("ray table"),
-            size: width as u64 * height as u64 * 16,
-            usage: wgpu::BufferUsages::STORAGE,
-            mapped_at_creation: false,
+            size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba32Uint,
+            usage,
+            view_formats: &[],
         });
+        let ray_table_view = ray_table.create_view(&Default::default());
         let tiles = [width.div_ceil(TILE), height.div_ceil(TILE)];
         let tex = |label, w, h, format| {
             dev.create_texture(&wgpu::TextureDescriptor {
@@ -453,13 +512,17 @@ impl TerrainRenderer {
         let raygen_bg = dev.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("raygen"),
             layout: &self.raygen_bgl,
-            entries: &[buf(0, &self.raygen_ub), buf(1, &rays)],
+            entries: &if matches!(self.raygen, RayGen::Compute(_)) {
+                vec![buf(0, &self.raygen_ub), wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&ray_table_view) }]
+            } else {
+                vec![buf(0, &self.raygen_ub)]
+            },
         });
         let common = [
             buf(0, &self.frame_ub),
             buf(1, &self.heights),
             buf(2, &self.pyramid),
-            buf(3, &rays),
+            wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::TextureView(&ray_table_view) },
         ];
         let mut entries = common.to_vec();
         entries.push(buf(4, &self.dilated));
@@ -494,6 +557,7 @@ impl TerrainRenderer {
             height,
             tiles,
             raygen_bg,
+            ray_table_view,
             tile_bg,
             cast_bg,
             shade_bg,
@@ -510,13 +574,15 @@ impl TerrainRenderer {
     }
 
     fn encode_raygen(&self, enc: &mut wgpu::CommandEncoder, t: &Targets) {
-        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("raygen"),
-            timestamp_writes: None,
-        });
-        pass.set_pipeline(&self.raygen_pipeline);
-        pass.set_bind_group(0, &t.raygen_bg, &[]);
-        pass.dispatch_workgroups(t.width.div_ceil(8), t.height.div_ceil(8), 1);
+        match &self.raygen {
+            RayGen::Compute(p) => {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("raygen"), timestamp_writes: None });
+                pass.set_pipeline(p);
+                pass.set_bind_group(0, &t.raygen_bg, &[]);
+                pass.dispatch_workgroups(t.width.div_ceil(8), t.height.div_ceil(8), 1);
+            }
+            RayGen::Fragment(p) => Self::encode_fullscreen(enc, "raygen", p, &t.raygen_bg, &[&t.ray_table_view]),
+        }
     }
 
     fn encode_fullscreen(

@@ -5,10 +5,11 @@ const FRAME: &str = include_str!("shaders/frame.wgsl");
 const FULLSCREEN: &str = include_str!("shaders/fullscreen.wgsl");
 const TRAVERSE: &str = include_str!("shaders/terrain_traverse.wgsl");
 const GBUFFER: &str = include_str!("shaders/gbuffer.wgsl");
+const RAY_TABLE: &str = include_str!("shaders/ray_table.wgsl");
 
 /// Ray generation (compute): pinhole ray table.
 pub fn raygen() -> String {
-    include_str!("shaders/raygen.wgsl").to_string()
+    [FULLSCREEN, include_str!("shaders/raygen.wgsl")].concat()
 }
 
 /// Tile pre-pass (fragment).
@@ -16,6 +17,7 @@ pub fn tile() -> String {
     [
         FRAME,
         FULLSCREEN,
+        RAY_TABLE,
         TRAVERSE,
         include_str!("shaders/tile.wgsl"),
     ]
@@ -27,6 +29,7 @@ pub fn cast() -> String {
     [
         FRAME,
         FULLSCREEN,
+        RAY_TABLE,
         TRAVERSE,
         GBUFFER,
         include_str!("shaders/cast.wgsl"),
@@ -39,6 +42,7 @@ pub fn shade() -> String {
     [
         FRAME,
         FULLSCREEN,
+        RAY_TABLE,
         TRAVERSE,
         GBUFFER,
         include_str!("shaders/shade.wgsl"),

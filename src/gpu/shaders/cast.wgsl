@@ -6,14 +6,13 @@
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<storage, read> heights: array<f32>;
 @group(0) @binding(2) var<storage, read> pyramid: array<f32>;
-@group(0) @binding(3) var<storage, read> rays: array<vec4<f32>>;
 @group(0) @binding(4) var tile_start: texture_2d<u32>;
 
 fn primary_ray(pos: vec4<f32>) -> Ray {
     let px = vec2<u32>(pos.xy);
     var r: Ray;
     r.o = frame.eye.xyz;
-    r.d = to_grid_dir(rays[px.y * frame.size.x + px.x].xyz);
+    r.d = to_grid_dir(ray_dir(px));
     return r;
 }
 

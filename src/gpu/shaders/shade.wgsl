@@ -6,7 +6,6 @@
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<storage, read> heights: array<f32>;
 @group(0) @binding(2) var<storage, read> pyramid: array<f32>;
-@group(0) @binding(3) var<storage, read> rays: array<vec4<f32>>;
 @group(0) @binding(4) var gbuffer: texture_2d<u32>;
 @group(0) @binding(5) var<storage, read> drape: array<u32>;
 
@@ -113,7 +112,7 @@ fn haze_transmittance(t: f32, ze: f32, zp: f32) -> f32 {
 fn fs_shade(@builtin(position) pos: vec4<f32>) -> Out {
     let px = vec2<u32>(pos.xy);
     let g = textureLoad(gbuffer, vec2<i32>(px), 0);
-    let dir_w = rays[px.y * frame.size.x + px.x].xyz;
+    let dir_w = ray_dir(px);
     let dl = to_local(dir_w);
     var out: Out;
     var flags = g.w & 0xffu;

@@ -5,7 +5,6 @@
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<storage, read> heights: array<f32>;
 @group(0) @binding(2) var<storage, read> pyramid: array<f32>;
-@group(0) @binding(3) var<storage, read> rays: array<vec4<f32>>;
 // The pyramid dilated by one cell: each cell holds the maximum of its 3x3 neighbourhood.
 @group(0) @binding(4) var<storage, read> dilated: array<f32>;
 
@@ -140,11 +139,10 @@ fn fs_tile(@builtin(position) pos: vec4<f32>) -> @location(0) vec2<u32> {
     // The tile's pixel-centre rays of a pinhole ray table fill a spherical quadrilateral whose
     // edges are great-circle arcs (a convex spherical polygon), so the ray farthest from any
     // direction inside it is a corner: the four corner rays bound the whole tile's cone.
-    let w = frame.size.x;
-    let d00 = rays[y0 * w + x0].xyz;
-    let d10 = rays[y0 * w + x1].xyz;
-    let d01 = rays[y1 * w + x0].xyz;
-    let d11 = rays[y1 * w + x1].xyz;
+    let d00 = ray_dir(vec2<u32>(x0, y0));
+    let d10 = ray_dir(vec2<u32>(x1, y0));
+    let d01 = ray_dir(vec2<u32>(x0, y1));
+    let d11 = ray_dir(vec2<u32>(x1, y1));
     let c = normalize(d00 + d10 + d01 + d11);
     let chord = max(max(length(d00 - c), length(d10 - c)), max(length(d01 - c), length(d11 - c)));
     let theta = chord * 1.001 + 1.0e-6;
