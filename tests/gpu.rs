@@ -323,12 +323,26 @@ fn compute_and_fragment_ray_generation_give_the_same_frame() {
     let (scene, terrain) = alps();
     let cam = Camera::new(scene.camera(0, &terrain).pose, 200, 120);
     let mut frames = Vec::new();
-    for k in [relief::gpu::KernelPath::Compute, relief::gpu::KernelPath::Fragment] {
+    for k in [
+        relief::gpu::KernelPath::Compute,
+        relief::gpu::KernelPath::Fragment,
+    ] {
         let mut r = TerrainRenderer::with_kernels(g, &terrain, k).expect("renderer");
-        frames.push(r.capture(g, &terrain, &scene.desc, &cam, &settings(true, true)).expect("capture"));
+        frames.push(
+            r.capture(g, &terrain, &scene.desc, &cam, &settings(true, true))
+                .expect("capture"),
+        );
     }
-    let differ = frames[0].depth.iter().zip(&frames[1].depth).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
-    assert!(differ <= 200 * 120 / 1000, "{differ} pixels differ between compute and fragment ray generation");
+    let differ = frames[0]
+        .depth
+        .iter()
+        .zip(&frames[1].depth)
+        .filter(|(a, b)| a.to_bits() != b.to_bits())
+        .count();
+    assert!(
+        differ <= 200 * 120 / 1000,
+        "{differ} pixels differ between compute and fragment ray generation"
+    );
     assert!(frames[0].depth.iter().any(|d| d.is_finite()));
 }
 

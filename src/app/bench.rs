@@ -69,12 +69,7 @@ pub struct BenchReport {
     pub pyramid_build_ms: f64,
 }
 
-fn depth_error(
-    terrain: &Terrain,
-    cam: &Camera,
-    out: &FrameOutput,
-    reference: &[(u32, u32, Option<f64>)],
-) -> DepthError {
+fn depth_error(out: &FrameOutput, reference: &[(u32, u32, Option<f64>)]) -> DepthError {
     let mut rel = Vec::new();
     let mut mism = 0;
     for &(x, y, cpu_t) in reference {
@@ -85,7 +80,6 @@ fn depth_error(
             _ => mism += 1,
         }
     }
-    let _ = (terrain, cam);
     rel.sort_by(|a, b| a.total_cmp(b));
     let q = |f: f64| {
         rel.get(((rel.len() as f64 - 1.0) * f).round() as usize)
@@ -206,7 +200,7 @@ pub fn run(
             frame_ms,
             mean_steps_per_ray: out.steps.iter().map(|&v| v as f64).sum::<f64>() / px,
             mean_patch_tests_per_ray: out.patch_tests.iter().map(|&v| v as f64).sum::<f64>() / px,
-            depth_error: depth_error(&terrain, &cam, &out, &reference),
+            depth_error: depth_error(&out, &reference),
         };
         log::info!(
             "{name}: primary {:.2} ms ({:.2} M rays/s), frame {:.2} ms, {:.1} steps/ray",

@@ -9,7 +9,9 @@ pub mod renderer;
 pub mod shaders;
 pub mod types;
 
-pub use renderer::{FrameOutput, KernelPath, PassTimes, RenderSettings, Stage, TerrainRenderer, TraceMode};
+pub use renderer::{
+    FrameOutput, KernelPath, PassTimes, RenderSettings, Stage, TerrainRenderer, TraceMode,
+};
 
 use crate::{Error, Result};
 

@@ -188,7 +188,7 @@ fn uniform_entry(binding: u32, vis: wgpu::ShaderStages) -> wgpu::BindGroupLayout
 
 /// Checks that a buffer of `bytes` fits the device; the error names the data and the limit.
 pub fn check_buffer_limit(gpu: &Gpu, what: &str, bytes: u64) -> Result<()> {
-    let limit = (gpu.limits.max_storage_buffer_binding_size as u64).min(gpu.limits.max_buffer_size);
+    let limit = gpu.limits.max_storage_buffer_binding_size.min(gpu.limits.max_buffer_size);
     if bytes > limit {
         return Err(Error::Limit {
             what: what.to_string(),
@@ -209,7 +209,11 @@ impl TerrainRenderer {
     }
 
     /// As [`TerrainRenderer::new`] with an explicit kernel path.
-    pub fn with_kernels(gpu: &Gpu, terrain: &Terrain, kernels: KernelPath) -> Result<TerrainRenderer> {
+    pub fn with_kernels(
+        gpu: &Gpu,
+        terrain: &Terrain,
+        kernels: KernelPath,
+    ) -> Result<TerrainRenderer> {
         let dev = &gpu.device;
         if terrain.pyramid.levels.len() > MAX_LEVELS {
             return Err(Error::Limit {
@@ -303,7 +307,12 @@ impl TerrainRenderer {
             },
             count: None,
         };
-        let common = [uniform_entry(0, fs), storage_entry(1, fs, true), storage_entry(2, fs, true), uint_texture(3)];
+        let common = [
+            uniform_entry(0, fs),
+            storage_entry(1, fs, true),
+            storage_entry(2, fs, true),
+            uint_texture(3),
+        ];
         let mut tile_entries = common.to_vec();
         tile_entries.push(storage_entry(4, fs, true));
         let tile_bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -382,16 +391,24 @@ impl TerrainRenderer {
             &[target(wgpu::TextureFormat::Rg32Uint)],
         );
         let raygen = if raygen_compute {
-            RayGen::Compute(dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some("raygen"),
-                layout: Some(&layout(&raygen_bgl)),
-                module: &raygen_mod,
-                entry_point: Some("cs_raygen"),
-                compilation_options: Default::default(),
-                cache: None,
-            }))
+            RayGen::Compute(
+                dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some("raygen"),
+                    layout: Some(&layout(&raygen_bgl)),
+                    module: &raygen_mod,
+                    entry_point: Some("cs_raygen"),
+                    compilation_options: Default::default(),
+                    cache: None,
+                }),
+            )
         } else {
-            RayGen::Fragment(fullscreen("raygen", &raygen_mod, "fs_raygen", &raygen_bgl, &[target(wgpu::TextureFormat::Rgba32Uint)]))
+            RayGen::Fragment(fullscreen(
+                "raygen",
+                &raygen_mod,
+                "fs_raygen",
+                &raygen_bgl,
+                &[target(wgpu::TextureFormat::Rgba32Uint)],
+            ))
         };
         let cast_pipeline = fullscreen(
             "cast",
@@ -456,13 +473,18 @@ impl TerrainRenderer {
             });
         }
         let dev = &gpu.device;
-        let mut usage = wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::RENDER_ATTACHMENT;
+        let mut usage =
+            wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::RENDER_ATTACHMENT;
         if matches!(self.raygen, RayGen::Compute(_)) {
             usage |= wgpu::TextureUsages::STORAGE_BINDING;
         }
         let ray_table = dev.create_texture(&wgpu::TextureDescriptor {
             label: Some("ray table"),
-            size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+            size: wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
             mip_level_count: 1,
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
@@ -513,7 +535,13 @@ impl TerrainRenderer {
             label: Some("raygen"),
             layout: &self.raygen_bgl,
             entries: &if matches!(self.raygen, RayGen::Compute(_)) {
-                vec![buf(0, &self.raygen_ub), wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&ray_table_view) }]
+                vec![
+                    buf(0, &self.raygen_ub),
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: wgpu::BindingResource::TextureView(&ray_table_view),
+                    },
+                ]
             } else {
                 vec![buf(0, &self.raygen_ub)]
             },
@@ -522,7 +550,10 @@ impl TerrainRenderer {
             buf(0, &self.frame_ub),
             buf(1, &self.heights),
             buf(2, &self.pyramid),
-            wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::TextureView(&ray_table_view) },
+            wgpu::BindGroupEntry {
+                binding: 3,
+                resource: wgpu::BindingResource::TextureView(&ray_table_view),
+            },
         ];
         let mut entries = common.to_vec();
         entries.push(buf(4, &self.dilated));
@@ -576,12 +607,17 @@ impl TerrainRenderer {
     fn encode_raygen(&self, enc: &mut wgpu::CommandEncoder, t: &Targets) {
         match &self.raygen {
             RayGen::Compute(p) => {
-                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("raygen"), timestamp_writes: None });
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("raygen"),
+                    timestamp_writes: None,
+                });
                 pass.set_pipeline(p);
                 pass.set_bind_group(0, &t.raygen_bg, &[]);
                 pass.dispatch_workgroups(t.width.div_ceil(8), t.height.div_ceil(8), 1);
             }
-            RayGen::Fragment(p) => Self::encode_fullscreen(enc, "raygen", p, &t.raygen_bg, &[&t.ray_table_view]),
+            RayGen::Fragment(p) => {
+                Self::encode_fullscreen(enc, "raygen", p, &t.raygen_bg, &[&t.ray_table_view])
+            }
         }
     }
 
@@ -911,21 +947,29 @@ pub fn dilate_square_pyramid(data: &[f32], n: u32) -> Vec<f32> {
     let mut side = n as usize;
     let mut offset = 0usize;
     loop {
-        let (src, dst) = (&data[offset..offset + side * side], &mut out[offset..offset + side * side]);
+        let (src, dst) = (
+            &data[offset..offset + side * side],
+            &mut out[offset..offset + side * side],
+        );
         // Separable: rows then columns.
         let mut rows = vec![crate::terrain::pyramid::PAD; side * side];
         for j in 0..side {
             for i in 0..side {
                 let lo = i.saturating_sub(1);
                 let hi = (i + 1).min(side - 1);
-                rows[j * side + i] = src[j * side + lo..=j * side + hi].iter().copied().fold(f32::MIN, f32::max);
+                rows[j * side + i] = src[j * side + lo..=j * side + hi]
+                    .iter()
+                    .copied()
+                    .fold(f32::MIN, f32::max);
             }
         }
         for j in 0..side {
             for i in 0..side {
                 let lo = j.saturating_sub(1);
                 let hi = (j + 1).min(side - 1);
-                dst[j * side + i] = (lo..=hi).map(|jj| rows[jj * side + i]).fold(f32::MIN, f32::max);
+                dst[j * side + i] = (lo..=hi)
+                    .map(|jj| rows[jj * side + i])
+                    .fold(f32::MIN, f32::max);
             }
         }
         offset += side * side;
@@ -951,7 +995,8 @@ pub fn square_pyramid(terrain: &Terrain) -> (Vec<f32>, u32) {
         let side = (n >> l) as u64;
         let offset = (n as u64 * n as u64 - side * side) / 3 * 4;
         for j in 0..level.cells[1] as u64 {
-            let src = &pyr.data[(level.offset as u64 + j * level.stored[0] as u64) as usize..][..level.cells[0] as usize];
+            let src = &pyr.data[(level.offset as u64 + j * level.stored[0] as u64) as usize..]
+                [..level.cells[0] as usize];
             data[(offset + j * side) as usize..][..src.len()].copy_from_slice(src);
         }
     }

@@ -124,7 +124,7 @@ pub struct Keyframe {
     pub fov: f64,
 }
 
-fn default_fov() -> f64 {
+pub(crate) fn default_fov() -> f64 {
     60.0
 }
 

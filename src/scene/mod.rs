@@ -77,7 +77,30 @@ fn east() -> [f64; 3] {
     [1.0, 0.0, 0.0]
 }
 
+/// Where a terrain's heights come from.
+#[derive(Clone, Copy, Debug)]
+pub enum HeightSource<'a> {
+    File(&'a Path),
+    Procedural(&'a RidgedFbm),
+}
+
 impl TerrainDesc {
+    /// The one height source the table names (exactly one of `source` and `procedural`).
+    pub fn height_source(&self) -> Result<HeightSource<'_>> {
+        match (&self.source, &self.procedural) {
+            (Some(_), Some(_)) => Err(Error::invalid(
+                "terrain",
+                "set either `source` or `procedural`, not both",
+            )),
+            (None, None) => Err(Error::invalid(
+                "terrain",
+                "set `source = \"file.hgt|tif|png\"` or a `[terrain.procedural]` table",
+            )),
+            (Some(src), None) => Ok(HeightSource::File(src)),
+            (None, Some(p)) => Ok(HeightSource::Procedural(p)),
+        }
+    }
+
     /// Orthonormal (x, y, normal) axes of the base plane.
     pub fn axes(&self) -> Result<(DVec3, DVec3, DVec3)> {
         let n = DVec3::from(self.normal);
@@ -196,12 +219,8 @@ pub struct CameraDesc {
     #[serde(default)]
     pub roll: f64,
     /// Horizontal field of view in degrees.
-    #[serde(default = "default_fov")]
+    #[serde(default = "camera::default_fov")]
     pub fov: f64,
-}
-
-fn default_fov() -> f64 {
-    60.0
 }
 
 /// `[output]`: image size.
@@ -384,21 +403,7 @@ impl SceneDesc {
             ));
         }
         let t = &self.terrain;
-        match (&t.source, &t.procedural) {
-            (Some(_), Some(_)) => {
-                return Err(Error::invalid(
-                    "terrain",
-                    "set either `source` or `procedural`, not both",
-                ))
-            }
-            (None, None) => {
-                return Err(Error::invalid(
-                    "terrain",
-                    "set `source = \"file.hgt|tif|png\"` or a `[terrain.procedural]` table",
-                ))
-            }
-            _ => {}
-        }
+        t.height_source()?;
         check_finite("terrain.origin", &t.origin)?;
         t.axes()?;
         if let Some(cs) = t.cell_size {

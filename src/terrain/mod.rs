@@ -15,7 +15,7 @@ pub use geotiff::Drape;
 pub use heightfield::{GeoRef, Heightfield};
 pub use pyramid::MaxPyramid;
 
-use crate::scene::TerrainDesc;
+use crate::scene::{HeightSource, TerrainDesc};
 use crate::{Error, Result};
 use glam::{DMat4, DVec3, DVec4};
 use std::path::Path;
@@ -158,21 +158,9 @@ impl Terrain {
 
     /// Loads and places the terrain a scene describes. Relative paths are resolved from `base_dir`.
     pub fn from_desc(desc: &TerrainDesc, base_dir: &Path) -> Result<Terrain> {
-        let field = match (&desc.source, &desc.procedural) {
-            (Some(_), Some(_)) => {
-                return Err(Error::invalid(
-                    "terrain",
-                    "set either `source` or `procedural`, not both",
-                ))
-            }
-            (None, None) => {
-                return Err(Error::invalid(
-                    "terrain",
-                    "set `source = \"file.hgt|tif|png\"` or a `[terrain.procedural]` table",
-                ))
-            }
-            (None, Some(p)) => p.generate()?,
-            (Some(src), None) => {
+        let field = match desc.height_source()? {
+            HeightSource::Procedural(p) => p.generate()?,
+            HeightSource::File(src) => {
                 let path = base_dir.join(src);
                 load_heightfield(
                     &path,

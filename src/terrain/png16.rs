@@ -28,18 +28,19 @@ pub fn load(
     }
     let (w, h) = (img.width() as usize, img.height() as usize);
     // Raw sample values: 8-bit maps are not stretched to 16 bits.
-    let raw: Vec<u16> =
-        match img {
-            image::DynamicImage::ImageLuma8(g) => g.into_raw().into_iter().map(u16::from).collect(),
-            image::DynamicImage::ImageLuma16(g) => g.into_raw(),
-            other => return Err(Error::format(
+    let raw: Vec<u16> = match img {
+        image::DynamicImage::ImageLuma8(g) => g.into_raw().into_iter().map(u16::from).collect(),
+        image::DynamicImage::ImageLuma16(g) => g.into_raw(),
+        other => {
+            return Err(Error::format(
                 path,
                 format!(
                     "a height map PNG must be 8- or 16-bit grey without alpha, this one is {:?}",
                     other.color()
                 ),
-            )),
-        };
+            ))
+        }
+    };
     let mut samples = vec![None; w * h];
     for row in 0..h {
         let j = h - 1 - row;

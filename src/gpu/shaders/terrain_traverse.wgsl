@@ -139,6 +139,69 @@ fn cell_at(level: u32, p: vec2<f32>) -> vec2<i32> {
     );
 }
 
+// A ray's walk through the pyramid: current level, cell at that level, entry distance.
+struct Walk {
+    level: u32,
+    cell: vec2<i32>,
+    t: f32,
+}
+
+// Step direction (±1 per axis) and inverse horizontal direction of a ray.
+struct Dir {
+    s: vec2<i32>,
+    inv: vec2<f32>,
+}
+
+fn walk_dir(r: Ray) -> Dir {
+    var d: Dir;
+    d.s = select(vec2<i32>(-1), vec2<i32>(1), r.d.xy >= vec2<f32>(0.0));
+    d.inv = vec2<f32>(safe_inv(r.d.x), safe_inv(r.d.y));
+    return d;
+}
+
+fn walk_start(r: Ray, t: f32, level: u32) -> Walk {
+    var w: Walk;
+    w.level = level;
+    w.cell = cell_at(level, (r.o + r.d * t).xy);
+    w.t = t;
+    return w;
+}
+
+// Distances at which the ray leaves the walk's cell through its x and y faces.
+fn cell_exits(r: Ray, dir: Dir, w: Walk) -> vec2<f32> {
+    let far = vec2<f32>(w.cell + max(dir.s, vec2<i32>(0)));
+    return (far * f32(1u << w.level) - r.o.xy) * dir.inv;
+}
+
+// One level down, to the child cell holding the entry point (ties go the way the ray moves).
+fn descend(r: Ray, dir: Dir, w: Walk) -> Walk {
+    let p = (r.o + r.d * w.t).xy;
+    let mid = vec2<f32>(2 * w.cell + vec2<i32>(1)) * (f32(1u << w.level) * 0.5);
+    let upper = (p > mid) | ((p == mid) & (dir.s > vec2<i32>(0)));
+    var n: Walk;
+    n.level = w.level - 1u;
+    n.cell = 2 * w.cell + select(vec2<i32>(0), vec2<i32>(1), upper);
+    n.t = w.t;
+    return n;
+}
+
+// Cross the exit face (both at a corner), move to `t_exit`, then climb while the new cell's
+// parent differs from the old one's (never above `top`).
+fn advance(dir: Dir, w: Walk, exits: vec2<f32>, t_exit: f32, top: u32) -> Walk {
+    let moved = w.cell + select(vec2<i32>(0), dir.s, vec2<bool>(exits.x <= exits.y, exits.y <= exits.x));
+    let up = climb_levels(moved.x, moved.y, w.cell.x, w.cell.y, top - w.level);
+    var n: Walk;
+    n.level = w.level + up;
+    n.cell = moved >> vec2<u32>(up);
+    n.t = t_exit;
+    return n;
+}
+
+fn walk_inside(w: Walk) -> bool {
+    let side = level_side(w.level);
+    return u32(w.cell.x) < side && u32(w.cell.y) < side;
+}
+
 // Top-down pyramid traversal: skip cells the ray segment stays above, descend otherwise,
 // exact patch test at level 0, climb after crossings while the parent changes.
 fn traverse(r: Ray, t_min: f32, t_max: f32, max_steps: u32) -> Trace {
@@ -160,66 +223,37 @@ fn traverse_from(r: Ray, t_min: f32, t_max: f32, max_steps: u32, start_level: u3
     }
     let t1 = tt.y;
     let top = frame.grid.z - 1u;
-    var level = min(start_level, top);
-    var t = tt.x;
-    let sx = select(-1, 1, r.d.x >= 0.0);
-    let sy = select(-1, 1, r.d.y >= 0.0);
-    let inv = vec2<f32>(safe_inv(r.d.x), safe_inv(r.d.y));
-    var c = cell_at(level, (r.o + r.d * t).xy);
-    var ix = c.x;
-    var iy = c.y;
+    let dir = walk_dir(r);
+    var w = walk_start(r, tt.x, min(start_level, top));
     loop {
         if (res.steps >= max_steps) {
             res.exhausted = true;
             break;
         }
         res.steps += 1u;
-        let s = f32(1u << level);
-        let tx = (f32(ix + select(0, 1, sx > 0)) * s - r.o.x) * inv.x;
-        let ty = (f32(iy + select(0, 1, sy > 0)) * s - r.o.y) * inv.y;
-        let t_exit = max(min(min(tx, ty), t1), t);
-        let cmax = pyr_get(level, ix, iy) + frame.heights_range.w;
-        let z_low = min(r.o.z + r.d.z * t, r.o.z + r.d.z * t_exit);
+        let exits = cell_exits(r, dir, w);
+        let t_exit = max(min(min(exits.x, exits.y), t1), w.t);
+        let cmax = pyr_get(w.level, w.cell.x, w.cell.y) + frame.heights_range.w;
+        let z_low = min(r.o.z + r.d.z * w.t, r.o.z + r.d.z * t_exit);
         if (z_low <= cmax) {
-            if (level > 0u) {
-                let p = r.o + r.d * t;
-                let half = s * 0.5;
-                let mx = f32(2 * ix + 1) * half;
-                let my = f32(2 * iy + 1) * half;
-                let cx = 2 * ix + select(0, 1, p.x > mx || (p.x == mx && sx > 0));
-                let cy = 2 * iy + select(0, 1, p.y > my || (p.y == my && sy > 0));
-                level -= 1u;
-                ix = cx;
-                iy = cy;
+            if (w.level > 0u) {
+                w = descend(r, dir, w);
                 continue;
             }
             res.patches += 1u;
-            let th = patch_hit(r, ix, iy, t, t_exit);
+            let th = patch_hit(r, w.cell.x, w.cell.y, w.t, t_exit);
             if (th >= 0.0) {
                 res.hit = true;
                 res.t = th;
-                res.cell = vec2<i32>(ix, iy);
+                res.cell = w.cell;
                 return res;
             }
         }
         if (t_exit >= t1) {
             break;
         }
-        let ox = ix;
-        let oy = iy;
-        if (tx <= ty) {
-            ix += sx;
-        }
-        if (ty <= tx) {
-            iy += sy;
-        }
-        t = t_exit;
-        let up = climb_levels(ix, iy, ox, oy, top - level);
-        level += up;
-        ix = ix >> up;
-        iy = iy >> up;
-        let side = level_side(level);
-        if (u32(ix) >= side || u32(iy) >= side) {
+        w = advance(dir, w, exits, t_exit, top);
+        if (!walk_inside(w)) {
             break;
         }
     }

@@ -62,72 +62,45 @@ fn cone_start(r: Ray, theta: f32, max_steps: u32) -> ConeStart {
         return cone_result(t1, top);
     }
     let rg = theta * min(frame.spacing.z, frame.spacing.w);
-    var level = top;
-    let sx = select(-1, 1, r.d.x >= 0.0);
-    let sy = select(-1, 1, r.d.y >= 0.0);
-    var c = cell_at(level, (r.o + r.d * t).xy);
-    var ix = c.x;
-    var iy = c.y;
+    let dir = walk_dir(r);
+    var w = walk_start(r, t, top);
     var steps = 0u;
     loop {
         steps += 1u;
         if (steps > max_steps) {
-            return cone_result(t, level);
+            return cone_result(w.t, w.level);
         }
-        let s = f32(1u << level);
-        let tx = (f32(ix + select(0, 1, sx > 0)) * s - r.o.x) * inv.x;
-        let ty = (f32(iy + select(0, 1, sy > 0)) * s - r.o.y) * inv.y;
-        let t_exit = max(min(min(tx, ty), t1), t);
-        if (level < top && rg * t_exit > s) {
-            level += 1u;
-            ix = ix >> 1u;
-            iy = iy >> 1u;
+        let s = f32(1u << w.level);
+        let exits = cell_exits(r, dir, w);
+        let t_exit = max(min(min(exits.x, exits.y), t1), w.t);
+        if (w.level < top && rg * t_exit > s) {
+            // The cone is wider than a cell here: test the parent instead.
+            w.level += 1u;
+            w.cell = w.cell >> vec2<u32>(1u);
             continue;
         }
         var m = pyr_get(top, 0, 0);
-        if (level < top) {
-            m = dilated_get(level, ix, iy);
+        if (w.level < top) {
+            m = dilated_get(w.level, w.cell.x, w.cell.y);
         }
-        let z_low = min(r.o.z + r.d.z * t, r.o.z + r.d.z * t_exit) - theta * t_exit;
+        let z_low = min(r.o.z + r.d.z * w.t, r.o.z + r.d.z * t_exit) - theta * t_exit;
         if (z_low <= m) {
-            if (level > 0u && rg * t_exit <= s * 0.5) {
-                let p = r.o + r.d * t;
-                let half = s * 0.5;
-                let mx = f32(2 * ix + 1) * half;
-                let my = f32(2 * iy + 1) * half;
-                let cx = 2 * ix + select(0, 1, p.x > mx || (p.x == mx && sx > 0));
-                let cy = 2 * iy + select(0, 1, p.y > my || (p.y == my && sy > 0));
-                level -= 1u;
-                ix = cx;
-                iy = cy;
+            if (w.level > 0u && rg * t_exit <= s * 0.5) {
+                w = descend(r, dir, w);
                 continue;
             }
-            return cone_result(t, level);
+            return cone_result(w.t, w.level);
         }
         if (t_exit >= t1) {
             return cone_result(t1, top);
         }
-        let ox = ix;
-        let oy = iy;
-        if (tx <= ty) {
-            ix += sx;
-        }
-        if (ty <= tx) {
-            iy += sy;
-        }
-        t = t_exit;
-        let up = climb_levels(ix, iy, ox, oy, top - level);
-        level += up;
-        ix = ix >> up;
-        iy = iy >> up;
-        let side = level_side(level);
-        if (u32(ix) >= side || u32(iy) >= side) {
+        w = advance(dir, w, exits, t_exit, top);
+        if (!walk_inside(w)) {
             return cone_result(t1, top);
         }
     }
-    return cone_result(t, level);
+    return cone_result(w.t, w.level);
 }
-
 
 @fragment
 fn fs_tile(@builtin(position) pos: vec4<f32>) -> @location(0) vec2<u32> {
