@@ -7,11 +7,13 @@
 //! * [`cpu`]: the CPU reference algorithms (f64): ray–terrain traversal, queries
 //!   (height of terrain, line of sight), dense marching oracle. These answer queries and are
 //!   the oracle the GPU output is tested against.
+//! * [`display`]: curved-screen display model (screen, projectors, eye) for pre-distortion.
 //! * [`gpu`]: wgpu passes (ray generation, tile pre-pass, terrain cast + shade) and readback.
 //! * [`app`]: headless capture, benchmark and command-line front end.
 
 pub mod app;
 pub mod cpu;
+pub mod display;
 pub mod error;
 pub mod gpu;
 pub mod scene;

@@ -42,6 +42,15 @@ enum Command {
         /// Turn the screen-tile pre-pass off.
         #[arg(long)]
         no_tile_prepass: bool,
+        /// Render through a curved-screen distortion table (display config TOML).
+        #[arg(long)]
+        display: Option<PathBuf>,
+        /// Channel (projector) of the display config.
+        #[arg(long, default_value_t = 0)]
+        channel: usize,
+        /// Eye point X,Y,Z in the display frame (overrides the config's eye).
+        #[arg(long, value_parser = parse_vec::<3>, allow_hyphen_values = true)]
+        eye: Option<[f64; 3]>,
     },
     /// Benchmark the pyramid traversal against a fixed-step march on the same rays.
     Bench {
@@ -136,6 +145,7 @@ fn run(cli: Cli) -> Result<()> {
                 out_dir: "out".into(),
                 shadows: None,
                 tile_prepass: None,
+                display: None,
             };
             let files =
                 capture::run(&job).with_context(|| format!("rendering {}", job.scene.display()))?;
@@ -156,6 +166,9 @@ fn run(cli: Cli) -> Result<()> {
             out,
             no_shadows,
             no_tile_prepass,
+            display,
+            channel,
+            eye,
         }) => {
             let job = capture::RenderJob {
                 scene,
@@ -165,6 +178,11 @@ fn run(cli: Cli) -> Result<()> {
                 out_dir: out,
                 shadows: no_shadows.then_some(false),
                 tile_prepass: no_tile_prepass.then_some(false),
+                display: display.map(|config| capture::DisplayJob {
+                    config,
+                    channel,
+                    eye,
+                }),
             };
             let files =
                 capture::run(&job).with_context(|| format!("rendering {}", job.scene.display()))?;

@@ -152,6 +152,17 @@ pub struct RenderJob {
     pub out_dir: PathBuf,
     pub shadows: Option<bool>,
     pub tile_prepass: Option<bool>,
+    /// Render through a distortion table: display config, channel index, eye override.
+    pub display: Option<DisplayJob>,
+}
+
+/// The display part of a render job.
+#[derive(Clone, Debug)]
+pub struct DisplayJob {
+    pub config: PathBuf,
+    pub channel: usize,
+    /// Eye point in the display frame; the config's eye when `None`.
+    pub eye: Option<[f64; 3]>,
 }
 
 /// Renders `job.frames` frames and writes them to `job.out_dir`; returns the file paths.
@@ -172,6 +183,48 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
     let gpu = Gpu::new()?;
     log::info!("adapter: {}", gpu.describe());
     let mut renderer = TerrainRenderer::new(&gpu, &terrain)?;
+    let mut display_meta = serde_json::Value::Null;
+    if let Some(d) = &job.display {
+        if job.size.is_some() {
+            return Err(Error::invalid(
+                "--size",
+                "a distortion table renders at the projector's resolution; drop --size",
+            ));
+        }
+        let cfg = crate::display::DisplayConfig::load(&d.config)?;
+        let channel = cfg.channels.get(d.channel).ok_or_else(|| {
+            Error::invalid(
+                "--channel",
+                format!(
+                    "{} has {} channel(s), asked for index {}",
+                    d.config.display(),
+                    cfg.channels.len(),
+                    d.channel
+                ),
+            )
+        })?;
+        let p = channel.projector;
+        let points = crate::cpu::distortion::screen_points(&cfg.screen, &p);
+        let lit = points.points.iter().filter(|p| p.is_some()).count();
+        if lit == 0 {
+            return Err(Error::invalid(
+                format!("{} channel {}", d.config.display(), d.channel),
+                "no projector pixel reaches the screen",
+            ));
+        }
+        let eye = glam::DVec3::from(d.eye.unwrap_or(cfg.eye.position));
+        renderer.set_display(&gpu, &points, eye)?;
+        scene.desc.output.width = p.width;
+        scene.desc.output.height = p.height;
+        display_meta = json!({
+            "config": d.config.display().to_string(),
+            "channel": d.channel,
+            "channel_name": channel.name,
+            "eye_display_frame": eye.to_array(),
+            "pixels_on_screen": lit,
+            "model": "per-pixel ray = world_from_display * normalize(screen_point(pixel) - eye); world_from_display maps display x, y, z to the camera's right, forward, up",
+        });
+    }
     let mut settings = RenderSettings::from_scene(&scene.desc);
     if let Some(s) = job.shadows {
         settings.shadows = s;
@@ -189,7 +242,12 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
         let meta = job.out_dir.join(format!("frame_{frame:04}.json"));
         write_png(&png, out.width, out.height, &out.rgba)?;
         write_depth_tiff(&tif, out.width, out.height, &out.depth)?;
-        let m = frame_metadata(&gpu, &scene, &terrain, &cam, &settings, frame, &out);
+        let mut m = frame_metadata(&gpu, &scene, &terrain, &cam, &settings, frame, &out);
+        if !display_meta.is_null() {
+            m["display"] = display_meta.clone();
+            m["camera"]["model"] =
+                json!("distortion-table (see display); the pinhole intrinsics do not apply");
+        }
         write_atomic(&meta, |tmp| {
             std::fs::write(
                 tmp,

@@ -93,6 +93,7 @@ struct Targets {
     height: u32,
     tiles: [u32; 2],
     raygen_bg: wgpu::BindGroup,
+    ray_table: wgpu::Texture,
     ray_table_view: wgpu::TextureView,
     tile_bg: wgpu::BindGroup,
     cast_bg: wgpu::BindGroup,
@@ -153,7 +154,21 @@ pub struct TerrainRenderer {
     cast_pipeline: wgpu::RenderPipeline,
     march_pipeline: wgpu::RenderPipeline,
     shade_pipeline: wgpu::RenderPipeline,
+    raygen_mod: wgpu::ShaderModule,
+    tile_mod: wgpu::ShaderModule,
+    table: Option<TableMode>,
     targets: Option<Targets>,
+}
+
+/// Ray generation from a distortion table: the cached screen points of one projector, the
+/// pipelines that turn them into the ray table and tile cones, and the current eye point.
+struct TableMode {
+    bgl: wgpu::BindGroupLayout,
+    raygen: wgpu::RenderPipeline,
+    tile: wgpu::RenderPipeline,
+    points_view: wgpu::TextureView,
+    size: [u32; 2],
+    eye: glam::DVec3,
 }
 
 fn storage_entry(
@@ -188,7 +203,10 @@ fn uniform_entry(binding: u32, vis: wgpu::ShaderStages) -> wgpu::BindGroupLayout
 
 /// Checks that a buffer of `bytes` fits the device; the error names the data and the limit.
 pub fn check_buffer_limit(gpu: &Gpu, what: &str, bytes: u64) -> Result<()> {
-    let limit = gpu.limits.max_storage_buffer_binding_size.min(gpu.limits.max_buffer_size);
+    let limit = gpu
+        .limits
+        .max_storage_buffer_binding_size
+        .min(gpu.limits.max_buffer_size);
     if bytes > limit {
         return Err(Error::Limit {
             what: what.to_string(),
@@ -342,47 +360,15 @@ impl TerrainRenderer {
         let tile_mod = module("tile.wgsl", shaders::tile());
         let cast_mod = module("cast.wgsl", shaders::cast());
         let shade_mod = module("shade.wgsl", shaders::shade());
-        let layout = |bgl: &wgpu::BindGroupLayout| {
-            dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: None,
-                bind_group_layouts: &[Some(bgl)],
-                immediate_size: 0,
-            })
-        };
+        let layout = |bgl: &wgpu::BindGroupLayout| pipeline_layout(dev, bgl);
         let fullscreen = |label: &str,
                           m: &wgpu::ShaderModule,
                           entry: &str,
                           bgl: &wgpu::BindGroupLayout,
                           targets: &[Option<wgpu::ColorTargetState>]| {
-            dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some(label),
-                layout: Some(&layout(bgl)),
-                vertex: wgpu::VertexState {
-                    module: m,
-                    entry_point: Some("vs_fullscreen"),
-                    compilation_options: Default::default(),
-                    buffers: &[],
-                },
-                primitive: wgpu::PrimitiveState::default(),
-                depth_stencil: None,
-                multisample: wgpu::MultisampleState::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: m,
-                    entry_point: Some(entry),
-                    compilation_options: Default::default(),
-                    targets,
-                }),
-                multiview_mask: None,
-                cache: None,
-            })
+            fullscreen_pipeline(dev, label, m, entry, bgl, targets)
         };
-        let target = |format| {
-            Some(wgpu::ColorTargetState {
-                format,
-                blend: None,
-                write_mask: wgpu::ColorWrites::ALL,
-            })
-        };
+        let target = |format| Some(target_state(format));
         let tile_pipeline = fullscreen(
             "tile",
             &tile_mod,
@@ -451,8 +437,116 @@ impl TerrainRenderer {
             cast_pipeline,
             march_pipeline,
             shade_pipeline,
+            raygen_mod,
+            tile_mod,
+            table: None,
             targets: None,
         })
+    }
+
+    /// Switches ray generation to a distortion table: uploads the projector's screen points
+    /// (kept while the projector does not move) and builds the table pipelines. Frames must
+    /// then be rendered at the projector's resolution; the eye is set by [`Self::set_eye`].
+    pub fn set_display(
+        &mut self,
+        gpu: &Gpu,
+        points: &crate::cpu::distortion::ScreenPoints,
+        eye: glam::DVec3,
+    ) -> Result<()> {
+        let dev = &gpu.device;
+        let max = gpu.limits.max_texture_dimension_2d;
+        if points.width > max || points.height > max {
+            return Err(Error::Limit {
+                what: "projector resolution".into(),
+                msg: format!(
+                    "{}x{} is larger than the adapter's {max}x{max} texture limit",
+                    points.width, points.height
+                ),
+            });
+        }
+        let texels: Vec<[f32; 4]> = points
+            .points
+            .iter()
+            .map(|p| p.map_or([0.0; 4], |p| [p.x as f32, p.y as f32, p.z as f32, 1.0]))
+            .collect();
+        let texture = dev.create_texture(&wgpu::TextureDescriptor {
+            label: Some("screen points"),
+            size: wgpu::Extent3d {
+                width: points.width,
+                height: points.height,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba32Uint,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        });
+        gpu.queue.write_texture(
+            texture.as_image_copy(),
+            bytemuck::cast_slice(&texels),
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(points.width * 16),
+                rows_per_image: Some(points.height),
+            },
+            wgpu::Extent3d {
+                width: points.width,
+                height: points.height,
+                depth_or_array_layers: 1,
+            },
+        );
+        let fs = wgpu::ShaderStages::FRAGMENT;
+        let bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("raygen (table)"),
+            entries: &[
+                uniform_entry(0, fs),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 2,
+                    visibility: fs,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Uint,
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+            ],
+        });
+        let raygen = fullscreen_pipeline(
+            dev,
+            "raygen (table)",
+            &self.raygen_mod,
+            "fs_raygen_table",
+            &bgl,
+            &[Some(target_state(wgpu::TextureFormat::Rgba32Uint))],
+        );
+        let tile = fullscreen_pipeline(
+            dev,
+            "tile (table)",
+            &self.tile_mod,
+            "fs_tile_table",
+            &self.tile_bgl,
+            &[Some(target_state(wgpu::TextureFormat::Rg32Uint))],
+        );
+        self.table = Some(TableMode {
+            bgl,
+            raygen,
+            tile,
+            points_view: texture.create_view(&Default::default()),
+            size: [points.width, points.height],
+            eye,
+        });
+        self.targets = None;
+        Ok(())
+    }
+
+    /// Moves the eye (display frame) for the next frames of a distortion table.
+    pub fn set_eye(&mut self, eye: glam::DVec3) {
+        if let Some(t) = &mut self.table {
+            t.eye = eye;
+        }
     }
 
     fn ensure_targets(&mut self, gpu: &Gpu, width: u32, height: u32) -> Result<()> {
@@ -473,8 +567,9 @@ impl TerrainRenderer {
             });
         }
         let dev = &gpu.device;
-        let mut usage =
-            wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::RENDER_ATTACHMENT;
+        let mut usage = wgpu::TextureUsages::TEXTURE_BINDING
+            | wgpu::TextureUsages::RENDER_ATTACHMENT
+            | wgpu::TextureUsages::COPY_SRC;
         if matches!(self.raygen, RayGen::Compute(_)) {
             usage |= wgpu::TextureUsages::STORAGE_BINDING;
         }
@@ -533,8 +628,16 @@ impl TerrainRenderer {
         };
         let raygen_bg = dev.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("raygen"),
-            layout: &self.raygen_bgl,
-            entries: &if matches!(self.raygen, RayGen::Compute(_)) {
+            layout: self.table.as_ref().map_or(&self.raygen_bgl, |t| &t.bgl),
+            entries: &if let Some(table) = &self.table {
+                vec![
+                    buf(0, &self.raygen_ub),
+                    wgpu::BindGroupEntry {
+                        binding: 2,
+                        resource: wgpu::BindingResource::TextureView(&table.points_view),
+                    },
+                ]
+            } else if matches!(self.raygen, RayGen::Compute(_)) {
                 vec![
                     buf(0, &self.raygen_ub),
                     wgpu::BindGroupEntry {
@@ -588,6 +691,7 @@ impl TerrainRenderer {
             height,
             tiles,
             raygen_bg,
+            ray_table,
             ray_table_view,
             tile_bg,
             cast_bg,
@@ -605,6 +709,15 @@ impl TerrainRenderer {
     }
 
     fn encode_raygen(&self, enc: &mut wgpu::CommandEncoder, t: &Targets) {
+        if let Some(table) = &self.table {
+            return Self::encode_fullscreen(
+                enc,
+                "raygen (table)",
+                &table.raygen,
+                &t.raygen_bg,
+                &[&t.ray_table_view],
+            );
+        }
         match &self.raygen {
             RayGen::Compute(p) => {
                 let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -667,6 +780,17 @@ impl TerrainRenderer {
         stage: Stage,
         timed: bool,
     ) -> Result<PassTimes> {
+        if let Some(table) = &self.table {
+            if [cam.width, cam.height] != table.size {
+                return Err(Error::invalid(
+                    "output size",
+                    format!(
+                        "{}x{} does not match the projector's {}x{}: a distortion table renders at the projector's resolution",
+                        cam.width, cam.height, table.size[0], table.size[1]
+                    ),
+                ));
+            }
+        }
         self.ensure_targets(gpu, cam.width, cam.height)?;
         let t = self.targets.as_ref().expect("targets just ensured");
         let mut fu = frame_uniforms(terrain, scene, cam, s, t.tiles);
@@ -676,7 +800,10 @@ impl TerrainRenderer {
         gpu.queue.write_buffer(
             &self.raygen_ub,
             0,
-            bytemuck::bytes_of(&raygen_uniforms(cam)),
+            bytemuck::bytes_of(&raygen_uniforms(
+                cam,
+                self.table.as_ref().map_or(glam::DVec3::ZERO, |t| t.eye),
+            )),
         );
         let mut times = PassTimes::default();
         let tile_on = s.tile_prepass && s.mode == TraceMode::Pyramid;
@@ -698,7 +825,7 @@ impl TerrainRenderer {
             Self::encode_fullscreen(
                 &mut enc,
                 "tile",
-                &self.tile_pipeline,
+                self.table.as_ref().map_or(&self.tile_pipeline, |t| &t.tile),
                 &t.tile_bg,
                 &[&t.tile_view],
             );
@@ -803,10 +930,96 @@ impl TerrainRenderer {
     }
 }
 
+fn pipeline_layout(dev: &wgpu::Device, bgl: &wgpu::BindGroupLayout) -> wgpu::PipelineLayout {
+    dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: None,
+        bind_group_layouts: &[Some(bgl)],
+        immediate_size: 0,
+    })
+}
+
+fn target_state(format: wgpu::TextureFormat) -> wgpu::ColorTargetState {
+    wgpu::ColorTargetState {
+        format,
+        blend: None,
+        write_mask: wgpu::ColorWrites::ALL,
+    }
+}
+
+/// A full-screen-triangle pipeline running `entry` of module `m` into `targets`.
+fn fullscreen_pipeline(
+    dev: &wgpu::Device,
+    label: &str,
+    m: &wgpu::ShaderModule,
+    entry: &str,
+    bgl: &wgpu::BindGroupLayout,
+    targets: &[Option<wgpu::ColorTargetState>],
+) -> wgpu::RenderPipeline {
+    dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some(label),
+        layout: Some(&pipeline_layout(dev, bgl)),
+        vertex: wgpu::VertexState {
+            module: m,
+            entry_point: Some("vs_fullscreen"),
+            compilation_options: Default::default(),
+            buffers: &[],
+        },
+        primitive: wgpu::PrimitiveState::default(),
+        depth_stencil: None,
+        multisample: wgpu::MultisampleState::default(),
+        fragment: Some(wgpu::FragmentState {
+            module: m,
+            entry_point: Some(entry),
+            compilation_options: Default::default(),
+            targets,
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
+}
+
 fn buf(binding: u32, b: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
     wgpu::BindGroupEntry {
         binding,
         resource: b.as_entire_binding(),
+    }
+}
+
+impl TerrainRenderer {
+    /// Reads back the ray table of the last frame: per pixel (direction xyz, cone half-angle;
+    /// negative where the pixel shows no screen). For tests and warp tools.
+    pub fn read_ray_table(&self, gpu: &Gpu) -> Result<Vec<[f32; 4]>> {
+        let t = self
+            .targets
+            .as_ref()
+            .ok_or_else(|| Error::Gpu("no frame rendered yet".into()))?;
+        let (w, h) = (t.width, t.height);
+        let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("ray table readback"),
+            size: padded_row(w * 16) as u64 * h as u64,
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        let mut enc = gpu.device.create_command_encoder(&Default::default());
+        enc.copy_texture_to_buffer(
+            t.ray_table.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &buffer,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(padded_row(w * 16)),
+                    rows_per_image: Some(h),
+                },
+            },
+            wgpu::Extent3d {
+                width: w,
+                height: h,
+                depth_or_array_layers: 1,
+            },
+        );
+        gpu.queue.submit([enc.finish()]);
+        let bytes = read_buffer(gpu, &buffer, w * 16, h)?;
+        Ok(bytemuck::cast_slice::<u8, [f32; 4]>(&bytes).to_vec())
     }
 }
 
@@ -844,7 +1057,7 @@ fn v4(v: glam::DVec3, w: f64) -> [f32; 4] {
 }
 
 /// Pinhole ray-generation uniforms for a camera.
-pub fn raygen_uniforms(cam: &Camera) -> RayGenUniforms {
+pub fn raygen_uniforms(cam: &Camera, display_eye: glam::DVec3) -> RayGenUniforms {
     let (r, d, f) = cam.basis();
     let (fx, fy, cx, cy) = cam.intrinsics();
     RayGenUniforms {
@@ -853,6 +1066,7 @@ pub fn raygen_uniforms(cam: &Camera) -> RayGenUniforms {
         forward: v4(f, 0.0),
         intrinsics: [fx as f32, fy as f32, cx as f32, cy as f32],
         size: [cam.width, cam.height, 0, 0],
+        eye: v4(display_eye, 1.0),
     }
 }
 

@@ -41,7 +41,8 @@ pub struct RayGenUniforms {
     pub forward: [f32; 4],
     pub intrinsics: [f32; 4],
     pub size: [u32; 4],
+    pub eye: [f32; 4],
 }
 
 const _: () = assert!(std::mem::size_of::<FrameUniforms>() == 16 * (24 + MAX_LEVELS));
-const _: () = assert!(std::mem::size_of::<RayGenUniforms>() == 80);
+const _: () = assert!(std::mem::size_of::<RayGenUniforms>() == 96);

@@ -3,7 +3,7 @@
 
 mod camera;
 
-pub use camera::{Camera, CameraPath, Keyframe, Pose};
+pub use camera::{attitude_basis, Camera, CameraPath, Keyframe, Pose};
 
 use crate::terrain::procedural::RidgedFbm;
 use crate::terrain::Terrain;

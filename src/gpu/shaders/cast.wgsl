@@ -19,6 +19,9 @@ fn primary_ray(pos: vec4<f32>) -> Ray {
 // The product: pyramid traversal from the tile's start distance.
 @fragment
 fn fs_cast(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
+    if (ray_entry(vec2<u32>(pos.xy)).w < 0.0) {
+        return no_screen_gbuffer();
+    }
     var t_min = 0.0;
     var level = frame.grid.z - 1u;
     if (frame.mode.w != 0u) {
@@ -33,5 +36,8 @@ fn fs_cast(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
 // code on SIMD software rasterisers).
 @fragment
 fn fs_cast_march(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
+    if (ray_entry(vec2<u32>(pos.xy)).w < 0.0) {
+        return no_screen_gbuffer();
+    }
     return encode_gbuffer(march(primary_ray(pos), 0.0, BIG, frame.mode.y));
 }

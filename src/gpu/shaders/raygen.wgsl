@@ -12,9 +12,14 @@ struct RayGen {
     intrinsics: vec4<f32>,
     // width, height.
     size: vec4<u32>,
+    // Distortion tables: the eye in the display frame.
+    eye: vec4<f32>,
 }
 
 @group(0) @binding(0) var<uniform> cam: RayGen;
+// Distortion tables: per projector pixel, f32 bits of the lit screen point in the display
+// frame (xyz) and 1 where there is one (w).
+@group(0) @binding(2) var screen_points: texture_2d<u32>;
 // Compute path only: the ray table as a storage texture.
 @group(0) @binding(1) var ray_table_out: texture_storage_2d<rgba32uint, write>;
 
@@ -41,4 +46,40 @@ fn cs_raygen(@builtin(global_invocation_id) id: vec3<u32>) {
 @fragment
 fn fs_raygen(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
     return bitcast<vec4<u32>>(pinhole_ray(vec2<u32>(pos.xy)));
+}
+
+fn screen_point(px: vec2<i32>) -> vec4<f32> {
+    let q = clamp(px, vec2<i32>(0), vec2<i32>(cam.size.xy) - 1);
+    return bitcast<vec4<f32>>(textureLoad(screen_points, q, 0));
+}
+
+// World direction from the eye to a screen point: display x, y, z map to the attitude's
+// right, forward and up.
+fn table_dir(p: vec3<f32>) -> vec3<f32> {
+    let v = p - cam.eye.xyz;
+    return normalize(cam.right.xyz * v.x + cam.forward.xyz * v.y - cam.down.xyz * v.z);
+}
+
+// Distortion-table ray generation (every frame: the eye and the attitude move; the screen
+// points stay while the projector does). Cone = half the largest angle to a 4-neighbour.
+@fragment
+fn fs_raygen_table(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
+    let px = vec2<i32>(pos.xy);
+    let p = screen_point(px);
+    if (p.w == 0.0) {
+        return bitcast<vec4<u32>>(vec4<f32>(0.0, 0.0, 1.0, -1.0));
+    }
+    let d = table_dir(p.xyz);
+    var chord = 0.0;
+    let offsets = array<vec2<i32>, 4>(vec2<i32>(1, 0), vec2<i32>(-1, 0), vec2<i32>(0, 1), vec2<i32>(0, -1));
+    for (var k = 0; k < 4; k += 1) {
+        let q = px + offsets[k];
+        if (q.x >= 0 && q.y >= 0 && q.x < i32(cam.size.x) && q.y < i32(cam.size.y)) {
+            let n = screen_point(q);
+            if (n.w != 0.0) {
+                chord = max(chord, length(table_dir(n.xyz) - d));
+            }
+        }
+    }
+    return bitcast<vec4<u32>>(vec4<f32>(d, asin(min(0.5 * chord, 1.0))));
 }

@@ -117,6 +117,11 @@ fn fs_shade(@builtin(position) pos: vec4<f32>) -> Out {
     var out: Out;
     var flags = g.w & 0xffu;
     let patches = g.w >> 8u;
+    if ((flags & 8u) != 0u) {
+        out.colour = vec4<f32>(0.0, 0.0, 0.0, 1.0);
+        out.data = vec4<u32>(INF_BITS, 0u, 0u, flags);
+        return out;
+    }
     if ((flags & 1u) == 0u) {
         out.colour = vec4<f32>(srgb_encode(sky(dl)), 1.0);
         out.data = vec4<u32>(INF_BITS, g.z, min(patches, 0xffffu), flags);

@@ -126,3 +126,41 @@ fn fs_tile(@builtin(position) pos: vec4<f32>) -> @location(0) vec2<u32> {
     // A small safety margin against rounding in the cone test.
     return vec2<u32>(bitcast<u32>(max(s.t * 0.999 - 1.0, 0.0)), s.level);
 }
+
+// Tile cone of a distortion table, whose tiles need not map to great-circle quadrilaterals:
+// exact over all the tile's rays that show screen (mean direction, then the largest chord).
+@fragment
+fn fs_tile_table(@builtin(position) pos: vec4<f32>) -> @location(0) vec2<u32> {
+    let tile = vec2<u32>(pos.xy);
+    let x0 = tile.x * TILE;
+    let y0 = tile.y * TILE;
+    let x1 = min(x0 + TILE, frame.size.x);
+    let y1 = min(y0 + TILE, frame.size.y);
+    var sum = vec3<f32>(0.0);
+    for (var y = y0; y < y1; y += 1u) {
+        for (var x = x0; x < x1; x += 1u) {
+            let e = ray_entry(vec2<u32>(x, y));
+            if (e.w >= 0.0) {
+                sum += e.xyz;
+            }
+        }
+    }
+    if (dot(sum, sum) == 0.0) {
+        return vec2<u32>(bitcast<u32>(BIG), frame.grid.z - 1u);
+    }
+    let c = normalize(sum);
+    var chord = 0.0;
+    for (var y = y0; y < y1; y += 1u) {
+        for (var x = x0; x < x1; x += 1u) {
+            let e = ray_entry(vec2<u32>(x, y));
+            if (e.w >= 0.0) {
+                chord = max(chord, length(e.xyz - c));
+            }
+        }
+    }
+    var r: Ray;
+    r.o = frame.eye.xyz;
+    r.d = to_grid_dir(c);
+    let s = cone_start(r, chord * 1.001 + 1.0e-6, 1024u);
+    return vec2<u32>(bitcast<u32>(max(s.t * 0.999 - 1.0, 0.0)), s.level);
+}

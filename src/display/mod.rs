@@ -1,0 +1,297 @@
+//! Curved-screen display model (TOML files in `distortion/`): screen surface, projectors, eye
+//! point and channels. No GPU types; the per-frame ray table is computed from it by
+//! [`crate::cpu::distortion`] (reference) and by the GPU ray-generation pass.
+//!
+//! Display frame: metres, x right, y forward, z up, fixed to the vehicle (cockpit). A direction
+//! in it maps to the world through the camera's attitude: x → camera right, y → camera forward,
+//! z → camera up.
+
+use crate::scene::attitude_basis;
+use crate::{Error, Result};
+use glam::{DMat3, DVec3};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// A display configuration file.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct DisplayConfig {
+    pub screen: Screen,
+    pub eye: Eye,
+    #[serde(rename = "channel")]
+    pub channels: Vec<Channel>,
+}
+
+/// The projection surface.
+#[derive(Clone, Copy, Debug, Deserialize, Serialize)]
+#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+pub enum Screen {
+    /// Sphere (dome) of `radius` around `centre`; points below `min_elevation` degrees (seen from
+    /// the centre) are not screen (truncated dome).
+    Dome {
+        centre: [f64; 3],
+        radius: f64,
+        #[serde(default = "minus_ninety")]
+        min_elevation: f64,
+    },
+    /// Vertical-axis cylinder of `radius` around `centre`, from `bottom` to `top` (z, metres).
+    Cylinder {
+        centre: [f64; 3],
+        radius: f64,
+        bottom: f64,
+        top: f64,
+    },
+    /// Plane through `point` with unit `normal`.
+    Flat { point: [f64; 3], normal: [f64; 3] },
+}
+
+fn minus_ninety() -> f64 {
+    -90.0
+}
+
+/// The design eye point (static, or moved per frame by the caller).
+#[derive(Clone, Copy, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Eye {
+    pub position: [f64; 3],
+}
+
+/// One projector channel.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Channel {
+    #[serde(default)]
+    pub name: String,
+    pub projector: Projector,
+}
+
+/// Projector pose, resolution and lens.
+#[derive(Clone, Copy, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Projector {
+    pub position: [f64; 3],
+    #[serde(default)]
+    pub heading: f64,
+    #[serde(default)]
+    pub pitch: f64,
+    #[serde(default)]
+    pub roll: f64,
+    pub width: u32,
+    pub height: u32,
+    pub lens: Lens,
+}
+
+/// Projector lens.
+#[derive(Clone, Copy, Debug, Deserialize, Serialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum Lens {
+    /// Pinhole with horizontal field of view (degrees) and lens shift (fractions of the image
+    /// width and height; +x right, +y down).
+    Perspective {
+        fov: f64,
+        #[serde(default)]
+        shift: [f64; 2],
+    },
+    /// Equidistant fisheye: the angle from the axis grows linearly with the distance from the
+    /// image centre, reaching `fov / 2` at the inscribed circle's edge (radius min(w, h) / 2).
+    Ftheta { fov: f64 },
+}
+
+impl Projector {
+    /// Unit direction, in the display frame, of the projector's ray through image point (u, v)
+    /// (pixel centres at +0.5); `None` outside the lens's field.
+    pub fn ray(&self, u: f64, v: f64) -> Option<DVec3> {
+        let (w, h) = (self.width as f64, self.height as f64);
+        let local = match self.lens {
+            Lens::Perspective { fov, shift } => {
+                let f = 0.5 * w / (0.5 * fov.to_radians()).tan();
+                let (cx, cy) = (0.5 * w + shift[0] * w, 0.5 * h + shift[1] * h);
+                DVec3::new((u - cx) / f, (v - cy) / f, 1.0).normalize()
+            }
+            Lens::Ftheta { fov } => {
+                let (du, dv) = (u - 0.5 * w, v - 0.5 * h);
+                let r = (du * du + dv * dv).sqrt();
+                let rmax = 0.5 * w.min(h);
+                let theta = r / rmax * 0.5 * fov.to_radians();
+                if r > rmax {
+                    return None;
+                }
+                if r == 0.0 {
+                    DVec3::Z
+                } else {
+                    DVec3::new(theta.sin() * du / r, theta.sin() * dv / r, theta.cos())
+                }
+            }
+        };
+        let (right, down, fwd) = attitude_basis(self.heading, self.pitch, self.roll);
+        Some(DMat3::from_cols(right, down, fwd) * local)
+    }
+}
+
+impl Screen {
+    /// First intersection in front of `origin` along unit `dir` (the screen point lit by a
+    /// projector ray); `None` if the ray misses the screen.
+    pub fn intersect(&self, origin: DVec3, dir: DVec3) -> Option<DVec3> {
+        match *self {
+            Screen::Dome {
+                centre,
+                radius,
+                min_elevation,
+            } => {
+                let c = DVec3::from(centre);
+                let oc = origin - c;
+                let b = dir.dot(oc);
+                let disc = b * b - (oc.length_squared() - radius * radius);
+                if disc < 0.0 {
+                    return None;
+                }
+                let t = -b + disc.sqrt();
+                if t <= 0.0 {
+                    return None;
+                }
+                let p = origin + dir * t;
+                let elev = ((p - c).z / radius).clamp(-1.0, 1.0).asin().to_degrees();
+                (elev >= min_elevation).then_some(p)
+            }
+            Screen::Cylinder {
+                centre,
+                radius,
+                bottom,
+                top,
+            } => {
+                let c = DVec3::from(centre);
+                let (o2, d2) = ((origin - c).truncate(), dir.truncate());
+                let a = d2.length_squared();
+                if a < 1e-18 {
+                    return None;
+                }
+                let b = d2.dot(o2);
+                let disc = b * b - a * (o2.length_squared() - radius * radius);
+                if disc < 0.0 {
+                    return None;
+                }
+                let t = (-b + disc.sqrt()) / a;
+                if t <= 0.0 {
+                    return None;
+                }
+                let p = origin + dir * t;
+                (p.z >= bottom && p.z <= top).then_some(p)
+            }
+            Screen::Flat { point, normal } => {
+                let n = DVec3::from(normal);
+                let denom = dir.dot(n);
+                if denom.abs() < 1e-12 {
+                    return None;
+                }
+                let t = (DVec3::from(point) - origin).dot(n) / denom;
+                (t > 0.0).then(|| origin + dir * t)
+            }
+        }
+    }
+}
+
+fn finite(field: &str, v: &[f64]) -> Result<()> {
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(())
+    } else {
+        Err(Error::invalid(
+            field,
+            format!("must be finite numbers, got {v:?}"),
+        ))
+    }
+}
+
+impl DisplayConfig {
+    /// Reads and validates a display configuration.
+    pub fn load(path: &Path) -> Result<DisplayConfig> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let cfg: DisplayConfig = toml::from_str(&text)
+            .map_err(|e| Error::format(path, format!("display config error: {e}")))?;
+        cfg.validate()
+            .map_err(|e| Error::format(path, e.to_string()))?;
+        Ok(cfg)
+    }
+
+    /// Checks ranges; errors name the field.
+    pub fn validate(&self) -> Result<()> {
+        match self.screen {
+            Screen::Dome {
+                centre,
+                radius,
+                min_elevation,
+            } => {
+                finite("screen.centre", &centre)?;
+                finite("screen.min_elevation", &[min_elevation])?;
+                if !(radius.is_finite() && radius > 0.0) {
+                    return Err(Error::invalid(
+                        "screen.radius",
+                        format!("must be > 0 metres, got {radius}"),
+                    ));
+                }
+            }
+            Screen::Cylinder {
+                centre,
+                radius,
+                bottom,
+                top,
+            } => {
+                finite("screen.centre", &centre)?;
+                if !(radius.is_finite() && radius > 0.0) {
+                    return Err(Error::invalid(
+                        "screen.radius",
+                        format!("must be > 0 metres, got {radius}"),
+                    ));
+                }
+                if !(bottom.is_finite() && top.is_finite() && top > bottom) {
+                    return Err(Error::invalid(
+                        "screen.bottom/top",
+                        format!("need bottom < top, got {bottom}..{top}"),
+                    ));
+                }
+            }
+            Screen::Flat { point, normal } => {
+                finite("screen.point", &point)?;
+                finite("screen.normal", &normal)?;
+                if DVec3::from(normal).length() < 1e-9 {
+                    return Err(Error::invalid("screen.normal", "must be non-zero"));
+                }
+            }
+        }
+        finite("eye.position", &self.eye.position)?;
+        if self.channels.is_empty() {
+            return Err(Error::invalid("channel", "needs at least one [[channel]]"));
+        }
+        for (i, c) in self.channels.iter().enumerate() {
+            let p = &c.projector;
+            let f = |k: &str| format!("channel[{i}].projector.{k}");
+            finite(&f("position"), &p.position)?;
+            finite(&f("heading/pitch/roll"), &[p.heading, p.pitch, p.roll])?;
+            if !(1..=16384).contains(&p.width) || !(1..=16384).contains(&p.height) {
+                return Err(Error::invalid(
+                    f("width/height"),
+                    format!("must be 1..=16384, got {}x{}", p.width, p.height),
+                ));
+            }
+            match p.lens {
+                Lens::Perspective { fov, shift } => {
+                    if !(fov.is_finite() && fov > 0.0 && fov < 179.0) {
+                        return Err(Error::invalid(
+                            f("lens.fov"),
+                            format!("perspective fov must be in (0, 179) degrees, got {fov}"),
+                        ));
+                    }
+                    finite(&f("lens.shift"), &shift)?;
+                }
+                Lens::Ftheta { fov } => {
+                    if !(fov.is_finite() && fov > 0.0 && fov <= 360.0) {
+                        return Err(Error::invalid(
+                            f("lens.fov"),
+                            format!("f-theta fov must be in (0, 360] degrees, got {fov}"),
+                        ));
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+}

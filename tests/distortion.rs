@@ -1,0 +1,294 @@
+//! Curved-screen distortion tables: CPU reference against closed-form geometry, the GPU table
+//! against the CPU table, and direct-mode renders against the CPU oracle.
+
+mod common;
+
+use common::{gpu, gpu_lock, project_dir, terrains};
+use glam::DVec3;
+use relief::cpu::distortion::{ray_table, screen_points, world_from_display};
+use relief::display::{DisplayConfig, Lens, Projector, Screen};
+use relief::gpu::{RenderSettings, TerrainRenderer, TraceMode};
+use relief::scene::{attitude_basis, Camera, Scene};
+
+const ARCMIN: f64 = std::f64::consts::PI / (180.0 * 60.0);
+
+fn configs() -> Vec<(String, DisplayConfig)> {
+    let mut v: Vec<_> = std::fs::read_dir(project_dir().join("distortion"))
+        .unwrap()
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .map(|p| {
+            (
+                p.file_name().unwrap().to_string_lossy().into_owned(),
+                DisplayConfig::load(&p).unwrap(),
+            )
+        })
+        .collect();
+    v.sort_by(|a, b| a.0.cmp(&b.0));
+    assert!(v.len() >= 3, "demo display configs missing");
+    v
+}
+
+#[test]
+fn ftheta_projector_at_dome_centre_gives_the_ftheta_mapping() {
+    let screen = Screen::Dome {
+        centre: [0.0; 3],
+        radius: 3.0,
+        min_elevation: -90.0,
+    };
+    let p = Projector {
+        position: [0.0; 3],
+        heading: 0.0,
+        pitch: 90.0,
+        roll: 0.0,
+        width: 96,
+        height: 96,
+        lens: Lens::Ftheta { fov: 180.0 },
+    };
+    let table = ray_table(
+        &screen_points(&screen, &p),
+        DVec3::ZERO,
+        world_from_display(0.0, 0.0, 0.0),
+    );
+    let (mut worst, mut n) = (0.0f64, 0);
+    for y in 0..96 {
+        for x in 0..96 {
+            let (du, dv) = (x as f64 + 0.5 - 48.0, y as f64 + 0.5 - 48.0);
+            let r = (du * du + dv * dv).sqrt();
+            let ray = table.rays[y * 96 + x];
+            if r > 48.0 {
+                assert!(
+                    ray.is_none(),
+                    "pixel ({x}, {y}) outside the fisheye circle is lit"
+                );
+                continue;
+            }
+            // Looking up, image right is display +x and image down is display +y.
+            let theta = r / 48.0 * std::f64::consts::FRAC_PI_2;
+            let want = DVec3::new(theta.sin() * du / r, theta.sin() * dv / r, theta.cos());
+            let (d, _) =
+                ray.unwrap_or_else(|| panic!("pixel ({x}, {y}) inside the circle is black"));
+            worst = worst.max(d.angle_between(want));
+            n += 1;
+        }
+    }
+    assert!(n > 7000);
+    assert!(
+        worst < 0.1 * ARCMIN,
+        "worst f-theta error {} arc-min",
+        worst / ARCMIN
+    );
+}
+
+#[test]
+fn off_centre_eye_on_a_cylinder_matches_closed_form_geometry() {
+    let (radius, bottom, top) = (3.0, -1.2, 1.4);
+    let screen = Screen::Cylinder {
+        centre: [0.0; 3],
+        radius,
+        bottom,
+        top,
+    };
+    let p = Projector {
+        position: [0.1, -0.4, 0.9],
+        heading: 25.0,
+        pitch: -6.0,
+        roll: 2.0,
+        width: 64,
+        height: 40,
+        lens: Lens::Perspective {
+            fov: 64.0,
+            shift: [0.05, -0.02],
+        },
+    };
+    let eye = DVec3::new(0.3, -0.2, 0.1);
+    let (heading, pitch, roll) = (140.0, -3.0, 4.0);
+    let table = ray_table(
+        &screen_points(&screen, &p),
+        eye,
+        world_from_display(heading, pitch, roll),
+    );
+    let (right, down, fwd) = attitude_basis(p.heading, p.pitch, p.roll);
+    let (vr, vd, vf) = attitude_basis(heading, pitch, roll);
+    let f = 0.5 * 64.0 / 32f64.to_radians().tan();
+    let mut checked = 0;
+    for y in 0..40 {
+        for x in 0..64 {
+            let (u, v) = (x as f64 + 0.5, y as f64 + 0.5);
+            let c = DVec3::new(
+                (u - 32.0 - 0.05 * 64.0) / f,
+                (v - 20.0 + 0.02 * 40.0) / f,
+                1.0,
+            )
+            .normalize();
+            let d = right * c.x + down * c.y + fwd * c.z;
+            // |o.xy + t d.xy| = R, larger root.
+            let o = DVec3::from(p.position);
+            let (a, b, cc) = (
+                d.x * d.x + d.y * d.y,
+                2.0 * (o.x * d.x + o.y * d.y),
+                o.x * o.x + o.y * o.y - radius * radius,
+            );
+            let t = (-b + (b * b - 4.0 * a * cc).sqrt()) / (2.0 * a);
+            let hit = o + d * t;
+            let ray = table.rays[y * 64 + x];
+            if hit.z < bottom || hit.z > top {
+                assert!(
+                    ray.is_none(),
+                    "pixel ({x}, {y}) misses the cylinder but is lit"
+                );
+                continue;
+            }
+            let e = (hit - eye).normalize();
+            let want = vr * e.x + vf * e.y - vd * e.z;
+            let (got, cone) = ray.unwrap();
+            assert!(
+                got.angle_between(want) < 1e-3 * ARCMIN,
+                "pixel ({x}, {y}): {}",
+                got.angle_between(want) / ARCMIN
+            );
+            assert!(cone > 0.0 && cone < 0.02, "pixel ({x}, {y}) cone {cone}");
+            checked += 1;
+        }
+    }
+    assert!(checked > 1500, "only {checked} pixels on the screen");
+}
+
+#[test]
+fn demo_configs_load_and_bad_configs_are_refused() {
+    for (name, cfg) in configs() {
+        for c in &cfg.channels {
+            let pts = screen_points(&cfg.screen, &c.projector);
+            let lit = pts.points.iter().filter(|p| p.is_some()).count();
+            assert!(
+                lit > pts.points.len() / 3,
+                "{name} channel {}: only {lit} pixels reach the screen",
+                c.name
+            );
+        }
+    }
+    let dir = std::env::temp_dir().join(format!("relief-display-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let good = std::fs::read_to_string(project_dir().join("distortion/dome-fisheye.toml")).unwrap();
+    for (label, text, want) in [
+        (
+            "unknown key",
+            good.replace("min_elevation", "min_elevashun"),
+            "min_elevashun",
+        ),
+        (
+            "zero radius",
+            good.replace("radius = 3.0", "radius = 0.0"),
+            "screen.radius",
+        ),
+        (
+            "no channel",
+            good[..good.find("[[channel]]").unwrap()].to_string(),
+            "channel",
+        ),
+        (
+            "bad fov",
+            good.replace("fov = 180.0", "fov = 0.0"),
+            "lens.fov",
+        ),
+        (
+            "nan",
+            good.replace(
+                "position = [0.0, 0.0, 0.0]\n\n[[channel]]",
+                "position = [nan, 0.0, 0.0]\n\n[[channel]]",
+            ),
+            "eye.position",
+        ),
+    ] {
+        let p = dir.join("bad.toml");
+        std::fs::write(&p, text).unwrap();
+        let err = DisplayConfig::load(&p).expect_err(label).to_string();
+        assert!(
+            err.contains(want) && err.contains("bad.toml"),
+            "{label}: {err}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn gpu_table_matches_cpu_table_and_direct_renders_match_the_oracle() {
+    let _l = gpu_lock();
+    let Some(g) = gpu() else { return };
+    let scene = Scene::load(&terrains().join("alps.toml")).unwrap();
+    let terrain = scene.load_terrain().unwrap();
+    let pose = scene.camera(0, &terrain).pose;
+    let settings = RenderSettings {
+        mode: TraceMode::Pyramid,
+        shadows: false,
+        tile_prepass: true,
+        max_steps: 4096,
+    };
+    for (name, cfg) in configs() {
+        for (ci, ch) in cfg.channels.iter().enumerate() {
+            // Small projectors keep the test quick; the geometry is the same.
+            let mut p = ch.projector;
+            p.width /= 4;
+            p.height /= 4;
+            let pts = screen_points(&cfg.screen, &p);
+            let mut r = TerrainRenderer::new(g, &terrain).unwrap();
+            // The eye moves between frames: each frame's table must follow it.
+            for (frame, dz) in [0.0, 0.3].iter().enumerate() {
+                let eye = DVec3::from(cfg.eye.position) + DVec3::new(0.0, 0.0, *dz);
+                if frame == 0 {
+                    r.set_display(g, &pts, eye).unwrap();
+                } else {
+                    r.set_eye(eye);
+                }
+                let cam = Camera::new(pose, p.width, p.height);
+                let out = r
+                    .capture(g, &terrain, &scene.desc, &cam, &settings)
+                    .unwrap();
+                let gpu_rays = r.read_ray_table(g).unwrap();
+                let m = world_from_display(pose.heading, pose.pitch, pose.roll);
+                let cpu = ray_table(&pts, eye, m);
+                let (mut worst, mut bad) = (0.0f64, 0usize);
+                for (k, (c, gr)) in cpu.rays.iter().zip(&gpu_rays).enumerate() {
+                    match c {
+                        None => {
+                            assert!(
+                                gr[3] < 0.0,
+                                "{name}[{ci}] pixel {k}: black on the CPU, lit on the GPU"
+                            );
+                            assert_eq!(
+                                out.flags[k] & 8,
+                                8,
+                                "{name}[{ci}] pixel {k} should render black"
+                            );
+                        }
+                        Some((d, _)) => {
+                            let gd = DVec3::new(gr[0] as f64, gr[1] as f64, gr[2] as f64);
+                            worst = worst.max(gd.angle_between(*d));
+                            let t = relief::cpu::cast_ray(
+                                &terrain,
+                                pose.position,
+                                *d,
+                                0.0,
+                                f64::INFINITY,
+                            )
+                            .map(|h| h.t);
+                            let g = out.depth[k];
+                            let ok = match t {
+                                Some(t) => g.is_finite() && ((g as f64 - t) / t).abs() < 1e-3,
+                                None => !g.is_finite(),
+                            };
+                            bad += usize::from(!ok);
+                        }
+                    }
+                }
+                assert!(
+                    worst < 0.5 * ARCMIN,
+                    "{name}[{ci}] frame {frame}: GPU table off by {} arc-min",
+                    worst / ARCMIN
+                );
+                let lit = cpu.rays.iter().filter(|r| r.is_some()).count();
+                assert!(bad * 200 <= lit, "{name}[{ci}] frame {frame}: {bad} of {lit} pixels disagree with the CPU oracle");
+            }
+        }
+    }
+}
