@@ -68,6 +68,11 @@ enum Command {
         #[arg(long)]
         dump_rays: Option<PathBuf>,
     },
+    /// Warp files: inspect PFM / Bourke warps, export a display configuration's warp.
+    Warp {
+        #[command(subcommand)]
+        action: WarpAction,
+    },
     /// Terrain queries on the CPU reference: height at (x, y), line of sight.
     Query {
         scene: PathBuf,
@@ -77,6 +82,30 @@ enum Command {
         /// Line of sight between two world points x,y,z (give twice).
         #[arg(long, value_parser = parse_vec::<3>, num_args = 2, allow_hyphen_values = true)]
         los: Option<Vec<[f64; 3]>>,
+    },
+}
+
+#[derive(Subcommand)]
+enum WarpAction {
+    /// Describe a warp file (.pfm, or a Bourke mesh).
+    Inspect {
+        file: PathBuf,
+        /// PFM rows are stored top to bottom (default: bottom to top, as netpbm).
+        #[arg(long)]
+        top_to_bottom: bool,
+    },
+    /// Write a channel's warp: FILE.pfm = 3-D screen geometry, otherwise a Bourke mesh.
+    Export {
+        config: PathBuf,
+        #[arg(long, default_value_t = 0)]
+        channel: usize,
+        #[arg(long, value_parser = parse_vec::<3>, allow_hyphen_values = true)]
+        eye: Option<[f64; 3]>,
+        /// Bourke meshes: one node every STEP projector pixels.
+        #[arg(long, default_value_t = 8)]
+        step: u32,
+        #[arg(long)]
+        out: PathBuf,
     },
 }
 
@@ -207,6 +236,31 @@ fn run(cli: Cli) -> Result<()> {
                 bench::print_table(&report);
             }
         }
+        Some(Command::Warp { action }) => match action {
+            WarpAction::Inspect {
+                file,
+                top_to_bottom,
+            } => {
+                let order = if top_to_bottom {
+                    relief::display::warp::RowOrder::TopToBottom
+                } else {
+                    relief::display::warp::RowOrder::BottomToTop
+                };
+                println!("{}", relief::app::warp::inspect(&file, order)?);
+            }
+            WarpAction::Export {
+                config,
+                channel,
+                eye,
+                step,
+                out,
+            } => {
+                println!(
+                    "{}",
+                    relief::app::warp::export(&config, channel, eye, &out, step)?
+                );
+            }
+        },
         Some(Command::Query { scene, at, los }) => {
             let s = relief::scene::Scene::load(&scene)?;
             let terrain = s.load_terrain()?;

@@ -6,6 +6,8 @@
 //! in it maps to the world through the camera's attitude: x → camera right, y → camera forward,
 //! z → camera up.
 
+pub mod warp;
+
 use crate::scene::attitude_basis;
 use crate::{Error, Result};
 use glam::{DMat3, DVec3};

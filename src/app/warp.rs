@@ -1,0 +1,173 @@
+//! `relief warp inspect|export`: read warp files and write a display configuration's warp.
+
+use crate::cpu::distortion::screen_points;
+use crate::display::warp::{
+    read_bourke, read_pfm, write_bourke, write_pfm, BourkeMesh, MeshNode, Pfm, RowOrder,
+};
+use crate::display::DisplayConfig;
+use crate::{Error, Result};
+use glam::DVec3;
+use std::path::Path;
+
+fn is_pfm(path: &Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("pfm"))
+}
+
+fn range(vals: impl Iterator<Item = f64>) -> (f64, f64, usize) {
+    vals.filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY, 0), |(lo, hi, n), v| {
+            (lo.min(v), hi.max(v), n + 1)
+        })
+}
+
+/// A one-paragraph description of a warp file.
+pub fn inspect(path: &Path, order: RowOrder) -> Result<String> {
+    if is_pfm(path) {
+        let p = read_pfm(path, order)?;
+        let c = p.channels as usize;
+        let valid = p
+            .data
+            .chunks_exact(c)
+            .filter(|px| px[..c.min(2)].iter().all(|v| v.is_finite()))
+            .count();
+        let mut s = format!(
+            "{}: PFM {}x{}, {} channel(s), rows read {:?}; {valid} of {} pixels have data (finite R{})",
+            path.display(),
+            p.width,
+            p.height,
+            p.channels,
+            order,
+            p.width * p.height,
+            if c > 1 { ",G" } else { "" }
+        );
+        for ch in 0..c {
+            let (lo, hi, n) = range(p.data.iter().skip(ch).step_by(c).map(|v| *v as f64));
+            s += &format!("\n  channel {ch}: {n} finite values in {lo}..{hi}");
+        }
+        Ok(s)
+    } else {
+        let m = read_bourke(path)?;
+        let used: Vec<&MeshNode> = m.nodes.iter().filter(|n| n.i >= 0.0).collect();
+        let (ulo, uhi, _) = range(used.iter().map(|n| n.u));
+        let (vlo, vhi, _) = range(used.iter().map(|n| n.v));
+        let (ilo, ihi, _) = range(used.iter().map(|n| n.i));
+        let (xlo, xhi, _) = range(m.nodes.iter().map(|n| n.x));
+        Ok(format!(
+            "{}: Bourke mesh type {} ({}), {}x{} nodes, {} used; x {xlo}..{xhi}; u {ulo}..{uhi}, v {vlo}..{vhi}, intensity {ilo}..{ihi}",
+            path.display(),
+            m.mesh_type,
+            if m.mesh_type == 2 { "rectangular" } else { "polar" },
+            m.nx,
+            m.ny,
+            used.len()
+        ))
+    }
+}
+
+/// Writes channel `channel` of a display configuration as a warp: `.pfm` = MPCDI-style 3-D
+/// geometry (screen X, Y, Z in the display frame per projector pixel, NaN where no screen,
+/// rows bottom to top); anything else = Bourke type-2 mesh (one node every `step` pixels)
+/// mapping projector positions to a 180° angular-fisheye image around display +z as seen from
+/// the eye (v = 0 at the bottom, intensity -1 for unused nodes).
+pub fn export(
+    config: &Path,
+    channel: usize,
+    eye: Option<[f64; 3]>,
+    out: &Path,
+    step: u32,
+) -> Result<String> {
+    let cfg = DisplayConfig::load(config)?;
+    let ch = cfg.channels.get(channel).ok_or_else(|| {
+        Error::invalid(
+            "--channel",
+            format!(
+                "{} has {} channel(s), asked for index {channel}",
+                config.display(),
+                cfg.channels.len()
+            ),
+        )
+    })?;
+    let p = ch.projector;
+    let pts = screen_points(&cfg.screen, &p);
+    if is_pfm(out) {
+        let data = pts
+            .points
+            .iter()
+            .flat_map(|q| q.map_or([f32::NAN; 3], |q| [q.x as f32, q.y as f32, q.z as f32]))
+            .collect();
+        write_pfm(
+            out,
+            &Pfm {
+                width: p.width,
+                height: p.height,
+                channels: 3,
+                data,
+            },
+            RowOrder::BottomToTop,
+        )?;
+        return Ok(format!(
+            "wrote {} (3-D PFM, {}x{}, rows bottom to top)",
+            out.display(),
+            p.width,
+            p.height
+        ));
+    }
+    if step == 0 {
+        return Err(Error::invalid("--step", "must be at least 1 pixel"));
+    }
+    let eye = DVec3::from(eye.unwrap_or(cfg.eye.position));
+    let (w, h) = (p.width, p.height);
+    let aspect = w as f64 / h as f64;
+    let (nx, ny) = ((w - 1) / step + 1, (h - 1) / step + 1);
+    let mut nodes = Vec::with_capacity((nx * ny) as usize);
+    for j in 0..ny {
+        // Rows bottom to top.
+        let py = (h - 1 - (j * step).min(h - 1)) as usize;
+        for i in 0..nx {
+            let px = (i * step).min(w - 1) as usize;
+            let x = ((px as f64 + 0.5) / w as f64 * 2.0 - 1.0) * aspect;
+            let y = 1.0 - (py as f64 + 0.5) / h as f64 * 2.0;
+            let node = match pts.points[py * w as usize + px] {
+                Some(q) => {
+                    let d = (q - eye).normalize();
+                    let theta = d.z.clamp(-1.0, 1.0).acos();
+                    let r = theta / std::f64::consts::PI; // 0.5 at 90°
+                    let az = d.x.atan2(d.y);
+                    let (u, v) = (0.5 + r * az.sin(), 0.5 + r * az.cos());
+                    MeshNode {
+                        x,
+                        y,
+                        u,
+                        v,
+                        i: if theta <= std::f64::consts::FRAC_PI_2 {
+                            1.0
+                        } else {
+                            -1.0
+                        },
+                    }
+                }
+                None => MeshNode {
+                    x,
+                    y,
+                    u: 0.0,
+                    v: 0.0,
+                    i: -1.0,
+                },
+            };
+            nodes.push(node);
+        }
+    }
+    let mesh = BourkeMesh {
+        mesh_type: 2,
+        nx: nx as usize,
+        ny: ny as usize,
+        nodes,
+    };
+    write_bourke(out, &mesh)?;
+    Ok(format!(
+        "wrote {} (Bourke type 2 mesh, {nx}x{ny} nodes)",
+        out.display()
+    ))
+}
