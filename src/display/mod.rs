@@ -8,7 +8,7 @@
 
 pub mod warp;
 
-use crate::scene::attitude_basis;
+use crate::scene::{attitude_basis, check_finite as finite};
 use crate::{Error, Result};
 use glam::{DMat3, DVec3};
 use serde::{Deserialize, Serialize};
@@ -189,17 +189,6 @@ impl Screen {
                 (t > 0.0).then(|| origin + dir * t)
             }
         }
-    }
-}
-
-fn finite(field: &str, v: &[f64]) -> Result<()> {
-    if v.iter().all(|x| x.is_finite()) {
-        Ok(())
-    } else {
-        Err(Error::invalid(
-            field,
-            format!("must be finite numbers, got {v:?}"),
-        ))
     }
 }
 

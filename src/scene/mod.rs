@@ -270,7 +270,8 @@ pub struct Scene {
     pub path: PathBuf,
 }
 
-fn check_finite(field: &str, v: &[f64]) -> Result<()> {
+/// `Ok` when every value is finite; the error names `field`.
+pub(crate) fn check_finite(field: &str, v: &[f64]) -> Result<()> {
     if v.iter().all(|x| x.is_finite()) {
         Ok(())
     } else {

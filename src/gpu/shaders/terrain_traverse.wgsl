@@ -29,14 +29,24 @@ fn level_side(level: u32) -> u32 {
     return frame.pyramid_dims.x >> level;
 }
 
-fn pyr_get(level: u32, ix: i32, iy: i32) -> f32 {
+// Index of cell (ix, iy) of `level` in the square pyramid layout; NO_CELL outside it.
+const NO_CELL: u32 = 0xffffffffu;
+
+fn pyramid_index(level: u32, ix: i32, iy: i32) -> u32 {
     let side = level_side(level);
     if (u32(ix) >= side || u32(iy) >= side) {
-        return PAD;
+        return NO_CELL;
     }
     let n = frame.pyramid_dims.x;
-    let offset = (n * n - side * side) / 3u * 4u;
-    return pyramid[offset + u32(iy) * side + u32(ix)];
+    return (n * n - side * side) / 3u * 4u + u32(iy) * side + u32(ix);
+}
+
+fn pyr_get(level: u32, ix: i32, iy: i32) -> f32 {
+    let k = pyramid_index(level, ix, iy);
+    if (k == NO_CELL) {
+        return PAD;
+    }
+    return pyramid[k];
 }
 
 fn sample_height(i: u32, j: u32) -> f32 {

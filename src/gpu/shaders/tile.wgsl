@@ -10,13 +10,11 @@
 
 // Same layout as `pyr_get`.
 fn dilated_get(level: u32, ix: i32, iy: i32) -> f32 {
-    let side = level_side(level);
-    if (u32(ix) >= side || u32(iy) >= side) {
+    let k = pyramid_index(level, ix, iy);
+    if (k == NO_CELL) {
         return PAD;
     }
-    let n = frame.pyramid_dims.x;
-    let offset = (n * n - side * side) / 3u * 4u;
-    return dilated[offset + u32(iy) * side + u32(ix)];
+    return dilated[k];
 }
 
 
