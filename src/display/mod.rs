@@ -192,6 +192,17 @@ impl Screen {
     }
 }
 
+fn positive_radius(radius: f64) -> Result<()> {
+    if radius.is_finite() && radius > 0.0 {
+        Ok(())
+    } else {
+        Err(Error::invalid(
+            "screen.radius",
+            format!("must be > 0 metres, got {radius}"),
+        ))
+    }
+}
+
 impl DisplayConfig {
     /// Reads and validates a display configuration.
     pub fn load(path: &Path) -> Result<DisplayConfig> {
@@ -213,12 +224,7 @@ impl DisplayConfig {
             } => {
                 finite("screen.centre", &centre)?;
                 finite("screen.min_elevation", &[min_elevation])?;
-                if !(radius.is_finite() && radius > 0.0) {
-                    return Err(Error::invalid(
-                        "screen.radius",
-                        format!("must be > 0 metres, got {radius}"),
-                    ));
-                }
+                positive_radius(radius)?;
             }
             Screen::Cylinder {
                 centre,
@@ -227,12 +233,7 @@ impl DisplayConfig {
                 top,
             } => {
                 finite("screen.centre", &centre)?;
-                if !(radius.is_finite() && radius > 0.0) {
-                    return Err(Error::invalid(
-                        "screen.radius",
-                        format!("must be > 0 metres, got {radius}"),
-                    ));
-                }
+                positive_radius(radius)?;
                 if !(bottom.is_finite() && top.is_finite() && top > bottom) {
                     return Err(Error::invalid(
                         "screen.bottom/top",

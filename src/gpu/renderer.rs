@@ -1157,35 +1157,33 @@ pub fn frame_uniforms(
 /// Each cell of every level of a [`square_pyramid`] replaced by the maximum of its 3x3
 /// neighbourhood (cells outside the square count as PAD): the tile pre-pass's cone test.
 pub fn dilate_square_pyramid(data: &[f32], n: u32) -> Vec<f32> {
-    let mut out = vec![crate::terrain::pyramid::PAD; data.len()];
+    use rayon::prelude::*;
+    let pad = crate::terrain::pyramid::PAD;
+    let mut out = vec![pad; data.len()];
     let mut side = n as usize;
     let mut offset = 0usize;
     loop {
-        let (src, dst) = (
-            &data[offset..offset + side * side],
-            &mut out[offset..offset + side * side],
-        );
-        // Separable: rows then columns.
-        let mut rows = vec![crate::terrain::pyramid::PAD; side * side];
-        for j in 0..side {
-            for i in 0..side {
-                let lo = i.saturating_sub(1);
-                let hi = (i + 1).min(side - 1);
-                rows[j * side + i] = src[j * side + lo..=j * side + hi]
+        let src = &data[offset..offset + side * side];
+        // Separable: 3-wide row maxima, then 3-tall column maxima of those.
+        let mut rows = vec![pad; side * side];
+        rows.par_chunks_mut(side).enumerate().for_each(|(j, row)| {
+            let s = &src[j * side..][..side];
+            for (i, out) in row.iter_mut().enumerate() {
+                *out = s[i.saturating_sub(1)..=(i + 1).min(side - 1)]
                     .iter()
                     .copied()
-                    .fold(f32::MIN, f32::max);
+                    .fold(pad, f32::max);
             }
-        }
-        for j in 0..side {
-            for i in 0..side {
-                let lo = j.saturating_sub(1);
-                let hi = (j + 1).min(side - 1);
-                dst[j * side + i] = (lo..=hi)
-                    .map(|jj| rows[jj * side + i])
-                    .fold(f32::MIN, f32::max);
-            }
-        }
+        });
+        out[offset..offset + side * side]
+            .par_chunks_mut(side)
+            .enumerate()
+            .for_each(|(j, dst)| {
+                let (lo, hi) = (j.saturating_sub(1), (j + 1).min(side - 1));
+                for (i, out) in dst.iter_mut().enumerate() {
+                    *out = (lo..=hi).map(|jj| rows[jj * side + i]).fold(pad, f32::max);
+                }
+            });
         offset += side * side;
         if side == 1 {
             break;
