@@ -7,6 +7,7 @@
 //! * [`cpu`]: the CPU reference algorithms (f64): ray–terrain traversal, queries
 //!   (height of terrain, line of sight), dense marching oracle. These answer queries and are
 //!   the oracle the GPU output is tested against.
+//! * [`freeform`]: quadric free forms with recursive perturbations (model, scene tables).
 //! * [`display`]: curved-screen display model (screen, projectors, eye) for pre-distortion.
 //! * [`gpu`]: wgpu passes (ray generation, tile pre-pass, terrain cast + shade) and readback.
 //! * [`app`]: headless capture, benchmark and command-line front end.
@@ -15,6 +16,7 @@ pub mod app;
 pub mod cpu;
 pub mod display;
 pub mod error;
+pub mod freeform;
 pub mod gpu;
 pub mod scene;
 pub mod terrain;

@@ -114,7 +114,7 @@ pub fn frame_metadata(
         },
         "depth": {
             "file": format!("depth_{frame:04}.tiff"),
-            "quantity": "distance in metres from the camera centre along the pixel's unit ray to the terrain; +inf where the ray meets no terrain",
+            "quantity": "distance in metres from the camera centre along the pixel's unit ray to the nearest surface (terrain or free form); +inf where the ray meets none",
         },
         "terrain": {
             "samples": [terrain.field.width, terrain.field.height],
@@ -129,7 +129,9 @@ pub fn frame_metadata(
         "timing_ms": t,
         "primary_rays_per_second": pixels / (cast_ms * 1e-3),
         "mean_steps_per_ray": out.steps.iter().map(|&s| s as f64).sum::<f64>() / pixels,
-        "terrain_pixels": hits,
+        "surface_pixels": hits,
+        "free_form_pixels": out.objects.iter().filter(|o| **o != 0).count(),
+        "free_forms": scene.desc.objects.len(),
         "settings": settings,
         "adapter": {
             "name": gpu.info.name,
@@ -183,6 +185,8 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
     let gpu = Gpu::new()?;
     log::info!("adapter: {}", gpu.describe());
     let mut renderer = TerrainRenderer::new(&gpu, &terrain)?;
+    let objects = scene.free_forms(&terrain)?;
+    renderer.set_objects(&gpu, &objects)?;
     let mut display_meta = serde_json::Value::Null;
     if let Some(d) = &job.display {
         if job.size.is_some() {
@@ -256,10 +260,11 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
             .map_err(|e| Error::io(tmp, e))
         })?;
         log::info!(
-            "frame {frame}: raygen {:.1} ms, tile {:.1} ms, cast {:.1} ms, shade {:.1} ms -> {}",
+            "frame {frame}: raygen {:.1} ms, tile {:.1} ms, cast {:.1} ms, free forms {:.1} ms, shade {:.1} ms -> {}",
             out.times.raygen_ms,
             out.times.tile_ms,
             out.times.cast_ms,
+            out.times.objects_ms,
             out.times.shade_ms,
             png.display()
         );

@@ -3,6 +3,7 @@
 //! as `gpu/shaders/terrain_traverse.wgsl`, step for step.
 
 pub mod distortion;
+pub mod freeform;
 pub mod march;
 pub mod query;
 pub mod traverse;

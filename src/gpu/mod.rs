@@ -5,6 +5,7 @@
 //! → shade (fragment, full screen: lighting, shadow rays, fog, sky) → copy to readback
 //! buffers when capturing.
 
+pub mod objects;
 pub mod renderer;
 pub mod shaders;
 pub mod types;
@@ -75,6 +76,8 @@ impl Gpu {
             max_storage_buffer_binding_size: alimits.max_storage_buffer_binding_size,
             max_buffer_size: alimits.max_buffer_size,
             max_texture_dimension_2d: alimits.max_texture_dimension_2d,
+            // The shade pass with free forms reads six storage buffers.
+            max_storage_buffers_per_shader_stage: alimits.max_storage_buffers_per_shader_stage,
             ..wgpu::Limits::downlevel_defaults()
         };
         let (device, queue) = adapter

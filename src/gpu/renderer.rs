@@ -1,6 +1,7 @@
 //! The terrain renderer: GPU resources uploaded once per terrain, size-dependent targets,
 //! per-frame uniforms, the three passes and readback.
 
+use super::objects::{ObjectPasses, ObjectTargets};
 use super::types::{FrameUniforms, RayGenUniforms, MAX_LEVELS};
 use super::{shaders, Gpu};
 use crate::scene::{Camera, SceneDesc};
@@ -48,14 +49,17 @@ pub struct PassTimes {
     pub raygen_ms: f64,
     pub tile_ms: f64,
     pub cast_ms: f64,
+    /// Free-form binning and cast (0 without free forms).
+    pub objects_ms: f64,
     pub shade_ms: f64,
     pub readback_ms: f64,
 }
 
 impl PassTimes {
-    /// Time to find every primary ray's hit (ray generation, tile pre-pass, cast).
+    /// Time to find every primary ray's hit (ray generation, tile pre-pass, terrain and
+    /// free-form cast).
     pub fn primary_ms(&self) -> f64 {
-        self.raygen_ms + self.tile_ms + self.cast_ms
+        self.raygen_ms + self.tile_ms + self.cast_ms + self.objects_ms
     }
 }
 
@@ -83,8 +87,10 @@ pub struct FrameOutput {
     pub patch_tests: Vec<u32>,
     /// Shadow-ray traversal steps per pixel.
     pub shadow_steps: Vec<u32>,
-    /// Flags per pixel: 1 hit, 2 in shadow, 4 step limit reached.
+    /// Flags per pixel: 1 hit, 2 in shadow, 4 step limit reached, 16 free form.
     pub flags: Vec<u32>,
+    /// Free-form index + 1 per pixel (0 where no free form shows).
+    pub objects: Vec<u32>,
     pub times: PassTimes,
 }
 
@@ -106,6 +112,8 @@ struct Targets {
     data_view: wgpu::TextureView,
     colour_rb: wgpu::Buffer,
     data_rb: wgpu::Buffer,
+    /// Free-form bins, G-buffer and the shade bind group that reads them.
+    objects: Option<(ObjectTargets, wgpu::BindGroup)>,
 }
 
 /// Which entry points run the per-pixel kernels that have both (ray generation today).
@@ -157,6 +165,7 @@ pub struct TerrainRenderer {
     raygen_mod: wgpu::ShaderModule,
     tile_mod: wgpu::ShaderModule,
     table: Option<TableMode>,
+    objects: Option<ObjectPasses>,
     targets: Option<Targets>,
 }
 
@@ -171,7 +180,7 @@ struct TableMode {
     eye: glam::DVec3,
 }
 
-fn storage_entry(
+pub(crate) fn storage_entry(
     binding: u32,
     vis: wgpu::ShaderStages,
     read_only: bool,
@@ -440,6 +449,7 @@ impl TerrainRenderer {
             raygen_mod,
             tile_mod,
             table: None,
+            objects: None,
             targets: None,
         })
     }
@@ -538,6 +548,18 @@ impl TerrainRenderer {
             size: [points.width, points.height],
             eye,
         });
+        self.targets = None;
+        Ok(())
+    }
+
+    /// Uploads the scene's free forms (none: the terrain-only passes). Objects are binned per
+    /// 16x16-pixel screen bin every frame, so a pixel tests only its bin's objects.
+    pub fn set_objects(&mut self, gpu: &Gpu, objects: &[crate::freeform::FreeForm]) -> Result<()> {
+        self.objects = if objects.is_empty() {
+            None
+        } else {
+            Some(ObjectPasses::new(gpu, objects)?)
+        };
         self.targets = None;
         Ok(())
     }
@@ -686,7 +708,28 @@ impl TerrainRenderer {
             layout: &self.shade_bgl,
             entries: &entries,
         });
+        let objects = match &self.objects {
+            Some(o) => {
+                let ot = o.targets(
+                    gpu,
+                    width,
+                    height,
+                    &self.frame_ub,
+                    &ray_table_view,
+                    &gbuffer_view,
+                )?;
+                let bg = o.shade_bind_group(
+                    gpu,
+                    [&self.frame_ub, &self.heights, &self.pyramid, &self.drape],
+                    &ray_table_view,
+                    &ot,
+                );
+                Some((ot, bg))
+            }
+            None => None,
+        };
         self.targets = Some(Targets {
+            objects,
             width,
             height,
             tiles,
@@ -734,7 +777,7 @@ impl TerrainRenderer {
         }
     }
 
-    fn encode_fullscreen(
+    pub(crate) fn encode_fullscreen(
         enc: &mut wgpu::CommandEncoder,
         label: &str,
         pipeline: &wgpu::RenderPipeline,
@@ -795,6 +838,14 @@ impl TerrainRenderer {
         let t = self.targets.as_ref().expect("targets just ensured");
         let mut fu = frame_uniforms(terrain, scene, cam, s, t.tiles);
         fu.pyramid_dims = [self.pyramid_side, 0, 0, 0];
+        if let (Some(o), Some((ot, _))) = (&self.objects, &t.objects) {
+            fu.objects = [
+                o.count,
+                ot.bins[0],
+                ot.bins[1],
+                super::objects::BIN_CAPACITY,
+            ];
+        }
         gpu.queue
             .write_buffer(&self.frame_ub, 0, bytemuck::bytes_of(&fu));
         gpu.queue.write_buffer(
@@ -838,12 +889,26 @@ impl TerrainRenderer {
         };
         Self::encode_fullscreen(&mut enc, "cast", cast, &t.cast_bg, &[&t.gbuffer_view]);
         lap(&mut enc, &mut times.cast_ms)?;
+        let objects = self.objects.as_ref().zip(t.objects.as_ref());
+        if let Some((o, (ot, _))) = objects {
+            o.encode_cast(&mut enc, ot);
+            lap(&mut enc, &mut times.objects_ms)?;
+        }
         if stage == Stage::Shade {
+            let (pipeline, bg) = match objects {
+                Some((o, (ot, bg))) => {
+                    if s.shadows {
+                        o.encode_shadows(&mut enc, ot);
+                    }
+                    (&o.shade, bg)
+                }
+                None => (&self.shade_pipeline, &t.shade_bg),
+            };
             Self::encode_fullscreen(
                 &mut enc,
                 "shade",
-                &self.shade_pipeline,
-                &t.shade_bg,
+                pipeline,
+                bg,
                 &[&t.colour_view, &t.data_view],
             );
             lap(&mut enc, &mut times.shade_ms)?;
@@ -917,6 +982,7 @@ impl TerrainRenderer {
             patch_tests: Vec::with_capacity(n),
             shadow_steps: Vec::with_capacity(n),
             flags: Vec::with_capacity(n),
+            objects: Vec::with_capacity(n),
             times,
         };
         for px in words.chunks_exact(4) {
@@ -924,13 +990,17 @@ impl TerrainRenderer {
             out.steps.push(px[1]);
             out.patch_tests.push(px[2] & 0xffff);
             out.shadow_steps.push(px[2] >> 16);
-            out.flags.push(px[3]);
+            out.flags.push(px[3] & 0xff);
+            out.objects.push(px[3] >> 8);
         }
         Ok(out)
     }
 }
 
-fn pipeline_layout(dev: &wgpu::Device, bgl: &wgpu::BindGroupLayout) -> wgpu::PipelineLayout {
+pub(crate) fn pipeline_layout(
+    dev: &wgpu::Device,
+    bgl: &wgpu::BindGroupLayout,
+) -> wgpu::PipelineLayout {
     dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: None,
         bind_group_layouts: &[Some(bgl)],
@@ -938,7 +1008,7 @@ fn pipeline_layout(dev: &wgpu::Device, bgl: &wgpu::BindGroupLayout) -> wgpu::Pip
     })
 }
 
-fn target_state(format: wgpu::TextureFormat) -> wgpu::ColorTargetState {
+pub(crate) fn target_state(format: wgpu::TextureFormat) -> wgpu::ColorTargetState {
     wgpu::ColorTargetState {
         format,
         blend: None,
@@ -947,7 +1017,7 @@ fn target_state(format: wgpu::TextureFormat) -> wgpu::ColorTargetState {
 }
 
 /// A full-screen-triangle pipeline running `entry` of module `m` into `targets`.
-fn fullscreen_pipeline(
+pub(crate) fn fullscreen_pipeline(
     dev: &wgpu::Device,
     label: &str,
     m: &wgpu::ShaderModule,
@@ -978,7 +1048,7 @@ fn fullscreen_pipeline(
     })
 }
 
-fn buf(binding: u32, b: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+pub(crate) fn buf(binding: u32, b: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
     wgpu::BindGroupEntry {
         binding,
         resource: b.as_entire_binding(),
@@ -1150,6 +1220,9 @@ pub fn frame_uniforms(
         drape_size,
         march,
         pyramid_dims: [0; 4],
+        eye_world: v4(cam.pose.position, 1.0),
+        sun_world: v4(sun, 0.0),
+        objects: [0; 4],
         levels,
     }
 }

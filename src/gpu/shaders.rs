@@ -6,6 +6,8 @@ const FULLSCREEN: &str = include_str!("shaders/fullscreen.wgsl");
 const TRAVERSE: &str = include_str!("shaders/terrain_traverse.wgsl");
 const GBUFFER: &str = include_str!("shaders/gbuffer.wgsl");
 const RAY_TABLE: &str = include_str!("shaders/ray_table.wgsl");
+const FREEFORM: &str = include_str!("shaders/freeform.wgsl");
+const FF_BINS: &str = include_str!("shaders/ff_bins.wgsl");
 
 /// Ray generation (compute): pinhole ray table.
 pub fn raygen() -> String {
@@ -46,6 +48,60 @@ pub fn shade() -> String {
         TRAVERSE,
         GBUFFER,
         include_str!("shaders/shade.wgsl"),
+        include_str!("shaders/shade_terrain_only.wgsl"),
+    ]
+    .concat()
+}
+
+/// Shade pass for scenes with free forms: as [`shade`], plus free-form shading and the
+/// free-form shadow pass's answers.
+pub fn shade_objects() -> String {
+    [
+        FRAME,
+        FULLSCREEN,
+        RAY_TABLE,
+        TRAVERSE,
+        GBUFFER,
+        FREEFORM,
+        include_str!("shaders/shade.wgsl"),
+        include_str!("shaders/shade_objects.wgsl"),
+    ]
+    .concat()
+}
+
+/// Object binning (compute): per 16x16 bin, the free forms primary and shadow rays test.
+pub fn ff_bin() -> String {
+    [
+        FRAME,
+        RAY_TABLE,
+        FREEFORM,
+        include_str!("shaders/ff_bin.wgsl"),
+    ]
+    .concat()
+}
+
+/// Free-form shadow pass (fragment): shadow rays against the bins' shadow lists.
+pub fn ff_shadow() -> String {
+    [
+        FRAME,
+        FULLSCREEN,
+        RAY_TABLE,
+        FREEFORM,
+        FF_BINS,
+        include_str!("shaders/ff_shadow.wgsl"),
+    ]
+    .concat()
+}
+
+/// Free-form cast pass (fragment): nearest free form in front of the terrain hit.
+pub fn objects() -> String {
+    [
+        FRAME,
+        FULLSCREEN,
+        RAY_TABLE,
+        FREEFORM,
+        FF_BINS,
+        include_str!("shaders/objects.wgsl"),
     ]
     .concat()
 }
@@ -57,5 +113,9 @@ pub fn all() -> Vec<(&'static str, String)> {
         ("tile", tile()),
         ("cast", cast()),
         ("shade", shade()),
+        ("shade_objects", shade_objects()),
+        ("ff_bin", ff_bin()),
+        ("objects", objects()),
+        ("ff_shadow", ff_shadow()),
     ]
 }

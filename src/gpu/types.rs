@@ -29,6 +29,9 @@ pub struct FrameUniforms {
     pub drape_size: [u32; 4],
     pub march: [f32; 4],
     pub pyramid_dims: [u32; 4],
+    pub eye_world: [f32; 4],
+    pub sun_world: [f32; 4],
+    pub objects: [u32; 4],
     pub levels: [[u32; 4]; MAX_LEVELS],
 }
 
@@ -44,5 +47,39 @@ pub struct RayGenUniforms {
     pub eye: [f32; 4],
 }
 
-const _: () = assert!(std::mem::size_of::<FrameUniforms>() == 16 * (24 + MAX_LEVELS));
+const _: () = assert!(std::mem::size_of::<FrameUniforms>() == 16 * (27 + MAX_LEVELS));
 const _: () = assert!(std::mem::size_of::<RayGenUniforms>() == 96);
+
+/// Mirrors WGSL `FfObject` in `shaders/freeform.wgsl`: one placed free form.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct FfObjectGpu {
+    /// Rows of the object-from-world rotation.
+    pub local_from_world: [[f32; 4]; 3],
+    /// World position of the object origin; w = shadow-ray offset (m).
+    pub position: [f32; 4],
+    /// Bounding box in the object frame; w = f32 bits of the first node / node count.
+    pub box_min: [f32; 4],
+    pub box_max: [f32; 4],
+    /// Linear RGB; w = specular exponent.
+    pub colour: [f32; 4],
+    /// Qa, Qd, Qs, unused.
+    pub material: [f32; 4],
+    /// World bounding sphere: centre, radius.
+    pub sphere: [f32; 4],
+}
+
+/// Mirrors WGSL `FfNode` in `shaders/freeform.wgsl`: one quadric of a perturbation tree.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct FfNodeGpu {
+    /// A, B, C, D.
+    pub q0: [f32; 4],
+    /// E, F, G, H.
+    pub q1: [f32; 4],
+    /// I, K, weight, depth.
+    pub q2: [f32; 4],
+}
+
+const _: () = assert!(std::mem::size_of::<FfObjectGpu>() == 144);
+const _: () = assert!(std::mem::size_of::<FfNodeGpu>() == 48);

@@ -31,6 +31,9 @@ pub struct SceneDesc {
     pub path: Option<CameraPath>,
     #[serde(default)]
     pub render: RenderOptions,
+    /// Quadric free forms (`[[objects]]`).
+    #[serde(default)]
+    pub objects: Vec<crate::freeform::FreeFormDesc>,
 }
 
 /// `[terrain]`: height source and its placement.
@@ -305,6 +308,30 @@ impl Scene {
     /// Loads the terrain the scene names.
     pub fn load_terrain(&self) -> Result<Terrain> {
         Terrain::from_desc(&self.desc.terrain, &self.base_dir)
+    }
+
+    /// Builds the scene's free forms (`above_terrain` needs the terrain).
+    pub fn free_forms(&self, terrain: &Terrain) -> Result<Vec<crate::freeform::FreeForm>> {
+        if self.desc.objects.len() > crate::freeform::MAX_OBJECTS {
+            return Err(Error::invalid(
+                "objects",
+                format!(
+                    "{} objects; at most {} are supported",
+                    self.desc.objects.len(),
+                    crate::freeform::MAX_OBJECTS
+                ),
+            ));
+        }
+        self.desc
+            .objects
+            .iter()
+            .enumerate()
+            .map(|(i, o)| {
+                o.build(i, |p| {
+                    crate::cpu::query::terrain_point_below(terrain, p).map(|g| g.z)
+                })
+            })
+            .collect()
     }
 
     /// The camera for frame `frame` (the path if there is one, else the static camera).

@@ -44,6 +44,12 @@ struct Frame {
     march: vec4<f32>,
     // x: side N of the square power-of-two pyramid's level 0 (level L has side N >> L).
     pyramid_dims: vec4<u32>,
+    // World-frame eye (free forms live in world coordinates).
+    eye_world: vec4<f32>,
+    // World-frame unit vector towards the sun.
+    sun_world: vec4<f32>,
+    // x: free-form count, y, z: object bins across and down, w: bin capacity.
+    objects: vec4<u32>,
     // Per level: cells x, cells y, row stride, offset into `pyramid`.
     levels: array<vec4<u32>, 16>,
 }

@@ -108,6 +108,23 @@ fn haze_transmittance(t: f32, ze: f32, zp: f32) -> f32 {
     return exp(-tau);
 }
 
+fn world_from_local(v: vec3<f32>) -> vec3<f32> {
+    return frame.local_from_world_0.xyz * v.x + frame.local_from_world_1.xyz * v.y + frame.local_from_world_2.xyz * v.z;
+}
+
+// Sky light on a surface with local normal n.
+fn ambient_light(n: vec3<f32>) -> vec3<f32> {
+    let sky_up = dot(n, frame.up_local.xyz);
+    return mix(frame.sky_horizon.xyz, frame.sky_zenith.xyz, 0.5 + 0.5 * sky_up) * (frame.sky_zenith.w * (0.6 + 0.4 * sky_up));
+}
+
+// Haze between the eye and a point at distance t and local height zp, seen along dl.
+fn aerial_perspective(c: vec3<f32>, t: f32, zp: f32, dl: vec3<f32>) -> vec3<f32> {
+    let tau = haze_transmittance(t, frame.eye.z, zp);
+    let scatter = frame.fog_colour.xyz + frame.sun_colour.xyz * (0.25 * pow(max(dot(dl, frame.sun_local.xyz), 0.0), 8.0));
+    return c * tau + scatter * (1.0 - tau);
+}
+
 @fragment
 fn fs_shade(@builtin(position) pos: vec4<f32>) -> Out {
     let px = vec2<u32>(pos.xy);
@@ -126,6 +143,9 @@ fn fs_shade(@builtin(position) pos: vec4<f32>) -> Out {
         out.colour = vec4<f32>(srgb_encode(sky(dl)), 1.0);
         out.data = vec4<u32>(INF_BITS, g.z, min(patches, 0xffffu), flags);
         return out;
+    }
+    if ((flags & 16u) != 0u) {
+        return shade_object(px, g, dir_w);
     }
     let t = bitcast<f32>(g.x);
     let i = i32(g.y & 0xffffu);
@@ -153,20 +173,15 @@ fn fs_shade(@builtin(position) pos: vec4<f32>) -> Out {
         sr.d = frame.sun_grid.xyz;
         let st = traverse(sr, 0.0, BIG, frame.mode.y);
         shadow_steps = st.steps;
-        if (st.hit) {
+        if (st.hit || objects_shadow(px, frame.eye_world.xyz + dir_w * t + world_from_local(n_geom) * off)) {
             lit = 0.0;
             flags |= 2u;
         }
     }
     let base = albedo(p, n);
     let diffuse = frame.sun_colour.xyz * (frame.sun_local.w * max(dot(n, sun), 0.0) * lit);
-    let sky_up = dot(n, frame.up_local.xyz);
-    let ambient = mix(frame.sky_horizon.xyz, frame.sky_zenith.xyz, 0.5 + 0.5 * sky_up) * (frame.sky_zenith.w * (0.6 + 0.4 * sky_up));
-    var c = base * (diffuse + ambient);
-    let tau = haze_transmittance(t, ro.z, p.z);
-    let scatter = frame.fog_colour.xyz + frame.sun_colour.xyz * (0.25 * pow(max(dot(dl, sun), 0.0), 8.0));
-    c = c * tau + scatter * (1.0 - tau);
-    out.colour = vec4<f32>(srgb_encode(c), 1.0);
+    var c = base * (diffuse + ambient_light(n));
+    out.colour = vec4<f32>(srgb_encode(aerial_perspective(c, t, p.z, dl)), 1.0);
     out.data = vec4<u32>(g.x, g.z, min(patches, 0xffffu) | (min(shadow_steps, 0xffffu) << 16u), flags);
     return out;
 }

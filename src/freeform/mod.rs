@@ -1,0 +1,231 @@
+//! Quadric free forms (the paper's second primitive class, seed-digest §1): a base quadric
+//! `F(x,y,z) = Ax²+By²+Cz²+Dxy+Exz+Fyz+Gx+Hy+Iz+K` plus perturbations `R = w·Q²` where
+//! `Q > 0` (else 0), each `Q` itself a perturbed quadric (recursive). The solid is
+//! `F' = F + ΣR ≤ 0` clipped to the object's bounding box. No GPU types live here.
+//!
+//! Each object has a rigid placement (rotation + translation, so ray distances are the same in
+//! the object frame and the world) and its perturbation tree is stored flattened in pre-order:
+//! a node's subtree is the contiguous run after it. Evaluating in reverse order therefore
+//! meets every node after all of its descendants, which lets the GPU evaluate the tree without
+//! recursion.
+
+mod desc;
+
+pub use desc::{FreeFormDesc, MaterialDesc};
+
+use glam::{DMat3, DVec3};
+
+/// Most nodes (base quadric + perturbations) one object may have.
+pub const MAX_NODES: usize = 16;
+/// Most free forms one scene may have (object ids fit the G-buffer's 16 bits).
+pub const MAX_OBJECTS: usize = 65_535;
+/// Deepest perturbation nesting: the base is depth 0, its perturbations depth 1, ...
+pub const MAX_DEPTH: u32 = 3;
+
+/// A quadric `Ax²+By²+Cz²+Dxy+Exz+Fyz+Gx+Hy+Iz+K`; coefficients in that order.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Quadric(pub [f64; 10]);
+
+impl Quadric {
+    /// Value at `p`.
+    pub fn eval(&self, p: DVec3) -> f64 {
+        let [a, b, c, d, e, f, g, h, i, k] = self.0;
+        let (x, y, z) = (p.x, p.y, p.z);
+        x * (a * x + d * y + e * z + g) + y * (b * y + f * z + h) + z * (c * z + i) + k
+    }
+
+    /// Gradient at `p`.
+    pub fn grad(&self, p: DVec3) -> DVec3 {
+        let [a, b, c, d, e, f, g, h, i, _] = self.0;
+        DVec3::new(
+            2.0 * a * p.x + d * p.y + e * p.z + g,
+            2.0 * b * p.y + d * p.x + f * p.z + h,
+            2.0 * c * p.z + e * p.x + f * p.y + i,
+        )
+    }
+
+    /// Symmetric matrix `M`, linear part `g` and constant `k` with `Q = pᵀMp + g·p + k`.
+    pub fn parts(&self) -> (DMat3, DVec3, f64) {
+        let [a, b, c, d, e, f, g, h, i, k] = self.0;
+        let m = DMat3::from_cols(
+            DVec3::new(a, 0.5 * d, 0.5 * e),
+            DVec3::new(0.5 * d, b, 0.5 * f),
+            DVec3::new(0.5 * e, 0.5 * f, c),
+        );
+        (m, DVec3::new(g, h, i), k)
+    }
+
+    fn from_parts(m: DMat3, g: DVec3, k: f64) -> Quadric {
+        Quadric([
+            m.x_axis.x,
+            m.y_axis.y,
+            m.z_axis.z,
+            m.y_axis.x + m.x_axis.y,
+            m.z_axis.x + m.x_axis.z,
+            m.z_axis.y + m.y_axis.z,
+            g.x,
+            g.y,
+            g.z,
+            k,
+        ])
+    }
+
+    /// Coefficients `(α, β, γ)` of `Q(o + s d) = α s² + β s + γ`.
+    pub fn along(&self, o: DVec3, d: DVec3) -> [f64; 3] {
+        let (m, g, _) = self.parts();
+        let md = m * d;
+        [d.dot(md), 2.0 * o.dot(md) + g.dot(d), self.eval(o)]
+    }
+
+    /// The quadric moved rigidly: `Q'(p) = Q(Rᵀ(p − c))` (a shape defined around its own
+    /// origin, rotated by `rot` and centred at `c`).
+    pub fn moved(&self, rot: DMat3, c: DVec3) -> Quadric {
+        let (m0, g0, k0) = self.parts();
+        let m = rot * m0 * rot.transpose();
+        let g1 = rot * g0;
+        let g = g1 - 2.0 * (m * c);
+        let k = c.dot(m * c) - g1.dot(c) + k0;
+        Quadric::from_parts(m, g, k)
+    }
+
+    /// `-Q`.
+    pub fn negated(&self) -> Quadric {
+        Quadric(self.0.map(|v| -v))
+    }
+
+    /// True when every coefficient except the constant is zero.
+    pub fn is_constant(&self) -> bool {
+        self.0[..9].iter().all(|v| *v == 0.0)
+    }
+}
+
+/// One node of a flattened perturbation tree.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Node {
+    /// The quadric in the object frame.
+    pub q: Quadric,
+    /// `R = weight · max(Q', 0)²` is added to the parent (unused for the base, depth 0).
+    pub weight: f64,
+    /// 0 for the base quadric, parent depth + 1 for perturbations.
+    pub depth: u32,
+}
+
+/// Surface appearance: the paper's colour formula
+/// `C = (Qa·Ca + Qd·Cd + Qs·Cs)/(Qa+Qd+Qs)`, `Cd = (n·l)·Clight·Csurf`, `Cs = (r·v)^p·Clight`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Material {
+    /// Linear RGB surface colour `Csurf`.
+    pub colour: [f32; 3],
+    /// `Qa`, weight of the ambient term (`Ca` = sky light · `Csurf`).
+    pub ambient: f32,
+    /// `Qd`, weight of the diffuse term.
+    pub diffuse: f32,
+    /// `Qs`, weight of the specular term.
+    pub specular: f32,
+    /// `p`, the specular exponent.
+    pub shininess: f32,
+}
+
+/// A placed free form.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FreeForm {
+    pub name: String,
+    /// World-from-object rotation (columns: object x, y, z axes in the world).
+    pub rotation: DMat3,
+    /// World position of the object origin.
+    pub position: DVec3,
+    /// Base quadric first, then perturbations in pre-order (see the module docs).
+    pub nodes: Vec<Node>,
+    /// Bounding box in the object frame: the solid is `F' ≤ 0` inside it.
+    pub bounds: [DVec3; 2],
+    pub material: Material,
+}
+
+impl FreeForm {
+    /// World point -> object frame.
+    pub fn to_local(&self, p: DVec3) -> DVec3 {
+        self.rotation.transpose() * (p - self.position)
+    }
+
+    /// World direction -> object frame.
+    pub fn dir_to_local(&self, d: DVec3) -> DVec3 {
+        self.rotation.transpose() * d
+    }
+
+    /// World-space bounding sphere (centre, radius) of the bounding box.
+    pub fn bounding_sphere(&self) -> (DVec3, f64) {
+        let [lo, hi] = self.bounds;
+        (
+            self.position + self.rotation * (0.5 * (lo + hi)),
+            0.5 * (hi - lo).length(),
+        )
+    }
+
+    /// `F'` at an object-frame point.
+    pub fn value(&self, p: DVec3) -> f64 {
+        self.value_grad(p).0
+    }
+
+    /// `F'` and its gradient at an object-frame point. The gradient is continuous: each
+    /// perturbation adds `2·w·max(Q',0)·∇Q'`.
+    pub fn value_grad(&self, p: DVec3) -> (f64, DVec3) {
+        let mut acc = [(0.0, DVec3::ZERO); MAX_DEPTH as usize + 2];
+        for n in self.nodes.iter().rev() {
+            let d = n.depth as usize;
+            let (cv, cg) = std::mem::take(&mut acc[d + 1]);
+            let v = n.q.eval(p) + cv;
+            let g = n.q.grad(p) + cg;
+            if d == 0 {
+                return (v, g);
+            }
+            let pos = v.max(0.0);
+            acc[d].0 += n.weight * pos * pos;
+            acc[d].1 += 2.0 * n.weight * pos * g;
+        }
+        unreachable!("node 0 is the base quadric at depth 0")
+    }
+
+    /// An enclosure `[lo, hi]` of `F'(o + s d)` over `s ∈ [a, b]`, from the per-node
+    /// coefficients `coef[i] = nodes[i].q.along(o, d)`. Each quadric's range on the interval
+    /// is exact; `w·max(·,0)²` is monotone, so the only overestimate is the sum of ranges.
+    pub fn enclose(&self, coef: &[[f64; 3]], a: f64, b: f64) -> (f64, f64) {
+        let mut acc = [(0.0, 0.0); MAX_DEPTH as usize + 2];
+        for (n, c) in self.nodes.iter().zip(coef).rev() {
+            let d = n.depth as usize;
+            let (clo, chi) = std::mem::take(&mut acc[d + 1]);
+            let (lo, hi) = quadratic_range(*c, a, b);
+            let (lo, hi) = (lo + clo, hi + chi);
+            if d == 0 {
+                return (lo, hi);
+            }
+            let (rl, rh) = (
+                n.weight * lo.max(0.0).powi(2),
+                n.weight * hi.max(0.0).powi(2),
+            );
+            acc[d].0 += rl.min(rh);
+            acc[d].1 += rl.max(rh);
+        }
+        unreachable!("node 0 is the base quadric at depth 0")
+    }
+
+    /// Half the bounding-box diagonal: the object's size scale.
+    pub fn size(&self) -> f64 {
+        0.5 * (self.bounds[1] - self.bounds[0]).length()
+    }
+}
+
+/// Exact range of `c0 s² + c1 s + c2` over `[a, b]`.
+pub fn quadratic_range(c: [f64; 3], a: f64, b: f64) -> (f64, f64) {
+    let f = |s: f64| (c[0] * s + c[1]) * s + c[2];
+    let (fa, fb) = (f(a), f(b));
+    let (mut lo, mut hi) = (fa.min(fb), fa.max(fb));
+    if c[0] != 0.0 {
+        let sv = -c[1] / (2.0 * c[0]);
+        if sv > a && sv < b {
+            let fv = f(sv);
+            lo = lo.min(fv);
+            hi = hi.max(fv);
+        }
+    }
+    (lo, hi)
+}

@@ -1,0 +1,419 @@
+//! Free-form passes: object data uploaded once, the binning pass (compute, one invocation per
+//! 16x16-pixel bin, primary and shadow lists), the free-form cast pass (fragment) and the
+//! shade pipeline that knows free forms.
+
+use super::renderer::{buf, fullscreen_pipeline, pipeline_layout, storage_entry, target_state};
+use super::types::{FfNodeGpu, FfObjectGpu};
+use super::{shaders, Gpu};
+use crate::freeform::FreeForm;
+use crate::{Error, Result};
+use wgpu::util::DeviceExt;
+
+/// Bin side in pixels (WGSL `FF_BIN`).
+pub const BIN: u32 = 16;
+/// Object indices stored per bin and list; a fuller bin falls back to testing every object.
+pub const BIN_CAPACITY: u32 = 63;
+/// Storage buffers the shade pass with free forms binds (heights, pyramid, drape, objects).
+const STORAGE_BUFFERS: u32 = 4;
+
+/// GPU records of the free forms: one [`FfObjectGpu`] per object, the nodes of all
+/// perturbation trees one after the other.
+pub fn pack(objects: &[FreeForm]) -> (Vec<FfObjectGpu>, Vec<FfNodeGpu>) {
+    let mut recs = Vec::with_capacity(objects.len());
+    let mut nodes = Vec::new();
+    for ff in objects {
+        let first = nodes.len() as u32;
+        for n in &ff.nodes {
+            let c = n.q.0.map(|v| v as f32);
+            nodes.push(FfNodeGpu {
+                q0: [c[0], c[1], c[2], c[3]],
+                q1: [c[4], c[5], c[6], c[7]],
+                q2: [c[8], c[9], n.weight as f32, n.depth as f32],
+            });
+        }
+        let rt = ff.rotation.transpose();
+        let row = |v: glam::DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0];
+        let (centre, radius) = ff.bounding_sphere();
+        let [lo, hi] = ff.bounds;
+        let m = &ff.material;
+        recs.push(FfObjectGpu {
+            local_from_world: [row(rt.row(0)), row(rt.row(1)), row(rt.row(2))],
+            position: [
+                ff.position.x as f32,
+                ff.position.y as f32,
+                ff.position.z as f32,
+                crate::cpu::freeform::object_shadow_offset(ff) as f32,
+            ],
+            box_min: [lo.x as f32, lo.y as f32, lo.z as f32, f32::from_bits(first)],
+            box_max: [
+                hi.x as f32,
+                hi.y as f32,
+                hi.z as f32,
+                f32::from_bits(ff.nodes.len() as u32),
+            ],
+            colour: [m.colour[0], m.colour[1], m.colour[2], m.shininess],
+            material: [m.ambient, m.diffuse, m.specular, 0.0],
+            sphere: [
+                centre.x as f32,
+                centre.y as f32,
+                centre.z as f32,
+                radius as f32,
+            ],
+        });
+    }
+    (recs, nodes)
+}
+
+/// Object buffers and the pipelines that use them.
+pub(crate) struct ObjectPasses {
+    pub count: u32,
+    objects: wgpu::Buffer,
+    nodes: wgpu::Buffer,
+    bin_bgl: wgpu::BindGroupLayout,
+    cast_bgl: wgpu::BindGroupLayout,
+    pub shade_bgl: wgpu::BindGroupLayout,
+    bin_primary: wgpu::ComputePipeline,
+    bin_shadow: wgpu::ComputePipeline,
+    cast: wgpu::RenderPipeline,
+    shadow: wgpu::RenderPipeline,
+    pub shade: wgpu::RenderPipeline,
+}
+
+/// Size-dependent resources of the free-form passes.
+pub(crate) struct ObjectTargets {
+    pub bins: [u32; 2],
+    bin_primary_bg: wgpu::BindGroup,
+    bin_shadow_bg: wgpu::BindGroup,
+    cast_bg: wgpu::BindGroup,
+    shadow_bg: wgpu::BindGroup,
+    pub gbuffer_view: wgpu::TextureView,
+    shadow_view: wgpu::TextureView,
+}
+
+fn uint_texture(binding: u32, vis: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: vis,
+        ty: wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Uint,
+            view_dimension: wgpu::TextureViewDimension::D2,
+            multisampled: false,
+        },
+        count: None,
+    }
+}
+
+fn uniform(binding: u32, vis: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: vis,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Uniform,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+fn view(binding: u32, v: &wgpu::TextureView) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry {
+        binding,
+        resource: wgpu::BindingResource::TextureView(v),
+    }
+}
+
+impl ObjectPasses {
+    pub fn new(gpu: &Gpu, objects: &[FreeForm]) -> Result<ObjectPasses> {
+        let dev = &gpu.device;
+        if objects.len() > crate::freeform::MAX_OBJECTS {
+            return Err(Error::Limit {
+                what: "free forms".into(),
+                msg: format!(
+                    "{} objects, at most {}",
+                    objects.len(),
+                    crate::freeform::MAX_OBJECTS
+                ),
+            });
+        }
+        let have = gpu.limits.max_storage_buffers_per_shader_stage;
+        if have < STORAGE_BUFFERS {
+            return Err(Error::Limit {
+                what: "storage buffers per shader stage".into(),
+                msg: format!(
+                    "free forms need {STORAGE_BUFFERS}, the adapter {} allows {have}; render the scene without [[objects]]",
+                    gpu.info.name
+                ),
+            });
+        }
+        let (recs, nodes) = pack(objects);
+        super::renderer::check_buffer_limit(gpu, "free-form records", (recs.len() * 144) as u64)?;
+        super::renderer::check_buffer_limit(gpu, "free-form quadrics", (nodes.len() * 48) as u64)?;
+        let storage = wgpu::BufferUsages::STORAGE;
+        let objects_buf = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("free forms"),
+            contents: bytemuck::cast_slice(&recs),
+            usage: storage,
+        });
+        let nodes_buf = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("free-form quadrics"),
+            contents: bytemuck::cast_slice(&nodes),
+            usage: storage,
+        });
+        let cs = wgpu::ShaderStages::COMPUTE;
+        let fs = wgpu::ShaderStages::FRAGMENT;
+        let bin_bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("free-form bins"),
+            entries: &[
+                uniform(0, cs),
+                uint_texture(3, cs),
+                uint_texture(4, cs),
+                storage_entry(6, cs, true),
+                storage_entry(8, cs, false),
+            ],
+        });
+        let cast_bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("free-form cast"),
+            entries: &[
+                uniform(0, fs),
+                uint_texture(3, fs),
+                uint_texture(4, fs),
+                storage_entry(6, fs, true),
+                storage_entry(7, fs, true),
+                storage_entry(8, fs, true),
+            ],
+        });
+        let shade_bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("shade with free forms"),
+            entries: &[
+                uniform(0, fs),
+                storage_entry(1, fs, true),
+                storage_entry(2, fs, true),
+                uint_texture(3, fs),
+                uint_texture(4, fs),
+                storage_entry(5, fs, true),
+                storage_entry(6, fs, true),
+                uint_texture(9, fs),
+            ],
+        });
+        let module = |label: &str, src: String| {
+            dev.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(label),
+                source: wgpu::ShaderSource::Wgsl(src.into()),
+            })
+        };
+        let bin_mod = module("ff_bin.wgsl", shaders::ff_bin());
+        let cast_mod = module("objects.wgsl", shaders::objects());
+        let shade_mod = module("shade.wgsl (free forms)", shaders::shade_objects());
+        let shadow_mod = module("ff_shadow.wgsl", shaders::ff_shadow());
+        let compute = |entry: &str| {
+            dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: Some(&pipeline_layout(dev, &bin_bgl)),
+                module: &bin_mod,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        let bin_primary = compute("cs_bin_primary");
+        let bin_shadow = compute("cs_bin_shadow");
+        let cast = fullscreen_pipeline(
+            dev,
+            "free-form cast",
+            &cast_mod,
+            "fs_objects",
+            &cast_bgl,
+            &[Some(target_state(wgpu::TextureFormat::Rgba32Uint))],
+        );
+        let shadow = fullscreen_pipeline(
+            dev,
+            "free-form shadows",
+            &shadow_mod,
+            "fs_ff_shadow",
+            &cast_bgl,
+            &[Some(target_state(wgpu::TextureFormat::R32Uint))],
+        );
+        let shade = fullscreen_pipeline(
+            dev,
+            "shade (free forms)",
+            &shade_mod,
+            "fs_shade",
+            &shade_bgl,
+            &[
+                Some(target_state(wgpu::TextureFormat::Rgba8Unorm)),
+                Some(target_state(wgpu::TextureFormat::Rgba32Uint)),
+            ],
+        );
+        Ok(ObjectPasses {
+            count: objects.len() as u32,
+            objects: objects_buf,
+            nodes: nodes_buf,
+            bin_bgl,
+            cast_bgl,
+            shade_bgl,
+            bin_primary,
+            bin_shadow,
+            cast,
+            shadow,
+            shade,
+        })
+    }
+
+    /// Bins, the free-form G-buffer and bind groups for a `width` x `height` frame.
+    #[allow(clippy::too_many_arguments)]
+    pub fn targets(
+        &self,
+        gpu: &Gpu,
+        width: u32,
+        height: u32,
+        frame_ub: &wgpu::Buffer,
+        ray_table: &wgpu::TextureView,
+        terrain_gbuffer: &wgpu::TextureView,
+    ) -> Result<ObjectTargets> {
+        let dev = &gpu.device;
+        let bins = [width.div_ceil(BIN), height.div_ceil(BIN)];
+        let bytes = 2 * bins[0] as u64 * bins[1] as u64 * (BIN_CAPACITY as u64 + 1) * 4;
+        super::renderer::check_buffer_limit(gpu, "free-form bins", bytes)?;
+        let bins_buf = dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("free-form bins"),
+            size: bytes,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        let target = |label, format| {
+            dev.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size: wgpu::Extent3d {
+                    width,
+                    height,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                    | wgpu::TextureUsages::TEXTURE_BINDING,
+                view_formats: &[],
+            })
+            .create_view(&Default::default())
+        };
+        let gbuffer_view = target("g-buffer with free forms", wgpu::TextureFormat::Rgba32Uint);
+        let shadow_view = target("free-form shadows", wgpu::TextureFormat::R32Uint);
+        let bin_bg = |label, depth: &wgpu::TextureView| {
+            dev.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some(label),
+                layout: &self.bin_bgl,
+                entries: &[
+                    buf(0, frame_ub),
+                    view(3, ray_table),
+                    view(4, depth),
+                    buf(6, &self.objects),
+                    buf(8, &bins_buf),
+                ],
+            })
+        };
+        let bin_primary_bg = bin_bg("free-form bins (primary)", terrain_gbuffer);
+        let bin_shadow_bg = bin_bg("free-form bins (shadow)", &gbuffer_view);
+        let cast_bg = |label, depth: &wgpu::TextureView| {
+            dev.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some(label),
+                layout: &self.cast_bgl,
+                entries: &[
+                    buf(0, frame_ub),
+                    view(3, ray_table),
+                    view(4, depth),
+                    buf(6, &self.objects),
+                    buf(7, &self.nodes),
+                    buf(8, &bins_buf),
+                ],
+            })
+        };
+        Ok(ObjectTargets {
+            bins,
+            bin_primary_bg,
+            bin_shadow_bg,
+            cast_bg: cast_bg("free-form cast", terrain_gbuffer),
+            shadow_bg: cast_bg("free-form shadows", &gbuffer_view),
+            gbuffer_view,
+            shadow_view,
+        })
+    }
+
+    /// The shade pass's bind group: terrain data, the free-form G-buffer and object data.
+    pub fn shade_bind_group(
+        &self,
+        gpu: &Gpu,
+        terrain: [&wgpu::Buffer; 4],
+        ray_table: &wgpu::TextureView,
+        t: &ObjectTargets,
+    ) -> wgpu::BindGroup {
+        let [frame_ub, heights, pyramid, drape] = terrain;
+        gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("shade (free forms)"),
+            layout: &self.shade_bgl,
+            entries: &[
+                buf(0, frame_ub),
+                buf(1, heights),
+                buf(2, pyramid),
+                view(3, ray_table),
+                view(4, &t.gbuffer_view),
+                buf(5, drape),
+                buf(6, &self.objects),
+                view(9, &t.shadow_view),
+            ],
+        })
+    }
+
+    fn bin(&self, enc: &mut wgpu::CommandEncoder, t: &ObjectTargets, shadow: bool) {
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some(if shadow {
+                "bin free forms (shadow)"
+            } else {
+                "bin free forms (primary)"
+            }),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(if shadow {
+            &self.bin_shadow
+        } else {
+            &self.bin_primary
+        });
+        pass.set_bind_group(
+            0,
+            if shadow {
+                &t.bin_shadow_bg
+            } else {
+                &t.bin_primary_bg
+            },
+            &[],
+        );
+        pass.dispatch_workgroups(t.bins[0].div_ceil(8), t.bins[1].div_ceil(8), 1);
+    }
+
+    /// Records the primary binning and the free-form cast (after the terrain cast).
+    pub fn encode_cast(&self, enc: &mut wgpu::CommandEncoder, t: &ObjectTargets) {
+        self.bin(enc, t, false);
+        super::renderer::TerrainRenderer::encode_fullscreen(
+            enc,
+            "free-form cast",
+            &self.cast,
+            &t.cast_bg,
+            &[&t.gbuffer_view],
+        );
+    }
+
+    /// Records the shadow binning and the free-form shadow pass (after the free-form cast,
+    /// before shading).
+    pub fn encode_shadows(&self, enc: &mut wgpu::CommandEncoder, t: &ObjectTargets) {
+        self.bin(enc, t, true);
+        super::renderer::TerrainRenderer::encode_fullscreen(
+            enc,
+            "free-form shadows",
+            &self.shadow,
+            &t.shadow_bg,
+            &[&t.shadow_view],
+        );
+    }
+}

@@ -1,0 +1,360 @@
+// Quadric free forms: ray–object intersection, the same algorithm as `cpu/freeform.rs`.
+// Per object: rigid move of the ray into the object frame (t stays in metres), clip to the
+// bounding box, re-centre on the entry point p0 so every node's Q(p0 + s d) = α s² + β s + γ
+// is well conditioned. F'(p0) <= 0: the ray enters the solid through a box face. Otherwise a
+// plain quadric takes the stable first root; a perturbed one runs the depth-first interval
+// search: an interval whose enclosure of F' stays above zero is skipped, others are halved
+// down to L / 2^FF_LEVELS; the first leaf reached brackets the first point with F' <= 0.
+
+struct FfObject {
+    // Rows of the object-from-world rotation.
+    local_0: vec4<f32>,
+    local_1: vec4<f32>,
+    local_2: vec4<f32>,
+    // World position of the object origin; w = shadow-ray offset (m).
+    position: vec4<f32>,
+    // Bounding box in the object frame; w = bits of the first node / the node count.
+    box_min: vec4<f32>,
+    box_max: vec4<f32>,
+    // Linear RGB; w = specular exponent.
+    colour: vec4<f32>,
+    // Qa, Qd, Qs.
+    material: vec4<f32>,
+    // World bounding sphere: centre, radius.
+    sphere: vec4<f32>,
+}
+
+// One quadric Ax²+By²+Cz²+Dxy+Exz+Fyz+Gx+Hy+Iz+K of a flattened perturbation tree
+// (pre-order: a node's subtree is the run after it).
+struct FfNode {
+    // A, B, C, D.
+    q0: vec4<f32>,
+    // E, F, G, H.
+    q1: vec4<f32>,
+    // I, K, weight, depth.
+    q2: vec4<f32>,
+}
+
+@group(0) @binding(6) var<storage, read> ff_objects: array<FfObject>;
+@group(0) @binding(7) var<storage, read> ff_nodes: array<FfNode>;
+
+const FF_MAX_NODES: u32 = 16u;
+const FF_MAX_DEPTH: u32 = 3u;
+const FF_LEVELS: u32 = 22u;
+const FF_MAX_ITERATIONS: u32 = 512u;
+
+// No arrays here: llvmpipe zero-initialises every function-scope array of an inlined shader
+// at entry, for every fragment, whether or not the code runs. Node coefficients are
+// recomputed from the storage buffer instead, and tree sums live in three scalars
+// (FF_MAX_DEPTH = 3).
+
+struct FfHit {
+    hit: bool,
+    t: f32,
+    // Unit world normal of a box-face entry; zero otherwise (see `ff_normal`).
+    n: vec3<f32>,
+    // Enclosure evaluations spent.
+    iterations: u32,
+}
+
+fn ff_to_local(ob: FfObject, v: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(dot(ob.local_0.xyz, v), dot(ob.local_1.xyz, v), dot(ob.local_2.xyz, v));
+}
+
+fn ff_to_world(ob: FfObject, v: vec3<f32>) -> vec3<f32> {
+    return ob.local_0.xyz * v.x + ob.local_1.xyz * v.y + ob.local_2.xyz * v.z;
+}
+
+fn ff_eval(n: FfNode, p: vec3<f32>) -> f32 {
+    return p.x * (n.q0.x * p.x + n.q0.w * p.y + n.q1.x * p.z + n.q1.z) + p.y * (n.q0.y * p.y + n.q1.y * p.z + n.q1.w) + p.z * (n.q0.z * p.z + n.q2.x) + n.q2.y;
+}
+
+fn ff_grad(n: FfNode, p: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(
+        2.0 * n.q0.x * p.x + n.q0.w * p.y + n.q1.x * p.z + n.q1.z,
+        2.0 * n.q0.y * p.y + n.q0.w * p.x + n.q1.y * p.z + n.q1.w,
+        2.0 * n.q0.z * p.z + n.q1.x * p.x + n.q1.y * p.y + n.q2.x,
+    );
+}
+
+// (α, β, γ) with Q(o + s d) = α s² + β s + γ.
+fn ff_along(n: FfNode, o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
+    let md = vec3<f32>(
+        n.q0.x * d.x + 0.5 * (n.q0.w * d.y + n.q1.x * d.z),
+        n.q0.y * d.y + 0.5 * (n.q0.w * d.x + n.q1.y * d.z),
+        n.q0.z * d.z + 0.5 * (n.q1.x * d.x + n.q1.y * d.y),
+    );
+    let g = vec3<f32>(n.q1.z, n.q1.w, n.q2.x);
+    return vec3<f32>(dot(d, md), 2.0 * dot(o, md) + dot(g, d), ff_eval(n, o));
+}
+
+fn ff_quad(c: vec3<f32>, s: f32) -> f32 {
+    return (c.x * s + c.y) * s + c.z;
+}
+
+// Exact range of a quadratic over [a, b].
+fn ff_range(c: vec3<f32>, a: f32, b: f32) -> vec2<f32> {
+    let fa = ff_quad(c, a);
+    let fb = ff_quad(c, b);
+    var r = vec2<f32>(min(fa, fb), max(fa, fb));
+    if (c.x != 0.0) {
+        let sv = -c.y / (2.0 * c.x);
+        if (sv > a && sv < b) {
+            let fv = ff_quad(c, sv);
+            r = vec2<f32>(min(r.x, fv), max(r.y, fv));
+        }
+    }
+    return r;
+}
+
+// Enclosure of F'(p0 + s d) over s in [a, b] (object `first`..`first + count` nodes): the tree
+// in reverse pre-order, each node's exact range plus its children's sum, pushed through the
+// monotone w·max(·,0)² into its parent's sum.
+fn ff_enclose(first: u32, count: u32, p0: vec3<f32>, dir: vec3<f32>, a: f32, b: f32) -> vec2<f32> {
+    var acc1 = vec2<f32>(0.0);
+    var acc2 = vec2<f32>(0.0);
+    var acc3 = vec2<f32>(0.0);
+    var result = vec2<f32>(0.0);
+    for (var k = count; k > 0u; k--) {
+        let n = ff_nodes[first + k - 1u];
+        let d = u32(n.q2.w);
+        var v = ff_range(ff_along(n, p0, dir), a, b);
+        if (d == 0u) {
+            result = v + acc1;
+            break;
+        }
+        if (d == 1u) {
+            v += acc2;
+            acc2 = vec2<f32>(0.0);
+        } else if (d == 2u) {
+            v += acc3;
+            acc3 = vec2<f32>(0.0);
+        }
+        let w = n.q2.z;
+        let lo = max(v.x, 0.0);
+        let hi = max(v.y, 0.0);
+        var r = w * vec2<f32>(lo * lo, hi * hi);
+        r = select(r, r.yx, w < 0.0);
+        if (d == 1u) {
+            acc1 += r;
+        } else if (d == 2u) {
+            acc2 += r;
+        } else {
+            acc3 += r;
+        }
+    }
+    return result;
+}
+
+// F' and its gradient (continuous: each perturbation adds 2·w·max(Q',0)·∇Q') at an
+// object-frame point.
+fn ff_value_grad(first: u32, count: u32, p: vec3<f32>) -> vec4<f32> {
+    var acc1 = vec4<f32>(0.0);
+    var acc2 = vec4<f32>(0.0);
+    var acc3 = vec4<f32>(0.0);
+    var result = vec4<f32>(0.0);
+    for (var k = count; k > 0u; k--) {
+        let n = ff_nodes[first + k - 1u];
+        let d = u32(n.q2.w);
+        var v = vec4<f32>(ff_eval(n, p), ff_grad(n, p));
+        if (d == 0u) {
+            result = v + acc1;
+            break;
+        }
+        if (d == 1u) {
+            v += acc2;
+            acc2 = vec4<f32>(0.0);
+        } else if (d == 2u) {
+            v += acc3;
+            acc3 = vec4<f32>(0.0);
+        }
+        let pos = max(v.x, 0.0);
+        let r = n.q2.z * vec4<f32>(pos * pos, 2.0 * pos * v.yzw);
+        if (d == 1u) {
+            acc1 += r;
+        } else if (d == 2u) {
+            acc2 += r;
+        } else {
+            acc3 += r;
+        }
+    }
+    return result;
+}
+
+// First root in [0, len] of α s² + β s + γ with γ > 0 (stable formula); -1 when none.
+fn ff_plain_root(c: vec3<f32>, len: f32) -> f32 {
+    let disc = c.y * c.y - 4.0 * c.x * c.z;
+    if (disc < 0.0) {
+        return -1.0;
+    }
+    let q = -0.5 * (c.y + select(-1.0, 1.0, c.y >= 0.0) * sqrt(disc));
+    var r1 = BIG;
+    var r2 = BIG;
+    if (c.x != 0.0) {
+        r1 = q / c.x;
+    }
+    if (q != 0.0) {
+        r2 = c.z / q;
+    }
+    let lo = min(r1, r2);
+    let s = select(max(r1, r2), lo, lo >= 0.0);
+    if (s >= 0.0 && s <= len) {
+        return s;
+    }
+    return -1.0;
+}
+
+// First hit of the world ray ro + t rd (rd unit) with object `id`, t in [t_min, t_max]; the
+// normal is left to `ff_normal`. One loop drives every enclosure evaluation through a single
+// call site (Mesa inlines each call and its SIMD rasteriser runs every loop body at least
+// once per fragment block): phase 0 evaluates F'(p0); phase 1 is the depth-first search, in
+// which interval (k, i) is [i, i + 1] · L / 2^k; phases 2 and 3 evaluate F' at the ends of
+// the leaf for the final linear interpolation.
+fn ff_intersect(id: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32, t_max: f32) -> FfHit {
+    var h: FfHit;
+    h.hit = false;
+    h.t = t_max;
+    h.n = vec3<f32>(0.0);
+    h.iterations = 0u;
+    let ob = ff_objects[id];
+    let o = ff_to_local(ob, ro - ob.position.xyz);
+    let d = ff_to_local(ob, rd);
+    // Slab clip; zero direction components become tiny ones of either sign (same result).
+    let ds = select(d, vec3<f32>(1.0e-20), abs(d) < vec3<f32>(1.0e-20));
+    let inv = 1.0 / ds;
+    let ta = (ob.box_min.xyz - o) * inv;
+    let tb = (ob.box_max.xyz - o) * inv;
+    let tn = min(ta, tb);
+    let tf = max(ta, tb);
+    let t0 = max(max(tn.x, tn.y), max(tn.z, t_min));
+    let t1 = min(min(tf.x, tf.y), min(tf.z, t_max));
+    if (t0 > t1) {
+        return h;
+    }
+    let first = bitcast<u32>(ob.box_min.w);
+    let count = min(bitcast<u32>(ob.box_max.w), FF_MAX_NODES);
+    let p0 = o + d * t0;
+    let len = t1 - t0;
+    var phase = 0u;
+    var k = 0u;
+    var i = 0u;
+    var fa = 0.0;
+    var s = -1.0;
+    loop {
+        let w = len / f32(1u << k);
+        var a = 0.0;
+        var b = 0.0;
+        if (phase == 1u) {
+            a = f32(i) * w;
+            b = a + w;
+        } else if (phase == 2u) {
+            a = f32(i) * w;
+            b = a;
+        } else if (phase == 3u) {
+            a = f32(i) * w + w;
+            b = a;
+        }
+        let e = ff_enclose(first, count, p0, d, a, b).x;
+        h.iterations += 1u;
+        if (phase == 0u) {
+            if (e <= 0.0) {
+                // Entering the solid through the box: the face's normal.
+                var face = -d;
+                if (t0 > t_min) {
+                    if (t0 == tn.x) {
+                        face = vec3<f32>(-sign(d.x), 0.0, 0.0);
+                    } else if (t0 == tn.y) {
+                        face = vec3<f32>(0.0, -sign(d.y), 0.0);
+                    } else {
+                        face = vec3<f32>(0.0, 0.0, -sign(d.z));
+                    }
+                }
+                h.n = ff_to_world(ob, face);
+                s = 0.0;
+                break;
+            }
+            if (count == 1u) {
+                s = ff_plain_root(ff_along(ff_nodes[first], p0, d), len);
+                break;
+            }
+            phase = 1u;
+            continue;
+        }
+        if (phase == 2u) {
+            fa = e;
+            phase = 3u;
+            continue;
+        }
+        if (phase == 3u) {
+            s = a - w;
+            if (fa > 0.0 && e < 0.0) {
+                s += w * fa / (fa - e);
+            } else if (fa > 0.0) {
+                s = a;
+            }
+            break;
+        }
+        if (h.iterations >= FF_MAX_ITERATIONS) {
+            break;
+        }
+        if (e <= 0.0) {
+            if (k == FF_LEVELS) {
+                phase = 2u;
+            } else {
+                k += 1u;
+                i *= 2u;
+            }
+            continue;
+        }
+        i += 1u;
+        loop {
+            if ((i & 1u) != 0u || k == 0u) {
+                break;
+            }
+            i >>= 1u;
+            k -= 1u;
+        }
+        if (k == 0u) {
+            break;
+        }
+    }
+    if (s < 0.0) {
+        return h;
+    }
+    h.hit = true;
+    h.t = t0 + s;
+    return h;
+}
+
+// Unit world normal of a hit from `ff_intersect`: the box face it carries, else the
+// normalised gradient of F' (continuous across the perturbations' breakpoints).
+fn ff_normal(id: u32, h: FfHit, ro: vec3<f32>, rd: vec3<f32>) -> vec3<f32> {
+    if (dot(h.n, h.n) > 0.0) {
+        return h.n;
+    }
+    let ob = ff_objects[id];
+    let p = ff_to_local(ob, ro + rd * h.t - ob.position.xyz);
+    let g = ff_value_grad(bitcast<u32>(ob.box_min.w), min(bitcast<u32>(ob.box_max.w), FF_MAX_NODES), p).yzw;
+    if (dot(g, g) > 0.0) {
+        return ff_to_world(ob, normalize(g));
+    }
+    return -rd;
+}
+
+// Octahedral unit-vector packing (2 x 16 bits) for the G-buffer.
+fn oct_encode(n: vec3<f32>) -> u32 {
+    var p = n.xy / (abs(n.x) + abs(n.y) + abs(n.z));
+    if (n.z < 0.0) {
+        p = (1.0 - abs(p.yx)) * select(vec2<f32>(-1.0), vec2<f32>(1.0), p >= vec2<f32>(0.0));
+    }
+    return pack2x16unorm(p * 0.5 + 0.5);
+}
+
+fn oct_decode(u: u32) -> vec3<f32> {
+    let f = unpack2x16unorm(u) * 2.0 - 1.0;
+    var n = vec3<f32>(f.x, f.y, 1.0 - abs(f.x) - abs(f.y));
+    let t = max(-n.z, 0.0);
+    n.x += select(t, -t, n.x >= 0.0);
+    n.y += select(t, -t, n.y >= 0.0);
+    return normalize(n);
+}
