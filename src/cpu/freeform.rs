@@ -22,7 +22,7 @@ pub const GPU_LEVELS: u32 = 22;
 /// Interval-halving depth of the CPU reference.
 pub const CPU_LEVELS: u32 = 44;
 /// Enclosure evaluations after which a search gives up (reported, never silent).
-pub const MAX_ITERATIONS: u32 = 512;
+pub const MAX_ITERATIONS: u32 = 16_384;
 
 /// A ray–free-form hit.
 #[derive(Clone, Copy, Debug, PartialEq)]
