@@ -67,6 +67,10 @@ enum Command {
         /// Also write the fixed rays and the pyramid depths (raw little-endian f32) to this directory.
         #[arg(long)]
         dump_rays: Option<PathBuf>,
+        /// Measure free forms instead: the scene's objects vs terrain only, then 10/100/1000
+        /// generated objects (default scene: terrains/airfield.toml).
+        #[arg(long)]
+        freeforms: bool,
     },
     /// Warp files: inspect PFM / Bourke warps, export a display configuration's warp.
     Warp {
@@ -223,11 +227,23 @@ fn run(cli: Cli) -> Result<()> {
             frames,
             json,
             dump_rays,
+            freeforms,
         }) => {
-            let scene = scene.unwrap_or_else(default_scene);
             if frames == 0 {
                 bail!("--frames must be at least 1");
             }
+            if freeforms {
+                let scene = scene.unwrap_or_else(|| PathBuf::from("terrains/airfield.toml"));
+                let report = bench::run_freeforms(&scene, size, frames)
+                    .with_context(|| format!("benchmarking {}", scene.display()))?;
+                if json {
+                    println!("{}", serde_json::to_string_pretty(&report)?);
+                } else {
+                    bench::print_freeforms(&report);
+                }
+                return Ok(());
+            }
+            let scene = scene.unwrap_or_else(default_scene);
             let report = bench::run(&scene, size, frames, dump_rays.as_deref())
                 .with_context(|| format!("benchmarking {}", scene.display()))?;
             if json {

@@ -310,3 +310,166 @@ pub fn print_table(r: &BenchReport) {
         r.speedup_vs_march, r.step_ratio_vs_march, r.tile_prepass_speedup, r.pyramid_build_ms
     );
 }
+
+/// `relief bench --freeforms`: the cost of free forms on the frame, same run, same adapter.
+#[derive(Clone, Debug, Serialize)]
+pub struct FreeFormReport {
+    pub adapter: String,
+    pub backend: String,
+    pub scene: String,
+    pub width: u32,
+    pub height: u32,
+    pub frames: u32,
+    /// Quadrics (base + perturbations) in the scene's free forms.
+    pub quadrics: usize,
+    pub objects: usize,
+    /// Mean full-frame milliseconds (shadows on) without and with the scene's free forms.
+    pub terrain_only_ms: f64,
+    pub with_free_forms_ms: f64,
+    /// `with_free_forms_ms / terrain_only_ms` (target ≤ 1.5).
+    pub ratio: f64,
+    /// Generated free forms spread over the view: (count, mean frame ms).
+    pub scaling: Vec<(usize, f64)>,
+    /// Frame ms with the most generated objects over the fewest (target ≤ 3).
+    pub scaling_ratio: f64,
+}
+
+/// `n` perturbed free forms (domed tanks, dented balls, bumpy ellipsoids) on the terrain in
+/// front of the camera, 150 m to 4 km away, deterministic.
+pub fn scattered_free_forms(
+    terrain: &Terrain,
+    cam: &Camera,
+    n: usize,
+) -> Result<Vec<crate::freeform::FreeForm>> {
+    let mut state = 0x2545_F491_4F6C_DD1Du64;
+    let mut rnd = move || {
+        state ^= state >> 12;
+        state ^= state << 25;
+        state ^= state >> 27;
+        (state.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut text = String::new();
+    let half = 0.5 * cam.pose.fov.to_radians();
+    for i in 0..n {
+        let dist = 150.0 + 3850.0 * rnd().powi(2);
+        let ang = cam.pose.heading.to_radians() + half * (2.0 * rnd() - 1.0);
+        let x = cam.pose.position.x + dist * ang.sin();
+        let y = cam.pose.position.y + dist * ang.cos();
+        let s = 5.0 + 15.0 * rnd();
+        let shape = match i % 3 {
+            0 => format!(
+                "shape = \"cylinder\"\nradius = {s}\nheight = {h}\nbounds = [[-{s}, -{s}, 0.0], [{s}, {s}, {h}]]\n[[objects.perturb]]\ncoefficients = [0, 0, 0, 0, 0, 0, 0, 0, {a}, {b}]\n",
+                h = 2.0 * s,
+                a = 1.0 / (0.4 * s),
+                b = -(1.6 * s) / (0.4 * s)
+            ),
+            1 => format!(
+                "shape = \"sphere\"\nradius = {s}\n[[objects.perturb]]\nshape = \"sphere\"\nradius = {r}\ncentre = [{s}, 0.0, {s2}]\nweight = 3.0\n",
+                r = 0.6 * s,
+                s2 = 0.3 * s
+            ),
+            _ => format!(
+                "shape = \"ellipsoid\"\nradii = [{s}, {s2}, {s3}]\nheading = {h}\n[[objects.perturb]]\nshape = \"sphere\"\nradius = {r}\ncentre = [{c}, 0.0, {s3}]\nweight = -1.0\n",
+                s2 = 0.6 * s,
+                s3 = 0.5 * s,
+                h = 360.0 * rnd(),
+                r = 0.4 * s,
+                c = 0.5 * s
+            ),
+        };
+        text.push_str(&format!(
+            "[[objects]]\nname = \"generated {i}\"\nposition = [{x}, {y}, 0.0]\nabove_terrain = 0.0\n{shape}\n"
+        ));
+    }
+    let desc: crate::scene::SceneDesc = toml::from_str(&format!(
+        "[terrain.procedural]\nsize = 2\n[camera]\nposition = [0.0, 0.0, 0.0]\n{text}"
+    ))
+    .map_err(|e| Error::invalid("generated objects", e.to_string()))?;
+    desc.objects
+        .iter()
+        .enumerate()
+        .filter_map(|(i, o)| {
+            // Objects that would stand outside the terrain are skipped.
+            match o.build(i, |p| {
+                crate::cpu::query::terrain_point_below(terrain, p).map(|g| g.z)
+            }) {
+                Err(Error::Invalid { msg, .. }) if msg.contains("outside the terrain") => None,
+                r => Some(r),
+            }
+        })
+        .collect()
+}
+
+/// Runs the free-form benchmark on `scene_path` (its `[[objects]]`), then with 10, 100 and
+/// 1000 generated objects.
+pub fn run_freeforms(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<FreeFormReport> {
+    let mut scene = Scene::load(scene_path)?;
+    scene.desc.output.width = size.0;
+    scene.desc.output.height = size.1;
+    scene.desc.validate()?;
+    let terrain = scene.load_terrain()?;
+    let objects = scene.free_forms(&terrain)?;
+    let gpu = Gpu::new()?;
+    let mut renderer = TerrainRenderer::new(&gpu, &terrain)?;
+    let cam = scene.camera(0, &terrain);
+    let s = RenderSettings::from_scene(&scene.desc);
+    let mut frame_ms = |objects: &[crate::freeform::FreeForm]| -> Result<f64> {
+        renderer.set_objects(&gpu, objects)?;
+        // Warm-up: shader compilation on first use, target allocation.
+        renderer.capture(&gpu, &terrain, &scene.desc, &cam, &s)?;
+        renderer.render(&gpu, &terrain, &scene.desc, &cam, &s, Stage::Shade)?;
+        gpu.wait()?;
+        let start = Instant::now();
+        for _ in 0..frames {
+            renderer.render(&gpu, &terrain, &scene.desc, &cam, &s, Stage::Shade)?;
+        }
+        gpu.wait()?;
+        Ok(start.elapsed().as_secs_f64() * 1e3 / frames as f64)
+    };
+    let terrain_only_ms = frame_ms(&[])?;
+    let with_free_forms_ms = frame_ms(&objects)?;
+    let mut scaling = Vec::new();
+    for n in [10, 100, 1000] {
+        let generated = scattered_free_forms(&terrain, &cam, n)?;
+        let ms = frame_ms(&generated)?;
+        log::info!("{} generated free forms: {ms:.1} ms", generated.len());
+        scaling.push((generated.len(), ms));
+    }
+    Ok(FreeFormReport {
+        adapter: gpu.info.name.clone(),
+        backend: format!("{:?}", gpu.info.backend),
+        scene: scene_path.display().to_string(),
+        width: size.0,
+        height: size.1,
+        frames,
+        quadrics: objects.iter().map(|o| o.nodes.len()).sum(),
+        objects: objects.len(),
+        terrain_only_ms,
+        with_free_forms_ms,
+        ratio: with_free_forms_ms / terrain_only_ms,
+        scaling_ratio: scaling.last().map_or(0.0, |l| l.1) / scaling[0].1,
+        scaling,
+    })
+}
+
+/// Prints the free-form report.
+pub fn print_freeforms(r: &FreeFormReport) {
+    println!(
+        "relief bench --freeforms: {} at {}x{}, {} frames per configuration",
+        r.scene, r.width, r.height, r.frames
+    );
+    println!("adapter: {} ({})", r.adapter, r.backend);
+    println!(
+        "terrain only {:.1} ms, with {} free forms ({} quadrics) {:.1} ms: {:.2}x",
+        r.terrain_only_ms, r.objects, r.quadrics, r.with_free_forms_ms, r.ratio
+    );
+    for (n, ms) in &r.scaling {
+        println!("{n:>5} generated free forms: {ms:.1} ms");
+    }
+    println!(
+        "scaling {} -> {} objects: {:.2}x frame time",
+        r.scaling[0].0,
+        r.scaling.last().map_or(0, |l| l.0),
+        r.scaling_ratio
+    );
+}

@@ -12,13 +12,20 @@ fn ff_bin_base(px: vec2<u32>, list: u32) -> u32 {
     return (list * bins + b.y * frame.objects.y + b.x) * (frame.objects.w + 1u);
 }
 
-// Does the ray miss object `id`'s bounding sphere within t_max? (overflow path only)
-fn ff_sphere_miss(id: u32, ro: vec3<f32>, rd: vec3<f32>, t_max: f32) -> bool {
-    let sp = ff_objects[id].sphere;
-    let v = sp.xyz - ro;
-    let tc = dot(v, rd);
-    let d2 = dot(v, v) - tc * tc;
-    return d2 > sp.w * sp.w || tc + sp.w < 0.0 || tc - sp.w > t_max;
+// Distance at which the ray enters object `id`'s box within [t_min, t_max]; BIG if it does not.
+fn ff_box_entry(id: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32, t_max: f32) -> f32 {
+    let ob = ff_objects[id];
+    let o = ff_to_local(ob, ro - ob.position.xyz);
+    let d = ff_to_local(ob, rd);
+    let ds = select(d, vec3<f32>(1.0e-20), abs(d) < vec3<f32>(1.0e-20));
+    let inv = 1.0 / ds;
+    let ta = (ob.box_min.xyz - o) * inv;
+    let tb = (ob.box_max.xyz - o) * inv;
+    let tn = min(ta, tb);
+    let tf = max(ta, tb);
+    let t0 = max(max(tn.x, tn.y), max(tn.z, t_min));
+    let t1 = min(min(tf.x, tf.y), min(tf.z, t_max));
+    return select(BIG, t0, t0 <= t1);
 }
 
 struct FfNearest {
@@ -28,23 +35,63 @@ struct FfNearest {
     iterations: u32,
 }
 
-// Nearest free-form hit in (t_min, t_max) among the objects of the pixel's bin `list`.
+// A walk over the boxes a ray enters, nearest entry first. Each round scans the pixel's list
+// with the cheap box test for the next box after (last_t, last_id) in (entry, index) order,
+// then runs the full intersection on that one object only: on SIMD software rasterisers,
+// which run a loop body at least once per fragment block, the intersection code then costs
+// once per box actually entered instead of once per listed object.
+struct FfWalk {
+    base: u32,
+    all: bool,
+    n: u32,
+    last_t: f32,
+    last_id: u32,
+}
+
+fn ff_walk(px: vec2<u32>, list: u32) -> FfWalk {
+    var w: FfWalk;
+    w.base = ff_bin_base(px, list);
+    let count = ff_bins[w.base];
+    w.all = count > frame.objects.w;
+    w.n = select(count, frame.objects.x, w.all);
+    w.last_t = -1.0;
+    w.last_id = 0u;
+    return w;
+}
+
+// The next box entered within [t_min, t_max] (its index), or 0xffffffff when none is left.
+fn ff_next(w: ptr<function, FfWalk>, ro: vec3<f32>, rd: vec3<f32>, t_min: f32, t_max: f32) -> u32 {
+    var next_t = BIG;
+    var next_id = 0xffffffffu;
+    for (var j = 0u; j < (*w).n; j++) {
+        var id = j;
+        if (!(*w).all) {
+            id = ff_bins[(*w).base + 1u + j];
+        }
+        let te = ff_box_entry(id, ro, rd, t_min, t_max);
+        let after = te > (*w).last_t || (te == (*w).last_t && id > (*w).last_id);
+        if (te < BIG && after && (te < next_t || (te == next_t && id < next_id))) {
+            next_t = te;
+            next_id = id;
+        }
+    }
+    (*w).last_t = next_t;
+    (*w).last_id = next_id;
+    return next_id;
+}
+
+// Nearest free-form hit in [t_min, t_max] among the objects of the pixel's bin `list`.
 fn ff_nearest(px: vec2<u32>, list: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32, t_max: f32) -> FfNearest {
     var best: FfNearest;
     best.hit.hit = false;
     best.id = 0u;
     best.iterations = 0u;
     var far = t_max;
-    let base = ff_bin_base(px, list);
-    let count = ff_bins[base];
-    let all = count > frame.objects.w;
-    let n = select(count, frame.objects.x, all);
-    for (var j = 0u; j < n; j++) {
-        var id = j;
-        if (!all) {
-            id = ff_bins[base + 1u + j];
-        } else if (ff_sphere_miss(id, ro, rd, far)) {
-            continue;
+    var w = ff_walk(px, list);
+    loop {
+        let id = ff_next(&w, ro, rd, t_min, far);
+        if (id == 0xffffffffu) {
+            break;
         }
         let h = ff_intersect(id, ro, rd, t_min, far);
         best.iterations += h.iterations;
@@ -59,16 +106,11 @@ fn ff_nearest(px: vec2<u32>, list: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32
 
 // True when a free form of the pixel's shadow list blocks the ray from `ro` along `rd`.
 fn ff_blocked(px: vec2<u32>, ro: vec3<f32>, rd: vec3<f32>) -> bool {
-    let base = ff_bin_base(px, 1u);
-    let count = ff_bins[base];
-    let all = count > frame.objects.w;
-    let n = select(count, frame.objects.x, all);
-    for (var j = 0u; j < n; j++) {
-        var id = j;
-        if (!all) {
-            id = ff_bins[base + 1u + j];
-        } else if (ff_sphere_miss(id, ro, rd, BIG)) {
-            continue;
+    var w = ff_walk(px, 1u);
+    loop {
+        let id = ff_next(&w, ro, rd, 0.0, BIG);
+        if (id == 0xffffffffu) {
+            return false;
         }
         if (ff_intersect(id, ro, rd, 0.0, BIG).hit) {
             return true;

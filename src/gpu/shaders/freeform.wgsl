@@ -40,7 +40,7 @@ struct FfNode {
 
 const FF_MAX_NODES: u32 = 16u;
 const FF_MAX_DEPTH: u32 = 3u;
-const FF_LEVELS: u32 = 22u;
+const FF_LEVELS: u32 = 16u;
 const FF_MAX_ITERATIONS: u32 = 1024u;
 
 // No arrays here: llvmpipe zero-initialises every function-scope array of an inlined shader

@@ -144,44 +144,57 @@ fn fs_shade(@builtin(position) pos: vec4<f32>) -> Out {
         out.data = vec4<u32>(INF_BITS, g.z, min(patches, 0xffffu), flags);
         return out;
     }
-    if ((flags & 16u) != 0u) {
-        return shade_object(px, g, dir_w);
-    }
     let t = bitcast<f32>(g.x);
-    let i = i32(g.y & 0xffffu);
-    let j = i32(g.y >> 16u);
     let ro = frame.eye.xyz;
     let p = ro + to_grid_dir(dir_w) * t;
-    // Geometric (patch) normal for the shadow ray, smooth normal for shading.
-    let h00 = sample_height(u32(i), u32(j));
-    let h10 = sample_height(u32(i + 1), u32(j));
-    let h01 = sample_height(u32(i), u32(j + 1));
-    let h11 = sample_height(u32(i + 1), u32(j + 1));
-    let u = clamp(p.x - f32(i), 0.0, 1.0);
-    let v = clamp(p.y - f32(j), 0.0, 1.0);
-    let e = h00 - h10 - h01 + h11;
-    let n_geom = local_normal(vec2<f32>(h10 - h00 + e * v, h01 - h00 + e * u));
-    let gr = mix(mix(sample_gradient(i, j), sample_gradient(i + 1, j), u), mix(sample_gradient(i, j + 1), sample_gradient(i + 1, j + 1), u), v);
-    let n = local_normal(gr);
     let sun = frame.sun_local.xyz;
+    let is_object = (flags & 16u) != 0u;
+    // Geometric normal (local frame) for the shadow ray and offset of its origin (metres),
+    // shading normal.
+    var n_geom: vec3<f32>;
+    var n: vec3<f32>;
+    var off = frame.heights_range.z;
+    if (is_object) {
+        n_geom = to_local(oct_decode(g.z));
+        n = n_geom;
+        off = object_shadow_offset(g);
+    } else {
+        let i = i32(g.y & 0xffffu);
+        let j = i32(g.y >> 16u);
+        let h00 = sample_height(u32(i), u32(j));
+        let h10 = sample_height(u32(i + 1), u32(j));
+        let h01 = sample_height(u32(i), u32(j + 1));
+        let h11 = sample_height(u32(i + 1), u32(j + 1));
+        let u = clamp(p.x - f32(i), 0.0, 1.0);
+        let v = clamp(p.y - f32(j), 0.0, 1.0);
+        let e = h00 - h10 - h01 + h11;
+        n_geom = local_normal(vec2<f32>(h10 - h00 + e * v, h01 - h00 + e * u));
+        let gr = mix(mix(sample_gradient(i, j), sample_gradient(i + 1, j), u), mix(sample_gradient(i, j + 1), sample_gradient(i + 1, j + 1), u), v);
+        n = local_normal(gr);
+    }
     var lit = select(0.0, 1.0, dot(n_geom, sun) > 0.0);
     var shadow_steps = 0u;
     if (frame.mode.z != 0u && lit > 0.0) {
         var sr: Ray;
-        let off = frame.heights_range.z;
         sr.o = p + vec3<f32>(n_geom.x * off * frame.spacing.z, n_geom.y * off * frame.spacing.w, n_geom.z * off);
         sr.d = frame.sun_grid.xyz;
         let st = traverse(sr, 0.0, BIG, frame.mode.y);
         shadow_steps = st.steps;
-        if (st.hit || objects_shadow(px, frame.eye_world.xyz + dir_w * t + world_from_local(n_geom) * off)) {
+        if (st.hit || objects_shadow(px)) {
             lit = 0.0;
             flags |= 2u;
         }
     }
-    let base = albedo(p, n);
-    let diffuse = frame.sun_colour.xyz * (frame.sun_local.w * max(dot(n, sun), 0.0) * lit);
-    var c = base * (diffuse + ambient_light(n));
+    var c: vec3<f32>;
+    if (is_object) {
+        c = object_colour(g, n, dl, lit);
+        out.data = vec4<u32>(g.x, g.y >> 16u, min(shadow_steps, 0xffffu) << 16u, flags | (((g.y & 0xffffu) + 1u) << 8u));
+    } else {
+        let base = albedo(p, n);
+        let diffuse = frame.sun_colour.xyz * (frame.sun_local.w * max(dot(n, sun), 0.0) * lit);
+        c = base * (diffuse + ambient_light(n));
+        out.data = vec4<u32>(g.x, g.z, min(patches, 0xffffu) | (min(shadow_steps, 0xffffu) << 16u), flags);
+    }
     out.colour = vec4<f32>(srgb_encode(aerial_perspective(c, t, p.z, dl)), 1.0);
-    out.data = vec4<u32>(g.x, g.z, min(patches, 0xffffu) | (min(shadow_steps, 0xffffu) << 16u), flags);
     return out;
 }
