@@ -899,3 +899,67 @@ position = [360.0, 120.0, 0.0]
         }
     }
 }
+
+#[test]
+fn cli_renders_the_airfield_and_refuses_a_bad_object_before_writing() {
+    let dir = std::env::temp_dir().join(format!("relief-test-{}-ff-cli", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let run = |args: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_relief"))
+            .args(args)
+            .env("NODEVICE_SELECT", "1")
+            .current_dir(common::project_dir())
+            .output()
+            .expect("the relief binary runs")
+    };
+    // A broken object: the error names it and nothing is written.
+    let bad = dir.join("bad.toml");
+    let scene = std::fs::read_to_string(terrains().join("airfield.toml"))
+        .unwrap()
+        .replace(
+            "source = \"N47E009.hgt\"",
+            &format!("source = {:?}", terrains().join("N47E009.hgt")),
+        )
+        .replacen("radius = 14\n", "radius = nan\n", 1);
+    std::fs::write(&bad, scene).unwrap();
+    let out_bad = dir.join("bad-out");
+    let o = run(&[
+        "render",
+        bad.to_str().unwrap(),
+        "--out",
+        out_bad.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "a NaN radius must fail");
+    assert!(err.contains("hangar 1") && err.contains("radius"), "{err}");
+    assert!(!out_bad.join("frame_0000.png").exists());
+    if gpu().is_none() {
+        return;
+    }
+    let _l = gpu_lock();
+    let out = dir.join("out");
+    let o = run(&[
+        "render",
+        "terrains/airfield.toml",
+        "--size",
+        "160x120",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let meta: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("frame_0000.json")).unwrap())
+            .unwrap();
+    assert_eq!(meta["free_forms"], 56);
+    assert!(
+        meta["free_form_pixels"].as_u64().unwrap() > 300,
+        "{}",
+        meta["free_form_pixels"]
+    );
+    let (w, h, depth) =
+        relief::app::capture::read_depth_tiff(&out.join("depth_0000.tiff")).unwrap();
+    assert_eq!((w, h), (160, 120));
+    assert!(depth.iter().filter(|d| d.is_finite()).count() > 8000);
+    let _ = std::fs::remove_dir_all(&dir);
+}
