@@ -76,6 +76,8 @@ pub(crate) struct ObjectPasses {
     bin_shadow: wgpu::ComputePipeline,
     cast: wgpu::RenderPipeline,
     shadow: wgpu::RenderPipeline,
+    mark_primary: wgpu::RenderPipeline,
+    mark_shadow: wgpu::RenderPipeline,
     pub shade: wgpu::RenderPipeline,
 }
 
@@ -86,8 +88,76 @@ pub(crate) struct ObjectTargets {
     bin_shadow_bg: wgpu::BindGroup,
     cast_bg: wgpu::BindGroup,
     shadow_bg: wgpu::BindGroup,
+    gbuffer: wgpu::Texture,
     pub gbuffer_view: wgpu::TextureView,
     shadow_view: wgpu::TextureView,
+    /// Stencil 1 where the pixel's bin has objects in the list being processed.
+    stencil_view: wgpu::TextureView,
+}
+
+const STENCIL_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth24PlusStencil8;
+
+fn stencil_state(write: bool) -> wgpu::DepthStencilState {
+    let face = wgpu::StencilFaceState {
+        compare: if write {
+            wgpu::CompareFunction::Always
+        } else {
+            wgpu::CompareFunction::Equal
+        },
+        fail_op: wgpu::StencilOperation::Keep,
+        depth_fail_op: wgpu::StencilOperation::Keep,
+        pass_op: if write {
+            wgpu::StencilOperation::Replace
+        } else {
+            wgpu::StencilOperation::Keep
+        },
+    };
+    wgpu::DepthStencilState {
+        format: STENCIL_FORMAT,
+        depth_write_enabled: Some(false),
+        depth_compare: Some(wgpu::CompareFunction::Always),
+        stencil: wgpu::StencilState {
+            front: face,
+            back: face,
+            read_mask: 0xff,
+            write_mask: 0xff,
+        },
+        bias: Default::default(),
+    }
+}
+
+/// A full-screen pipeline behind (or writing) the stencil mask.
+fn masked_pipeline(
+    dev: &wgpu::Device,
+    label: &str,
+    m: &wgpu::ShaderModule,
+    entry: &str,
+    bgl: &wgpu::BindGroupLayout,
+    target: Option<wgpu::TextureFormat>,
+) -> wgpu::RenderPipeline {
+    let targets: Vec<Option<wgpu::ColorTargetState>> =
+        target.map(|f| Some(target_state(f))).into_iter().collect();
+    dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some(label),
+        layout: Some(&pipeline_layout(dev, bgl)),
+        vertex: wgpu::VertexState {
+            module: m,
+            entry_point: Some("vs_fullscreen"),
+            compilation_options: Default::default(),
+            buffers: &[],
+        },
+        primitive: wgpu::PrimitiveState::default(),
+        depth_stencil: Some(stencil_state(target.is_none())),
+        multisample: wgpu::MultisampleState::default(),
+        fragment: Some(wgpu::FragmentState {
+            module: m,
+            entry_point: Some(entry),
+            compilation_options: Default::default(),
+            targets: &targets,
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
 }
 
 fn uint_texture(binding: u32, vis: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
@@ -218,21 +288,37 @@ impl ObjectPasses {
         };
         let bin_primary = compute("cs_bin_primary");
         let bin_shadow = compute("cs_bin_shadow");
-        let cast = fullscreen_pipeline(
+        let cast = masked_pipeline(
             dev,
             "free-form cast",
             &cast_mod,
             "fs_objects",
             &cast_bgl,
-            &[Some(target_state(wgpu::TextureFormat::Rgba32Uint))],
+            Some(wgpu::TextureFormat::Rgba32Uint),
         );
-        let shadow = fullscreen_pipeline(
+        let shadow = masked_pipeline(
             dev,
             "free-form shadows",
             &shadow_mod,
             "fs_ff_shadow",
             &cast_bgl,
-            &[Some(target_state(wgpu::TextureFormat::R32Uint))],
+            Some(wgpu::TextureFormat::R32Uint),
+        );
+        let mark_primary = masked_pipeline(
+            dev,
+            "mark bins (primary)",
+            &cast_mod,
+            "fs_mark_primary",
+            &cast_bgl,
+            None,
+        );
+        let mark_shadow = masked_pipeline(
+            dev,
+            "mark bins (shadow)",
+            &cast_mod,
+            "fs_mark_shadow",
+            &cast_bgl,
+            None,
         );
         let shade = fullscreen_pipeline(
             dev,
@@ -256,6 +342,8 @@ impl ObjectPasses {
             bin_shadow,
             cast,
             shadow,
+            mark_primary,
+            mark_shadow,
             shade,
         })
     }
@@ -282,7 +370,7 @@ impl ObjectPasses {
             mapped_at_creation: false,
         });
         let target = |label, format| {
-            dev.create_texture(&wgpu::TextureDescriptor {
+            let tex = dev.create_texture(&wgpu::TextureDescriptor {
                 label: Some(label),
                 size: wgpu::Extent3d {
                     width,
@@ -294,13 +382,17 @@ impl ObjectPasses {
                 dimension: wgpu::TextureDimension::D2,
                 format,
                 usage: wgpu::TextureUsages::RENDER_ATTACHMENT
-                    | wgpu::TextureUsages::TEXTURE_BINDING,
+                    | wgpu::TextureUsages::TEXTURE_BINDING
+                    | wgpu::TextureUsages::COPY_DST,
                 view_formats: &[],
-            })
-            .create_view(&Default::default())
+            });
+            let view = tex.create_view(&Default::default());
+            (tex, view)
         };
-        let gbuffer_view = target("g-buffer with free forms", wgpu::TextureFormat::Rgba32Uint);
-        let shadow_view = target("free-form shadows", wgpu::TextureFormat::R32Uint);
+        let (gbuffer, gbuffer_view) =
+            target("g-buffer with free forms", wgpu::TextureFormat::Rgba32Uint);
+        let (_, shadow_view) = target("free-form shadows", wgpu::TextureFormat::R32Uint);
+        let (_, stencil_view) = target("free-form bin mask", STENCIL_FORMAT);
         let bin_bg = |label, depth: &wgpu::TextureView| {
             dev.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some(label),
@@ -336,8 +428,10 @@ impl ObjectPasses {
             bin_shadow_bg,
             cast_bg: cast_bg("free-form cast", terrain_gbuffer),
             shadow_bg: cast_bg("free-form shadows", &gbuffer_view),
+            gbuffer,
             gbuffer_view,
             shadow_view,
+            stencil_view,
         })
     }
 
@@ -392,15 +486,75 @@ impl ObjectPasses {
         pass.dispatch_workgroups(t.bins[0].div_ceil(8), t.bins[1].div_ceil(8), 1);
     }
 
+    /// One full-screen pass: marks the stencil (`colour` None) or runs behind it, loading or
+    /// clearing its colour target (pixels the mask skips keep what was there).
+    fn masked(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        t: &ObjectTargets,
+        pipeline: &wgpu::RenderPipeline,
+        bg: &wgpu::BindGroup,
+        colour: Option<(&wgpu::TextureView, wgpu::LoadOp<wgpu::Color>)>,
+    ) {
+        let attachments: Vec<_> = colour
+            .map(|(view, load)| {
+                Some(wgpu::RenderPassColorAttachment {
+                    view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load,
+                        store: wgpu::StoreOp::Store,
+                    },
+                })
+            })
+            .into_iter()
+            .collect();
+        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("free forms (masked)"),
+            color_attachments: &attachments,
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &t.stencil_view,
+                depth_ops: None,
+                stencil_ops: Some(wgpu::Operations {
+                    load: if colour.is_none() {
+                        wgpu::LoadOp::Clear(0)
+                    } else {
+                        wgpu::LoadOp::Load
+                    },
+                    store: wgpu::StoreOp::Store,
+                }),
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, bg, &[]);
+        pass.set_stencil_reference(1);
+        pass.draw(0..3, 0..1);
+    }
+
     /// Records the primary binning and the free-form cast (after the terrain cast).
-    pub fn encode_cast(&self, enc: &mut wgpu::CommandEncoder, t: &ObjectTargets) {
+    pub fn encode_cast(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        t: &ObjectTargets,
+        terrain_gbuffer: &wgpu::Texture,
+    ) {
         self.bin(enc, t, false);
-        super::renderer::TerrainRenderer::encode_fullscreen(
+        enc.copy_texture_to_texture(
+            terrain_gbuffer.as_image_copy(),
+            t.gbuffer.as_image_copy(),
+            terrain_gbuffer.size(),
+        );
+        self.masked(enc, t, &self.mark_primary, &t.cast_bg, None);
+        self.masked(
             enc,
-            "free-form cast",
+            t,
             &self.cast,
             &t.cast_bg,
-            &[&t.gbuffer_view],
+            Some((&t.gbuffer_view, wgpu::LoadOp::Load)),
         );
     }
 
@@ -408,12 +562,16 @@ impl ObjectPasses {
     /// before shading).
     pub fn encode_shadows(&self, enc: &mut wgpu::CommandEncoder, t: &ObjectTargets) {
         self.bin(enc, t, true);
-        super::renderer::TerrainRenderer::encode_fullscreen(
+        self.masked(enc, t, &self.mark_shadow, &t.cast_bg, None);
+        self.masked(
             enc,
-            "free-form shadows",
+            t,
             &self.shadow,
             &t.shadow_bg,
-            &[&t.shadow_view],
+            Some((
+                &t.shadow_view,
+                wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+            )),
         );
     }
 }

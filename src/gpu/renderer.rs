@@ -105,6 +105,7 @@ struct Targets {
     cast_bg: wgpu::BindGroup,
     shade_bg: wgpu::BindGroup,
     tile_view: wgpu::TextureView,
+    gbuffer: wgpu::Texture,
     gbuffer_view: wgpu::TextureView,
     colour: wgpu::Texture,
     colour_view: wgpu::TextureView,
@@ -740,6 +741,7 @@ impl TerrainRenderer {
             cast_bg,
             shade_bg,
             tile_view,
+            gbuffer,
             gbuffer_view,
             colour_view: colour.create_view(&Default::default()),
             data_view: data.create_view(&Default::default()),
@@ -891,7 +893,7 @@ impl TerrainRenderer {
         lap(&mut enc, &mut times.cast_ms)?;
         let objects = self.objects.as_ref().zip(t.objects.as_ref());
         if let Some((o, (ot, _))) = objects {
-            o.encode_cast(&mut enc, ot);
+            o.encode_cast(&mut enc, ot, &t.gbuffer);
             lap(&mut enc, &mut times.objects_ms)?;
         }
         if stage == Stage::Shade {
