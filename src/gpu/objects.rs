@@ -12,7 +12,7 @@ use wgpu::util::DeviceExt;
 /// Bin side in pixels (WGSL `FF_BIN`).
 pub const BIN: u32 = 16;
 /// Object indices stored per bin and list; a fuller bin falls back to testing every object.
-pub const BIN_CAPACITY: u32 = 63;
+pub const BIN_CAPACITY: u32 = 255;
 /// Storage buffers the shade pass with free forms binds (heights, pyramid, drape, objects).
 const STORAGE_BUFFERS: u32 = 4;
 
