@@ -34,6 +34,25 @@ impl Gpu {
     async fn new_async() -> Result<Gpu> {
         let instance =
             wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        Self::open(&instance, None, wgpu::Features::empty()).await
+    }
+
+    /// Opens a device on an adapter that can present to `surface` (same adapter choice as
+    /// [`Gpu::new`] otherwise), with the `optional` features the adapter has (the window uses
+    /// timestamp queries where they exist).
+    pub fn for_surface(
+        instance: &wgpu::Instance,
+        surface: &wgpu::Surface<'_>,
+        optional: wgpu::Features,
+    ) -> Result<Gpu> {
+        pollster::block_on(Self::open(instance, Some(surface), optional))
+    }
+
+    async fn open(
+        instance: &wgpu::Instance,
+        surface: Option<&wgpu::Surface<'_>>,
+        optional: wgpu::Features,
+    ) -> Result<Gpu> {
         let adapter = match std::env::var("WGPU_ADAPTER_NAME") {
             Ok(want) => {
                 let want = want.to_lowercase();
@@ -41,6 +60,7 @@ impl Gpu {
                 let names: Vec<String> = adapters.iter().map(|a| a.get_info().name).collect();
                 adapters
                     .into_iter()
+                    .filter(|a| surface.is_none_or(|s| a.is_surface_supported(s)))
                     .find(|a| a.get_info().name.to_lowercase().contains(&want))
                     .ok_or_else(|| {
                         Error::Gpu(format!(
@@ -52,6 +72,7 @@ impl Gpu {
                 .request_adapter(&wgpu::RequestAdapterOptions {
                     power_preference: wgpu::PowerPreference::from_env()
                         .unwrap_or(wgpu::PowerPreference::HighPerformance),
+                    compatible_surface: surface,
                     ..Default::default()
                 })
                 .await
@@ -80,7 +101,7 @@ impl Gpu {
         let (device, queue) = adapter
             .request_device(&wgpu::DeviceDescriptor {
                 label: Some("relief"),
-                required_features: wgpu::Features::empty(),
+                required_features: adapter.features() & optional,
                 required_limits: limits.clone(),
                 experimental_features: wgpu::ExperimentalFeatures::disabled(),
                 memory_hints: wgpu::MemoryHints::Performance,
