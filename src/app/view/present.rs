@@ -269,8 +269,7 @@ impl PresentPass {
     /// Records the pass from `colour`/`data` (the renderer's targets) into `target`.
     pub fn encode(
         &self,
-        device: &wgpu::Device,
-        queue: &wgpu::Queue,
+        gpu: &crate::gpu::Gpu,
         enc: &mut wgpu::CommandEncoder,
         colour: &wgpu::TextureView,
         data: &wgpu::TextureView,
@@ -279,8 +278,9 @@ impl PresentPass {
     ) {
         let mut u = *uniforms;
         u.mode[1] = self.decode_srgb as u32;
-        queue.write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&u));
-        let bg = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        gpu.queue
+            .write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&u));
+        let bg = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("present"),
             layout: &self.bgl,
             entries: &[

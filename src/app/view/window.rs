@@ -967,8 +967,7 @@ impl App {
                 font: self.font,
             };
             let mut enc = gpu.device.create_command_encoder(&Default::default());
-            w.present
-                .encode(&gpu.device, &gpu.queue, &mut enc, colour, data, &view, &u);
+            w.present.encode(gpu, &mut enc, colour, data, &view, &u);
             let (sw, sh) = (tex.texture.width(), tex.texture.height());
             let grab_buf = (grab && w.copy_src).then(|| {
                 let row = (sw * 4).div_ceil(256) * 256;
@@ -1123,7 +1122,11 @@ impl App {
                 m.mode.name(),
                 if mean > 0.0 { 1e3 / mean } else { 0.0 },
                 mean,
-                last.filter(|s| !s.gpu_ms.is_nan())
+                self.stats
+                    .iter()
+                    .rev()
+                    .take(2 * TIMER_SLOTS as usize)
+                    .find(|s| !s.gpu_ms.is_nan())
                     .map_or("-".into(), |s| format!("{:.1} MS", s.gpu_ms))
             ),
             format!(
@@ -1309,7 +1312,7 @@ fn grab_x11(window: &Window, dir: &Path, n: u64, suffix: &str, w: u32, h: u32) {
     {
         use winit::raw_window_handle::{HasWindowHandle, RawWindowHandle};
         let id = match window.window_handle().map(|h| h.as_raw()) {
-            Ok(RawWindowHandle::Xlib(x)) => x.window as u64,
+            Ok(RawWindowHandle::Xlib(x)) => x.window,
             Ok(RawWindowHandle::Xcb(x)) => x.window.get() as u64,
             _ => {
                 log::warn!("not an X11 window: no X server readback");
