@@ -158,6 +158,9 @@ struct ViewArgs {
     /// Debug: after frame FRAME resize the window to WxH (`--resize-at 30 320x240`).
     #[arg(long, num_args = 2, value_names = ["FRAME", "WxH"])]
     resize_at: Option<Vec<String>>,
+    /// Starting view: colour, depth or steps (traversal step heat map); V cycles them.
+    #[arg(long, value_parser = parse_debug_view, default_value = "colour")]
+    debug_view: relief::app::view::present::ViewMode,
     /// Start with the text overlay hidden (H toggles it).
     #[arg(long)]
     no_overlay: bool,
@@ -176,6 +179,16 @@ fn parse_mode(s: &str) -> std::result::Result<relief::app::view::motion::Mode, S
         "free" => Ok(Mode::Free),
         "aircraft" => Ok(Mode::Aircraft),
         _ => Err(format!("`{s}`: use path, free or aircraft")),
+    }
+}
+
+fn parse_debug_view(s: &str) -> std::result::Result<relief::app::view::present::ViewMode, String> {
+    use relief::app::view::present::ViewMode;
+    match s {
+        "colour" | "color" => Ok(ViewMode::Colour),
+        "depth" => Ok(ViewMode::Depth),
+        "steps" => Ok(ViewMode::Steps),
+        _ => Err(format!("`{s}`: use colour, depth or steps")),
     }
 }
 
@@ -220,6 +233,7 @@ fn view_options(a: ViewArgs) -> Result<relief::app::view::ViewOptions> {
     o.grab = a.grab;
     o.resize_at = resize_at;
     o.overlay = !a.no_overlay;
+    o.view_mode = a.debug_view;
     o.shadows = a.no_shadows.then_some(false);
     o.tile_prepass = a.no_tile_prepass.then_some(false);
     Ok(o)

@@ -542,8 +542,13 @@ fn one_window_per_channel_each_matches_headless() {
             "--rate",
             "30",
             "--unpaced",
+            "--no-overlay",
             "--capture-frames",
             &s(&cap),
+            "--grab",
+            "2",
+            "--screenshot-dir",
+            &s(&dir),
         ],
         Some(&x.display),
         &[],
@@ -573,12 +578,66 @@ fn one_window_per_channel_each_matches_headless() {
                 &[],
             ),
         );
+        let expected = head.join("frame_0002.png");
         assert_matches(
             &format!("view-channel-{c}"),
             &cap.join(format!("channel_{c}/frame_0002.png")),
-            &head.join("frame_0002.png"),
+            &expected,
+        );
+        // The windows sit side by side, so the X server shows each one whole.
+        assert_matches(
+            &format!("view-channel-{c}-x11"),
+            &dir.join(format!("x11_0002_c{c}.png")),
+            &expected,
         );
     }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn debug_views_show_depth_and_traversal_steps() {
+    let Some((x, _lock)) = window_env() else {
+        return;
+    };
+    let dir = temp_dir("debug-views");
+    let mut shots = Vec::new();
+    for view in ["colour", "depth", "steps"] {
+        let out = dir.join(view);
+        let o = relief(
+            &[
+                "view",
+                "terrains/alps.toml",
+                "--size",
+                "96x72",
+                "--frames",
+                "1",
+                "--no-overlay",
+                "--debug-view",
+                view,
+                "--grab",
+                "0",
+                "--screenshot-dir",
+                &s(&out),
+            ],
+            Some(&x.display),
+            &[],
+        );
+        check_ok(&format!("relief view --debug-view {view}"), &o);
+        shots.push(load_rgb(&out.join("surface_0000.png")));
+    }
+    let grey = |img: &image::RgbImage| {
+        img.pixels()
+            .filter(|p| p[0] == p[1] && p[1] == p[2])
+            .count()
+    };
+    let n = (96 * 72) as usize;
+    // Depth: grey levels on the terrain (only the sky is tinted), and not the colour image.
+    assert!(grey(&shots[1]) > n / 2, "depth view is not grey");
+    assert!(spread(&shots[1]) > 10.0, "depth view is flat");
+    assert!(mean_error(&shots[0], &shots[1]) > 0.05);
+    // Steps: a heat map, differing from both.
+    assert!(spread(&shots[2]) > 10.0, "step view is flat");
+    assert!(mean_error(&shots[2], &shots[0]) > 0.05 && mean_error(&shots[2], &shots[1]) > 0.05);
     let _ = std::fs::remove_dir_all(&dir);
 }
 

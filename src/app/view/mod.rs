@@ -68,6 +68,8 @@ pub struct ViewOptions {
     /// After this frame, resize the window to W x H (debug, for tests).
     pub resize_at: Option<(u64, u32, u32)>,
     pub overlay: bool,
+    /// Starting debug view (V cycles colour, depth, traversal steps).
+    pub view_mode: present::ViewMode,
     pub shadows: Option<bool>,
     pub tile_prepass: Option<bool>,
 }
@@ -99,6 +101,7 @@ impl ViewOptions {
             grab: None,
             resize_at: None,
             overlay: true,
+            view_mode: present::ViewMode::Colour,
             shadows: None,
             tile_prepass: None,
         }

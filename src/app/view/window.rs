@@ -462,6 +462,7 @@ impl App {
         App {
             fog_visibility: desc.fog.visibility,
             overlay: prep.opts.overlay,
+            view_mode: prep.opts.view_mode,
             desc,
             prep,
             instance,
@@ -479,7 +480,6 @@ impl App {
             dragging: false,
             cursor: None,
             look: (0.0, 0.0),
-            view_mode: ViewMode::Colour,
             screenshot: false,
             pending_resize: None,
             report: None,
@@ -531,11 +531,17 @@ impl App {
         };
         let monitors: Vec<_> = el.available_monitors().collect();
         let mut windows = Vec::new();
+        let mut left = 0u32;
         for (i, (_, title, w, h)) in specs.iter().enumerate() {
             let mut attrs = Window::default_attributes()
                 .with_title(title.clone())
                 .with_inner_size(PhysicalSize::new(*w, *h))
                 .with_visible(false);
+            if specs.len() > 1 {
+                // Channels side by side, left to right.
+                attrs = attrs.with_position(winit::dpi::PhysicalPosition::new(left, 0));
+                left += w;
+            }
             if let Some(first) = opts.fullscreen {
                 let m = monitors.get(first + i).ok_or_else(|| {
                     invalid(
@@ -548,7 +554,12 @@ impl App {
                         ),
                     )
                 })?;
-                attrs = attrs.with_fullscreen(Some(Fullscreen::Borderless(Some(m.clone()))));
+                // Position and size too: without a window manager (Xvfb, kiosk setups) the
+                // fullscreen hint alone changes nothing.
+                attrs = attrs
+                    .with_position(m.position())
+                    .with_inner_size(m.size())
+                    .with_fullscreen(Some(Fullscreen::Borderless(Some(m.clone()))));
             }
             let window = Arc::new(
                 el.create_window(attrs)
