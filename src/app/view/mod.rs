@@ -172,9 +172,11 @@ impl std::fmt::Display for ViewReport {
         )?;
         writeln!(
             f,
-            "cpu p50 {:.2} ms, p99 {:.2} ms; gpu ({}) p50 {}, p99 {}",
+            "cpu p50 {:.2} ms, p99 {:.2} ms; blocked in present p50 {:.2} ms, p99 {:.2} ms; gpu ({}) p50 {}, p99 {}",
             s.cpu_ms_p50,
             s.cpu_ms_p99,
+            s.present_call_ms_p50,
+            s.present_call_ms_p99,
             self.gpu_time_source,
             opt(s.gpu_ms_p50),
             opt(s.gpu_ms_p99)

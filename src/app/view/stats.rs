@@ -33,11 +33,14 @@ pub struct FrameStat {
     pub start_s: f64,
     /// Frame start to the previous frame's start (ms); 0 for the first frame.
     pub frame_ms: f64,
-    /// CPU time of the frame: input, motion, encoding, submits and presents, without waiting
-    /// for a swap-chain image (ms).
+    /// CPU time of the frame: input, motion, encoding, submits, captures (ms); without the
+    /// time blocked in acquiring swap-chain images, in present calls and waiting for the GPU.
     pub cpu_ms: f64,
-    /// Waiting for swap-chain images (ms).
+    /// Blocked acquiring swap-chain images (ms).
     pub acquire_ms: f64,
+    /// Blocked in the submit of the present pass and the present call (ms): a software
+    /// adapter waits for the swap-chain image and finishes the frame there.
+    pub present_ms: f64,
     /// GPU time (ms), `NaN` until known.
     pub gpu_ms: f64,
     /// Between this frame's present and the previous one's (ms); 0 for the first frame.
@@ -85,6 +88,8 @@ pub struct Summary {
     pub frame_ms_p99: f64,
     pub cpu_ms_p50: f64,
     pub cpu_ms_p99: f64,
+    pub present_call_ms_p50: f64,
+    pub present_call_ms_p99: f64,
     pub gpu_ms_p50: Option<f64>,
     pub gpu_ms_p99: Option<f64>,
     pub present_interval_ms_p50: f64,
@@ -101,6 +106,7 @@ pub fn summarize(frames: &[FrameStat]) -> Summary {
     let p = |v: &[f64], q| percentile(v, q).unwrap_or(f64::NAN);
     let frame_ms = col(|s| s.frame_ms, true);
     let cpu = col(|s| s.cpu_ms, false);
+    let present_call = col(|s| s.present_ms, false);
     let gpu = col(|s| s.gpu_ms, false);
     let present = col(|s| s.present_interval_ms, true);
     let lat = col(|s| s.latency_ms, false);
@@ -120,6 +126,8 @@ pub fn summarize(frames: &[FrameStat]) -> Summary {
         frame_ms_p99: p(&frame_ms, 99.0),
         cpu_ms_p50: p(&cpu, 50.0),
         cpu_ms_p99: p(&cpu, 99.0),
+        present_call_ms_p50: p(&present_call, 50.0),
+        present_call_ms_p99: p(&present_call, 99.0),
         gpu_ms_p50: percentile(&gpu, 50.0),
         gpu_ms_p99: percentile(&gpu, 99.0),
         present_interval_ms_p50: p(&present, 50.0),
@@ -130,7 +138,7 @@ pub fn summarize(frames: &[FrameStat]) -> Summary {
     }
 }
 
-pub const CSV_HEADER: &str = "frame,sim_time_s,start_s,frame_ms,cpu_ms,acquire_ms,gpu_ms,present_interval_ms,latency_ms,dropped,width,height,x,y,alt,agl,heading,pitch,roll";
+pub const CSV_HEADER: &str = "frame,sim_time_s,start_s,frame_ms,cpu_ms,acquire_ms,present_ms,gpu_ms,present_interval_ms,latency_ms,dropped,width,height,x,y,alt,agl,heading,pitch,roll";
 
 /// Writes [`FrameStat`] rows to a CSV file.
 pub struct StatsCsv {
@@ -153,13 +161,14 @@ impl StatsCsv {
         let [x, y, z] = s.position;
         writeln!(
             self.out,
-            "{},{:.6},{:.6},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{},{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3}",
+            "{},{:.6},{:.6},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{},{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3}",
             s.frame,
             s.sim_time,
             s.start_s,
             s.frame_ms,
             s.cpu_ms,
             s.acquire_ms,
+            s.present_ms,
             s.gpu_ms,
             s.present_interval_ms,
             s.latency_ms,

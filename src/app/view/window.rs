@@ -831,6 +831,7 @@ impl App {
         let gpu = &run.gpu;
         let n_windows = run.windows.len();
         let mut acquire = Duration::ZERO;
+        let mut present_call = Duration::ZERO;
         let mut last_present = None;
         let mut first_size = None;
         let slot = run.timer.as_ref().and_then(|tm| tm.slot(n));
@@ -1002,9 +1003,14 @@ impl App {
                 );
                 (buf, row)
             });
+            // A software adapter blocks here (the swap-chain image's semaphore, then the
+            // present's copy to the window): counted apart from the CPU time.
+            let t_present = Instant::now();
             gpu.queue.submit([enc.finish()]);
             gpu.queue.present(tex);
-            last_present = Some(Instant::now());
+            let presented = Instant::now();
+            present_call += presented - t_present;
+            last_present = Some(presented);
             if suboptimal {
                 let size = w.window.inner_size();
                 w.configure(gpu, size);
@@ -1038,11 +1044,14 @@ impl App {
             tm.start_readback(s, n);
         }
         let mut gpu_ms = f64::NAN;
+        let mut gpu_wait = Duration::ZERO;
         if run.timer.is_none() {
+            let waiting = Instant::now();
             let cell = wall_done.clone();
             gpu.queue
                 .on_submitted_work_done(move || *cell.lock().unwrap() = Some(Instant::now()));
             gpu.wait()?;
+            gpu_wait = waiting.elapsed();
             if let Some(done) = *wall_done.lock().unwrap() {
                 gpu_ms = (done - submit_start).as_secs_f64() * 1e3;
             }
@@ -1062,8 +1071,10 @@ impl App {
             sim_time: t,
             start_s: (start - loop_start).as_secs_f64(),
             frame_ms,
-            cpu_ms: ((end - start).saturating_sub(acquire)).as_secs_f64() * 1e3,
+            cpu_ms: ((end - start).saturating_sub(acquire + present_call + gpu_wait)).as_secs_f64()
+                * 1e3,
             acquire_ms: acquire.as_secs_f64() * 1e3,
+            present_ms: present_call.as_secs_f64() * 1e3,
             gpu_ms,
             present_interval_ms,
             latency_ms: last_present.map_or(f64::NAN, |p| (p - start).as_secs_f64() * 1e3),
