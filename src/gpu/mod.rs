@@ -76,11 +76,15 @@ impl Gpu {
                     ..Default::default()
                 })
                 .await
-                .map_err(|e| {
-                    Error::Gpu(format!(
+                .map_err(|e| match surface {
+                    Some(_) => Error::Gpu(format!(
+                        "no graphics adapter can present to this window ({e}); on X11 the \
+                         screen needs 24-bit colour (Xvfb: -screen 0 1280x1024x24)"
+                    )),
+                    None => Error::Gpu(format!(
                         "no graphics adapter found ({e}); install Mesa's software drivers \
                          (Debian: mesa-vulkan-drivers libvulkan1, or libegl-mesa0 for GL)"
-                    ))
+                    )),
                 })?,
         };
         let info = adapter.get_info();
