@@ -52,6 +52,8 @@ enum Command {
         #[arg(long, value_parser = parse_vec::<3>, allow_hyphen_values = true)]
         eye: Option<[f64; 3]>,
     },
+    /// Open a window: the same renderer in a fixed-rate frame loop, with flight and capture.
+    View(Box<ViewArgs>),
     /// Benchmark the pyramid traversal against a fixed-step march on the same rays.
     Bench {
         /// Scene file (default: terrains/alps.toml).
@@ -87,6 +89,158 @@ enum Command {
         #[arg(long, value_parser = parse_vec::<3>, num_args = 2, allow_hyphen_values = true)]
         los: Option<Vec<[f64; 3]>>,
     },
+}
+
+/// `relief view` flags (see README: Window).
+#[derive(clap::Args)]
+struct ViewArgs {
+    /// Scene file (TOML).
+    scene: PathBuf,
+    /// Window and render size WxH (overrides [output]).
+    #[arg(long, value_parser = parse_size)]
+    size: Option<(u32, u32)>,
+    /// Display config: one window per channel, each through its distortion table.
+    #[arg(long)]
+    display: Option<PathBuf>,
+    /// Only this channel of the display config.
+    #[arg(long)]
+    channel: Option<usize>,
+    /// Eye point X,Y,Z in the display frame (overrides the config's eye).
+    #[arg(long, value_parser = parse_vec::<3>, allow_hyphen_values = true)]
+    eye: Option<[f64; 3]>,
+    /// Eye point per frame for the distortion: a file of x,y,z lines, or - for stdin.
+    #[arg(long)]
+    eye_feed: Option<PathBuf>,
+    /// Borderless fullscreen on monitor INDEX (default 0); channel i on INDEX + i.
+    #[arg(long, num_args = 0..=1, default_missing_value = "0")]
+    fullscreen: Option<usize>,
+    /// Exit after N frames.
+    #[arg(long)]
+    frames: Option<u64>,
+    /// Target frame rate in Hz; the simulation steps 1/rate per frame.
+    #[arg(long, default_value_t = 60.0)]
+    rate: f64,
+    /// Wait for vsync (FIFO present) as well as pacing frames at --rate.
+    #[arg(long, conflicts_with = "mailbox")]
+    vsync: bool,
+    /// Present in mailbox mode (no tearing) instead of immediate.
+    #[arg(long)]
+    mailbox: bool,
+    /// Render frames back to back instead of pacing them at the target rate.
+    #[arg(long)]
+    unpaced: bool,
+    /// Per-frame statistics (CPU, GPU, present interval, latency, pose) to this CSV.
+    #[arg(long)]
+    stats_csv: Option<PathBuf>,
+    /// Starting motion: path, free or aircraft (default: path if there is one, else free).
+    #[arg(long, value_parser = parse_mode)]
+    mode: Option<relief::app::view::motion::Mode>,
+    /// Play back this path CSV (time,x,y,alt,heading,pitch,roll) instead of the scene's [path].
+    #[arg(long)]
+    path: Option<PathBuf>,
+    /// Record the flown path to this CSV (same columns as --path).
+    #[arg(long)]
+    record: Option<PathBuf>,
+    /// Aircraft control script CSV (time,throttle,pitch,roll,yaw).
+    #[arg(long)]
+    script: Option<PathBuf>,
+    /// Start at X,Y,Z (world metres) with HEADING (degrees) instead of the scene's camera.
+    #[arg(long, value_parser = parse_vec::<4>, allow_hyphen_values = true)]
+    start: Option<[f64; 4]>,
+    /// Free flight and aircraft stay at least this many metres above the terrain.
+    #[arg(long, default_value_t = 10.0)]
+    min_agl: f64,
+    /// Write every frame's capture files (as `relief render`) to this directory.
+    #[arg(long)]
+    capture_frames: Option<PathBuf>,
+    /// Directory for the screenshot key (P) and --grab.
+    #[arg(long, default_value = "out")]
+    screenshot_dir: PathBuf,
+    /// At frame N read back the swap-chain image and, on X11, the window from the X server.
+    #[arg(long)]
+    grab: Option<u64>,
+    /// Debug: after frame FRAME resize the window to WxH (`--resize-at 30 320x240`).
+    #[arg(long, num_args = 2, value_names = ["FRAME", "WxH"])]
+    resize_at: Option<Vec<String>>,
+    /// Starting view: colour, depth or steps (traversal step heat map); V cycles them.
+    #[arg(long, value_parser = parse_debug_view, default_value = "colour")]
+    debug_view: relief::app::view::present::ViewMode,
+    /// Start with the text overlay hidden (H toggles it).
+    #[arg(long)]
+    no_overlay: bool,
+    /// Turn terrain self-shadowing off.
+    #[arg(long)]
+    no_shadows: bool,
+    /// Turn the screen-tile pre-pass off.
+    #[arg(long)]
+    no_tile_prepass: bool,
+}
+
+fn parse_mode(s: &str) -> std::result::Result<relief::app::view::motion::Mode, String> {
+    use relief::app::view::motion::Mode;
+    match s {
+        "path" => Ok(Mode::Path),
+        "free" => Ok(Mode::Free),
+        "aircraft" => Ok(Mode::Aircraft),
+        _ => Err(format!("`{s}`: use path, free or aircraft")),
+    }
+}
+
+fn parse_debug_view(s: &str) -> std::result::Result<relief::app::view::present::ViewMode, String> {
+    use relief::app::view::present::ViewMode;
+    match s {
+        "colour" | "color" => Ok(ViewMode::Colour),
+        "depth" => Ok(ViewMode::Depth),
+        "steps" => Ok(ViewMode::Steps),
+        _ => Err(format!("`{s}`: use colour, depth or steps")),
+    }
+}
+
+fn view_options(a: ViewArgs) -> Result<relief::app::view::ViewOptions> {
+    let resize_at = match a.resize_at.as_deref() {
+        None => None,
+        Some([frame, size]) => {
+            let f: u64 = frame
+                .parse()
+                .map_err(|_| anyhow::anyhow!("--resize-at: `{frame}` is not a frame number"))?;
+            let (w, h) = parse_size(size).map_err(|e| anyhow::anyhow!("--resize-at: {e}"))?;
+            Some((f, w, h))
+        }
+        Some(_) => bail!("--resize-at needs FRAME WxH"),
+    };
+    let mut o = relief::app::view::ViewOptions::new(a.scene);
+    o.size = a.size;
+    o.display = a.display;
+    o.channel = a.channel;
+    o.eye = a.eye;
+    o.eye_feed = a.eye_feed;
+    o.fullscreen = a.fullscreen;
+    o.frames = a.frames;
+    o.rate = a.rate;
+    o.present = if a.vsync {
+        relief::app::view::PresentChoice::Vsync
+    } else if a.mailbox {
+        relief::app::view::PresentChoice::Mailbox
+    } else {
+        relief::app::view::PresentChoice::Paced
+    };
+    o.unpaced = a.unpaced;
+    o.stats_csv = a.stats_csv;
+    o.mode = a.mode;
+    o.path_csv = a.path;
+    o.record = a.record;
+    o.script = a.script;
+    o.start = a.start;
+    o.min_agl = a.min_agl;
+    o.capture_frames = a.capture_frames;
+    o.screenshot_dir = a.screenshot_dir;
+    o.grab = a.grab;
+    o.resize_at = resize_at;
+    o.overlay = !a.no_overlay;
+    o.view_mode = a.debug_view;
+    o.shadows = a.no_shadows.then_some(false);
+    o.tile_prepass = a.no_tile_prepass.then_some(false);
+    Ok(o)
 }
 
 #[derive(Subcommand)]
@@ -220,6 +374,12 @@ fn run(cli: Cli) -> Result<()> {
             let files =
                 capture::run(&job).with_context(|| format!("rendering {}", job.scene.display()))?;
             println!("wrote {} files to {}", files.len(), job.out_dir.display());
+        }
+        Some(Command::View(args)) => {
+            let opts = view_options(*args)?;
+            let report = relief::app::view::run(&opts)
+                .with_context(|| format!("viewing {}", opts.scene.display()))?;
+            println!("{report}");
         }
         Some(Command::Bench {
             scene,

@@ -35,6 +35,25 @@ impl Gpu {
     async fn new_async() -> Result<Gpu> {
         let instance =
             wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        Self::open(&instance, None, wgpu::Features::empty()).await
+    }
+
+    /// Opens a device on an adapter that can present to `surface` (same adapter choice as
+    /// [`Gpu::new`] otherwise), with the `optional` features the adapter has (the window uses
+    /// timestamp queries where they exist).
+    pub fn for_surface(
+        instance: &wgpu::Instance,
+        surface: &wgpu::Surface<'_>,
+        optional: wgpu::Features,
+    ) -> Result<Gpu> {
+        pollster::block_on(Self::open(instance, Some(surface), optional))
+    }
+
+    async fn open(
+        instance: &wgpu::Instance,
+        surface: Option<&wgpu::Surface<'_>>,
+        optional: wgpu::Features,
+    ) -> Result<Gpu> {
         let adapter = match std::env::var("WGPU_ADAPTER_NAME") {
             Ok(want) => {
                 let want = want.to_lowercase();
@@ -42,6 +61,7 @@ impl Gpu {
                 let names: Vec<String> = adapters.iter().map(|a| a.get_info().name).collect();
                 adapters
                     .into_iter()
+                    .filter(|a| surface.is_none_or(|s| a.is_surface_supported(s)))
                     .find(|a| a.get_info().name.to_lowercase().contains(&want))
                     .ok_or_else(|| {
                         Error::Gpu(format!(
@@ -53,14 +73,19 @@ impl Gpu {
                 .request_adapter(&wgpu::RequestAdapterOptions {
                     power_preference: wgpu::PowerPreference::from_env()
                         .unwrap_or(wgpu::PowerPreference::HighPerformance),
+                    compatible_surface: surface,
                     ..Default::default()
                 })
                 .await
-                .map_err(|e| {
-                    Error::Gpu(format!(
+                .map_err(|e| match surface {
+                    Some(_) => Error::Gpu(format!(
+                        "no graphics adapter can present to this window ({e}); on X11 the \
+                         screen needs 24-bit colour (Xvfb: -screen 0 1280x1024x24)"
+                    )),
+                    None => Error::Gpu(format!(
                         "no graphics adapter found ({e}); install Mesa's software drivers \
                          (Debian: mesa-vulkan-drivers libvulkan1, or libegl-mesa0 for GL)"
-                    ))
+                    )),
                 })?,
         };
         let info = adapter.get_info();
@@ -83,7 +108,7 @@ impl Gpu {
         let (device, queue) = adapter
             .request_device(&wgpu::DeviceDescriptor {
                 label: Some("relief"),
-                required_features: wgpu::Features::empty(),
+                required_features: adapter.features() & optional,
                 required_limits: limits.clone(),
                 experimental_features: wgpu::ExperimentalFeatures::disabled(),
                 memory_hints: wgpu::MemoryHints::Performance,

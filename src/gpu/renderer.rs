@@ -1289,3 +1289,21 @@ pub fn square_pyramid(terrain: &Terrain) -> (Vec<f32>, u32) {
     }
     (data, n)
 }
+
+/// Access to the last frame's targets, for callers that present them (the window).
+impl TerrainRenderer {
+    /// Size of the current targets, once a frame has been rendered.
+    pub fn target_size(&self) -> Option<(u32, u32)> {
+        self.targets.as_ref().map(|t| (t.width, t.height))
+    }
+
+    /// The colour target (Rgba8Unorm holding sRGB-encoded values, row 0 at the top).
+    pub fn colour_view(&self) -> Option<&wgpu::TextureView> {
+        self.targets.as_ref().map(|t| &t.colour_view)
+    }
+
+    /// The data target (Rgba32Uint: depth bits, steps, patch tests | shadow steps << 16, flags).
+    pub fn data_view(&self) -> Option<&wgpu::TextureView> {
+        self.targets.as_ref().map(|t| &t.data_view)
+    }
+}
