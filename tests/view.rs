@@ -641,6 +641,143 @@ fn debug_views_show_depth_and_traversal_steps() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// Key presses through XTEST (as a user's): the first mapped window named `relief…` gets the
+/// focus and the pointer, W is held for `hold`, then Escape is pressed.
+#[cfg(target_os = "linux")]
+fn fly_forward_then_escape(display: &str, hold: std::time::Duration) -> Result<(), String> {
+    use std::ffi::CString;
+    use x11_dl::{keysym, xlib, xtest};
+    let x = xlib::Xlib::open().map_err(|e| format!("libX11: {e}"))?;
+    let t = xtest::Xf86vmode::open().map_err(|e| format!("libXtst: {e}"))?;
+    let name = CString::new(display).unwrap();
+    // SAFETY: Xlib calls on a connection opened and closed here; returned lists and names are
+    // checked for null and freed with XFree.
+    unsafe {
+        let dpy = (x.XOpenDisplay)(name.as_ptr());
+        if dpy.is_null() {
+            return Err(format!("cannot open {display}"));
+        }
+        let root = (x.XDefaultRootWindow)(dpy);
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
+        let window = loop {
+            let (mut r, mut parent, mut kids, mut n) = (0, 0, std::ptr::null_mut(), 0);
+            (x.XQueryTree)(dpy, root, &mut r, &mut parent, &mut kids, &mut n);
+            let mut found = None;
+            for i in 0..n as usize {
+                let w = *kids.add(i);
+                let mut attrs: xlib::XWindowAttributes = std::mem::zeroed();
+                (x.XGetWindowAttributes)(dpy, w, &mut attrs);
+                let mut title = std::ptr::null_mut();
+                if attrs.map_state == xlib::IsViewable
+                    && (x.XFetchName)(dpy, w, &mut title) != 0
+                    && !title.is_null()
+                {
+                    let s = std::ffi::CStr::from_ptr(title)
+                        .to_string_lossy()
+                        .into_owned();
+                    (x.XFree)(title.cast());
+                    if s.starts_with("relief") {
+                        found = Some((w, attrs.x + attrs.width / 2, attrs.y + attrs.height / 2));
+                    }
+                }
+            }
+            if !kids.is_null() {
+                (x.XFree)(kids.cast());
+            }
+            if let Some(f) = found {
+                break f;
+            }
+            if std::time::Instant::now() > deadline {
+                (x.XCloseDisplay)(dpy);
+                return Err("no relief window was mapped within 30 s".into());
+            }
+            std::thread::sleep(std::time::Duration::from_millis(50));
+        };
+        // Let a few frames go by at the start pose, then fly.
+        std::thread::sleep(std::time::Duration::from_millis(300));
+        // No window manager: give the window the keyboard focus as one would.
+        (x.XSetInputFocus)(dpy, window.0, xlib::RevertToPointerRoot, xlib::CurrentTime);
+        (t.XTestFakeMotionEvent)(dpy, 0, window.1, window.2, 0);
+        (x.XFlush)(dpy);
+        std::thread::sleep(std::time::Duration::from_millis(100));
+        let key = |sym: u32, down: bool| {
+            let code = (x.XKeysymToKeycode)(dpy, sym as u64);
+            (t.XTestFakeKeyEvent)(dpy, code as u32, down as i32, 0);
+            (x.XFlush)(dpy);
+        };
+        key(keysym::XK_w, true);
+        std::thread::sleep(hold);
+        key(keysym::XK_w, false);
+        std::thread::sleep(std::time::Duration::from_millis(200));
+        key(keysym::XK_Escape, true);
+        key(keysym::XK_Escape, false);
+        (x.XCloseDisplay)(dpy);
+    }
+    Ok(())
+}
+
+#[cfg(target_os = "linux")]
+#[test]
+fn keyboard_flies_the_camera_and_escape_quits() {
+    let Some((x, _lock)) = window_env() else {
+        return;
+    };
+    let dir = temp_dir("keys");
+    let path = dir.join("flown.csv");
+    let child = Command::new(env!("CARGO_BIN_EXE_relief"))
+        .args([
+            "view",
+            "terrains/alps.toml",
+            "--size",
+            "96x72",
+            "--mode",
+            "free",
+            "--start",
+            "20000,40000,2500,180",
+            "--rate",
+            "30",
+            "--frames",
+            "900",
+            "--no-shadows",
+            "--record",
+            &s(&path),
+        ])
+        .env("NODEVICE_SELECT", "1")
+        .env("DISPLAY", &x.display)
+        .env_remove("WAYLAND_DISPLAY")
+        .current_dir(project_dir())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let keys = fly_forward_then_escape(&x.display, std::time::Duration::from_millis(1000));
+    let o = child.wait_with_output().unwrap();
+    keys.unwrap();
+    check_ok("relief view (keys)", &o);
+    let rows = read_csv(&path);
+    assert!(
+        rows.len() < 900,
+        "Escape did not end the run ({} frames)",
+        rows.len()
+    );
+    let (first, last) = (&rows[0], &rows[rows.len() - 1]);
+    assert_eq!(
+        (first["x"], first["y"], first["alt"]),
+        (20000.0, 40000.0, 2500.0)
+    );
+    // W held: forward is south (heading 180) at 200 m/s; the sim steps 1/30 s per frame, so the
+    // distance follows from the frames W was down, whatever the wall time.
+    let moved = first["y"] - last["y"];
+    let frames_moving = rows.windows(2).filter(|w| w[1]["y"] < w[0]["y"]).count();
+    assert!(frames_moving > 0, "W moved nothing");
+    assert!(
+        (moved - frames_moving as f64 * 200.0 / 30.0).abs() < 1e-6,
+        "moved {moved} m in {frames_moving} frames"
+    );
+    assert!((last["x"] - 20000.0).abs() < 1e-6 && last["alt"] == 2500.0);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 // ---- CPU parts: no window, no GPU ----
 
 #[test]

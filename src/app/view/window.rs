@@ -856,8 +856,7 @@ impl App {
                 None => (w.config.width, w.config.height),
             };
             first_size.get_or_insert((rw, rh));
-            if let (Some(c), Some(e)) = (w.channel, eye) {
-                let _ = c;
+            if let (Some(_), Some(e)) = (w.channel, eye) {
                 w.renderer.set_eye(e);
             }
             let cam = Camera::new(pose, rw, rh);
