@@ -33,3 +33,25 @@ fn naga_rejects_a_broken_shader() {
     };
     assert!(invalid);
 }
+
+#[test]
+fn free_form_constants_match_the_cpu_side() {
+    let src = relief::gpu::shaders::objects();
+    let levels = format!(
+        "const FF_LEVELS: u32 = {}u;",
+        relief::cpu::freeform::GPU_LEVELS
+    );
+    assert!(
+        src.contains(&levels),
+        "WGSL and cpu::freeform::GPU_LEVELS differ"
+    );
+    let nodes = format!(
+        "const FF_MAX_NODES: u32 = {}u;",
+        relief::freeform::MAX_NODES
+    );
+    let depth = format!(
+        "const FF_MAX_DEPTH: u32 = {}u;",
+        relief::freeform::MAX_DEPTH
+    );
+    assert!(src.contains(&nodes) && src.contains(&depth));
+}
