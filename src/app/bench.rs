@@ -96,6 +96,16 @@ fn depth_error(out: &FrameOutput, reference: &[(u32, u32, Option<f64>)]) -> Dept
     }
 }
 
+/// The scene at `size` (validated again) and its terrain.
+fn load_at_size(scene_path: &Path, size: (u32, u32)) -> Result<(Scene, Terrain)> {
+    let mut scene = Scene::load(scene_path)?;
+    scene.desc.output.width = size.0;
+    scene.desc.output.height = size.1;
+    scene.desc.validate()?;
+    let terrain = scene.load_terrain()?;
+    Ok((scene, terrain))
+}
+
 /// Runs the benchmark on `scene_path` at `size` with `frames` timed frames per configuration.
 pub fn run(
     scene_path: &Path,
@@ -103,11 +113,7 @@ pub fn run(
     frames: u32,
     dump: Option<&Path>,
 ) -> Result<BenchReport> {
-    let mut scene = Scene::load(scene_path)?;
-    scene.desc.output.width = size.0;
-    scene.desc.output.height = size.1;
-    scene.desc.validate()?;
-    let terrain = scene.load_terrain()?;
+    let (scene, terrain) = load_at_size(scene_path, size)?;
     let t = Instant::now();
     let _ = crate::terrain::MaxPyramid::build(&terrain.field);
     let pyramid_build_ms = t.elapsed().as_secs_f64() * 1e3;
@@ -403,11 +409,7 @@ pub fn scattered_free_forms(
 /// Runs the free-form benchmark on `scene_path` (its `[[objects]]`), then with 10, 100 and
 /// 1000 generated objects.
 pub fn run_freeforms(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<FreeFormReport> {
-    let mut scene = Scene::load(scene_path)?;
-    scene.desc.output.width = size.0;
-    scene.desc.output.height = size.1;
-    scene.desc.validate()?;
-    let terrain = scene.load_terrain()?;
+    let (scene, terrain) = load_at_size(scene_path, size)?;
     let objects = scene.free_forms(&terrain)?;
     let gpu = Gpu::new()?;
     let mut renderer = TerrainRenderer::new(&gpu, &terrain)?;

@@ -2,7 +2,10 @@
 //! 16x16-pixel bin, primary and shadow lists), the free-form cast pass (fragment) and the
 //! shade pipeline that knows free forms.
 
-use super::renderer::{buf, fullscreen_pipeline, pipeline_layout, storage_entry, target_state};
+use super::renderer::{
+    buf, fullscreen_pipeline, fullscreen_pipeline_with, pipeline_layout, storage_entry,
+    target_state, uint_texture_entry, uniform_entry,
+};
 use super::types::{FfNodeGpu, FfObjectGpu};
 use super::{shaders, Gpu};
 use crate::freeform::FreeForm;
@@ -126,7 +129,7 @@ fn stencil_state(write: bool) -> wgpu::DepthStencilState {
     }
 }
 
-/// A full-screen pipeline behind (or writing) the stencil mask.
+/// A full-screen pipeline behind (or, without a colour target, writing) the stencil mask.
 fn masked_pipeline(
     dev: &wgpu::Device,
     label: &str,
@@ -137,53 +140,15 @@ fn masked_pipeline(
 ) -> wgpu::RenderPipeline {
     let targets: Vec<Option<wgpu::ColorTargetState>> =
         target.map(|f| Some(target_state(f))).into_iter().collect();
-    dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-        label: Some(label),
-        layout: Some(&pipeline_layout(dev, bgl)),
-        vertex: wgpu::VertexState {
-            module: m,
-            entry_point: Some("vs_fullscreen"),
-            compilation_options: Default::default(),
-            buffers: &[],
-        },
-        primitive: wgpu::PrimitiveState::default(),
-        depth_stencil: Some(stencil_state(target.is_none())),
-        multisample: wgpu::MultisampleState::default(),
-        fragment: Some(wgpu::FragmentState {
-            module: m,
-            entry_point: Some(entry),
-            compilation_options: Default::default(),
-            targets: &targets,
-        }),
-        multiview_mask: None,
-        cache: None,
-    })
-}
-
-fn uint_texture(binding: u32, vis: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: vis,
-        ty: wgpu::BindingType::Texture {
-            sample_type: wgpu::TextureSampleType::Uint,
-            view_dimension: wgpu::TextureViewDimension::D2,
-            multisampled: false,
-        },
-        count: None,
-    }
-}
-
-fn uniform(binding: u32, vis: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: vis,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Uniform,
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
+    fullscreen_pipeline_with(
+        dev,
+        label,
+        m,
+        entry,
+        bgl,
+        &targets,
+        Some(stencil_state(target.is_none())),
+    )
 }
 
 fn view(binding: u32, v: &wgpu::TextureView) -> wgpu::BindGroupEntry<'_> {
@@ -235,9 +200,9 @@ impl ObjectPasses {
         let bin_bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("free-form bins"),
             entries: &[
-                uniform(0, cs),
-                uint_texture(3, cs),
-                uint_texture(4, cs),
+                uniform_entry(0, cs),
+                uint_texture_entry(3, cs),
+                uint_texture_entry(4, cs),
                 storage_entry(6, cs, true),
                 storage_entry(8, cs, false),
             ],
@@ -245,9 +210,9 @@ impl ObjectPasses {
         let cast_bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("free-form cast"),
             entries: &[
-                uniform(0, fs),
-                uint_texture(3, fs),
-                uint_texture(4, fs),
+                uniform_entry(0, fs),
+                uint_texture_entry(3, fs),
+                uint_texture_entry(4, fs),
                 storage_entry(6, fs, true),
                 storage_entry(7, fs, true),
                 storage_entry(8, fs, true),
@@ -256,14 +221,14 @@ impl ObjectPasses {
         let shade_bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("shade with free forms"),
             entries: &[
-                uniform(0, fs),
+                uniform_entry(0, fs),
                 storage_entry(1, fs, true),
                 storage_entry(2, fs, true),
-                uint_texture(3, fs),
-                uint_texture(4, fs),
+                uint_texture_entry(3, fs),
+                uint_texture_entry(4, fs),
                 storage_entry(5, fs, true),
                 storage_entry(6, fs, true),
-                uint_texture(9, fs),
+                uint_texture_entry(9, fs),
             ],
         });
         let module = |label: &str, src: String| {

@@ -198,7 +198,7 @@ pub(crate) fn storage_entry(
     }
 }
 
-fn uniform_entry(binding: u32, vis: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+pub(crate) fn uniform_entry(binding: u32, vis: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility: vis,
@@ -206,6 +206,23 @@ fn uniform_entry(binding: u32, vis: wgpu::ShaderStages) -> wgpu::BindGroupLayout
             ty: wgpu::BufferBindingType::Uniform,
             has_dynamic_offset: false,
             min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+/// A bind-group entry for an unsigned-integer 2-D texture.
+pub(crate) fn uint_texture_entry(
+    binding: u32,
+    vis: wgpu::ShaderStages,
+) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: vis,
+        ty: wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Uint,
+            view_dimension: wgpu::TextureViewDimension::D2,
+            multisampled: false,
         },
         count: None,
     }
@@ -325,16 +342,7 @@ impl TerrainRenderer {
                 vec![uniform_entry(0, fs)]
             },
         });
-        let uint_texture = |binding| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: fs,
-            ty: wgpu::BindingType::Texture {
-                sample_type: wgpu::TextureSampleType::Uint,
-                view_dimension: wgpu::TextureViewDimension::D2,
-                multisampled: false,
-            },
-            count: None,
-        };
+        let uint_texture = |binding| uint_texture_entry(binding, fs);
         let common = [
             uniform_entry(0, fs),
             storage_entry(1, fs, true),
@@ -1027,6 +1035,19 @@ pub(crate) fn fullscreen_pipeline(
     bgl: &wgpu::BindGroupLayout,
     targets: &[Option<wgpu::ColorTargetState>],
 ) -> wgpu::RenderPipeline {
+    fullscreen_pipeline_with(dev, label, m, entry, bgl, targets, None)
+}
+
+/// [`fullscreen_pipeline`] with a depth-stencil state (the free-form passes' bin mask).
+pub(crate) fn fullscreen_pipeline_with(
+    dev: &wgpu::Device,
+    label: &str,
+    m: &wgpu::ShaderModule,
+    entry: &str,
+    bgl: &wgpu::BindGroupLayout,
+    targets: &[Option<wgpu::ColorTargetState>],
+    depth_stencil: Option<wgpu::DepthStencilState>,
+) -> wgpu::RenderPipeline {
     dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some(label),
         layout: Some(&pipeline_layout(dev, bgl)),
@@ -1037,7 +1058,7 @@ pub(crate) fn fullscreen_pipeline(
             buffers: &[],
         },
         primitive: wgpu::PrimitiveState::default(),
-        depth_stencil: None,
+        depth_stencil,
         multisample: wgpu::MultisampleState::default(),
         fragment: Some(wgpu::FragmentState {
             module: m,

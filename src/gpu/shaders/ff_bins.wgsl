@@ -14,18 +14,8 @@ fn ff_bin_base(px: vec2<u32>, list: u32) -> u32 {
 
 // Distance at which the ray enters object `id`'s box within [t_min, t_max]; BIG if it does not.
 fn ff_box_entry(id: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32, t_max: f32) -> f32 {
-    let ob = ff_objects[id];
-    let o = ff_to_local(ob, ro - ob.position.xyz);
-    let d = ff_to_local(ob, rd);
-    let ds = select(d, vec3<f32>(1.0e-20), abs(d) < vec3<f32>(1.0e-20));
-    let inv = 1.0 / ds;
-    let ta = (ob.box_min.xyz - o) * inv;
-    let tb = (ob.box_max.xyz - o) * inv;
-    let tn = min(ta, tb);
-    let tf = max(ta, tb);
-    let t0 = max(max(tn.x, tn.y), max(tn.z, t_min));
-    let t1 = min(min(tf.x, tf.y), min(tf.z, t_max));
-    return select(BIG, t0, t0 <= t1);
+    let sp = ff_span(ff_objects[id], ro, rd, t_min, t_max);
+    return select(BIG, sp.t0, sp.t0 <= sp.t1);
 }
 
 struct FfNearest {

@@ -204,6 +204,32 @@ fn ff_plain_root(c: vec3<f32>, len: f32) -> f32 {
     return -1.0;
 }
 
+// The ray in an object's frame and its span [t0, t1] inside the box (empty when t0 > t1);
+// tn holds each slab's entry distance, to tell which face t0 enters through.
+struct FfSpan {
+    o: vec3<f32>,
+    d: vec3<f32>,
+    tn: vec3<f32>,
+    t0: f32,
+    t1: f32,
+}
+
+fn ff_span(ob: FfObject, ro: vec3<f32>, rd: vec3<f32>, t_min: f32, t_max: f32) -> FfSpan {
+    var sp: FfSpan;
+    sp.o = ff_to_local(ob, ro - ob.position.xyz);
+    sp.d = ff_to_local(ob, rd);
+    // Zero direction components become tiny ones of either sign (same result).
+    let ds = select(sp.d, vec3<f32>(1.0e-20), abs(sp.d) < vec3<f32>(1.0e-20));
+    let inv = 1.0 / ds;
+    let ta = (ob.box_min.xyz - sp.o) * inv;
+    let tb = (ob.box_max.xyz - sp.o) * inv;
+    sp.tn = min(ta, tb);
+    let tf = max(ta, tb);
+    sp.t0 = max(max(sp.tn.x, sp.tn.y), max(sp.tn.z, t_min));
+    sp.t1 = min(min(tf.x, tf.y), min(tf.z, t_max));
+    return sp;
+}
+
 // First hit of the world ray ro + t rd (rd unit) with object `id`, t in [t_min, t_max]; the
 // normal is left to `ff_normal`. One loop drives every enclosure evaluation through a single
 // call site (Mesa inlines each call and its SIMD rasteriser runs every loop body at least
@@ -217,17 +243,12 @@ fn ff_intersect(id: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32, t_max: f32) -
     h.n = vec3<f32>(0.0);
     h.iterations = 0u;
     let ob = ff_objects[id];
-    let o = ff_to_local(ob, ro - ob.position.xyz);
-    let d = ff_to_local(ob, rd);
-    // Slab clip; zero direction components become tiny ones of either sign (same result).
-    let ds = select(d, vec3<f32>(1.0e-20), abs(d) < vec3<f32>(1.0e-20));
-    let inv = 1.0 / ds;
-    let ta = (ob.box_min.xyz - o) * inv;
-    let tb = (ob.box_max.xyz - o) * inv;
-    let tn = min(ta, tb);
-    let tf = max(ta, tb);
-    let t0 = max(max(tn.x, tn.y), max(tn.z, t_min));
-    let t1 = min(min(tf.x, tf.y), min(tf.z, t_max));
+    let span = ff_span(ob, ro, rd, t_min, t_max);
+    let o = span.o;
+    let d = span.d;
+    let tn = span.tn;
+    let t0 = span.t0;
+    let t1 = span.t1;
     if (t0 > t1) {
         return h;
     }
