@@ -182,11 +182,13 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
         ));
     }
     let terrain = scene.load_terrain()?;
+    let objects = scene.free_forms(&terrain)?;
+    let volumes = scene.volumes(&terrain)?;
     let gpu = Gpu::new()?;
     log::info!("adapter: {}", gpu.describe());
     let mut renderer = TerrainRenderer::new(&gpu, &terrain)?;
-    let objects = scene.free_forms(&terrain)?;
     renderer.set_objects(&gpu, &objects)?;
+    renderer.set_volumes(&gpu, &volumes)?;
     let mut display_meta = serde_json::Value::Null;
     if let Some(d) = &job.display {
         if job.size.is_some() {
@@ -260,12 +262,13 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
             .map_err(|e| Error::io(tmp, e))
         })?;
         log::info!(
-            "frame {frame}: raygen {:.1} ms, tile {:.1} ms, cast {:.1} ms, free forms {:.1} ms, shade {:.1} ms -> {}",
+            "frame {frame}: raygen {:.1} ms, tile {:.1} ms, cast {:.1} ms, free forms {:.1} ms, shade {:.1} ms, volume {:.1} ms -> {}",
             out.times.raygen_ms,
             out.times.tile_ms,
             out.times.cast_ms,
             out.times.objects_ms,
             out.times.shade_ms,
+            out.times.volume_ms,
             png.display()
         );
         written.extend([png, tif, meta]);

@@ -9,6 +9,7 @@ pub mod objects;
 pub mod renderer;
 pub mod shaders;
 pub mod types;
+pub mod volumes;
 
 pub use renderer::{
     FrameOutput, KernelPath, PassTimes, RenderSettings, Stage, TerrainRenderer, TraceMode,
@@ -101,6 +102,7 @@ impl Gpu {
             max_storage_buffer_binding_size: alimits.max_storage_buffer_binding_size,
             max_buffer_size: alimits.max_buffer_size,
             max_texture_dimension_2d: alimits.max_texture_dimension_2d,
+            max_texture_dimension_3d: alimits.max_texture_dimension_3d,
             // The shade pass with free forms reads six storage buffers.
             max_storage_buffers_per_shader_stage: alimits.max_storage_buffers_per_shader_stage,
             ..wgpu::Limits::downlevel_defaults()

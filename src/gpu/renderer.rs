@@ -52,6 +52,8 @@ pub struct PassTimes {
     /// Free-form binning and cast (0 without free forms).
     pub objects_ms: f64,
     pub shade_ms: f64,
+    /// Volume integration and compositing (0 without a volume).
+    pub volume_ms: f64,
     pub readback_ms: f64,
 }
 
@@ -91,6 +93,10 @@ pub struct FrameOutput {
     pub flags: Vec<u32>,
     /// Free-form index + 1 per pixel (0 where no free form shows).
     pub objects: Vec<u32>,
+    /// Volume texture samples taken per pixel (empty without a volume).
+    pub volume_samples: Vec<u32>,
+    /// Volume lattice segments passed per pixel, sampled or skipped (empty without a volume).
+    pub volume_segments: Vec<u32>,
     pub times: PassTimes,
 }
 
@@ -115,6 +121,8 @@ struct Targets {
     data_rb: wgpu::Buffer,
     /// Free-form bins, G-buffer and the shade bind group that reads them.
     objects: Option<(ObjectTargets, wgpu::BindGroup)>,
+    /// The shaded image under the volume and the volume pass's statistics.
+    volume: Option<super::volumes::VolumeTargets>,
 }
 
 /// Which entry points run the per-pixel kernels that have both (ray generation today).
@@ -167,6 +175,7 @@ pub struct TerrainRenderer {
     tile_mod: wgpu::ShaderModule,
     table: Option<TableMode>,
     objects: Option<ObjectPasses>,
+    volume: Option<super::volumes::VolumePass>,
     targets: Option<Targets>,
 }
 
@@ -459,6 +468,7 @@ impl TerrainRenderer {
             tile_mod,
             table: None,
             objects: None,
+            volume: None,
             targets: None,
         })
     }
@@ -571,6 +581,46 @@ impl TerrainRenderer {
         };
         self.targets = None;
         Ok(())
+    }
+
+    /// Uploads the scene's density volume (none: no volume pass). One volume per scene.
+    pub fn set_volumes(&mut self, gpu: &Gpu, volumes: &[crate::volume::Volume]) -> Result<()> {
+        if volumes.len() > 1 {
+            return Err(Error::invalid(
+                "volumes",
+                format!(
+                    "{} [[volumes]] tables; the renderer composites one volume per scene: \
+                     merge them into one grid",
+                    volumes.len()
+                ),
+            ));
+        }
+        self.volume = match volumes.first() {
+            Some(v) => Some(super::volumes::VolumePass::new(gpu, v)?),
+            None => None,
+        };
+        self.targets = None;
+        Ok(())
+    }
+
+    /// Reclassifies the volume with a new transfer function (table and brick occupancy are
+    /// recomputed and uploaded).
+    pub fn set_volume_transfer(&mut self, gpu: &Gpu, tf: crate::volume::TransferFunction) {
+        if let Some(v) = &mut self.volume {
+            v.set_transfer(gpu, tf);
+        }
+    }
+
+    /// Changes the volume's sampling switches (step, skipping, termination, jitter, mip-maps).
+    pub fn set_volume_settings(&mut self, gpu: &Gpu, settings: crate::volume::VolumeSettings) {
+        if let Some(v) = &mut self.volume {
+            if v.volume.settings.mipmaps != settings.mipmaps {
+                v.volume.settings = settings;
+                let tf = v.volume.transfer.clone();
+                v.set_transfer(gpu, tf);
+            }
+            v.volume.settings = settings;
+        }
     }
 
     /// Moves the eye (display frame) for the next frames of a distortion table.
@@ -737,7 +787,18 @@ impl TerrainRenderer {
             }
             None => None,
         };
+        let volume = self.volume.as_ref().map(|v| {
+            v.targets(
+                gpu,
+                width,
+                height,
+                &self.frame_ub,
+                &ray_table_view,
+                &data.create_view(&Default::default()),
+            )
+        });
         self.targets = Some(Targets {
+            volume,
             objects,
             width,
             height,
@@ -914,14 +975,20 @@ impl TerrainRenderer {
                 }
                 None => (&self.shade_pipeline, &t.shade_bg),
             };
-            Self::encode_fullscreen(
-                &mut enc,
-                "shade",
-                pipeline,
-                bg,
-                &[&t.colour_view, &t.data_view],
-            );
+            let shaded = t.volume.as_ref().map_or(&t.colour_view, |v| &v.under_view);
+            Self::encode_fullscreen(&mut enc, "shade", pipeline, bg, &[shaded, &t.data_view]);
             lap(&mut enc, &mut times.shade_ms)?;
+            if let (Some(v), Some(vt)) = (&self.volume, &t.volume) {
+                v.write_uniforms(gpu, cam.pose.position);
+                Self::encode_fullscreen(
+                    &mut enc,
+                    "volume",
+                    &v.pipeline,
+                    &vt.bg,
+                    &[&t.colour_view, &vt.stats_view],
+                );
+                lap(&mut enc, &mut times.volume_ms)?;
+            }
         }
         gpu.queue.submit([enc.finish()]);
         Ok(times)
@@ -977,9 +1044,31 @@ impl TerrainRenderer {
                 },
             );
         }
+        if let Some(vt) = &t.volume {
+            enc.copy_texture_to_buffer(
+                vt.stats.as_image_copy(),
+                wgpu::TexelCopyBufferInfo {
+                    buffer: &vt.stats_rb,
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(padded_row(w * 8)),
+                        rows_per_image: Some(h),
+                    },
+                },
+                wgpu::Extent3d {
+                    width: w,
+                    height: h,
+                    depth_or_array_layers: 1,
+                },
+            );
+        }
         gpu.queue.submit([enc.finish()]);
         let rgba = read_buffer(gpu, &t.colour_rb, w * 4, h)?;
         let data = read_buffer(gpu, &t.data_rb, w * 16, h)?;
+        let stats = match &t.volume {
+            Some(vt) => read_buffer(gpu, &vt.stats_rb, w * 8, h)?,
+            None => Vec::new(),
+        };
         times.readback_ms = start.elapsed().as_secs_f64() * 1e3;
         let words: &[u32] = bytemuck::cast_slice(&data);
         let n = (w * h) as usize;
@@ -993,8 +1082,14 @@ impl TerrainRenderer {
             shadow_steps: Vec::with_capacity(n),
             flags: Vec::with_capacity(n),
             objects: Vec::with_capacity(n),
+            volume_samples: Vec::new(),
+            volume_segments: Vec::new(),
             times,
         };
+        for px in bytemuck::cast_slice::<u8, u32>(&stats).chunks_exact(2) {
+            out.volume_samples.push(px[0]);
+            out.volume_segments.push(px[1]);
+        }
         for px in words.chunks_exact(4) {
             out.depth.push(f32::from_bits(px[0]));
             out.steps.push(px[1]);
@@ -1116,7 +1211,7 @@ impl TerrainRenderer {
     }
 }
 
-fn padded_row(bytes: u32) -> u32 {
+pub(crate) fn padded_row(bytes: u32) -> u32 {
     bytes.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT
 }
 

@@ -8,6 +8,7 @@ const GBUFFER: &str = include_str!("shaders/gbuffer.wgsl");
 const RAY_TABLE: &str = include_str!("shaders/ray_table.wgsl");
 const FREEFORM: &str = include_str!("shaders/freeform.wgsl");
 const FF_BINS: &str = include_str!("shaders/ff_bins.wgsl");
+const HAZE: &str = include_str!("shaders/haze.wgsl");
 
 /// Ray generation (compute): pinhole ray table.
 pub fn raygen() -> String {
@@ -47,6 +48,7 @@ pub fn shade() -> String {
         RAY_TABLE,
         TRAVERSE,
         GBUFFER,
+        HAZE,
         include_str!("shaders/shade.wgsl"),
         include_str!("shaders/shade_terrain_only.wgsl"),
     ]
@@ -63,6 +65,7 @@ pub fn shade_objects() -> String {
         TRAVERSE,
         GBUFFER,
         FREEFORM,
+        HAZE,
         include_str!("shaders/shade.wgsl"),
         include_str!("shaders/shade_objects.wgsl"),
     ]
@@ -106,6 +109,19 @@ pub fn objects() -> String {
     .concat()
 }
 
+/// Volume pass (fragment): integrates a density volume in front of the opaque depth and
+/// composites it over the shaded image.
+pub fn volume() -> String {
+    [
+        FRAME,
+        FULLSCREEN,
+        RAY_TABLE,
+        HAZE,
+        include_str!("shaders/volume.wgsl"),
+    ]
+    .concat()
+}
+
 /// Every composed pass source with its name, for validation.
 pub fn all() -> Vec<(&'static str, String)> {
     vec![
@@ -117,5 +133,6 @@ pub fn all() -> Vec<(&'static str, String)> {
         ("ff_bin", ff_bin()),
         ("objects", objects()),
         ("ff_shadow", ff_shadow()),
+        ("volume", volume()),
     ]
 }

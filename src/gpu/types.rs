@@ -83,3 +83,30 @@ pub struct FfNodeGpu {
 
 const _: () = assert!(std::mem::size_of::<FfObjectGpu>() == 144);
 const _: () = assert!(std::mem::size_of::<FfNodeGpu>() == 48);
+
+/// Mirrors WGSL `Volume` in `shaders/volume.wgsl`: one density volume's placement, grid and
+/// switches for the volume pass.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct VolumeUniforms {
+    /// Eye in the volume frame (metres from the box corner); w = step in metres.
+    pub eye_local: [f32; 4],
+    /// Rows of the rotation world -> volume frame.
+    pub local_from_world: [[f32; 4]; 3],
+    /// Rows of the rotation volume frame -> world.
+    pub world_from_local: [[f32; 4]; 3],
+    /// Box size in metres; w = smallest voxel side in metres.
+    pub extent: [f32; 4],
+    /// Voxel spacing in metres; w = transmittance below which a ray stops.
+    pub spacing: [f32; 4],
+    /// Voxels x, y, z; mip levels.
+    pub dims: [u32; 4],
+    /// Bricks x, y, z; switches (1 skip, 2 early termination, 4 jitter, 8 mip-maps, 16 shell).
+    pub bricks: [u32; 4],
+    /// Ambient, diffuse, specular weights; shininess.
+    pub material: [f32; 4],
+    /// Shell ellipsoid centre (volume frame, metres); w unused.
+    pub shell_centre: [f32; 4],
+    /// Shell radii (metres); w unused.
+    pub shell_radii: [f32; 4],
+}

@@ -34,6 +34,9 @@ pub struct SceneDesc {
     /// Quadric free forms (`[[objects]]`).
     #[serde(default)]
     pub objects: Vec<crate::freeform::FreeFormDesc>,
+    /// Density volumes (`[[volumes]]`).
+    #[serde(default)]
+    pub volumes: Vec<crate::volume::VolumeDesc>,
 }
 
 /// `[terrain]`: height source and its placement.
@@ -328,6 +331,20 @@ impl Scene {
             .enumerate()
             .map(|(i, o)| {
                 o.build(i, |p| {
+                    crate::cpu::query::terrain_point_below(terrain, p).map(|g| g.z)
+                })
+            })
+            .collect()
+    }
+
+    /// Loads and places the scene's density volumes (`above_terrain` needs the terrain).
+    pub fn volumes(&self, terrain: &Terrain) -> Result<Vec<crate::volume::Volume>> {
+        self.desc
+            .volumes
+            .iter()
+            .enumerate()
+            .map(|(i, v)| {
+                v.build(i, &self.base_dir, |p| {
                     crate::cpu::query::terrain_point_below(terrain, p).map(|g| g.z)
                 })
             })

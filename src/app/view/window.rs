@@ -59,6 +59,8 @@ struct Prepared {
     terrain: Terrain,
     /// The scene's free forms (built before any window opens, so bad objects fail early).
     objects: Vec<crate::freeform::FreeForm>,
+    /// The scene's density volumes (loaded before any window opens).
+    volumes: Vec<crate::volume::Volume>,
     channels: Vec<ChannelSpec>,
     settings: RenderSettings,
     motion: Motion,
@@ -149,6 +151,7 @@ fn prepare(opts: &ViewOptions) -> Result<Prepared> {
     }
     let terrain = scene.load_terrain()?;
     let objects = scene.free_forms(&terrain)?;
+    let volumes = scene.volumes(&terrain)?;
     let mut settings = RenderSettings::from_scene(&scene.desc);
     if let Some(s) = opts.shadows {
         settings.shadows = s;
@@ -251,6 +254,7 @@ fn prepare(opts: &ViewOptions) -> Result<Prepared> {
         scene,
         terrain,
         objects,
+        volumes,
         channels,
         settings,
         script,
@@ -601,6 +605,7 @@ impl App {
             };
             let mut renderer = TerrainRenderer::new(&gpu, &self.prep.terrain)?;
             renderer.set_objects(&gpu, &self.prep.objects)?;
+            renderer.set_volumes(&gpu, &self.prep.volumes)?;
             if let Some(c) = channel {
                 let c = &self.prep.channels[c];
                 renderer.set_display(&gpu, &c.points, c.eye)?;

@@ -16,19 +16,6 @@ struct Out {
     @location(1) data: vec4<u32>,
 }
 
-fn srgb_encode(c: vec3<f32>) -> vec3<f32> {
-    let x = clamp(c, vec3<f32>(0.0), vec3<f32>(1.0));
-    return select(1.055 * pow(x, vec3<f32>(1.0 / 2.4)) - 0.055, 12.92 * x, x <= vec3<f32>(0.0031308));
-}
-
-fn srgb_decode(c: vec3<f32>) -> vec3<f32> {
-    return select(pow((c + 0.055) / 1.055, vec3<f32>(2.4)), c / 12.92, c <= vec3<f32>(0.04045));
-}
-
-fn to_local(d: vec3<f32>) -> vec3<f32> {
-    return vec3<f32>(dot(frame.local_from_world_0.xyz, d), dot(frame.local_from_world_1.xyz, d), dot(frame.local_from_world_2.xyz, d));
-}
-
 fn sky(dl: vec3<f32>) -> vec3<f32> {
     let up = dot(dl, frame.up_local.xyz);
     var c = mix(frame.sky_horizon.xyz, frame.sky_zenith.xyz, pow(clamp(up, 0.0, 1.0), 0.5));
@@ -89,25 +76,6 @@ fn albedo(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
     return c;
 }
 
-// Transmittance of the haze between the eye and a point at distance t and local height zp.
-fn haze_transmittance(t: f32, ze: f32, zp: f32) -> f32 {
-    let sigma = frame.fog_colour.w;
-    if (sigma <= 0.0) {
-        return 1.0;
-    }
-    let hs = frame.fog.x;
-    var tau = sigma * t;
-    if (hs > 0.0) {
-        let dz = zp - ze;
-        if (abs(dz) > 1.0e-3 * hs) {
-            tau = sigma * t * (exp(-ze / hs) - exp(-zp / hs)) / (dz / hs);
-        } else {
-            tau = sigma * t * exp(-ze / hs);
-        }
-    }
-    return exp(-tau);
-}
-
 fn world_from_local(v: vec3<f32>) -> vec3<f32> {
     return frame.local_from_world_0.xyz * v.x + frame.local_from_world_1.xyz * v.y + frame.local_from_world_2.xyz * v.z;
 }
@@ -116,13 +84,6 @@ fn world_from_local(v: vec3<f32>) -> vec3<f32> {
 fn ambient_light(n: vec3<f32>) -> vec3<f32> {
     let sky_up = dot(n, frame.up_local.xyz);
     return mix(frame.sky_horizon.xyz, frame.sky_zenith.xyz, 0.5 + 0.5 * sky_up) * (frame.sky_zenith.w * (0.6 + 0.4 * sky_up));
-}
-
-// Haze between the eye and a point at distance t and local height zp, seen along dl.
-fn aerial_perspective(c: vec3<f32>, t: f32, zp: f32, dl: vec3<f32>) -> vec3<f32> {
-    let tau = haze_transmittance(t, frame.eye.z, zp);
-    let scatter = frame.fog_colour.xyz + frame.sun_colour.xyz * (0.25 * pow(max(dot(dl, frame.sun_local.xyz), 0.0), 8.0));
-    return c * tau + scatter * (1.0 - tau);
 }
 
 @fragment

@@ -1,0 +1,205 @@
+// Volume pass: per pixel, front-to-back emission-absorption through one density volume,
+// P = sum I_n Omega_n prod_{m<n} (1 - Omega_m), cut at the opaque depth of terrain and free
+// forms and composited over the shaded image: P + T * background. Step for step the same as
+// `cpu::volume::integrate` (see there for the segment lattice, skipping and lighting).
+
+struct Volume {
+    // Eye in the volume frame (metres from the box corner); w = step in metres.
+    eye_local: vec4<f32>,
+    local_from_world_0: vec4<f32>,
+    local_from_world_1: vec4<f32>,
+    local_from_world_2: vec4<f32>,
+    world_from_local_0: vec4<f32>,
+    world_from_local_1: vec4<f32>,
+    world_from_local_2: vec4<f32>,
+    // Box size in metres; w = smallest voxel side.
+    extent: vec4<f32>,
+    // Voxel spacing in metres; w = transmittance below which a ray stops.
+    spacing: vec4<f32>,
+    // Voxels x, y, z; mip levels.
+    dims: vec4<u32>,
+    // Bricks x, y, z; switches (1 skip, 2 early termination, 4 jitter, 8 mip-maps, 16 shell).
+    bricks: vec4<u32>,
+    // Ambient, diffuse, specular weights; shininess.
+    material: vec4<f32>,
+    shell_centre: vec4<f32>,
+    shell_radii: vec4<f32>,
+}
+
+@group(0) @binding(0) var<uniform> frame: Frame;
+@group(0) @binding(10) var colour_in: texture_2d<f32>;
+@group(0) @binding(11) var data_in: texture_2d<u32>;
+@group(0) @binding(12) var vol_tex: texture_3d<f32>;
+@group(0) @binding(13) var vol_sampler: sampler;
+@group(0) @binding(14) var<storage, read> vol_table: array<vec4<f32>>;
+@group(0) @binding(15) var<storage, read> vol_bricks: array<u32>;
+@group(0) @binding(16) var<uniform> vol: Volume;
+
+// Voxels per brick side (`volume::BRICK`), table entries (`volume::transfer::TABLE_SIZE`),
+// samples after which a ray gives up (`cpu::volume::MAX_SAMPLES`).
+const VOL_BRICK: u32 = 8u;
+const VOL_TABLE: u32 = 256u;
+const VOL_MAX_SAMPLES: u32 = 65536u;
+
+struct VolOut {
+    @location(0) colour: vec4<f32>,
+    // x: texture samples taken, y: lattice segments passed.
+    @location(1) stats: vec2<u32>,
+}
+
+fn vol_jitter(px: vec2<u32>) -> f32 {
+    var h = (px.x * 73856093u) ^ (px.y * 19349663u);
+    h = (h ^ (h >> 16u)) * 0x7feb352du;
+    h = (h ^ (h >> 15u)) * 0x846ca68bu;
+    h = h ^ (h >> 16u);
+    return f32(h >> 8u) / 16777216.0;
+}
+
+// Colour and extinction at filtered density d (0..1), interpolating the table.
+fn vol_lookup(d: f32) -> vec4<f32> {
+    let x = clamp(d * 255.0, 0.0, 255.0);
+    let i0 = min(u32(floor(x)), VOL_TABLE - 1u);
+    let i1 = min(i0 + 1u, VOL_TABLE - 1u);
+    return mix(vol_table[i0], vol_table[i1], x - f32(i0));
+}
+
+// (box entry, start, end) of the ray o + t d inside the box (and shell) for 0 <= t < t_max;
+// start >= end when it misses.
+fn vol_interval(o: vec3<f32>, d: vec3<f32>, t_max: f32) -> vec3<f32> {
+    let inv = select(vec3<f32>(BIG), 1.0 / d, abs(d) > vec3<f32>(1.0e-30));
+    let ta = -o * inv;
+    let tb = (vol.extent.xyz - o) * inv;
+    let lo = min(ta, tb);
+    let hi = max(ta, tb);
+    let t0 = max(max(lo.x, lo.y), max(lo.z, 0.0));
+    var te = min(min(hi.x, hi.y), min(hi.z, t_max));
+    var ts = t0;
+    if ((vol.bricks.w & 16u) != 0u) {
+        let oc = (o - vol.shell_centre.xyz) / vol.shell_radii.xyz;
+        let dd = d / vol.shell_radii.xyz;
+        let a = dot(dd, dd);
+        let b = dot(oc, dd);
+        let disc = b * b - a * (dot(oc, oc) - 1.0);
+        if (disc <= 0.0) {
+            return vec3<f32>(t0, 1.0, 0.0);
+        }
+        let sq = sqrt(disc);
+        ts = max(ts, (-b - sq) / a);
+        te = min(te, (-b + sq) / a);
+    }
+    return vec3<f32>(t0, ts, te);
+}
+
+fn vol_ambient(n: vec3<f32>) -> vec3<f32> {
+    let up = n.z;
+    return mix(frame.sky_horizon.xyz, frame.sky_zenith.xyz, 0.5 + 0.5 * up) * (frame.sky_zenith.w * (0.6 + 0.4 * up));
+}
+
+@fragment
+fn fs_volume(@builtin(position) pos: vec4<f32>) -> VolOut {
+    let px = vec2<u32>(pos.xy);
+    let under = textureLoad(colour_in, vec2<i32>(px), 0);
+    var out: VolOut;
+    out.colour = under;
+    out.stats = vec2<u32>(0u);
+    let e = ray_entry(px);
+    if (e.w < 0.0) {
+        return out;
+    }
+    let bits = textureLoad(data_in, vec2<i32>(px), 0).x;
+    let t_max = select(bitcast<f32>(bits), BIG, (bits & 0x7f800000u) == 0x7f800000u);
+    let dir = e.xyz;
+    let o = vol.eye_local.xyz;
+    let d = vec3<f32>(dot(vol.local_from_world_0.xyz, dir), dot(vol.local_from_world_1.xyz, dir), dot(vol.local_from_world_2.xyz, dir));
+    let iv = vol_interval(o, d, t_max);
+    let t0 = iv.x;
+    let ts = iv.y;
+    let te = iv.z;
+    if (ts >= te) {
+        return out;
+    }
+    let step = vol.eye_local.w;
+    let sw = vol.bricks.w;
+    var j = 0.0;
+    if ((sw & 4u) != 0u) {
+        j = vol_jitter(px);
+    }
+    let ext = vol.extent.xyz;
+    let voxel = vol.extent.w;
+    let dims = vec3<f32>(vol.dims.xyz);
+    let top = f32(vol.dims.w - 1u);
+    let m = vol.material;
+    let qsum = m.x + m.y + m.z;
+    let sun = frame.sun_world.xyz;
+    let clight = frame.sun_colour.xyz * frame.sun_local.w;
+    let dl = to_local(dir);
+    let up_rate = dot(frame.local_from_world_2.xyz, dir);
+    var acc = vec3<f32>(0.0);
+    var tr = 1.0;
+    var samples = 0u;
+    var segments = 0u;
+    var k = floor((ts - t0) / step - j);
+    loop {
+        let bk = t0 + (k + j) * step;
+        if (bk >= te || segments >= VOL_MAX_SAMPLES) {
+            break;
+        }
+        segments += 1u;
+        let a = max(bk, ts);
+        let b = min(t0 + (k + 1.0 + j) * step, te);
+        if (b <= a) {
+            k += 1.0;
+            continue;
+        }
+        let tm = 0.5 * (a + b);
+        let p = o + d * tm;
+        let u = p / ext;
+        if ((sw & 1u) != 0u) {
+            let bi = min(vec3<u32>(max(floor(u * dims / f32(VOL_BRICK)), vec3<f32>(0.0))), vol.bricks.xyz - 1u);
+            if (vol_bricks[bi.x + vol.bricks.x * (bi.y + vol.bricks.y * bi.z)] == 0u) {
+                let lo = vec3<f32>(bi * VOL_BRICK) * vol.spacing.xyz;
+                let hi = vec3<f32>(min((bi + 1u) * VOL_BRICK, vol.dims.xyz)) * vol.spacing.xyz;
+                let face = select(lo, hi, d > vec3<f32>(0.0));
+                let te3 = select(vec3<f32>(BIG), (face - o) / d, d != vec3<f32>(0.0));
+                let exit = min(te3.x, min(te3.y, te3.z));
+                k = max(k + 1.0, floor((exit - t0) / step - j));
+                continue;
+            }
+        }
+        var level = 0.0;
+        if ((sw & 8u) != 0u) {
+            level = clamp(log2(max(2.0 * e.w * tm / voxel, 1.0e-30)), 0.0, top);
+        }
+        let s = textureSampleLevel(vol_tex, vol_sampler, u, level);
+        samples += 1u;
+        let c4 = vol_lookup(s.x);
+        if (c4.w > 0.0) {
+            let omega = 1.0 - exp(-c4.w * (b - a));
+            let gl = s.yzw * 2.0 - 1.0;
+            let g = vol.world_from_local_0.xyz * gl.x + vol.world_from_local_1.xyz * gl.y + vol.world_from_local_2.xyz * gl.z;
+            let len = length(g);
+            var n = g / max(len, 1.0e-6);
+            if (dot(n, dir) > 0.0) {
+                n = -n;
+            }
+            let w = clamp(len * 4.0, 0.0, 1.0);
+            let c = c4.xyz;
+            let ndl = 0.5 + (max(dot(n, sun), 0.0) - 0.5) * w;
+            let ca = c * vol_ambient(n * w);
+            let cd = clight * c * ndl;
+            let r = 2.0 * dot(n, sun) * n - sun;
+            let cs = clight * (pow(max(dot(r, -dir), 0.0), m.w) * w);
+            let i = (m.x * ca + m.y * cd + m.z * cs) / qsum;
+            let lit = aerial_perspective(i, tm, frame.eye.z + tm * up_rate, dl);
+            acc += lit * (omega * tr);
+            tr *= 1.0 - omega;
+            if ((sw & 2u) != 0u && tr < vol.spacing.w) {
+                break;
+            }
+        }
+        k += 1.0;
+    }
+    out.stats = vec2<u32>(samples, segments);
+    out.colour = vec4<f32>(srgb_encode(acc + tr * srgb_decode(under.xyz)), 1.0);
+    return out;
+}

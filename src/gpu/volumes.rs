@@ -1,0 +1,340 @@
+//! The volume pass: one density volume uploaded once (RGBA8 3-D texture with mip levels,
+//! transfer table, brick occupancy), integrated per pixel after shading and composited over
+//! the shaded image in front of the opaque depth.
+
+use super::renderer::{
+    buf, fullscreen_pipeline, storage_entry, target_state, uint_texture_entry, uniform_entry,
+};
+use super::types::VolumeUniforms;
+use super::{shaders, Gpu};
+use crate::volume::Volume;
+use crate::{Error, Result};
+use wgpu::util::DeviceExt;
+
+/// Format of the per-pixel statistics target (samples taken, segments passed).
+pub const STATS_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rg32Uint;
+
+/// GPU resources of one volume and the pass that integrates it.
+pub(crate) struct VolumePass {
+    pub volume: Volume,
+    bgl: wgpu::BindGroupLayout,
+    pub pipeline: wgpu::RenderPipeline,
+    view: wgpu::TextureView,
+    sampler: wgpu::Sampler,
+    table: wgpu::Buffer,
+    bricks: wgpu::Buffer,
+    uniforms: wgpu::Buffer,
+}
+
+/// Size-dependent resources: the shaded image the pass reads, its statistics target.
+pub(crate) struct VolumeTargets {
+    pub _under: wgpu::Texture,
+    pub under_view: wgpu::TextureView,
+    pub stats: wgpu::Texture,
+    pub stats_view: wgpu::TextureView,
+    pub stats_rb: wgpu::Buffer,
+    pub bg: wgpu::BindGroup,
+}
+
+fn table_bytes(v: &Volume) -> Vec<u8> {
+    bytemuck::cast_slice(&v.table.entries).to_vec()
+}
+
+impl VolumePass {
+    pub fn new(gpu: &Gpu, volume: &Volume) -> Result<VolumePass> {
+        let dev = &gpu.device;
+        let max3 = gpu.limits.max_texture_dimension_3d;
+        let dims = volume.grid.dims;
+        if dims.iter().any(|&d| d > max3) {
+            return Err(Error::Limit {
+                what: format!("volume {:?}", volume.name),
+                msg: format!(
+                    "{}x{}x{} voxels; the adapter {} allows {max3} per side of a 3-D texture: \
+                     downsample the volume",
+                    dims[0], dims[1], dims[2], gpu.info.name
+                ),
+            });
+        }
+        let bytes: u64 = volume
+            .texture
+            .levels
+            .iter()
+            .map(|l| l.texels.len() as u64 * 4)
+            .sum();
+        if bytes > 2 << 30 {
+            return Err(Error::Limit {
+                what: format!("volume {:?}", volume.name),
+                msg: format!("{bytes} bytes of texture; at most 2 GiB"),
+            });
+        }
+        super::renderer::check_buffer_limit(
+            gpu,
+            "volume brick grid",
+            volume.occupancy.len() as u64 * 4,
+        )?;
+        let tex = dev.create_texture(&wgpu::TextureDescriptor {
+            label: Some("volume"),
+            size: wgpu::Extent3d {
+                width: dims[0],
+                height: dims[1],
+                depth_or_array_layers: dims[2],
+            },
+            mip_level_count: volume.texture.levels.len() as u32,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D3,
+            format: wgpu::TextureFormat::Rgba8Unorm,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        });
+        for (i, l) in volume.texture.levels.iter().enumerate() {
+            gpu.queue.write_texture(
+                wgpu::TexelCopyTextureInfo {
+                    texture: &tex,
+                    mip_level: i as u32,
+                    origin: wgpu::Origin3d::ZERO,
+                    aspect: wgpu::TextureAspect::All,
+                },
+                bytemuck::cast_slice(&l.texels),
+                wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(l.dims[0] * 4),
+                    rows_per_image: Some(l.dims[1]),
+                },
+                wgpu::Extent3d {
+                    width: l.dims[0],
+                    height: l.dims[1],
+                    depth_or_array_layers: l.dims[2],
+                },
+            );
+        }
+        let view = tex.create_view(&Default::default());
+        let sampler = dev.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some("volume"),
+            address_mode_u: wgpu::AddressMode::ClampToEdge,
+            address_mode_v: wgpu::AddressMode::ClampToEdge,
+            address_mode_w: wgpu::AddressMode::ClampToEdge,
+            mag_filter: wgpu::FilterMode::Linear,
+            min_filter: wgpu::FilterMode::Linear,
+            mipmap_filter: wgpu::MipmapFilterMode::Linear,
+            ..Default::default()
+        });
+        let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
+        let table = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("transfer table"),
+            contents: &table_bytes(volume),
+            usage: storage,
+        });
+        let bricks = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("volume bricks"),
+            contents: bytemuck::cast_slice(&volume.occupancy),
+            usage: storage,
+        });
+        let uniforms = dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("volume uniforms"),
+            size: std::mem::size_of::<VolumeUniforms>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let fs = wgpu::ShaderStages::FRAGMENT;
+        let bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("volume"),
+            entries: &[
+                uniform_entry(0, fs),
+                uint_texture_entry(3, fs),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 10,
+                    visibility: fs,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                uint_texture_entry(11, fs),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 12,
+                    visibility: fs,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                        view_dimension: wgpu::TextureViewDimension::D3,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 13,
+                    visibility: fs,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                    count: None,
+                },
+                storage_entry(14, fs, true),
+                storage_entry(15, fs, true),
+                uniform_entry(16, fs),
+            ],
+        });
+        let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("volume.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(shaders::volume().into()),
+        });
+        let pipeline = fullscreen_pipeline(
+            dev,
+            "volume",
+            &module,
+            "fs_volume",
+            &bgl,
+            &[
+                Some(target_state(wgpu::TextureFormat::Rgba8Unorm)),
+                Some(target_state(STATS_FORMAT)),
+            ],
+        );
+        Ok(VolumePass {
+            volume: volume.clone(),
+            bgl,
+            pipeline,
+            view,
+            sampler,
+            table,
+            bricks,
+            uniforms,
+        })
+    }
+
+    /// Reclassifies the volume with a new transfer function (table and brick occupancy).
+    pub fn set_transfer(&mut self, gpu: &Gpu, tf: crate::volume::TransferFunction) {
+        self.volume.set_transfer(tf);
+        gpu.queue
+            .write_buffer(&self.table, 0, &table_bytes(&self.volume));
+        gpu.queue.write_buffer(
+            &self.bricks,
+            0,
+            bytemuck::cast_slice(&self.volume.occupancy),
+        );
+    }
+
+    /// Uploads the per-frame uniforms for an eye at world position `eye`.
+    pub fn write_uniforms(&self, gpu: &Gpu, eye: glam::DVec3) {
+        gpu.queue.write_buffer(
+            &self.uniforms,
+            0,
+            bytemuck::bytes_of(&uniforms(&self.volume, eye)),
+        );
+    }
+
+    pub fn targets(
+        &self,
+        gpu: &Gpu,
+        width: u32,
+        height: u32,
+        frame_ub: &wgpu::Buffer,
+        ray_table: &wgpu::TextureView,
+        data: &wgpu::TextureView,
+    ) -> VolumeTargets {
+        let dev = &gpu.device;
+        let tex = |label, format| {
+            dev.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size: wgpu::Extent3d {
+                    width,
+                    height,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                    | wgpu::TextureUsages::TEXTURE_BINDING
+                    | wgpu::TextureUsages::COPY_SRC,
+                view_formats: &[],
+            })
+        };
+        let under = tex("colour under the volume", wgpu::TextureFormat::Rgba8Unorm);
+        let stats = tex("volume statistics", STATS_FORMAT);
+        let under_view = under.create_view(&Default::default());
+        let stats_view = stats.create_view(&Default::default());
+        let tv = |binding, v| wgpu::BindGroupEntry {
+            binding,
+            resource: wgpu::BindingResource::TextureView(v),
+        };
+        let bg = dev.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("volume"),
+            layout: &self.bgl,
+            entries: &[
+                buf(0, frame_ub),
+                tv(3, ray_table),
+                tv(10, &under_view),
+                tv(11, data),
+                tv(12, &self.view),
+                wgpu::BindGroupEntry {
+                    binding: 13,
+                    resource: wgpu::BindingResource::Sampler(&self.sampler),
+                },
+                buf(14, &self.table),
+                buf(15, &self.bricks),
+                buf(16, &self.uniforms),
+            ],
+        });
+        let stats_rb = dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("volume statistics readback"),
+            size: super::renderer::padded_row(width * 8) as u64 * height as u64,
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        VolumeTargets {
+            _under: under,
+            under_view,
+            stats,
+            stats_view,
+            stats_rb,
+            bg,
+        }
+    }
+}
+
+/// The uniform block for `v` seen from world position `eye`.
+pub fn uniforms(v: &Volume, eye: glam::DVec3) -> VolumeUniforms {
+    let f = |x: f64| x as f32;
+    let row = |r: glam::DVec3, w: f64| [f(r.x), f(r.y), f(r.z), f(w)];
+    let lw = v.rotation.transpose();
+    let ext = v.extent();
+    let sp = v.grid.spacing;
+    let s = &v.settings;
+    let m = &v.material;
+    let switches = (s.skip as u32)
+        | (s.early_termination as u32) << 1
+        | (s.jitter as u32) << 2
+        | (s.mipmaps as u32) << 3
+        | (v.shell.is_some() as u32) << 4;
+    let (sc, sr) = v.shell.unwrap_or((glam::DVec3::ZERO, glam::DVec3::ONE));
+    VolumeUniforms {
+        eye_local: row(v.to_local(eye), s.step * v.voxel()),
+        local_from_world: [
+            row(lw.row(0), 0.0),
+            row(lw.row(1), 0.0),
+            row(lw.row(2), 0.0),
+        ],
+        world_from_local: [
+            row(v.rotation.row(0), 0.0),
+            row(v.rotation.row(1), 0.0),
+            row(v.rotation.row(2), 0.0),
+        ],
+        extent: row(ext, v.voxel()),
+        spacing: [f(sp[0]), f(sp[1]), f(sp[2]), f(s.epsilon)],
+        dims: [
+            v.grid.dims[0],
+            v.grid.dims[1],
+            v.grid.dims[2],
+            v.texture.levels.len() as u32,
+        ],
+        bricks: [
+            v.bricks.dims[0],
+            v.bricks.dims[1],
+            v.bricks.dims[2],
+            switches,
+        ],
+        material: [f(m.ambient), f(m.diffuse), f(m.specular), f(m.shininess)],
+        shell_centre: row(sc, 0.0),
+        shell_radii: row(sr, 0.0),
+    }
+}

@@ -1,0 +1,346 @@
+//! `[[volumes]]` in a scene file and the placed [`Volume`] both renderers use.
+
+use super::procedural::ProceduralVolume;
+use super::transfer::{TfPoint, TransferFunction, TransferTable};
+use super::{BrickGrid, DensityGrid, VolumeTexture};
+use crate::scene::{attitude_basis, check_finite};
+use crate::{Error, Result};
+use glam::{DMat3, DVec3};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// One density volume.
+///
+/// The volume is a box of `dims · voxel_size` metres; `position` is the world position of
+/// the centre of its bottom face (or, with `above_terrain`, that many metres above the
+/// terrain below), turned by heading/pitch/roll like the camera.
+#[derive(Clone, Debug, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct VolumeDesc {
+    pub name: Option<String>,
+    /// `.nrrd` / `.nhdr`, or a raw volume's `.toml` header, relative to the scene file.
+    pub source: Option<std::path::PathBuf>,
+    pub procedural: Option<ProceduralVolume>,
+    /// Data values mapped onto densities 0 and 255 (default: the type's range for 8-bit data,
+    /// else the data's min..max; procedural fields are 0..1).
+    pub range: Option<[f64; 2]>,
+    /// Metres per voxel (default: the file's spacing; procedural: 1).
+    pub voxel_size: Option<[f64; 3]>,
+    pub position: Option<[f64; 3]>,
+    pub above_terrain: Option<f64>,
+    #[serde(default)]
+    pub heading: f64,
+    #[serde(default)]
+    pub pitch: f64,
+    #[serde(default)]
+    pub roll: f64,
+    /// A preset name (see [`super::transfer::PRESETS`]).
+    pub transfer: Option<String>,
+    /// Or explicit control points, sorted by value.
+    pub transfer_points: Option<Vec<TfPoint>>,
+    /// Metres over which a point's opacity is reached (default: one voxel).
+    pub opacity_unit: Option<f64>,
+    #[serde(default)]
+    pub render: VolumeSettings,
+    #[serde(default)]
+    pub material: VolumeMaterial,
+    /// Bounding shell: rays start where they enter this ellipsoid (volume frame, metres from
+    /// the box centre) and stop where they leave it.
+    pub shell: Option<Shell>,
+}
+
+/// `render = { step = 0.5, jitter = false, skip = true, early_termination = true, mipmaps = true }`
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct VolumeSettings {
+    /// Sample spacing along the ray in voxels (of the smallest spacing).
+    pub step: f64,
+    /// Offset each pixel's samples by a hash of its position (against wood-grain artefacts).
+    pub jitter: bool,
+    /// Empty-space skipping over the brick grid.
+    pub skip: bool,
+    /// Stop when the transmittance drops below `epsilon`.
+    pub early_termination: bool,
+    pub epsilon: f64,
+    /// Sample coarser mip levels where the pixel footprint covers several voxels.
+    pub mipmaps: bool,
+}
+
+impl Default for VolumeSettings {
+    fn default() -> Self {
+        VolumeSettings {
+            step: 0.5,
+            jitter: false,
+            skip: true,
+            early_termination: true,
+            epsilon: 2e-3,
+            mipmaps: true,
+        }
+    }
+}
+
+/// Sample lighting: the paper's `C = (Qa·Ca + Qd·Cd + Qs·Cs) / (Qa + Qd + Qs)` with the
+/// classified colour as surface colour and the density gradient as normal.
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct VolumeMaterial {
+    pub ambient: f64,
+    pub diffuse: f64,
+    pub specular: f64,
+    pub shininess: f64,
+}
+
+impl Default for VolumeMaterial {
+    fn default() -> Self {
+        VolumeMaterial {
+            ambient: 0.45,
+            diffuse: 0.55,
+            specular: 0.15,
+            shininess: 16.0,
+        }
+    }
+}
+
+/// `shell = { radii = [rx, ry, rz], centre = [x, y, z] }`.
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Shell {
+    pub radii: [f64; 3],
+    #[serde(default)]
+    pub centre: [f64; 3],
+}
+
+/// A density volume placed in the world, classified and ready to sample.
+#[derive(Clone, Debug)]
+pub struct Volume {
+    pub name: String,
+    pub grid: DensityGrid,
+    pub texture: VolumeTexture,
+    pub bricks: BrickGrid,
+    pub transfer: TransferFunction,
+    pub table: TransferTable,
+    /// One word per brick (see [`BrickGrid::occupancy`]).
+    pub occupancy: Vec<u32>,
+    /// World position of the box corner at voxel (0, 0, 0)'s outer corner.
+    pub corner: DVec3,
+    /// Columns: the volume's x, y, z axes in the world.
+    pub rotation: DMat3,
+    pub settings: VolumeSettings,
+    pub material: VolumeMaterial,
+    /// Ellipsoid shell in the volume frame (metres from the corner): centre, radii.
+    pub shell: Option<(DVec3, DVec3)>,
+}
+
+impl VolumeDesc {
+    /// Loads the data and places it; `ground(p)` is the terrain height below `p` (for
+    /// `above_terrain`). Errors name the volume.
+    pub fn build(
+        &self,
+        index: usize,
+        base_dir: &Path,
+        ground: impl Fn(DVec3) -> Option<f64>,
+    ) -> Result<Volume> {
+        let name = self
+            .name
+            .clone()
+            .unwrap_or_else(|| format!("volumes[{index}]"));
+        let field = |f: &str| format!("volume {name:?}: {f}");
+        check_finite(
+            &field("heading/pitch/roll"),
+            &[self.heading, self.pitch, self.roll],
+        )?;
+        if let Some(r) = self.range {
+            check_finite(&field("range"), &r)?;
+            if r[1] <= r[0] {
+                return Err(Error::invalid(
+                    field("range"),
+                    format!("{r:?} must increase"),
+                ));
+            }
+        }
+        let s = &self.render;
+        if !s.step.is_finite() || !(0.05..=8.0).contains(&s.step) {
+            return Err(Error::invalid(
+                field("render.step"),
+                format!("must be 0.05..=8 voxels, got {}", s.step),
+            ));
+        }
+        if !s.epsilon.is_finite() || !(0.0..0.5).contains(&s.epsilon) {
+            return Err(Error::invalid(
+                field("render.epsilon"),
+                format!("must be in 0..0.5, got {}", s.epsilon),
+            ));
+        }
+        let m = &self.material;
+        let q = [m.ambient, m.diffuse, m.specular];
+        if q.iter().any(|v| !v.is_finite() || *v < 0.0) || q.iter().sum::<f64>() <= 0.0 {
+            return Err(Error::invalid(
+                field("material"),
+                format!("ambient/diffuse/specular must be ≥ 0 and not all 0, got {q:?}"),
+            ));
+        }
+        if !m.shininess.is_finite() || !(0.0..=1e4).contains(&m.shininess) {
+            return Err(Error::invalid(
+                field("material.shininess"),
+                format!("must be in 0..=10000, got {}", m.shininess),
+            ));
+        }
+        let mut grid = match (&self.source, &self.procedural) {
+            (Some(_), Some(_)) | (None, None) => {
+                return Err(Error::invalid(
+                    field("source"),
+                    "set exactly one of `source = \"file.nrrd|.toml\"` and `procedural = {..}`",
+                ))
+            }
+            (Some(src), None) => {
+                let p = base_dir.join(src);
+                match p.extension().and_then(|e| e.to_str()) {
+                    Some("nrrd") | Some("nhdr") => super::nrrd::load(&p, self.range)?,
+                    Some("toml") => super::raw::load(&p, self.range)?,
+                    _ => {
+                        return Err(Error::invalid(
+                            field("source"),
+                            format!(
+                                "{}: use a .nrrd/.nhdr file or a raw volume's .toml header",
+                                p.display()
+                            ),
+                        ))
+                    }
+                }
+            }
+            (None, Some(pv)) => pv.generate(&field("procedural"), [1.0; 3])?,
+        };
+        if let Some(v) = self.voxel_size {
+            if v.iter().any(|x| !x.is_finite() || *x <= 0.0) {
+                return Err(Error::invalid(
+                    field("voxel_size"),
+                    format!("must be positive metres, got {v:?}"),
+                ));
+            }
+            grid.spacing = v;
+        }
+        let transfer = match (&self.transfer, &self.transfer_points) {
+            (Some(_), Some(_)) | (None, None) => {
+                return Err(Error::invalid(
+                    field("transfer"),
+                    "set exactly one of `transfer = \"preset\"` and `transfer_points = [..]`",
+                ))
+            }
+            (Some(p), None) => TransferFunction::preset(p)
+                .map_err(|e| Error::invalid(field("transfer"), e.to_string()))?,
+            (None, Some(pts)) => TransferFunction {
+                points: pts.clone(),
+                unit: None,
+            },
+        };
+        let transfer = TransferFunction {
+            unit: self.opacity_unit,
+            ..transfer
+        };
+        transfer.validate(&field("transfer_points"))?;
+        let (right, down, fwd) = attitude_basis(self.heading, self.pitch, self.roll);
+        let rotation = DMat3::from_cols(right, fwd, -down);
+        let ext = DVec3::from(grid.extent());
+        let pos = self
+            .position
+            .ok_or_else(|| Error::invalid(field("position"), "is required"))?;
+        check_finite(&field("position"), &pos)?;
+        let mut pos = DVec3::from(pos);
+        if let Some(a) = self.above_terrain {
+            check_finite(&field("above_terrain"), &[a])?;
+            let g = ground(pos).ok_or_else(|| {
+                Error::invalid(
+                    field("above_terrain"),
+                    "the position is not over the terrain",
+                )
+            })?;
+            pos.z = g + a;
+        }
+        let corner = pos - rotation * DVec3::new(ext.x / 2.0, ext.y / 2.0, 0.0);
+        let shell = match self.shell {
+            None => None,
+            Some(sh) => {
+                check_finite(&field("shell.centre"), &sh.centre)?;
+                if sh.radii.iter().any(|r| !r.is_finite() || *r <= 0.0) {
+                    return Err(Error::invalid(
+                        field("shell.radii"),
+                        format!("must be positive metres, got {:?}", sh.radii),
+                    ));
+                }
+                Some((ext / 2.0 + DVec3::from(sh.centre), DVec3::from(sh.radii)))
+            }
+        };
+        Ok(Volume::new(
+            name, grid, transfer, corner, rotation, *s, *m, shell,
+        ))
+    }
+}
+
+impl Volume {
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        name: String,
+        grid: DensityGrid,
+        transfer: TransferFunction,
+        corner: DVec3,
+        rotation: DMat3,
+        settings: VolumeSettings,
+        material: VolumeMaterial,
+        shell: Option<(DVec3, DVec3)>,
+    ) -> Volume {
+        let texture = VolumeTexture::from_grid(&grid);
+        let bricks = BrickGrid::new(&grid);
+        let mut v = Volume {
+            name,
+            grid,
+            texture,
+            bricks,
+            table: TransferTable { entries: vec![] },
+            occupancy: vec![],
+            transfer: transfer.clone(),
+            corner,
+            rotation,
+            settings,
+            material,
+            shell,
+        };
+        v.set_transfer(transfer);
+        v
+    }
+
+    /// Metres of the smallest voxel side.
+    pub fn voxel(&self) -> f64 {
+        self.grid
+            .spacing
+            .iter()
+            .copied()
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// Reclassifies: a new transfer table and brick occupancy.
+    pub fn set_transfer(&mut self, tf: TransferFunction) {
+        let g = &self.grid;
+        self.table = tf.table(|d| g.value_of(d), self.voxel());
+        self.occupancy = self.bricks.occupancy(
+            &self.table,
+            self.settings.mipmaps && self.texture.levels.len() > 1,
+        );
+        self.transfer = tf;
+    }
+
+    /// Size of the box in metres (volume frame).
+    pub fn extent(&self) -> DVec3 {
+        DVec3::from(self.grid.extent())
+    }
+
+    /// A world point in the volume frame (metres from the corner).
+    pub fn to_local(&self, p: DVec3) -> DVec3 {
+        self.rotation.transpose() * (p - self.corner)
+    }
+
+    /// Fraction of voxels the transfer function hides.
+    pub fn hidden_fraction(&self) -> f64 {
+        let g = &self.grid;
+        self.transfer.hidden_fraction(&g.data, |d| g.value_of(d))
+    }
+}
