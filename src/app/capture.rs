@@ -132,6 +132,11 @@ pub fn frame_metadata(
         "surface_pixels": hits,
         "free_form_pixels": out.objects.iter().filter(|o| **o != 0).count(),
         "free_forms": scene.desc.objects.len(),
+        "volumes": scene.desc.volumes.len(),
+        // Per pixel with a volume: texture samples taken (empty-space skipping and early
+        // termination leave the rest of the lattice unsampled).
+        "volume_pixels": out.volume_samples.iter().filter(|s| **s != 0).count(),
+        "volume_samples": out.volume_samples.iter().map(|&s| s as u64).sum::<u64>(),
         "settings": settings,
         "adapter": {
             "name": gpu.info.name,

@@ -12,12 +12,12 @@
 //! sample in an unoccupied brick to the segment holding the brick's exit; all skipped samples
 //! have `σ = 0` exactly, so skipping changes nothing. Early termination stops when `T < ε`.
 //! Lighting: the paper's colour formula with the classified colour as surface colour and the
-//! density gradient as normal (faced towards the eye), blended towards isotropic (`n·l = ½`)
+//! outward density gradient as normal, blended towards isotropic (`n·l = ½`)
 //! where the gradient is weak; haze in front of each sample as for surfaces.
 
 use crate::scene::SceneDesc;
 use crate::terrain::Terrain;
-use crate::volume::{Volume, BRICK};
+use crate::volume::{decode_gradient, Volume, BRICK};
 use glam::DVec3;
 
 /// Samples after which a ray gives up (WGSL `VOL_MAX_SAMPLES`).
@@ -227,13 +227,11 @@ pub fn integrate(
         let e = v.table.lookup(smp[0]);
         if e[3] > 0.0 {
             let omega = 1.0 - (-e[3] * (b - a)).exp();
-            let g =
-                v.rotation * DVec3::new(smp[1] * 2.0 - 1.0, smp[2] * 2.0 - 1.0, smp[3] * 2.0 - 1.0);
+            let g = v.rotation * DVec3::from(decode_gradient([smp[1], smp[2], smp[3]]));
             let len = g.length();
-            let mut n = g / len.max(1e-6);
-            if n.dot(dir) > 0.0 {
-                n = -n;
-            }
+            // Outward normal (from dense to less dense): continuous along the ray, unlike a
+            // normal flipped to face the eye.
+            let n = -g / len.max(1e-6);
             let w = (len * 4.0).clamp(0.0, 1.0);
             let c = DVec3::new(e[0], e[1], e[2]);
             let ndl = 0.5 + (n.dot(light.sun).max(0.0) - 0.5) * w;
@@ -252,4 +250,30 @@ pub fn integrate(
         k += 1.0;
     }
     res
+}
+
+/// sRGB encoding of a linear value (clamped to 0..1), as the shaders write it.
+pub fn srgb_encode(x: f64) -> f64 {
+    let x = x.clamp(0.0, 1.0);
+    if x <= 0.003_130_8 {
+        12.92 * x
+    } else {
+        1.055 * x.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// Linear value of an sRGB-encoded one.
+pub fn srgb_decode(c: f64) -> f64 {
+    if c <= 0.040_45 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// The 8-bit sRGB pixel the volume pass writes for `res` over the 8-bit sRGB pixel `under`.
+pub fn composite(res: &VolumeResult, under: [u8; 3]) -> [u8; 3] {
+    let bg = DVec3::from(under.map(|c| srgb_decode(c as f64 / 255.0)));
+    let c = res.over(bg);
+    [c.x, c.y, c.z].map(|v| (srgb_encode(v) * 255.0).round() as u8)
 }

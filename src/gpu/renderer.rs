@@ -1086,9 +1086,10 @@ impl TerrainRenderer {
             volume_segments: Vec::new(),
             times,
         };
-        for px in bytemuck::cast_slice::<u8, u32>(&stats).chunks_exact(2) {
-            out.volume_samples.push(px[0]);
-            out.volume_segments.push(px[1]);
+        for px in stats.chunks_exact(8) {
+            let word = |i: usize| u32::from_le_bytes([px[i], px[i + 1], px[i + 2], px[i + 3]]);
+            out.volume_samples.push(word(0));
+            out.volume_segments.push(word(4));
         }
         for px in words.chunks_exact(4) {
             out.depth.push(f32::from_bits(px[0]));

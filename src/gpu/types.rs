@@ -93,7 +93,7 @@ pub struct VolumeUniforms {
     pub eye_local: [f32; 4],
     /// Rows of the rotation world -> volume frame.
     pub local_from_world: [[f32; 4]; 3],
-    /// Rows of the rotation volume frame -> world.
+    /// Columns of the rotation volume frame -> world (the volume's axes in the world).
     pub world_from_local: [[f32; 4]; 3],
     /// Box size in metres; w = smallest voxel side in metres.
     pub extent: [f32; 4],

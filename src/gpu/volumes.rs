@@ -20,7 +20,6 @@ pub(crate) struct VolumePass {
     bgl: wgpu::BindGroupLayout,
     pub pipeline: wgpu::RenderPipeline,
     view: wgpu::TextureView,
-    sampler: wgpu::Sampler,
     table: wgpu::Buffer,
     bricks: wgpu::Buffer,
     uniforms: wgpu::Buffer,
@@ -108,16 +107,6 @@ impl VolumePass {
             );
         }
         let view = tex.create_view(&Default::default());
-        let sampler = dev.create_sampler(&wgpu::SamplerDescriptor {
-            label: Some("volume"),
-            address_mode_u: wgpu::AddressMode::ClampToEdge,
-            address_mode_v: wgpu::AddressMode::ClampToEdge,
-            address_mode_w: wgpu::AddressMode::ClampToEdge,
-            mag_filter: wgpu::FilterMode::Linear,
-            min_filter: wgpu::FilterMode::Linear,
-            mipmap_filter: wgpu::MipmapFilterMode::Linear,
-            ..Default::default()
-        });
         let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
         let table = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("transfer table"),
@@ -156,16 +145,10 @@ impl VolumePass {
                     binding: 12,
                     visibility: fs,
                     ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
                         view_dimension: wgpu::TextureViewDimension::D3,
                         multisampled: false,
                     },
-                    count: None,
-                },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 13,
-                    visibility: fs,
-                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
                     count: None,
                 },
                 storage_entry(14, fs, true),
@@ -193,7 +176,6 @@ impl VolumePass {
             bgl,
             pipeline,
             view,
-            sampler,
             table,
             bricks,
             uniforms,
@@ -266,10 +248,6 @@ impl VolumePass {
                 tv(10, &under_view),
                 tv(11, data),
                 tv(12, &self.view),
-                wgpu::BindGroupEntry {
-                    binding: 13,
-                    resource: wgpu::BindingResource::Sampler(&self.sampler),
-                },
                 buf(14, &self.table),
                 buf(15, &self.bricks),
                 buf(16, &self.uniforms),
@@ -314,10 +292,11 @@ pub fn uniforms(v: &Volume, eye: glam::DVec3) -> VolumeUniforms {
             row(lw.row(1), 0.0),
             row(lw.row(2), 0.0),
         ],
+        // WGSL sums these weighted by the local vector's components: the rotation's columns.
         world_from_local: [
-            row(v.rotation.row(0), 0.0),
-            row(v.rotation.row(1), 0.0),
-            row(v.rotation.row(2), 0.0),
+            row(v.rotation.col(0), 0.0),
+            row(v.rotation.col(1), 0.0),
+            row(v.rotation.col(2), 0.0),
         ],
         extent: row(ext, v.voxel()),
         spacing: [f(sp[0]), f(sp[1]), f(sp[2]), f(s.epsilon)],

@@ -147,11 +147,17 @@ impl DensityGrid {
     }
 }
 
+/// The gradient vector of a sampled texel's `gba` channels (normalised 0..1 as samplers return
+/// them): WGSL `(s.yzw * 255.0 - 128.0) / 127.0`.
+pub fn decode_gradient(gba: [f64; 3]) -> [f64; 3] {
+    gba.map(|c| (c * 255.0 - 128.0) / 127.0)
+}
+
 /// One mip level of a [`VolumeTexture`].
 #[derive(Clone, Debug)]
 pub struct MipLevel {
     pub dims: [u32; 3],
-    /// RGBA8 texels, x fastest: density, gradient x, y, z (`0.5 + 0.5·g`, see
+    /// RGBA8 texels, x fastest: density, gradient x, y, z (`128 + 127·g`, see
     /// [`VolumeTexture::from_grid`]).
     pub texels: Vec<[u8; 4]>,
 }
@@ -196,7 +202,8 @@ pub struct VolumeTexture {
 
 impl VolumeTexture {
     /// Density in `r`; in `gba` the central-difference gradient `g` (density levels per voxel)
-    /// compressed to `g / max(|g|, 8)` and stored as `0.5 + 0.5·c`: the direction is exact
+    /// compressed to `c = g / max(|g|, 8)` and stored as `128 + 127·c` (so a flat field stores
+    /// an exact zero; [`decode_gradient`] inverts it): the direction is exact
     /// where the field changes by at least 8 levels per voxel and fades to zero in flat
     /// regions, so shading can blend towards isotropic there. Mip level L+1 is the rounded
     /// mean of 2x2x2 texels of level L (sizes `max(1, n / 2)` as on the GPU; the last
@@ -221,8 +228,7 @@ impl VolumeTexture {
                     ];
                     let len = (gr[0] * gr[0] + gr[1] * gr[1] + gr[2] * gr[2]).sqrt();
                     let s = 1.0 / len.max(8.0);
-                    let enc =
-                        |v: f64| ((0.5 + 0.5 * v * s) * 255.0).round().clamp(0.0, 255.0) as u8;
+                    let enc = |v: f64| (128.0 + 127.0 * (v * s)).round().clamp(1.0, 255.0) as u8;
                     texels.push([at(x, y, z) as u8, enc(gr[0]), enc(gr[1]), enc(gr[2])]);
                 }
             }

@@ -9,6 +9,7 @@ struct Volume {
     local_from_world_0: vec4<f32>,
     local_from_world_1: vec4<f32>,
     local_from_world_2: vec4<f32>,
+    // The volume's axes in the world.
     world_from_local_0: vec4<f32>,
     world_from_local_1: vec4<f32>,
     world_from_local_2: vec4<f32>,
@@ -30,7 +31,6 @@ struct Volume {
 @group(0) @binding(10) var colour_in: texture_2d<f32>;
 @group(0) @binding(11) var data_in: texture_2d<u32>;
 @group(0) @binding(12) var vol_tex: texture_3d<f32>;
-@group(0) @binding(13) var vol_sampler: sampler;
 @group(0) @binding(14) var<storage, read> vol_table: array<vec4<f32>>;
 @group(0) @binding(15) var<storage, read> vol_bricks: array<u32>;
 @group(0) @binding(16) var<uniform> vol: Volume;
@@ -88,6 +88,46 @@ fn vol_interval(o: vec3<f32>, d: vec3<f32>, t_max: f32) -> vec3<f32> {
         te = min(te, (-b + sq) / a);
     }
     return vec3<f32>(t0, ts, te);
+}
+
+// Trilinear sample of mip level `level` at texture coordinates u (texel centres at
+// (i + 0.5) / n, clamp to edge), with f32 weights: texture units filter with 8-bit weights,
+// which the CPU reference cannot follow through steep transfer functions.
+fn vol_trilinear(u: vec3<f32>, level: u32) -> vec4<f32> {
+    let n = vec3<i32>(max(vol.dims.xyz >> vec3<u32>(level), vec3<u32>(1u)));
+    let q = u * vec3<f32>(n) - 0.5;
+    let i0 = floor(q);
+    let f = q - i0;
+    let a = clamp(vec3<i32>(i0), vec3<i32>(0), n - 1);
+    let b = clamp(vec3<i32>(i0) + 1, vec3<i32>(0), n - 1);
+    let c000 = textureLoad(vol_tex, a, level);
+    let c100 = textureLoad(vol_tex, vec3<i32>(b.x, a.y, a.z), level);
+    let c010 = textureLoad(vol_tex, vec3<i32>(a.x, b.y, a.z), level);
+    let c110 = textureLoad(vol_tex, vec3<i32>(b.x, b.y, a.z), level);
+    let c001 = textureLoad(vol_tex, vec3<i32>(a.x, a.y, b.z), level);
+    let c101 = textureLoad(vol_tex, vec3<i32>(b.x, a.y, b.z), level);
+    let c011 = textureLoad(vol_tex, vec3<i32>(a.x, b.y, b.z), level);
+    let c111 = textureLoad(vol_tex, b, level);
+    let x0 = mix(mix(c000, c100, f.x), mix(c010, c110, f.x), f.y);
+    let x1 = mix(mix(c001, c101, f.x), mix(c011, c111, f.x), f.y);
+    return mix(x0, x1, f.z);
+}
+
+// Quadrilinear sample: trilinear in the two levels around `level`, blended.
+fn vol_sample(u: vec3<f32>, level: f32) -> vec4<f32> {
+    let l0 = floor(level);
+    let f = level - l0;
+    var lv = u32(l0);
+    var w = 0.0;
+    var acc = vec4<f32>(0.0);
+    // One call site for the trilinear fetch (Mesa inlines every call).
+    for (var i = 0u; i < 2u; i += 1u) {
+        let wi = select(1.0 - f, f, i == 1u);
+        if (wi > 0.0) {
+            acc += vol_trilinear(u, min(lv + i, vol.dims.w - 1u)) * wi;
+        }
+    }
+    return acc;
 }
 
 fn vol_ambient(n: vec3<f32>) -> vec3<f32> {
@@ -170,18 +210,15 @@ fn fs_volume(@builtin(position) pos: vec4<f32>) -> VolOut {
         if ((sw & 8u) != 0u) {
             level = clamp(log2(max(2.0 * e.w * tm / voxel, 1.0e-30)), 0.0, top);
         }
-        let s = textureSampleLevel(vol_tex, vol_sampler, u, level);
+        let s = vol_sample(u, level);
         samples += 1u;
         let c4 = vol_lookup(s.x);
         if (c4.w > 0.0) {
             let omega = 1.0 - exp(-c4.w * (b - a));
-            let gl = s.yzw * 2.0 - 1.0;
+            let gl = (s.yzw * 255.0 - 128.0) / 127.0;
             let g = vol.world_from_local_0.xyz * gl.x + vol.world_from_local_1.xyz * gl.y + vol.world_from_local_2.xyz * gl.z;
             let len = length(g);
-            var n = g / max(len, 1.0e-6);
-            if (dot(n, dir) > 0.0) {
-                n = -n;
-            }
+            let n = -g / max(len, 1.0e-6);
             let w = clamp(len * 4.0, 0.0, 1.0);
             let c = c4.xyz;
             let ndl = 0.5 + (max(dot(n, sun), 0.0) - 0.5) * w;

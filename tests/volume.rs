@@ -1,0 +1,764 @@
+//! Density volumes: loaders and their errors, transfer functions, the CPU volume integral
+//! against analytic truth, and the GPU volume pass against the CPU reference.
+
+mod common;
+
+use common::{gpu, gpu_lock, save_failure_image, terrain_from_fn, terrains};
+use glam::{DMat3, DVec3};
+use rayon::prelude::*;
+use relief::cpu::volume::{composite, integrate, VolumeLight};
+use relief::gpu::{FrameOutput, RenderSettings, TerrainRenderer, TraceMode};
+use relief::scene::{Camera, Scene, SceneDesc};
+use relief::terrain::Terrain;
+use relief::volume::desc::VolumeMaterial;
+use relief::volume::transfer::TfPoint;
+use relief::volume::{DensityGrid, TransferFunction, Volume, VolumeSettings};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+fn brain_path() -> PathBuf {
+    terrains().join("volumes/mni152_t1.nrrd")
+}
+
+fn tmp_dir(name: &str) -> PathBuf {
+    let d = common::project_dir()
+        .join("target")
+        .join("test-tmp")
+        .join(name);
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn settings() -> RenderSettings {
+    RenderSettings {
+        mode: TraceMode::Pyramid,
+        shadows: true,
+        tile_prepass: true,
+        max_steps: 4096,
+    }
+}
+
+#[test]
+fn nrrd_brain_loads_with_its_header_size_spacing_and_bytes() {
+    let g = relief::volume::nrrd::load(&brain_path(), None).unwrap();
+    assert_eq!(g.dims, [197, 233, 189]);
+    for s in g.spacing {
+        assert!((s - 0.001).abs() < 1e-12, "1 mm voxels, got {s} m");
+    }
+    assert_eq!(g.value_range, [0.0, 255.0]);
+    // Independent decode: the gzip payload after the header's blank line.
+    let bytes = std::fs::read(brain_path()).unwrap();
+    let start = bytes.windows(2).position(|w| w == b"\n\n").unwrap() + 2;
+    let mut raw = Vec::new();
+    std::io::Read::read_to_end(&mut flate2::read::GzDecoder::new(&bytes[start..]), &mut raw)
+        .unwrap();
+    assert_eq!(raw.len(), g.data.len());
+    assert!(raw == g.data, "decoded voxels differ from the gzip payload");
+}
+
+fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::File::create(&p).unwrap().write_all(bytes).unwrap();
+    p
+}
+
+#[test]
+fn bad_nrrd_files_are_refused_with_the_file_named() {
+    let dir = tmp_dir("bad-nrrd");
+    let good = std::fs::read(brain_path()).unwrap();
+    let start = good.windows(2).position(|w| w == b"\n\n").unwrap() + 2;
+    let header = |enc: &str, sizes: &str, kind: &str| {
+        format!("NRRD0004\ntype: {kind}\ndimension: 3\nsizes: {sizes}\nencoding: {enc}\n\n")
+            .into_bytes()
+    };
+    let mut corrupt = good.clone();
+    for b in &mut corrupt[start + 5000..start + 5200] {
+        *b ^= 0x5a;
+    }
+    let nan: Vec<u8> = [1.0f32, f32::NAN, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0]
+        .iter()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    let cases: Vec<(&str, Vec<u8>, &str)> =
+        vec![
+        ("truncated-gzip.nrrd", good[..good.len() / 2].to_vec(), "gzip"),
+        ("corrupt-gzip.nrrd", corrupt, "gzip"),
+        ("bad-magic.nrrd", b"NRRX0004\n\n".to_vec(), "magic"),
+        ("no-blank-line.nrrd", b"NRRD0004\ntype: uint8\n".to_vec(), "header"),
+        (
+            "short-raw.nrrd",
+            [header("raw", "4 4 4", "uint8"), vec![7u8; 60]].concat(),
+            "truncated",
+        ),
+        (
+            "sizes-vs-gzip.nrrd",
+            [header("gzip", "300 300 300", "uint8"), good[start..].to_vec()].concat(),
+            "truncated",
+        ),
+        (
+            "two-d.nrrd",
+            b"NRRD0004\ntype: uint8\ndimension: 2\nsizes: 4 4\nencoding: raw\n\n0123456789abcdef"
+                .to_vec(),
+            "3-D",
+        ),
+        (
+            "bzip.nrrd",
+            [header("bzip2", "2 2 2", "uint8"), vec![0; 8]].concat(),
+            "encoding",
+        ),
+        (
+            "nan.nrrd",
+            [header("raw", "2 2 2", "float"), nan].concat(),
+            "not finite",
+        ),
+        (
+            "huge.nrrd",
+            [header("raw", "100000 2 2", "uint8"), vec![0; 8]].concat(),
+            "grid size",
+        ),
+    ];
+    for (name, bytes, want) in cases {
+        let p = write(&dir, name, &bytes);
+        let e = relief::volume::nrrd::load(&p, None)
+            .err()
+            .unwrap_or_else(|| panic!("{name} was accepted"))
+            .to_string();
+        assert!(
+            e.contains(name),
+            "{name}: error does not name the file: {e}"
+        );
+        assert!(e.contains(want), "{name}: expected {want:?} in: {e}");
+    }
+    let missing = relief::volume::nrrd::load(&dir.join("missing.nrrd"), None).unwrap_err();
+    assert!(missing.to_string().contains("missing.nrrd"));
+}
+
+#[test]
+fn raw_volume_with_a_toml_header_loads_and_checks_its_size() {
+    let dir = tmp_dir("raw-volume");
+    let values: Vec<u16> = (0..4 * 3 * 2).map(|i| (i * 1000) as u16).collect();
+    let be: Vec<u8> = values.iter().flat_map(|v| v.to_be_bytes()).collect();
+    write(&dir, "v.raw", &be);
+    let h = write(
+        &dir,
+        "v.toml",
+        b"file = \"v.raw\"\ndims = [4, 3, 2]\ntype = \"uint16\"\nendian = \"big\"\nspacing = [2.0, 2.0, 4.0]\nunits = \"mm\"\n",
+    );
+    let g = relief::volume::raw::load(&h, None).unwrap();
+    assert_eq!(g.dims, [4, 3, 2]);
+    assert_eq!(g.spacing, [0.002, 0.002, 0.004]);
+    assert_eq!(g.value_range, [0.0, 23000.0]);
+    for (i, v) in values.iter().enumerate() {
+        let want = (*v as f64 / 23000.0 * 255.0).round() as u8;
+        assert_eq!(g.data[i], want, "voxel {i}");
+    }
+    let short = write(
+        &dir,
+        "short.toml",
+        b"file = \"v.raw\"\ndims = [4, 3, 3]\ntype = \"uint16\"\n",
+    );
+    let e = relief::volume::raw::load(&short, None)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("v.raw") && e.contains("truncated"), "{e}");
+    let unknown = write(
+        &dir,
+        "unknown.toml",
+        b"file = \"v.raw\"\ndims = [4, 3, 2]\ntype = \"uint16\"\nscale = 2\n",
+    );
+    let e = relief::volume::raw::load(&unknown, None)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("unknown.toml") && e.contains("scale"), "{e}");
+}
+
+#[test]
+fn transfer_functions_interpolate_validate_and_hide_the_brain_background() {
+    let tf = TransferFunction {
+        points: vec![
+            TfPoint {
+                value: 10.0,
+                colour: [1.0, 0.0, 0.0],
+                opacity: 0.0,
+            },
+            TfPoint {
+                value: 20.0,
+                colour: [0.0, 1.0, 0.0],
+                opacity: 0.5,
+            },
+        ],
+        unit: Some(2.0),
+    };
+    tf.validate("t").unwrap();
+    let (c, a) = tf.eval(15.0);
+    assert!((c[0] - 0.5).abs() < 1e-12 && (c[1] - 0.5).abs() < 1e-12 && (a - 0.25).abs() < 1e-12);
+    assert_eq!(tf.eval(-5.0).1, 0.0);
+    assert_eq!(tf.eval(50.0).1, 0.5);
+    // σ per metre from opacity per unit: a slab one unit thick absorbs the point's opacity.
+    let table = tf.table(|d| d, 1.0);
+    let s = table.lookup(200.0 / 255.0)[3];
+    assert!(((1.0 - (-s * 2.0).exp()) - 0.5).abs() < 1e-6, "σ {s}");
+    let unsorted = TransferFunction {
+        points: vec![tf.points[1], tf.points[0]],
+        unit: None,
+    };
+    assert!(unsorted
+        .validate("t")
+        .unwrap_err()
+        .to_string()
+        .contains("sorted"));
+    assert!(TransferFunction::preset("nope")
+        .unwrap_err()
+        .to_string()
+        .contains("brain"));
+    let g = relief::volume::nrrd::load(&brain_path(), None).unwrap();
+    for name in ["brain", "brain-white"] {
+        let tf = TransferFunction::preset(name).unwrap();
+        let hidden = tf.hidden_fraction(&g.data, |d| g.value_of(d));
+        eprintln!("{name}: hides {:.1}% of the voxels", 100.0 * hidden);
+        assert!(hidden >= 0.7, "{name} hides only {hidden}");
+    }
+}
+
+/// A volume of constant density `d` (8-bit), `n³` voxels of `voxel` metres, corner at
+/// `corner`, one grey transfer point, ambient-only material (so the integral is analytic).
+fn uniform_volume(n: u32, voxel: f64, corner: DVec3, d: u8, opacity: f64, step: f64) -> Volume {
+    let grid = DensityGrid {
+        dims: [n; 3],
+        data: vec![d; (n * n * n) as usize],
+        spacing: [voxel; 3],
+        value_range: [0.0, 255.0],
+    };
+    let tf = TransferFunction {
+        points: vec![
+            TfPoint {
+                value: 0.0,
+                colour: [0.0; 3],
+                opacity: 0.0,
+            },
+            TfPoint {
+                value: 255.0,
+                colour: [0.8, 0.6, 0.4],
+                opacity,
+            },
+        ],
+        unit: None,
+    };
+    Volume::new(
+        "slab".into(),
+        grid,
+        tf,
+        corner,
+        DMat3::IDENTITY,
+        VolumeSettings {
+            step,
+            early_termination: false,
+            ..Default::default()
+        },
+        VolumeMaterial {
+            ambient: 1.0,
+            diffuse: 0.0,
+            specular: 0.0,
+            shininess: 1.0,
+        },
+        None,
+    )
+}
+
+fn no_fog_light(desc: &SceneDesc, terrain: &Terrain) -> VolumeLight {
+    let mut l = VolumeLight::new(desc, terrain);
+    l.sigma = 0.0;
+    l
+}
+
+/// Analytic colour of a ray crossing `len` metres of a uniform volume over `bg` (linear).
+fn analytic_slab(v: &Volume, light: &VolumeLight, len: f64, bg: DVec3) -> DVec3 {
+    let e = v.table.lookup(v.grid.data[0] as f64 / 255.0);
+    // Gradient is zero in a uniform field: ambient light on a zero normal.
+    let c = DVec3::new(e[0], e[1], e[2]) * light.ambient_light(DVec3::ZERO);
+    let a = 1.0 - (-e[3] * len).exp();
+    c * a + bg * (1.0 - a)
+}
+
+#[test]
+fn cpu_uniform_slab_matches_the_analytic_integral_at_any_step() {
+    let terrain = terrain_from_fn(3, 1.0, |_, _| 0.0);
+    let desc = common::synthetic_scene(8, 8, "position = [0.0, 0.0, 100.0]");
+    let light = no_fog_light(&desc, &terrain);
+    let bg = DVec3::new(0.2, 0.3, 0.9);
+    let mut worst: f64 = 0.0;
+    for step in [1.0, 0.5, 0.25, 0.13] {
+        let v = uniform_volume(16, 1.0, DVec3::ZERO, 128, 0.05, step);
+        for k in 0..200 {
+            // Rays from outside through the cube at assorted angles.
+            let a = k as f64 * 0.37;
+            let eye = DVec3::new(
+                8.0 + 30.0 * a.cos(),
+                8.0 + 30.0 * a.sin(),
+                8.0 + (k % 7) as f64,
+            );
+            let target = DVec3::new(
+                4.0 + (k % 9) as f64,
+                5.0 + (k % 5) as f64,
+                3.0 + (k % 11) as f64,
+            );
+            let dir = (target - eye).normalize();
+            let r = integrate(&v, &light, eye, dir, 1e-4, f64::INFINITY, [0, 0]);
+            let (t0, t1, _) = relief::cpu::freeform::clip_box(
+                eye,
+                dir,
+                DVec3::ZERO,
+                DVec3::splat(16.0),
+                0.0,
+                f64::INFINITY,
+            )
+            .unwrap();
+            let want = analytic_slab(&v, &light, t1 - t0, bg);
+            let got = r.over(bg);
+            worst = worst.max((got - want).abs().max_element());
+        }
+    }
+    eprintln!("worst |CPU − analytic| over steps 1 … 0.13 voxel: {worst:.2e}");
+    assert!(
+        worst < 1e-9,
+        "uniform slab off the analytic integral by {worst}"
+    );
+}
+
+/// Renders `desc` over `terrain` with `volumes`: (frame without the volume, frame with it,
+/// ray table).
+fn render_pair(
+    terrain: &Terrain,
+    desc: &SceneDesc,
+    cam: &Camera,
+    volumes: &[Volume],
+    objects: &[relief::freeform::FreeForm],
+) -> Option<(FrameOutput, FrameOutput, Vec<[f32; 4]>)> {
+    let g = gpu()?;
+    let mut r = TerrainRenderer::new(g, terrain).unwrap();
+    r.set_objects(g, objects).unwrap();
+    let under = r.capture(g, terrain, desc, cam, &settings()).unwrap();
+    r.set_volumes(g, volumes).unwrap();
+    let out = r.capture(g, terrain, desc, cam, &settings()).unwrap();
+    let rays = r.read_ray_table(g).unwrap();
+    Some((under, out, rays))
+}
+
+/// The CPU reference image: the volume integral per pixel along the GPU's own rays, cut at
+/// the GPU's opaque depth, over the GPU's image without the volume.
+fn cpu_image(
+    v: &Volume,
+    light: &VolumeLight,
+    cam: &Camera,
+    under: &FrameOutput,
+    rays: &[[f32; 4]],
+) -> Vec<[u8; 3]> {
+    let w = cam.width;
+    (0..rays.len())
+        .into_par_iter()
+        .map(|k| {
+            let e = rays[k];
+            let u = &under.rgba[4 * k..4 * k + 3];
+            if e[3] < 0.0 {
+                return [u[0], u[1], u[2]];
+            }
+            let dir = DVec3::new(e[0] as f64, e[1] as f64, e[2] as f64);
+            let depth = under.depth[k] as f64;
+            let t_max = if depth.is_finite() {
+                depth
+            } else {
+                f64::INFINITY
+            };
+            let px = [k as u32 % w, k as u32 / w];
+            let res = integrate(v, light, cam.pose.position, dir, e[3] as f64, t_max, px);
+            composite(&res, [u[0], u[1], u[2]])
+        })
+        .collect()
+}
+
+/// Mean and max absolute difference per channel (in 1/255 units) and the pixels the volume
+/// changed.
+fn compare(gpu_rgba: &[u8], cpu: &[[u8; 3]], under: &[u8]) -> (f64, u8, usize) {
+    let (mut sum, mut max, mut touched) = (0u64, 0u8, 0usize);
+    for (k, c) in cpu.iter().enumerate() {
+        for ch in 0..3 {
+            let d = gpu_rgba[4 * k + ch].abs_diff(c[ch]);
+            sum += d as u64;
+            max = max.max(d);
+        }
+        touched += (0..3).any(|ch| c[ch] != under[4 * k + ch]) as usize;
+    }
+    (sum as f64 / (3 * cpu.len()) as f64, max, touched)
+}
+
+#[test]
+fn gpu_volume_matches_the_cpu_reference_on_the_brain_with_two_transfer_functions() {
+    let _l = gpu_lock();
+    let mut scene = Scene::load(&terrains().join("brain.toml")).unwrap();
+    scene.desc.output.width = 160;
+    scene.desc.output.height = 120;
+    let terrain = scene.load_terrain().unwrap();
+    let mut vols = scene.volumes(&terrain).unwrap();
+    let cam = scene.camera(0, &terrain);
+    let light = VolumeLight::new(&scene.desc, &terrain);
+    for tf in ["brain", "brain-white"] {
+        vols[0].set_transfer(TransferFunction::preset(tf).unwrap());
+        let Some((under, out, rays)) = render_pair(&terrain, &scene.desc, &cam, &vols, &[]) else {
+            return;
+        };
+        let cpu = cpu_image(&vols[0], &light, &cam, &under, &rays);
+        let (mean, max, touched) = compare(&out.rgba, &cpu, &under.rgba);
+        let samples: u64 = out.volume_samples.iter().map(|&s| s as u64).sum();
+        eprintln!(
+            "{tf}: mean |GPU − CPU| {:.3}/255, max {max}/255 over {touched} volume pixels, {samples} GPU samples",
+            mean
+        );
+        assert!(
+            touched > 2000,
+            "{tf}: the volume covers only {touched} pixels"
+        );
+        if mean >= 1.0 || max >= 4 {
+            let p = save_failure_image(&format!("brain-{tf}"), 160, 120, &out.rgba);
+            let exp: Vec<u8> = cpu.iter().flat_map(|c| [c[0], c[1], c[2], 255]).collect();
+            save_failure_image(&format!("brain-{tf}-expected"), 160, 120, &exp);
+            panic!(
+                "{tf}: mean {mean:.3}/255 (< 1 required), max {max}/255 (< 4 required); {}",
+                p.display()
+            );
+        }
+    }
+}
+
+/// Renders `desc` with `volumes` once per settings variant.
+fn render_variants(
+    terrain: &Terrain,
+    desc: &SceneDesc,
+    cam: &Camera,
+    volume: &Volume,
+    variants: &[VolumeSettings],
+) -> Option<Vec<FrameOutput>> {
+    let g = gpu()?;
+    let mut r = TerrainRenderer::new(g, terrain).unwrap();
+    r.set_volumes(g, std::slice::from_ref(volume)).unwrap();
+    Some(
+        variants
+            .iter()
+            .map(|s| {
+                r.set_volume_settings(g, *s);
+                r.capture(g, terrain, desc, cam, &settings()).unwrap()
+            })
+            .collect(),
+    )
+}
+
+fn max_diff(a: &[u8], b: &[u8]) -> u8 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| x.abs_diff(*y))
+        .max()
+        .unwrap_or(0)
+}
+
+#[test]
+fn skipping_and_early_termination_change_nothing_visible() {
+    let _l = gpu_lock();
+    let mut scene = Scene::load(&terrains().join("brain.toml")).unwrap();
+    scene.desc.output.width = 160;
+    scene.desc.output.height = 120;
+    let terrain = scene.load_terrain().unwrap();
+    let mut vols = scene.volumes(&terrain).unwrap();
+    let cam = scene.camera(0, &terrain);
+    for tf in ["brain", "brain-white"] {
+        vols[0].set_transfer(TransferFunction::preset(tf).unwrap());
+        let on = vols[0].settings;
+        let plain = VolumeSettings {
+            skip: false,
+            early_termination: false,
+            ..on
+        };
+        let skip_only = VolumeSettings {
+            early_termination: false,
+            ..on
+        };
+        let Some(out) = render_variants(
+            &terrain,
+            &scene.desc,
+            &cam,
+            &vols[0],
+            &[on, plain, skip_only],
+        ) else {
+            return;
+        };
+        let samples = |o: &FrameOutput| o.volume_samples.iter().map(|&s| s as u64).sum::<u64>();
+        let (d_all, d_skip) = (
+            max_diff(&out[0].rgba, &out[1].rgba),
+            max_diff(&out[2].rgba, &out[1].rgba),
+        );
+        eprintln!(
+            "{tf}: samples plain {} / skip {} / skip + termination {}; max difference {d_skip}/255 (skip), {d_all}/255 (both)",
+            samples(&out[1]),
+            samples(&out[2]),
+            samples(&out[0])
+        );
+        assert!(
+            d_all <= 1 && d_skip <= 1,
+            "{tf}: skipping/termination changed the image by {d_all}/255"
+        );
+        assert!(
+            samples(&out[2]) * 2 < samples(&out[1]),
+            "{tf}: skipping saved too little: {} of {} samples",
+            samples(&out[2]),
+            samples(&out[1])
+        );
+        assert!(
+            samples(&out[0]) < samples(&out[2]),
+            "{tf}: early termination saved nothing"
+        );
+    }
+}
+
+/// A synthetic scene over `terrain`, `w x h`, camera at `eye` looking along heading/pitch.
+fn synthetic(w: u32, h: u32, eye: DVec3, heading: f64, pitch: f64) -> (SceneDesc, Camera) {
+    let desc = common::synthetic_scene(
+        w,
+        h,
+        &format!(
+            "position = [{}, {}, {}]\nheading = {heading}\npitch = {pitch}\nfov = 50.0",
+            eye.x, eye.y, eye.z
+        ),
+    );
+    let cam = Camera::new(
+        relief::scene::Pose {
+            position: eye,
+            heading,
+            pitch,
+            roll: 0.0,
+            fov: 50.0,
+        },
+        w,
+        h,
+    );
+    (desc, cam)
+}
+
+#[test]
+fn terrain_cuts_a_uniform_slab_at_the_analytic_depth_whatever_the_step() {
+    let _l = gpu_lock();
+    // A hill whose top pokes through a 60 m slab of haze lying on the ground.
+    let terrain = terrain_from_fn(65, 10.0, |x, y| {
+        let r2 = (x - 320.0).powi(2) + (y - 400.0).powi(2);
+        90.0 * (-r2 / 15000.0).exp()
+    });
+    let (desc, cam) = synthetic(120, 90, DVec3::new(320.0, 40.0, 45.0), 0.0, -4.0);
+    let slab = uniform_volume(32, 20.0, DVec3::new(0.0, 100.0, -20.0), 200, 0.05, 0.5);
+    let slab = Volume {
+        settings: VolumeSettings {
+            early_termination: false,
+            ..slab.settings
+        },
+        ..slab
+    };
+    let fine = VolumeSettings {
+        step: 0.25,
+        ..slab.settings
+    };
+    let Some(out) = render_variants(&terrain, &desc, &cam, &slab, &[slab.settings, fine]) else {
+        return;
+    };
+    let Some((under, _, rays)) = render_pair(&terrain, &desc, &cam, &[], &[]) else {
+        return;
+    };
+    let light = no_fog_light(&desc, &terrain);
+    let (mut worst, mut cut, mut inside) = (0u8, 0, 0);
+    for (k, e) in rays.iter().enumerate() {
+        let dir = DVec3::new(e[0] as f64, e[1] as f64, e[2] as f64).normalize();
+        let Some((t0, t1, _)) = relief::cpu::freeform::clip_box(
+            cam.pose.position,
+            dir,
+            slab.corner,
+            slab.corner + slab.extent(),
+            0.0,
+            f64::INFINITY,
+        ) else {
+            continue;
+        };
+        // The terrain distance from the CPU reference, not the GPU's depth.
+        let t_terrain = relief::cpu::cast_ray(&terrain, cam.pose.position, dir, 0.0, f64::INFINITY)
+            .map_or(f64::INFINITY, |h| h.t);
+        let len = (t1.min(t_terrain) - t0).max(0.0);
+        if len <= 0.0 {
+            continue;
+        }
+        inside += 1;
+        cut += (t_terrain < t1) as usize;
+        let u = &under.rgba[4 * k..4 * k + 3];
+        let bg = DVec3::from(
+            [u[0], u[1], u[2]].map(|c| relief::cpu::volume::srgb_decode(c as f64 / 255.0)),
+        );
+        let c = analytic_slab(&slab, &light, len, bg);
+        let want =
+            [c.x, c.y, c.z].map(|v| (relief::cpu::volume::srgb_encode(v) * 255.0).round() as u8);
+        for o in &out {
+            for ch in 0..3 {
+                worst = worst.max(o.rgba[4 * k + ch].abs_diff(want[ch]));
+            }
+        }
+    }
+    eprintln!("{inside} pixels see the slab, {cut} of them cut by the terrain; worst |GPU − analytic| {worst}/255 at steps 0.5 and 0.25 voxel; steps differ by {}/255", max_diff(&out[0].rgba, &out[1].rgba));
+    assert!(
+        inside > 3000 && cut > 1000,
+        "the view misses the slab ({inside}) or the cut ({cut})"
+    );
+    if worst > 1 {
+        let p = save_failure_image("slab-cut", 120, 90, &out[0].rgba);
+        panic!(
+            "GPU slab differs from the analytic integral by {worst}/255; {}",
+            p.display()
+        );
+    }
+    assert!(
+        max_diff(&out[0].rgba, &out[1].rgba) <= 1,
+        "halving the step changed the slab"
+    );
+}
+
+#[test]
+fn a_volume_behind_a_free_form_is_hidden_and_one_in_front_tints_it() {
+    let _l = gpu_lock();
+    let terrain = terrain_from_fn(65, 10.0, |_, _| 0.0);
+    let objects_toml = "[[objects]]\nname = \"ball\"\nshape = \"sphere\"\nradius = 40.0\nposition = [320.0, 300.0, 60.0]\n";
+    let text = format!("[terrain.procedural]\nsize = 2\n[camera]\nposition = [0.0, 0.0, 100.0]\n[fog]\nvisibility = 0.0\n{objects_toml}");
+    let objects = Scene::parse(&text, Path::new("ball.toml"))
+        .unwrap()
+        .free_forms(&terrain)
+        .unwrap();
+    let (desc, cam) = synthetic(120, 90, DVec3::new(320.0, 100.0, 60.0), 0.0, 0.0);
+    let behind = uniform_volume(16, 10.0, DVec3::new(240.0, 380.0, 0.0), 200, 0.3, 0.5);
+    let front = uniform_volume(16, 5.0, DVec3::new(280.0, 200.0, 20.0), 200, 0.1, 0.5);
+    for (name, vol, expect_tint) in [("behind", &behind, false), ("in front", &front, true)] {
+        let Some((under, out, _)) =
+            render_pair(&terrain, &desc, &cam, std::slice::from_ref(vol), &objects)
+        else {
+            return;
+        };
+        let (mut ball, mut ball_changed, mut other_changed) = (0, 0, 0);
+        for k in 0..under.objects.len() {
+            let changed = (0..3).any(|c| under.rgba[4 * k + c] != out.rgba[4 * k + c]);
+            assert_eq!(
+                under.depth[k].to_bits(),
+                out.depth[k].to_bits(),
+                "{name}: depth changed at {k}"
+            );
+            if under.objects[k] != 0 {
+                ball += 1;
+                ball_changed += changed as usize;
+            } else {
+                other_changed += changed as usize;
+            }
+        }
+        eprintln!("{name}: {ball} ball pixels, {ball_changed} tinted; {other_changed} other pixels changed");
+        assert!(ball > 500, "{name}: the ball covers only {ball} pixels");
+        assert!(
+            other_changed > 300,
+            "{name}: the volume is not visible beside the ball"
+        );
+        if expect_tint {
+            assert!(
+                ball_changed * 10 > ball * 9,
+                "{name}: only {ball_changed} of {ball} ball pixels tinted"
+            );
+        } else {
+            assert_eq!(
+                ball_changed, 0,
+                "{name}: a volume behind the ball shows through it"
+            );
+        }
+    }
+}
+
+#[test]
+fn cli_renders_the_brain_and_refuses_a_bad_volume_before_writing() {
+    let dir = tmp_dir("volume-cli");
+    let run = |args: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_relief"))
+            .args(args)
+            .env("NODEVICE_SELECT", "1")
+            .current_dir(common::project_dir())
+            .output()
+            .expect("the relief binary runs")
+    };
+    let base = std::fs::read_to_string(terrains().join("brain.toml"))
+        .unwrap()
+        .replace(
+            "source = \"volumes/mni152_t1.nrrd\"",
+            &format!("source = {:?}", brain_path()),
+        );
+    for (name, scene, needles) in [
+        (
+            "missing",
+            base.replace("mni152_t1.nrrd", "nope.nrrd"),
+            vec!["nope.nrrd"],
+        ),
+        (
+            "step",
+            base.replace(
+                "transfer = \"brain\"",
+                "transfer = \"brain\"\nrender = { step = 0.0 }",
+            ),
+            vec!["mni152", "render.step"],
+        ),
+        (
+            "preset",
+            base.replace("transfer = \"brain\"", "transfer = \"bran\""),
+            vec!["mni152", "bran", "brain-white"],
+        ),
+        (
+            "key",
+            base.replace("transfer = \"brain\"", "transfer = \"brain\"\ndensity = 2"),
+            vec!["density"],
+        ),
+    ] {
+        let p = dir.join(format!("{name}.toml"));
+        std::fs::write(&p, scene).unwrap();
+        let out = dir.join(format!("{name}-out"));
+        let o = run(&[
+            "render",
+            p.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{name}: accepted");
+        for n in needles {
+            assert!(err.contains(n), "{name}: {n:?} not in {err}");
+        }
+        assert!(
+            !out.join("frame_0000.png").exists(),
+            "{name}: wrote a frame"
+        );
+    }
+    if gpu().is_none() {
+        return;
+    }
+    let _l = gpu_lock();
+    let out = dir.join("out");
+    let o = run(&[
+        "render",
+        "terrains/brain.toml",
+        "--size",
+        "96x72",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let meta: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("frame_0000.json")).unwrap())
+            .unwrap();
+    assert_eq!(meta["volumes"], 1);
+    assert!(
+        meta["volume_pixels"].as_u64().unwrap() > 1000,
+        "{}",
+        meta["volume_pixels"]
+    );
+}
