@@ -8,6 +8,7 @@
 //!   (height of terrain, line of sight), dense marching oracle. These answer queries and are
 //!   the oracle the GPU output is tested against.
 //! * [`freeform`]: quadric free forms with recursive perturbations (model, scene tables).
+//! * [`voxel`]: coloured voxel models (`.vox` import, segment format, brick grid, scene tables).
 //! * [`display`]: curved-screen display model (screen, projectors, eye) for pre-distortion.
 //! * [`gpu`]: wgpu passes (ray generation, tile pre-pass, terrain cast + shade) and readback.
 //! * [`app`]: headless capture, benchmark and command-line front end.
@@ -20,5 +21,6 @@ pub mod freeform;
 pub mod gpu;
 pub mod scene;
 pub mod terrain;
+pub mod voxel;
 
 pub use error::{Error, Result};

@@ -7,6 +7,7 @@ pub mod freeform;
 pub mod march;
 pub mod query;
 pub mod traverse;
+pub mod voxel;
 
 pub use query::{cast_ray, height_above_terrain, line_of_sight, sun_visible, terrain_point_below};
 pub use traverse::{GridRay, Hit, TraversalStats};

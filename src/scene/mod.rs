@@ -34,6 +34,9 @@ pub struct SceneDesc {
     /// Quadric free forms (`[[objects]]`).
     #[serde(default)]
     pub objects: Vec<crate::freeform::FreeFormDesc>,
+    /// Coloured voxel models (`[[voxels]]`).
+    #[serde(default)]
+    pub voxels: Vec<crate::voxel::VoxelDesc>,
 }
 
 /// `[terrain]`: height source and its placement.
@@ -332,6 +335,11 @@ impl Scene {
                 })
             })
             .collect()
+    }
+
+    /// Loads and places the scene's voxel models (`above_terrain` needs the terrain).
+    pub fn voxel_models(&self, terrain: &Terrain) -> Result<Vec<crate::voxel::VoxelInstance>> {
+        crate::voxel::desc::build_all(&self.desc.voxels, &self.base_dir, terrain)
     }
 
     /// The camera for frame `frame` (the path if there is one, else the static camera).

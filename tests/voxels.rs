@@ -1,0 +1,307 @@
+//! Coloured voxel models: `.vox` import, the segment format, the CPU hierarchical DDA against a
+//! brute-force oracle, the GPU pass against the CPU, the CLI.
+
+mod common;
+
+use common::{gpu, gpu_lock, save_failure_image, terrain_from_fn, terrains, Rng};
+use glam::{DMat3, DVec3};
+use relief::cpu::voxel::{brute_force, dda, VoxelScene};
+use relief::voxel::vox::VoxFile;
+use relief::voxel::{segment, Voxel, VoxelInstance, VoxelModel};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+fn vox(name: &str) -> PathBuf {
+    terrains().join("voxels").join(name)
+}
+
+#[test]
+fn vox_files_load_with_the_provenance_voxel_counts() {
+    let deer = VoxFile::load(&vox("deer.vox")).unwrap();
+    assert_eq!(deer.version, 150);
+    assert_eq!(deer.models.len(), 1);
+    assert_eq!(deer.models[0].size, [26, 9, 27]);
+    assert_eq!(deer.model_voxel_counts(), vec![355]);
+    let frames = deer.frames().unwrap();
+    assert_eq!(frames.len(), 1);
+    assert_eq!(frames[0].voxels.len(), 355);
+    assert_eq!(frames[0].dims, [26, 9, 27]);
+
+    let tree = VoxFile::load(&vox("tree.vox")).unwrap();
+    assert_eq!(tree.version, 200);
+    assert_eq!(tree.model_voxel_counts(), vec![376_133, 52_606]);
+    assert!(tree.models.iter().all(|m| m.size == [256, 256, 256]));
+    let t = tree.frames().unwrap();
+    assert_eq!(t.len(), 1);
+    eprintln!(
+        "tree composed: {:?}, {} voxels",
+        t[0].dims,
+        t[0].voxels.len()
+    );
+    // Model 0 is placed twice (rotated ±90° about z), model 1 once: the union holds at least
+    // the larger model and at most all three placements.
+    assert!(t[0].voxels.len() >= 376_133 && t[0].voxels.len() <= 2 * 376_133 + 52_606);
+
+    let axes = VoxFile::load(&vox("axes.vox")).unwrap();
+    assert_eq!(axes.version, 200);
+    assert_eq!(axes.model_voxel_counts(), vec![920, 1640, 1480, 332]);
+    assert!(
+        axes.nodes.len() >= 20,
+        "scene graph has {} nodes",
+        axes.nodes.len()
+    );
+    let a = axes.frames().unwrap();
+    assert_eq!(a.len(), 1);
+    eprintln!(
+        "axes composed: {:?}, {} voxels",
+        a[0].dims,
+        a[0].voxels.len()
+    );
+    // Three arrows each built from models 0..=2 plus the centre cube (model 3), all placed by
+    // the scene graph: the composed box spans the arrows' translations (±47.. ±188 voxels).
+    assert!(a[0].dims.iter().all(|&d| d > 100), "{:?}", a[0].dims);
+    assert!(a[0].voxels.len() > 4000);
+}
+
+#[test]
+fn vox_scene_graph_applies_rotation_and_translation() {
+    // Hand-built v200 file: one 2x1x1 model (x = 0 colour 1, x = 1 colour 2), placed by a
+    // transform with _r = 1 + 16·0 ... : rows (0,1,0)?  Use _r 17: row0 = -y, row1 = +x.
+    let mut b = Vec::new();
+    let chunk = |id: &[u8; 4], content: &[u8]| {
+        let mut c = id.to_vec();
+        c.extend((content.len() as i32).to_le_bytes());
+        c.extend(0i32.to_le_bytes());
+        c.extend(content);
+        c
+    };
+    let i = |v: i32| v.to_le_bytes().to_vec();
+    let s = |t: &str| [i(t.len() as i32), t.as_bytes().to_vec()].concat();
+    let mut kids = Vec::new();
+    kids.extend(chunk(b"SIZE", &[i(2), i(1), i(1)].concat()));
+    kids.extend(chunk(
+        b"XYZI",
+        &[i(2), vec![0, 0, 0, 1, 1, 0, 0, 2]].concat(),
+    ));
+    // nTRN 0 -> nSHP 1, frame dict {_r: "17", _t: "10 20 30"}
+    kids.extend(chunk(
+        b"nTRN",
+        &[
+            i(0),
+            i(0),
+            i(1),
+            i(-1),
+            i(0),
+            i(1),
+            i(2),
+            s("_r"),
+            s("17"),
+            s("_t"),
+            s("10 20 30"),
+        ]
+        .concat(),
+    ));
+    kids.extend(chunk(b"nSHP", &[i(1), i(0), i(1), i(0), i(0)].concat()));
+    b.extend(b"VOX ");
+    b.extend(i(200));
+    b.extend(b"MAIN");
+    b.extend(i(0));
+    b.extend(i(kids.len() as i32));
+    b.extend(&kids);
+    let f = VoxFile::parse(&b, Path::new("hand.vox")).unwrap();
+    let m = &f.frames().unwrap()[0];
+    // Centres: x = 0 -> (-0.5, 0.5, 0.5) -> R: (-0.5, -0.5, 0.5) (row0 = -y, row1 = +x);
+    // x = 1 -> (0.5, 0.5, 0.5) -> (-0.5, 0.5, 0.5): the pair now runs along +y.
+    assert_eq!(m.dims, [1, 2, 1]);
+    let by_y: Vec<u8> = m.voxels.iter().map(|v| v.index).collect();
+    assert_eq!(m.voxels[0].pos, [0, 0, 0]);
+    assert_eq!(by_y, vec![1, 2]);
+    // Truncating the same bytes anywhere gives an error naming the file, never a panic.
+    for cut in 0..b.len() {
+        let e =
+            VoxFile::parse(&b[..cut], Path::new("hand.vox")).and_then(|f| f.frames().map(|_| ()));
+        match e {
+            Err(e) => assert!(e.to_string().contains("hand.vox"), "{e}"),
+            Ok(()) => panic!("truncated at {cut} of {} parsed", b.len()),
+        }
+    }
+}
+
+#[test]
+fn malformed_vox_files_are_refused_without_panics() {
+    let good = std::fs::read(vox("axes.vox")).unwrap();
+    let p = Path::new("bad.vox");
+    assert!(VoxFile::parse(b"RIFF\0\0\0\0", p)
+        .unwrap_err()
+        .to_string()
+        .contains("does not start with \"VOX \""));
+    for cut in [0, 3, 8, 20, 100, 5000, good.len() / 2, good.len() - 1] {
+        let e = VoxFile::parse(&good[..cut], p).and_then(|f| f.frames().map(|_| ()));
+        let msg = e.expect_err("truncated file must fail").to_string();
+        assert!(msg.starts_with("bad.vox"), "{msg}");
+    }
+    // Random corruption: errors or a valid model, never a panic.
+    let mut rng = Rng::new(7);
+    for _ in 0..300 {
+        let mut b = good.clone();
+        for _ in 0..4 {
+            let k = (rng.range(0.0, 1.0) * b.len() as f64) as usize % b.len();
+            b[k] = (rng.range(0.0, 1.0) * 256.0) as u8;
+        }
+        let _ = VoxFile::parse(&b, p).and_then(|f| f.frames().map(|_| ()));
+    }
+    // A voxel outside its model's size is named.
+    let mut b = std::fs::read(vox("deer.vox")).unwrap();
+    let xyzi = b.windows(4).position(|w| w == b"XYZI").unwrap();
+    b[xyzi + 16] = 200; // first voxel's x
+    let msg = VoxFile::parse(&b, p).unwrap_err().to_string();
+    assert!(msg.contains("outside"), "{msg}");
+}
+
+fn random_model(rng: &mut Rng, dims: [u32; 3], fill: f64, extra_sizes: Vec<u8>) -> VoxelModel {
+    let mut voxels = Vec::new();
+    for z in 0..dims[2] {
+        for y in 0..dims[1] {
+            for x in 0..dims[0] {
+                if rng.range(0.0, 1.0) < fill {
+                    voxels.push(Voxel {
+                        pos: [x, y, z],
+                        index: 1 + (rng.range(0.0, 1.0) * 254.0) as u8,
+                    });
+                }
+            }
+        }
+    }
+    let palette = (0..256)
+        .map(|i| [i as u8, (i * 7) as u8, (255 - i) as u8, 255])
+        .collect();
+    let mut m = VoxelModel::new("random", dims, palette, voxels).unwrap();
+    let stride: usize = extra_sizes.iter().map(|&s| s as usize).sum();
+    m.extra = (0..m.voxels.len() * stride)
+        .map(|_| (rng.range(0.0, 1.0) * 256.0) as u8)
+        .collect();
+    m.extra_sizes = extra_sizes;
+    m
+}
+
+#[test]
+fn segment_format_round_trips_bit_exactly_with_extra_attributes() {
+    let mut rng = Rng::new(11);
+    for (dims, fill, extra) in [
+        ([13, 7, 29], 0.3, vec![3, 1]),
+        ([1, 1, 1], 1.0, vec![]),
+        ([40, 3, 70], 0.02, vec![2, 4, 1]),
+        ([9, 9, 9], 0.97, vec![1]),
+    ] {
+        let m = random_model(&mut rng, dims, fill, extra);
+        let bytes = segment::encode(&m);
+        let back = segment::decode(&bytes, Path::new("rt.rvs")).unwrap();
+        assert_eq!(back, m, "model differs after a round trip ({dims:?})");
+        assert_eq!(segment::encode(&back), bytes, "bytes differ ({dims:?})");
+    }
+    // The tree: real data through a file on disk.
+    let tree = VoxFile::load(&vox("tree.vox"))
+        .unwrap()
+        .frames()
+        .unwrap()
+        .remove(0);
+    let dir = common::project_dir().join("target/test-output");
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("tree-roundtrip.rvs");
+    let n = segment::write(&tree, &path).unwrap();
+    let back = segment::read(&path).unwrap();
+    assert_eq!(back, tree);
+    assert_eq!(std::fs::read(&path).unwrap().len() as u64, n);
+    eprintln!(
+        "tree: {} voxels, dense {} B, segment {n} B ({:.1}x smaller)",
+        tree.voxels.len(),
+        tree.dense_bytes(),
+        tree.dense_bytes() as f64 / n as f64
+    );
+}
+
+#[test]
+fn malformed_segment_files_are_refused_without_panics() {
+    let mut rng = Rng::new(5);
+    let m = random_model(&mut rng, [6, 5, 20], 0.4, vec![2]);
+    let good = segment::encode(&m);
+    let p = Path::new("bad.rvs");
+    for cut in 0..good.len() {
+        let msg = segment::decode(&good[..cut], p)
+            .expect_err("truncated segment file must fail")
+            .to_string();
+        assert!(msg.starts_with("bad.rvs"), "{msg}");
+    }
+    for _ in 0..2000 {
+        let mut b = good.clone();
+        let k = (rng.range(0.0, 1.0) * b.len() as f64) as usize % b.len();
+        b[k] ^= 1 << ((rng.range(0.0, 1.0) * 8.0) as u32 % 8);
+        if let Ok(back) = segment::decode(&b, p) {
+            // A flip that still decodes (a palette or attribute byte) stays inside the box.
+            assert!(back
+                .voxels
+                .iter()
+                .all(|v| (0..3).all(|a| v.pos[a] < back.dims[a])));
+        }
+    }
+    let mut b = good.clone();
+    b[8] = 9; // version
+    assert!(segment::decode(&b, p)
+        .unwrap_err()
+        .to_string()
+        .contains("version 9"));
+}
+
+#[test]
+fn cpu_dda_matches_brute_force_on_random_rays() {
+    let mut rng = Rng::new(3);
+    let mut hits = 0;
+    for (dims, fill) in [([21, 17, 13], 0.05), ([8, 8, 8], 0.3), ([35, 9, 40], 0.01)] {
+        let m = random_model(&mut rng, dims, fill, vec![]);
+        let b = m.bricks();
+        let size = DVec3::new(dims[0] as f64, dims[1] as f64, dims[2] as f64);
+        for k in 0..4000 {
+            // Origins around and inside the box, some rays axis-aligned.
+            let o = DVec3::new(
+                rng.range(0.0, 1.0),
+                rng.range(0.0, 1.0),
+                rng.range(0.0, 1.0),
+            ) * size
+                * 2.0
+                - size * 0.5;
+            let mut d = DVec3::new(
+                rng.range(0.0, 1.0) - 0.5,
+                rng.range(0.0, 1.0) - 0.5,
+                rng.range(0.0, 1.0) - 0.5,
+            );
+            if k % 10 == 0 {
+                d[k / 10 % 3] = 0.0;
+            }
+            if d.length() < 1e-3 {
+                continue;
+            }
+            let d = d.normalize() * (0.5 + rng.range(0.0, 1.0) * 3.0);
+            let t_min = if k % 7 == 0 {
+                rng.range(0.0, 1.0) * 5.0
+            } else {
+                0.0
+            };
+            let got = dda(&b, o, d, t_min, 1e9);
+            let want = brute_force(&m, o, d, t_min, 1e9);
+            match (got, want) {
+                (None, None) => {}
+                (Some(h), Some(w)) => {
+                    hits += 1;
+                    assert!(
+                        (h.t - w).abs() <= 1e-9 * (1.0 + w.abs()),
+                        "dda t {} vs brute force {w}: o {o} d {d}",
+                        h.t
+                    );
+                    assert_ne!(b.get(h.voxel), 0);
+                }
+                (g, w) => panic!("dda {g:?} vs brute force {w:?}: o {o} d {d} t_min {t_min}"),
+            }
+        }
+    }
+    assert!(hits > 1000, "only {hits} rays hit");
+}
