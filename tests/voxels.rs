@@ -6,6 +6,8 @@ mod common;
 use common::{gpu, gpu_lock, save_failure_image, terrain_from_fn, terrains, Rng};
 use glam::{DMat3, DVec3};
 use relief::cpu::voxel::{brute_force, dda, VoxelScene};
+use relief::gpu::{RenderSettings, TerrainRenderer, TraceMode};
+use relief::scene::{Camera, Pose};
 use relief::voxel::vox::VoxFile;
 use relief::voxel::{segment, Voxel, VoxelInstance, VoxelModel};
 use std::path::{Path, PathBuf};
@@ -304,4 +306,205 @@ fn cpu_dda_matches_brute_force_on_random_rays() {
         }
     }
     assert!(hits > 1000, "only {hits} rays hit");
+}
+
+fn camera(position: DVec3, heading: f64, pitch: f64, w: u32, h: u32) -> Camera {
+    Camera::new(
+        Pose {
+            position,
+            heading,
+            pitch,
+            roll: 0.0,
+            fov: 60.0,
+        },
+        w,
+        h,
+    )
+}
+
+fn instance(file: &str, pos: DVec3, heading: f64, voxel_size: f64) -> VoxelInstance {
+    let frames = relief::voxel::desc::load_frames(&vox(file)).unwrap();
+    let (r, d, f) = relief::scene::attitude_basis(heading, 0.0, 0.0);
+    VoxelInstance::new(
+        file,
+        frames.into_iter().map(Arc::new).collect(),
+        DMat3::from_cols(r, f, -d),
+        pos,
+        voxel_size,
+    )
+}
+
+fn settings(shadows: bool) -> RenderSettings {
+    RenderSettings {
+        mode: TraceMode::Pyramid,
+        shadows,
+        tile_prepass: true,
+        max_steps: 4096,
+    }
+}
+
+#[test]
+fn gpu_voxel_depth_matches_the_cpu_dda() {
+    let _l = gpu_lock();
+    let terrain = terrain_from_fn(65, 10.0, |x, y| 0.02 * x + 0.01 * y);
+    let ground = |x: f64, y: f64| 0.02 * x + 0.01 * y;
+    let models = vec![
+        instance(
+            "deer.vox",
+            DVec3::new(300.0, 330.0, ground(300.0, 330.0)),
+            30.0,
+            0.6,
+        ),
+        instance(
+            "axes.vox",
+            DVec3::new(345.0, 360.0, ground(345.0, 360.0)),
+            -20.0,
+            0.12,
+        ),
+        instance(
+            "tree.vox",
+            DVec3::new(270.0, 370.0, ground(270.0, 370.0)),
+            0.0,
+            0.1,
+        ),
+    ];
+    let scene = VoxelScene::new(models.clone());
+    let (w, h) = (240u32, 160u32);
+    let cam = camera(DVec3::new(310.0, 290.0, 16.0), 0.0, -12.0, w, h);
+    let Some(g) = gpu() else {
+        return;
+    };
+    let mut desc = common::synthetic_scene(w, h, "position = [0.0, 0.0, 100.0]");
+    desc.sun.azimuth = 120.0;
+    desc.sun.elevation = 35.0;
+    let mut r = TerrainRenderer::new(g, &terrain).unwrap();
+    r.set_voxels(g, &models).unwrap();
+    let out = r
+        .capture(g, &terrain, &desc, &cam, &settings(true))
+        .unwrap();
+    let mut agree = 0;
+    let mut voxel_pixels = 0;
+    let mut gpu_voxel = 0;
+    for k in 0..(w * h) as usize {
+        let d = cam.pixel_ray(k as u32 % w, k as u32 / w);
+        let o = cam.pose.position;
+        let ter = relief::cpu::query::cast_ray(&terrain, o, d, 0.0, f64::INFINITY).map(|h| h.t);
+        let vx = scene.cast(o, d, 0.0, ter.unwrap_or(f64::INFINITY), 0.0);
+        let is_vox = out.flags[k] & 32 != 0;
+        gpu_voxel += is_vox as usize;
+        let ok = match (vx, ter) {
+            (Some(v), _) => {
+                voxel_pixels += 1;
+                is_vox && ((out.depth[k] as f64 - v.t) / v.t).abs() <= 1e-3
+            }
+            (None, Some(t)) => !is_vox && ((out.depth[k] as f64 - t) / t).abs() <= 1e-3,
+            (None, None) => !out.depth[k].is_finite(),
+        };
+        agree += ok as usize;
+    }
+    let n = (w * h) as usize;
+    let frac = agree as f64 / n as f64;
+    eprintln!(
+        "{agree}/{n} pixels agree ({:.3}%), {voxel_pixels} CPU voxel pixels, {gpu_voxel} GPU",
+        100.0 * frac
+    );
+    assert!(
+        voxel_pixels > n / 10,
+        "only {voxel_pixels} voxel pixels in view"
+    );
+    let shadowed = (0..n)
+        .filter(|&k| out.flags[k] & 32 == 0 && out.flags[k] & 2 != 0)
+        .count();
+    assert!(
+        shadowed > 100,
+        "voxel models cast only {shadowed} shadow pixels"
+    );
+    if frac < 0.995 {
+        let p = save_failure_image("voxels", w, h, &out.rgba);
+        panic!(
+            "only {:.3}% of pixels agree with the CPU DDA; image {}",
+            100.0 * frac,
+            p.display()
+        );
+    }
+}
+
+#[test]
+fn gpu_voxel_shadows_fall_where_the_cpu_says() {
+    let _l = gpu_lock();
+    let terrain = terrain_from_fn(65, 10.0, |_, _| 0.0);
+    let models = vec![instance(
+        "deer.vox",
+        DVec3::new(320.0, 330.0, 0.0),
+        0.0,
+        0.8,
+    )];
+    let scene = VoxelScene::new(models.clone());
+    let (w, h) = (160u32, 120u32);
+    let cam = camera(DVec3::new(320.0, 270.0, 40.0), 0.0, -35.0, w, h);
+    let Some(g) = gpu() else {
+        return;
+    };
+    let mut desc = common::synthetic_scene(w, h, "position = [0.0, 0.0, 100.0]");
+    desc.sun.azimuth = 250.0;
+    desc.sun.elevation = 30.0;
+    let sun = desc.sun.direction();
+    let mut r = TerrainRenderer::new(g, &terrain).unwrap();
+    r.set_voxels(g, &models).unwrap();
+    let out = r
+        .capture(g, &terrain, &desc, &cam, &settings(true))
+        .unwrap();
+    let (mut agree, mut cpu_shadow, mut n) = (0, 0, 0);
+    for k in 0..(w * h) as usize {
+        if out.flags[k] & 33 != 1 {
+            continue; // terrain pixels only
+        }
+        let d = cam.pixel_ray(k as u32 % w, k as u32 / w);
+        let p = cam.pose.position + d * out.depth[k] as f64;
+        let blocked = !scene.clear(p, sun, 0.0);
+        cpu_shadow += blocked as usize;
+        n += 1;
+        agree += (blocked == (out.flags[k] & 2 != 0)) as usize;
+    }
+    eprintln!("{agree}/{n} terrain pixels agree on voxel shadow ({cpu_shadow} shadowed)");
+    assert!(
+        cpu_shadow > 50,
+        "the deer casts only {cpu_shadow} shadow pixels"
+    );
+    assert!(agree as f64 >= 0.995 * n as f64, "{agree}/{n}");
+}
+
+#[test]
+fn oversize_voxel_models_are_refused_with_the_limit() {
+    let _l = gpu_lock();
+    let Some(g) = gpu() else {
+        return;
+    };
+    let limit = g
+        .limits
+        .max_storage_buffer_binding_size
+        .min(g.limits.max_buffer_size);
+    // One voxel in a 4096³ box: its brick table alone is 512³ entries (512 MiB).
+    let side = relief::voxel::MAX_SIDE;
+    let table = (side as u64 / 8).pow(3) * 4;
+    if table <= limit {
+        eprintln!(
+            "Skipping: the adapter allows {limit} bytes per storage buffer, more than {table}"
+        );
+        return;
+    }
+    let palette = vec![[200u8, 100, 50, 255]; 256];
+    let one = vec![Voxel {
+        pos: [5, 6, 7],
+        index: 1,
+    }];
+    let m = VoxelModel::new("huge", [side; 3], palette, one).unwrap();
+    let inst = VoxelInstance::new("big", vec![Arc::new(m)], DMat3::IDENTITY, DVec3::ZERO, 1.0);
+    let terrain = terrain_from_fn(9, 10.0, |_, _| 0.0);
+    let mut r = TerrainRenderer::new(g, &terrain).unwrap();
+    let msg = r.set_voxels(g, &[inst]).unwrap_err().to_string();
+    assert!(
+        msg.contains("voxel brick tables") && msg.contains(&limit.to_string()),
+        "{msg}"
+    );
 }

@@ -132,6 +132,7 @@ pub fn frame_metadata(
         "surface_pixels": hits,
         "free_form_pixels": out.objects.iter().filter(|o| **o != 0).count(),
         "free_forms": scene.desc.objects.len(),
+        "voxel_models": scene.desc.voxels.len(),
         "settings": settings,
         "adapter": {
             "name": gpu.info.name,
@@ -187,6 +188,8 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
     let mut renderer = TerrainRenderer::new(&gpu, &terrain)?;
     let objects = scene.free_forms(&terrain)?;
     renderer.set_objects(&gpu, &objects)?;
+    renderer.set_voxels(&gpu, &scene.voxel_models(&terrain)?)?;
+    let fps = scene.desc.path.as_ref().map_or(30.0, |p| p.fps);
     let mut display_meta = serde_json::Value::Null;
     if let Some(d) = &job.display {
         if job.size.is_some() {
@@ -240,6 +243,7 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
     let mut written = Vec::new();
     for frame in job.first_frame..job.first_frame + job.frames {
         let cam = scene.camera(frame, &terrain);
+        renderer.set_time(frame as f64 / fps);
         let out = renderer.capture(&gpu, &terrain, &scene.desc, &cam, &settings)?;
         let png = job.out_dir.join(format!("frame_{frame:04}.png"));
         let tif = job.out_dir.join(format!("depth_{frame:04}.tiff"));

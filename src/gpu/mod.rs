@@ -9,6 +9,7 @@ pub mod objects;
 pub mod renderer;
 pub mod shaders;
 pub mod types;
+pub mod voxels;
 
 pub use renderer::{
     FrameOutput, KernelPath, PassTimes, RenderSettings, Stage, TerrainRenderer, TraceMode,

@@ -3,6 +3,7 @@
 
 use super::objects::{ObjectPasses, ObjectTargets};
 use super::types::{FrameUniforms, RayGenUniforms, MAX_LEVELS};
+use super::voxels::{VoxelPasses, VoxelTargets};
 use super::{shaders, Gpu};
 use crate::scene::{Camera, SceneDesc};
 use crate::terrain::Terrain;
@@ -51,6 +52,8 @@ pub struct PassTimes {
     pub cast_ms: f64,
     /// Free-form binning and cast (0 without free forms).
     pub objects_ms: f64,
+    /// Voxel-model marks and cast (0 without voxel models).
+    pub voxels_ms: f64,
     pub shade_ms: f64,
     pub readback_ms: f64,
 }
@@ -59,7 +62,7 @@ impl PassTimes {
     /// Time to find every primary ray's hit (ray generation, tile pre-pass, terrain and
     /// free-form cast).
     pub fn primary_ms(&self) -> f64 {
-        self.raygen_ms + self.tile_ms + self.cast_ms + self.objects_ms
+        self.raygen_ms + self.tile_ms + self.cast_ms + self.objects_ms + self.voxels_ms
     }
 }
 
@@ -87,7 +90,7 @@ pub struct FrameOutput {
     pub patch_tests: Vec<u32>,
     /// Shadow-ray traversal steps per pixel.
     pub shadow_steps: Vec<u32>,
-    /// Flags per pixel: 1 hit, 2 in shadow, 4 step limit reached, 16 free form.
+    /// Flags per pixel: 1 hit, 2 in shadow, 4 step limit reached, 16 free form, 32 voxel model.
     pub flags: Vec<u32>,
     /// Free-form index + 1 per pixel (0 where no free form shows).
     pub objects: Vec<u32>,
@@ -115,6 +118,7 @@ struct Targets {
     data_rb: wgpu::Buffer,
     /// Free-form bins, G-buffer and the shade bind group that reads them.
     objects: Option<(ObjectTargets, wgpu::BindGroup)>,
+    voxels: Option<VoxelTargets>,
 }
 
 /// Which entry points run the per-pixel kernels that have both (ray generation today).
@@ -167,6 +171,9 @@ pub struct TerrainRenderer {
     tile_mod: wgpu::ShaderModule,
     table: Option<TableMode>,
     objects: Option<ObjectPasses>,
+    voxels: Option<VoxelPasses>,
+    /// Scene time in seconds (animated voxel models).
+    time: f64,
     targets: Option<Targets>,
 }
 
@@ -459,6 +466,8 @@ impl TerrainRenderer {
             tile_mod,
             table: None,
             objects: None,
+            voxels: None,
+            time: 0.0,
             targets: None,
         })
     }
@@ -573,6 +582,23 @@ impl TerrainRenderer {
         Ok(())
     }
 
+    /// Uploads the scene's voxel models (none: no voxel passes). Refuses models over the
+    /// adapter's storage-buffer limits with the limit in the message.
+    pub fn set_voxels(&mut self, gpu: &Gpu, models: &[crate::voxel::VoxelInstance]) -> Result<()> {
+        self.voxels = if models.is_empty() {
+            None
+        } else {
+            Some(VoxelPasses::new(gpu, models)?)
+        };
+        self.targets = None;
+        Ok(())
+    }
+
+    /// Sets the scene time (seconds) that picks animated voxel models' frames.
+    pub fn set_time(&mut self, seconds: f64) {
+        self.time = seconds;
+    }
+
     /// Moves the eye (display frame) for the next frames of a distortion table.
     pub fn set_eye(&mut self, eye: glam::DVec3) {
         if let Some(t) = &mut self.table {
@@ -634,7 +660,8 @@ impl TerrainRenderer {
                 format,
                 usage: wgpu::TextureUsages::RENDER_ATTACHMENT
                     | wgpu::TextureUsages::TEXTURE_BINDING
-                    | wgpu::TextureUsages::COPY_SRC,
+                    | wgpu::TextureUsages::COPY_SRC
+                    | wgpu::TextureUsages::COPY_DST,
                 view_formats: &[],
             })
         };
@@ -737,8 +764,15 @@ impl TerrainRenderer {
             }
             None => None,
         };
+        let voxels = self.voxels.as_ref().map(|v| {
+            let g = objects
+                .as_ref()
+                .map_or(&gbuffer_view, |(ot, _)| &ot.gbuffer_view);
+            v.targets(gpu, width, height, &self.frame_ub, &ray_table_view, g)
+        });
         self.targets = Some(Targets {
             objects,
+            voxels,
             width,
             height,
             tiles,
@@ -904,7 +938,18 @@ impl TerrainRenderer {
             o.encode_cast(&mut enc, ot, &t.gbuffer);
             lap(&mut enc, &mut times.objects_ms)?;
         }
+        let voxels = self.voxels.as_ref().zip(t.voxels.as_ref());
+        // The G-buffer the shade pass reads (the free-form one when there are free forms).
+        let final_gbuffer = t.objects.as_ref().map_or(&t.gbuffer, |(ot, _)| &ot.gbuffer);
+        if let Some((v, vt)) = voxels {
+            v.update(gpu, cam.pose.position, self.time);
+            v.encode_cast(&mut enc, vt, final_gbuffer);
+            lap(&mut enc, &mut times.voxels_ms)?;
+        }
         if stage == Stage::Shade {
+            if let Some((v, vt)) = voxels.filter(|_| s.shadows) {
+                v.encode_shadows(&mut enc, vt, final_gbuffer);
+            }
             let (pipeline, bg) = match objects {
                 Some((o, (ot, bg))) => {
                     if s.shadows {
