@@ -508,3 +508,58 @@ fn oversize_voxel_models_are_refused_with_the_limit() {
         "{msg}"
     );
 }
+
+#[test]
+fn cli_converts_a_vox_file_and_renders_the_tree_demo() {
+    let _l = gpu_lock();
+    let bin = env!("CARGO_BIN_EXE_relief");
+    let dir = common::project_dir().join("target/test-output/voxels-cli");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = std::process::Command::new(bin)
+        .args(["voxels", "convert"])
+        .arg(vox("deer.vox"))
+        .arg(dir.join("deer.rvs"))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{text}");
+    assert!(
+        text.contains("355 voxels") && text.contains("dense"),
+        "{text}"
+    );
+    let back = segment::read(&dir.join("deer.rvs")).unwrap();
+    assert_eq!(back.voxels.len(), 355);
+    // A malformed input fails with the file named and leaves no output.
+    std::fs::write(dir.join("bad.vox"), b"VOX \x96\0\0\0MAIN").unwrap();
+    let out = std::process::Command::new(bin)
+        .args(["voxels", "convert"])
+        .arg(dir.join("bad.vox"))
+        .arg(dir.join("bad.rvs"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("bad.vox"));
+    assert!(!dir.join("bad.rvs").exists());
+    if gpu().is_none() {
+        return;
+    }
+    let out = std::process::Command::new(bin)
+        .arg("render")
+        .arg(terrains().join("tree.toml"))
+        .args(["--size", "160x90", "--out"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let (w, h, depth) =
+        relief::app::capture::read_depth_tiff(&dir.join("depth_0000.tiff")).unwrap();
+    assert_eq!((w, h), (160, 90));
+    // The tree stands 30 m ahead of the camera in the middle of the image.
+    let centre = depth[(45 * 160 + 80) as usize];
+    assert!((25.0..40.0).contains(&centre), "centre depth {centre}");
+}
