@@ -9,6 +9,7 @@
 //!   the oracle the GPU output is tested against.
 //! * [`freeform`]: quadric free forms with recursive perturbations (model, scene tables).
 //! * [`volume`]: density volumes (NRRD, raw, procedural), transfer functions, brick grid.
+//! * [`voxel`]: coloured voxel models (`.vox` import, segment format, brick grid, scene tables).
 //! * [`display`]: curved-screen display model (screen, projectors, eye) for pre-distortion.
 //! * [`gpu`]: wgpu passes (ray generation, tile pre-pass, terrain cast + shade) and readback.
 //! * [`app`]: headless capture, benchmark and command-line front end.
@@ -22,5 +23,6 @@ pub mod gpu;
 pub mod scene;
 pub mod terrain;
 pub mod volume;
+pub mod voxel;
 
 pub use error::{Error, Result};

@@ -73,6 +73,15 @@ enum Command {
         /// generated objects (default scene: terrains/airfield.toml).
         #[arg(long)]
         freeforms: bool,
+        /// Measure voxel models instead: the scene's `[[voxels]]` one at a time vs terrain
+        /// only (default scene: terrains/tree.toml).
+        #[arg(long)]
+        voxels: bool,
+    },
+    /// Voxel model files: convert to the segment format (.rvs) and report sizes.
+    Voxels {
+        #[command(subcommand)]
+        action: VoxelsAction,
     },
     /// Warp files: inspect PFM / Bourke warps, export a display configuration's warp.
     Warp {
@@ -244,6 +253,13 @@ fn view_options(a: ViewArgs) -> Result<relief::app::view::ViewOptions> {
 }
 
 #[derive(Subcommand)]
+enum VoxelsAction {
+    /// Convert a .vox (composed scene graph, frame 0) or .rvs to a segment file and print
+    /// the voxel count, the sizes and the ratios vs a dense grid and vs the source file.
+    Convert { input: PathBuf, output: PathBuf },
+}
+
+#[derive(Subcommand)]
 enum WarpAction {
     /// Describe a warp file (.pfm, or a Bourke mesh).
     Inspect {
@@ -388,9 +404,21 @@ fn run(cli: Cli) -> Result<()> {
             json,
             dump_rays,
             freeforms,
+            voxels,
         }) => {
             if frames == 0 {
                 bail!("--frames must be at least 1");
+            }
+            if voxels {
+                let scene = scene.unwrap_or_else(|| PathBuf::from("terrains/tree.toml"));
+                let report = relief::app::voxels::bench(&scene, size, frames)
+                    .with_context(|| format!("benchmarking {}", scene.display()))?;
+                if json {
+                    println!("{}", serde_json::to_string_pretty(&report)?);
+                } else {
+                    relief::app::voxels::print_bench(&report);
+                }
+                return Ok(());
             }
             if freeforms {
                 let scene = scene.unwrap_or_else(|| PathBuf::from("terrains/airfield.toml"));
@@ -411,6 +439,13 @@ fn run(cli: Cli) -> Result<()> {
             } else {
                 bench::print_table(&report);
             }
+        }
+        Some(Command::Voxels {
+            action: VoxelsAction::Convert { input, output },
+        }) => {
+            let r = relief::app::voxels::convert(&input, &output)
+                .with_context(|| format!("converting {}", input.display()))?;
+            relief::app::voxels::print_sizes(&input, &r);
         }
         Some(Command::Warp { action }) => match action {
             WarpAction::Inspect {

@@ -137,6 +137,7 @@ pub fn frame_metadata(
         // termination leave the rest of the lattice unsampled).
         "volume_pixels": out.volume_samples.iter().filter(|s| **s != 0).count(),
         "volume_samples": out.volume_samples.iter().map(|&s| s as u64).sum::<u64>(),
+        "voxel_models": scene.desc.voxels.len(),
         "settings": settings,
         "adapter": {
             "name": gpu.info.name,
@@ -189,11 +190,14 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
     let terrain = scene.load_terrain()?;
     let objects = scene.free_forms(&terrain)?;
     let volumes = scene.volumes(&terrain)?;
+    let voxels = scene.voxel_models(&terrain)?;
     let gpu = Gpu::new()?;
     log::info!("adapter: {}", gpu.describe());
     let mut renderer = TerrainRenderer::new(&gpu, &terrain)?;
     renderer.set_objects(&gpu, &objects)?;
     renderer.set_volumes(&gpu, &volumes)?;
+    renderer.set_voxels(&gpu, &voxels)?;
+    let fps = scene.desc.path.as_ref().map_or(30.0, |p| p.fps);
     let mut display_meta = serde_json::Value::Null;
     if let Some(d) = &job.display {
         if job.size.is_some() {
@@ -247,6 +251,7 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
     let mut written = Vec::new();
     for frame in job.first_frame..job.first_frame + job.frames {
         let cam = scene.camera(frame, &terrain);
+        renderer.set_time(frame as f64 / fps);
         let out = renderer.capture(&gpu, &terrain, &scene.desc, &cam, &settings)?;
         let png = job.out_dir.join(format!("frame_{frame:04}.png"));
         let tif = job.out_dir.join(format!("depth_{frame:04}.tiff"));
@@ -267,11 +272,12 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
             .map_err(|e| Error::io(tmp, e))
         })?;
         log::info!(
-            "frame {frame}: raygen {:.1} ms, tile {:.1} ms, cast {:.1} ms, free forms {:.1} ms, shade {:.1} ms, volume {:.1} ms -> {}",
+            "frame {frame}: raygen {:.1} ms, tile {:.1} ms, cast {:.1} ms, free forms {:.1} ms, voxels {:.1} ms, shade {:.1} ms, volume {:.1} ms -> {}",
             out.times.raygen_ms,
             out.times.tile_ms,
             out.times.cast_ms,
             out.times.objects_ms,
+            out.times.voxels_ms,
             out.times.shade_ms,
             out.times.volume_ms,
             png.display()

@@ -3,4 +3,5 @@
 pub mod bench;
 pub mod capture;
 pub mod view;
+pub mod voxels;
 pub mod warp;

@@ -8,6 +8,7 @@ pub mod march;
 pub mod query;
 pub mod traverse;
 pub mod volume;
+pub mod voxel;
 
 pub use query::{cast_ray, height_above_terrain, line_of_sight, sun_visible, terrain_point_below};
 pub use traverse::{GridRay, Hit, TraversalStats};

@@ -10,6 +10,7 @@ pub mod renderer;
 pub mod shaders;
 pub mod types;
 pub mod volumes;
+pub mod voxels;
 
 pub use renderer::{
     FrameOutput, KernelPath, PassTimes, RenderSettings, Stage, TerrainRenderer, TraceMode,

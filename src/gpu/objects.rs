@@ -91,14 +91,14 @@ pub(crate) struct ObjectTargets {
     bin_shadow_bg: wgpu::BindGroup,
     cast_bg: wgpu::BindGroup,
     shadow_bg: wgpu::BindGroup,
-    gbuffer: wgpu::Texture,
+    pub gbuffer: wgpu::Texture,
     pub gbuffer_view: wgpu::TextureView,
     shadow_view: wgpu::TextureView,
     /// Stencil 1 where the pixel's bin has objects in the list being processed.
     stencil_view: wgpu::TextureView,
 }
 
-const STENCIL_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth24PlusStencil8;
+pub(crate) const STENCIL_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth24PlusStencil8;
 
 fn stencil_state(write: bool) -> wgpu::DepthStencilState {
     let face = wgpu::StencilFaceState {
@@ -130,7 +130,7 @@ fn stencil_state(write: bool) -> wgpu::DepthStencilState {
 }
 
 /// A full-screen pipeline behind (or, without a colour target, writing) the stencil mask.
-fn masked_pipeline(
+pub(crate) fn masked_pipeline(
     dev: &wgpu::Device,
     label: &str,
     m: &wgpu::ShaderModule,
@@ -348,7 +348,8 @@ impl ObjectPasses {
                 format,
                 usage: wgpu::TextureUsages::RENDER_ATTACHMENT
                     | wgpu::TextureUsages::TEXTURE_BINDING
-                    | wgpu::TextureUsages::COPY_DST,
+                    | wgpu::TextureUsages::COPY_DST
+                    | wgpu::TextureUsages::COPY_SRC,
                 view_formats: &[],
             });
             let view = tex.create_view(&Default::default());

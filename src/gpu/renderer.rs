@@ -3,6 +3,7 @@
 
 use super::objects::{ObjectPasses, ObjectTargets};
 use super::types::{FrameUniforms, RayGenUniforms, MAX_LEVELS};
+use super::voxels::{VoxelPasses, VoxelTargets};
 use super::{shaders, Gpu};
 use crate::scene::{Camera, SceneDesc};
 use crate::terrain::Terrain;
@@ -51,6 +52,8 @@ pub struct PassTimes {
     pub cast_ms: f64,
     /// Free-form binning and cast (0 without free forms).
     pub objects_ms: f64,
+    /// Voxel-model marks and cast (0 without voxel models).
+    pub voxels_ms: f64,
     pub shade_ms: f64,
     /// Volume integration and compositing (0 without a volume).
     pub volume_ms: f64,
@@ -61,7 +64,7 @@ impl PassTimes {
     /// Time to find every primary ray's hit (ray generation, tile pre-pass, terrain and
     /// free-form cast).
     pub fn primary_ms(&self) -> f64 {
-        self.raygen_ms + self.tile_ms + self.cast_ms + self.objects_ms
+        self.raygen_ms + self.tile_ms + self.cast_ms + self.objects_ms + self.voxels_ms
     }
 }
 
@@ -89,7 +92,7 @@ pub struct FrameOutput {
     pub patch_tests: Vec<u32>,
     /// Shadow-ray traversal steps per pixel.
     pub shadow_steps: Vec<u32>,
-    /// Flags per pixel: 1 hit, 2 in shadow, 4 step limit reached, 16 free form.
+    /// Flags per pixel: 1 hit, 2 in shadow, 4 step limit reached, 16 free form, 32 voxel model.
     pub flags: Vec<u32>,
     /// Free-form index + 1 per pixel (0 where no free form shows).
     pub objects: Vec<u32>,
@@ -123,6 +126,7 @@ struct Targets {
     objects: Option<(ObjectTargets, wgpu::BindGroup)>,
     /// The shaded image under the volume and the volume pass's statistics.
     volume: Option<super::volumes::VolumeTargets>,
+    voxels: Option<VoxelTargets>,
 }
 
 /// Which entry points run the per-pixel kernels that have both (ray generation today).
@@ -176,6 +180,9 @@ pub struct TerrainRenderer {
     table: Option<TableMode>,
     objects: Option<ObjectPasses>,
     volume: Option<super::volumes::VolumePass>,
+    voxels: Option<VoxelPasses>,
+    /// Scene time in seconds (animated voxel models).
+    time: f64,
     targets: Option<Targets>,
 }
 
@@ -469,6 +476,8 @@ impl TerrainRenderer {
             table: None,
             objects: None,
             volume: None,
+            voxels: None,
+            time: 0.0,
             targets: None,
         })
     }
@@ -603,6 +612,18 @@ impl TerrainRenderer {
         Ok(())
     }
 
+    /// Uploads the scene's voxel models (none: no voxel passes). Refuses models over the
+    /// adapter's storage-buffer limits with the limit in the message.
+    pub fn set_voxels(&mut self, gpu: &Gpu, models: &[crate::voxel::VoxelInstance]) -> Result<()> {
+        self.voxels = if models.is_empty() {
+            None
+        } else {
+            Some(VoxelPasses::new(gpu, models)?)
+        };
+        self.targets = None;
+        Ok(())
+    }
+
     /// Reclassifies the volume with a new transfer function (table and brick occupancy are
     /// recomputed and uploaded).
     pub fn set_volume_transfer(&mut self, gpu: &Gpu, tf: crate::volume::TransferFunction) {
@@ -621,6 +642,11 @@ impl TerrainRenderer {
             }
             v.volume.settings = settings;
         }
+    }
+
+    /// Sets the scene time (seconds) that picks animated voxel models' frames.
+    pub fn set_time(&mut self, seconds: f64) {
+        self.time = seconds;
     }
 
     /// Moves the eye (display frame) for the next frames of a distortion table.
@@ -684,7 +710,8 @@ impl TerrainRenderer {
                 format,
                 usage: wgpu::TextureUsages::RENDER_ATTACHMENT
                     | wgpu::TextureUsages::TEXTURE_BINDING
-                    | wgpu::TextureUsages::COPY_SRC,
+                    | wgpu::TextureUsages::COPY_SRC
+                    | wgpu::TextureUsages::COPY_DST,
                 view_formats: &[],
             })
         };
@@ -797,9 +824,16 @@ impl TerrainRenderer {
                 &data.create_view(&Default::default()),
             )
         });
+        let voxels = self.voxels.as_ref().map(|v| {
+            let g = objects
+                .as_ref()
+                .map_or(&gbuffer_view, |(ot, _)| &ot.gbuffer_view);
+            v.targets(gpu, width, height, &self.frame_ub, &ray_table_view, g)
+        });
         self.targets = Some(Targets {
             volume,
             objects,
+            voxels,
             width,
             height,
             tiles,
@@ -965,7 +999,18 @@ impl TerrainRenderer {
             o.encode_cast(&mut enc, ot, &t.gbuffer);
             lap(&mut enc, &mut times.objects_ms)?;
         }
+        let voxels = self.voxels.as_ref().zip(t.voxels.as_ref());
+        // The G-buffer the shade pass reads (the free-form one when there are free forms).
+        let final_gbuffer = t.objects.as_ref().map_or(&t.gbuffer, |(ot, _)| &ot.gbuffer);
+        if let Some((v, vt)) = voxels {
+            v.update(gpu, cam.pose.position, self.time);
+            v.encode_cast(&mut enc, vt, final_gbuffer);
+            lap(&mut enc, &mut times.voxels_ms)?;
+        }
         if stage == Stage::Shade {
+            if let Some((v, vt)) = voxels.filter(|_| s.shadows) {
+                v.encode_shadows(&mut enc, vt, final_gbuffer);
+            }
             let (pipeline, bg) = match objects {
                 Some((o, (ot, bg))) => {
                     if s.shadows {

@@ -9,6 +9,7 @@ const RAY_TABLE: &str = include_str!("shaders/ray_table.wgsl");
 const FREEFORM: &str = include_str!("shaders/freeform.wgsl");
 const FF_BINS: &str = include_str!("shaders/ff_bins.wgsl");
 const HAZE: &str = include_str!("shaders/haze.wgsl");
+const VOXEL_DDA: &str = include_str!("shaders/voxel_dda.wgsl");
 
 /// Ray generation (compute): pinhole ray table.
 pub fn raygen() -> String {
@@ -122,6 +123,18 @@ pub fn volume() -> String {
     .concat()
 }
 
+/// Voxel-model passes (fragment): box marks, hierarchical-DDA cast and shadow rays.
+pub fn voxels() -> String {
+    [
+        FRAME,
+        FULLSCREEN,
+        RAY_TABLE,
+        VOXEL_DDA,
+        include_str!("shaders/voxels.wgsl"),
+    ]
+    .concat()
+}
+
 /// Every composed pass source with its name, for validation.
 pub fn all() -> Vec<(&'static str, String)> {
     vec![
@@ -134,5 +147,6 @@ pub fn all() -> Vec<(&'static str, String)> {
         ("objects", objects()),
         ("ff_shadow", ff_shadow()),
         ("volume", volume()),
+        ("voxels", voxels()),
     ]
 }

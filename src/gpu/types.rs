@@ -110,3 +110,20 @@ pub struct VolumeUniforms {
     /// Shell radii (metres); w unused.
     pub shell_radii: [f32; 4],
 }
+
+/// Mirrors WGSL `VoxInstance` in `shaders/voxel_dda.wgsl`: one placed voxel model, rewritten
+/// every frame (eye in voxel units, shown animation frame).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct VoxInstanceGpu {
+    /// Rows of Rᵀ / voxel size (world direction -> voxel units per metre).
+    pub local_from_world: [[f32; 4]; 3],
+    /// Eye in voxel units; w = voxel size (m).
+    pub eye_local: [f32; 4],
+    /// Model size in voxels; w = brick-table offset of the shown frame.
+    pub dims: [u32; 4],
+    /// Brick grid size; w = palette offset of the shown frame.
+    pub bdims: [u32; 4],
+}
+
+const _: () = assert!(std::mem::size_of::<VoxInstanceGpu>() == 96);

@@ -37,6 +37,9 @@ pub struct SceneDesc {
     /// Density volumes (`[[volumes]]`).
     #[serde(default)]
     pub volumes: Vec<crate::volume::VolumeDesc>,
+    /// Coloured voxel models (`[[voxels]]`).
+    #[serde(default)]
+    pub voxels: Vec<crate::voxel::VoxelDesc>,
 }
 
 /// `[terrain]`: height source and its placement.
@@ -349,6 +352,11 @@ impl Scene {
                 })
             })
             .collect()
+    }
+
+    /// Loads and places the scene's voxel models (`above_terrain` needs the terrain).
+    pub fn voxel_models(&self, terrain: &Terrain) -> Result<Vec<crate::voxel::VoxelInstance>> {
+        crate::voxel::desc::build_all(&self.desc.voxels, &self.base_dir, terrain)
     }
 
     /// The camera for frame `frame` (the path if there is one, else the static camera).

@@ -61,6 +61,8 @@ struct Prepared {
     objects: Vec<crate::freeform::FreeForm>,
     /// The scene's density volumes (loaded before any window opens).
     volumes: Vec<crate::volume::Volume>,
+    /// The scene's voxel models (loaded before any window opens).
+    voxels: Vec<crate::voxel::VoxelInstance>,
     channels: Vec<ChannelSpec>,
     settings: RenderSettings,
     motion: Motion,
@@ -152,6 +154,7 @@ fn prepare(opts: &ViewOptions) -> Result<Prepared> {
     let terrain = scene.load_terrain()?;
     let objects = scene.free_forms(&terrain)?;
     let volumes = scene.volumes(&terrain)?;
+    let voxels = scene.voxel_models(&terrain)?;
     let mut settings = RenderSettings::from_scene(&scene.desc);
     if let Some(s) = opts.shadows {
         settings.shadows = s;
@@ -255,6 +258,7 @@ fn prepare(opts: &ViewOptions) -> Result<Prepared> {
         terrain,
         objects,
         volumes,
+        voxels,
         channels,
         settings,
         script,
@@ -606,6 +610,7 @@ impl App {
             let mut renderer = TerrainRenderer::new(&gpu, &self.prep.terrain)?;
             renderer.set_objects(&gpu, &self.prep.objects)?;
             renderer.set_volumes(&gpu, &self.prep.volumes)?;
+            renderer.set_voxels(&gpu, &self.prep.voxels)?;
             if let Some(c) = channel {
                 let c = &self.prep.channels[c];
                 renderer.set_display(&gpu, &c.points, c.eye)?;

@@ -12,7 +12,7 @@
 struct Out {
     @location(0) colour: vec4<f32>,
     // x: f32 bits of the ray distance (+inf bits for sky), y: traversal steps,
-    // z: patch tests (low 16 bits) and shadow-ray steps (high 16 bits), w: flags (1 hit, 2 in shadow, 4 step limit reached).
+    // z: patch tests (low 16 bits) and shadow-ray steps (high 16 bits), w: flags (1 hit, 2 in shadow, 4 step limit reached, 16 free form, 32 voxel model).
     @location(1) data: vec4<u32>,
 }
 
@@ -110,6 +110,8 @@ fn fs_shade(@builtin(position) pos: vec4<f32>) -> Out {
     let p = ro + to_grid_dir(dir_w) * t;
     let sun = frame.sun_local.xyz;
     let is_object = (flags & 16u) != 0u;
+    // Voxel models (flag 32): palette RGBA in y, packed world face normal in z.
+    let is_voxel = (flags & 32u) != 0u;
     // Geometric normal (local frame) for the shadow ray and offset of its origin (metres),
     // shading normal.
     var n_geom: vec3<f32>;
@@ -119,6 +121,9 @@ fn fs_shade(@builtin(position) pos: vec4<f32>) -> Out {
         n_geom = to_local(oct_decode(g.z));
         n = n_geom;
         off = object_shadow_offset(g);
+    } else if (is_voxel) {
+        n_geom = to_local(normalize(unpack4x8snorm(g.z).xyz));
+        n = n_geom;
     } else {
         let i = i32(g.y & 0xffffu);
         let j = i32(g.y >> 16u);
@@ -141,15 +146,22 @@ fn fs_shade(@builtin(position) pos: vec4<f32>) -> Out {
         sr.d = frame.sun_grid.xyz;
         let st = traverse(sr, 0.0, BIG, frame.mode.y);
         shadow_steps = st.steps;
-        if (st.hit || objects_shadow(px)) {
+        if (st.hit || objects_shadow(px) || (flags & 64u) != 0u) {
             lit = 0.0;
             flags |= 2u;
         }
     }
+    // Flag 64 (blocked by a voxel model, set by the voxel shadow pass) is folded into 2.
+    flags &= 0xbfu;
     var c: vec3<f32>;
     if (is_object) {
         c = object_colour(g, n, dl, lit);
         out.data = vec4<u32>(g.x, g.y >> 16u, min(shadow_steps, 0xffffu) << 16u, flags | (((g.y & 0xffffu) + 1u) << 8u));
+    } else if (is_voxel) {
+        let base = srgb_decode(unpack4x8unorm(g.y).xyz);
+        let diffuse = frame.sun_colour.xyz * (frame.sun_local.w * max(dot(n, sun), 0.0) * lit);
+        c = base * (diffuse + ambient_light(n));
+        out.data = vec4<u32>(g.x, g.w >> 16u, min(shadow_steps, 0xffffu) << 16u, flags & 0x3fu);
     } else {
         let base = albedo(p, n);
         let diffuse = frame.sun_colour.xyz * (frame.sun_local.w * max(dot(n, sun), 0.0) * lit);

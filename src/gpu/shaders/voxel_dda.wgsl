@@ -1,0 +1,164 @@
+// Voxel models: instance records (mirrored by `gpu::types::VoxInstanceGpu`), the brick table,
+// brick pool and palettes, and the hierarchical DDA (`cpu::voxel::dda` step for step): the ray,
+// moved into the model's voxel units (t stays in metres), is clipped to the model box, walks
+// the brick grid (8³ voxels per brick) by Amanatides–Woo and, inside each occupied brick, its
+// voxels the same way. Cells are stepped by integer index and exit axis.
+
+struct VoxInstance {
+    // Rows of Rᵀ / voxel size: world direction -> voxel units per metre.
+    local_from_world_0: vec4<f32>,
+    local_from_world_1: vec4<f32>,
+    local_from_world_2: vec4<f32>,
+    // Eye in voxel units (computed in f64 on the CPU); w = voxel size in metres.
+    eye_local: vec4<f32>,
+    // Model size in voxels; w = offset of the shown frame's brick table in `vox_bricks`.
+    dims: vec4<u32>,
+    // Brick grid size; w = offset of the frame's palette in `vox_palette`.
+    bdims: vec4<u32>,
+}
+
+@group(0) @binding(10) var<storage, read> vox_instances: array<VoxInstance>;
+// Per brick: its block in `vox_pool` (128 words = 512 palette indices), or VOX_EMPTY.
+@group(0) @binding(11) var<storage, read> vox_bricks: array<u32>;
+@group(0) @binding(12) var<storage, read> vox_pool: array<u32>;
+// sRGB RGBA8 per palette index.
+@group(0) @binding(13) var<storage, read> vox_palette: array<u32>;
+
+const VOX_EMPTY: u32 = 0xffffffffu;
+const VOX_BRICK: i32 = 8;
+const VOX_MAX_STEPS: u32 = 4096u;
+// Offset (voxels) a shadow ray leaves a voxel face by (`cpu::voxel::SHADOW_OFFSET_VOXELS`).
+const VOX_SHADOW_OFFSET: f32 = 0.01;
+
+struct VoxTrace {
+    hit: bool,
+    t: f32,
+    // Axis the ray entered the voxel through; 3 = it started inside.
+    axis: u32,
+    index: u32,
+    steps: u32,
+}
+
+fn vox_dir(inst: VoxInstance, d: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(dot(inst.local_from_world_0.xyz, d), dot(inst.local_from_world_1.xyz, d), dot(inst.local_from_world_2.xyz, d));
+}
+
+// World unit vector of a voxel-frame direction.
+fn vox_dir_world(inst: VoxInstance, n: vec3<f32>) -> vec3<f32> {
+    return normalize(inst.local_from_world_0.xyz * n.x + inst.local_from_world_1.xyz * n.y + inst.local_from_world_2.xyz * n.z);
+}
+
+fn vox_inv(d: f32) -> f32 {
+    return select(1.0 / d, BIG, abs(d) < 1.0e-30);
+}
+
+// Slab test of the ray against the model box: (entry, exit) distances.
+fn vox_box(inst: VoxInstance, o: vec3<f32>, d: vec3<f32>) -> vec2<f32> {
+    let iv = vec3<f32>(vox_inv(d.x), vox_inv(d.y), vox_inv(d.z));
+    let ta = -o * iv;
+    let tb = (vec3<f32>(inst.dims.xyz) - o) * iv;
+    let lo = min(ta, tb);
+    let hi = max(ta, tb);
+    return vec2<f32>(max(max(lo.x, lo.y), lo.z), min(min(hi.x, hi.y), hi.z));
+}
+
+// Outward face normal (voxel frame) of a hit entered through `axis` along d.
+fn vox_normal(axis: u32, d: vec3<f32>) -> vec3<f32> {
+    var a = axis;
+    if (a > 2u) {
+        let ad = abs(d);
+        a = select(select(2u, 1u, ad.y >= ad.z), 0u, ad.x >= ad.y && ad.x >= ad.z);
+    }
+    var n = vec3<f32>(0.0);
+    n[a] = select(1.0, -1.0, d[a] > 0.0);
+    return n;
+}
+
+fn vox_dda(inst: VoxInstance, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32) -> VoxTrace {
+    var r: VoxTrace;
+    r.hit = false;
+    r.steps = 0u;
+    let iv = vec3<f32>(vox_inv(d.x), vox_inv(d.y), vox_inv(d.z));
+    let ta = -o * iv;
+    let tb = (vec3<f32>(inst.dims.xyz) - o) * iv;
+    let lo = min(ta, tb);
+    let hi = max(ta, tb);
+    var axis = 0u;
+    var t0 = lo.x;
+    if (lo.y > t0) {
+        t0 = lo.y;
+        axis = 1u;
+    }
+    if (lo.z > t0) {
+        t0 = lo.z;
+        axis = 2u;
+    }
+    let t1 = min(min(min(hi.x, hi.y), hi.z), t_max);
+    if (t0 < t_min) {
+        t0 = t_min;
+        axis = 3u;
+    }
+    if (t0 > t1) {
+        return r;
+    }
+    let stp = select(vec3<i32>(-1), vec3<i32>(1), d >= vec3<f32>(0.0));
+    let up = select(vec3<i32>(0), vec3<i32>(1), d >= vec3<f32>(0.0));
+    let flat = iv == vec3<f32>(BIG);
+    let bd = vec3<i32>(inst.bdims.xyz);
+    let p = o + d * t0;
+    var level = 1u;
+    var cell = clamp(vec3<i32>(floor(p / f32(VOX_BRICK))), vec3<i32>(0), bd - 1);
+    var brick = cell;
+    var block = 0u;
+    var t = t0;
+    for (var i = 0u; i < VOX_MAX_STEPS; i++) {
+        r.steps += 1u;
+        let size = select(1, VOX_BRICK, level == 1u);
+        let te = select((vec3<f32>((cell + up) * size) - o) * iv, vec3<f32>(BIG), flat);
+        var t_exit = te.x;
+        var ea = 0u;
+        if (te.y < t_exit) {
+            t_exit = te.y;
+            ea = 1u;
+        }
+        if (te.z < t_exit) {
+            t_exit = te.z;
+            ea = 2u;
+        }
+        if (level == 1u) {
+            let b = vox_bricks[inst.dims.w + u32(cell.x + bd.x * (cell.y + bd.y * cell.z))];
+            if (b != VOX_EMPTY) {
+                level = 0u;
+                brick = cell;
+                block = b;
+                cell = clamp(vec3<i32>(floor(o + d * t)), brick * VOX_BRICK, brick * VOX_BRICK + (VOX_BRICK - 1));
+                continue;
+            }
+        } else {
+            let l = cell - brick * VOX_BRICK;
+            let li = u32(l.x + VOX_BRICK * (l.y + VOX_BRICK * l.z));
+            let idx = (vox_pool[block * 128u + (li >> 2u)] >> ((li & 3u) * 8u)) & 0xffu;
+            if (idx != 0u) {
+                r.hit = true;
+                r.t = t;
+                r.axis = axis;
+                r.index = idx;
+                return r;
+            }
+        }
+        t = t_exit;
+        axis = ea;
+        if (t > t1) {
+            return r;
+        }
+        cell[ea] += stp[ea];
+        if (level == 0u && (cell[ea] >> 3u) != brick[ea]) {
+            level = 1u;
+            cell = cell >> vec3<u32>(3u);
+        }
+        if (level == 1u && (cell[ea] < 0 || cell[ea] >= bd[ea])) {
+            return r;
+        }
+    }
+    return r;
+}

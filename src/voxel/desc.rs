@@ -1,0 +1,246 @@
+//! `[[voxels]]` in a scene file: a voxel model file (`.vox` or segment `.rvs`) placed in the
+//! world. Unknown keys are errors.
+//!
+//! ```toml
+//! [[voxels]]
+//! name = "tree"
+//! file = "tree.vox"          # relative to the scene file
+//! position = [x, y, z]       # world position of the model's bottom centre
+//! above_terrain = 0.0        # z = terrain height below + this
+//! voxel_size = 0.05          # metres per voxel
+//! heading = 0.0              # degrees, pitch and roll as for the camera
+//! fps = 8.0                  # animation frames per second (files with several frames)
+//! frame = 0                  # or: always show this frame
+//! ```
+
+use super::VoxelModel;
+use crate::scene::attitude_basis;
+use crate::{Error, Result};
+use glam::{DMat3, DVec3};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+use std::sync::Arc;
+
+/// Most voxel models one scene may place.
+pub const MAX_INSTANCES: usize = 64;
+
+/// One `[[voxels]]` table.
+#[derive(Clone, Debug, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct VoxelDesc {
+    pub name: Option<String>,
+    pub file: std::path::PathBuf,
+    pub position: [f64; 3],
+    pub above_terrain: Option<f64>,
+    #[serde(default = "default_size")]
+    pub voxel_size: f64,
+    #[serde(default)]
+    pub heading: f64,
+    #[serde(default)]
+    pub pitch: f64,
+    #[serde(default)]
+    pub roll: f64,
+    #[serde(default = "default_fps")]
+    pub fps: f64,
+    pub frame: Option<u32>,
+}
+
+fn default_size() -> f64 {
+    0.1
+}
+fn default_fps() -> f64 {
+    10.0
+}
+
+/// A placed voxel model: `world = position + rotation · ((p − anchor) · voxel_size)` for a point
+/// `p` in voxel units, where `anchor` is the model's bottom centre `(dx/2, dy/2, 0)`.
+#[derive(Clone, Debug)]
+pub struct VoxelInstance {
+    pub name: String,
+    /// Animation frames (all the same size).
+    pub frames: Vec<Arc<VoxelModel>>,
+    /// Columns: the model's x, y, z axes in the world.
+    pub rotation: DMat3,
+    pub position: DVec3,
+    pub voxel_size: f64,
+    pub fps: f64,
+    pub fixed_frame: Option<u32>,
+}
+
+impl VoxelInstance {
+    /// An instance of `frames` at `position` (bottom centre), rotated, `voxel_size` m per voxel.
+    pub fn new(
+        name: &str,
+        frames: Vec<Arc<VoxelModel>>,
+        rotation: DMat3,
+        position: DVec3,
+        voxel_size: f64,
+    ) -> VoxelInstance {
+        VoxelInstance {
+            name: name.to_string(),
+            frames,
+            rotation,
+            position,
+            voxel_size,
+            fps: 10.0,
+            fixed_frame: None,
+        }
+    }
+
+    pub fn dims(&self) -> [u32; 3] {
+        self.frames[0].dims
+    }
+
+    /// The model's bottom centre in voxel units.
+    pub fn anchor(&self) -> DVec3 {
+        let d = self.dims();
+        DVec3::new(d[0] as f64 * 0.5, d[1] as f64 * 0.5, 0.0)
+    }
+
+    /// World point → voxel units.
+    pub fn to_local(&self, p: DVec3) -> DVec3 {
+        self.rotation.transpose() * (p - self.position) / self.voxel_size + self.anchor()
+    }
+
+    /// World direction → voxel units per metre (ray distances stay in metres).
+    pub fn dir_to_local(&self, d: DVec3) -> DVec3 {
+        self.rotation.transpose() * d / self.voxel_size
+    }
+
+    /// Voxel-unit direction → world unit vector.
+    pub fn dir_to_world(&self, d: DVec3) -> DVec3 {
+        (self.rotation * d).normalize()
+    }
+
+    /// The frame shown at `time` seconds.
+    pub fn frame_at(&self, time: f64) -> usize {
+        let n = self.frames.len();
+        match self.fixed_frame {
+            Some(f) => (f as usize).min(n - 1),
+            None if n > 1 && time.is_finite() && time > 0.0 => {
+                ((time * self.fps).floor() as u64 % n as u64) as usize
+            }
+            None => 0,
+        }
+    }
+
+    /// World-space bounding sphere (centre, radius).
+    pub fn bounding_sphere(&self) -> (DVec3, f64) {
+        let d = self.dims();
+        let half = DVec3::new(d[0] as f64, d[1] as f64, d[2] as f64) * 0.5;
+        let c = self.rotation * (half - self.anchor()) * self.voxel_size + self.position;
+        (c, half.length() * self.voxel_size)
+    }
+}
+
+/// Loads a model file's frames: `.vox` (with its scene graph) or a segment file.
+pub fn load_frames(path: &Path) -> Result<Vec<VoxelModel>> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    match ext.as_deref() {
+        Some("vox") => super::vox::VoxFile::load(path)?.frames(),
+        Some("rvs") => Ok(vec![super::segment::read(path)?]),
+        _ => Err(Error::format(
+            path,
+            "unknown voxel model type: use a MagicaVoxel .vox or a relief segment .rvs file",
+        )),
+    }
+}
+
+impl VoxelDesc {
+    /// Loads and places the model (`index` and name in errors); `ground` gives the terrain
+    /// height below a world point.
+    pub fn build(
+        &self,
+        index: usize,
+        base_dir: &Path,
+        ground: impl Fn(DVec3) -> Option<f64>,
+    ) -> Result<VoxelInstance> {
+        let name = self
+            .name
+            .clone()
+            .unwrap_or_else(|| format!("voxels {index}"));
+        let field = format!("voxels[{index}] ({name})");
+        crate::scene::check_finite(&format!("{field}.position"), &self.position)?;
+        crate::scene::check_finite(
+            &format!("{field}.heading/pitch/roll"),
+            &[self.heading, self.pitch, self.roll],
+        )?;
+        if !self.voxel_size.is_finite() || !(1e-4..=1e3).contains(&self.voxel_size) {
+            return Err(Error::invalid(
+                format!("{field}.voxel_size"),
+                format!("must be 0.0001..=1000 metres, got {}", self.voxel_size),
+            ));
+        }
+        if !self.fps.is_finite() || !(0.0..=1000.0).contains(&self.fps) {
+            return Err(Error::invalid(
+                format!("{field}.fps"),
+                format!("must be 0..=1000, got {}", self.fps),
+            ));
+        }
+        let mut position = DVec3::from(self.position);
+        if let Some(agl) = self.above_terrain {
+            crate::scene::check_finite(&format!("{field}.above_terrain"), &[agl])?;
+            let z = ground(position).ok_or_else(|| {
+                Error::invalid(
+                    format!("{field}.position"),
+                    "above_terrain is set but the position is outside the terrain",
+                )
+            })?;
+            position.z = z + agl;
+        }
+        let path = base_dir.join(&self.file);
+        let frames = load_frames(&path)?;
+        if let Some(f) = self.frame {
+            if f as usize >= frames.len() {
+                return Err(Error::invalid(
+                    format!("{field}.frame"),
+                    format!(
+                        "{} has {} frame(s), asked for {f}",
+                        path.display(),
+                        frames.len()
+                    ),
+                ));
+            }
+        }
+        let (right, down, fwd) = attitude_basis(self.heading, self.pitch, self.roll);
+        let mut inst = VoxelInstance::new(
+            &name,
+            frames.into_iter().map(Arc::new).collect(),
+            DMat3::from_cols(right, fwd, -down),
+            position,
+            self.voxel_size,
+        );
+        inst.fps = self.fps;
+        inst.fixed_frame = self.frame;
+        Ok(inst)
+    }
+}
+
+/// Builds every `[[voxels]]` table of a scene.
+pub fn build_all(
+    descs: &[VoxelDesc],
+    base_dir: &Path,
+    terrain: &crate::terrain::Terrain,
+) -> Result<Vec<VoxelInstance>> {
+    if descs.len() > MAX_INSTANCES {
+        return Err(Error::invalid(
+            "voxels",
+            format!(
+                "{} voxel models; at most {MAX_INSTANCES} are supported",
+                descs.len()
+            ),
+        ));
+    }
+    descs
+        .iter()
+        .enumerate()
+        .map(|(i, d)| {
+            d.build(i, base_dir, |p| {
+                crate::cpu::query::terrain_point_below(terrain, p).map(|g| g.z)
+            })
+        })
+        .collect()
+}

@@ -1,0 +1,190 @@
+//! Coloured voxel models (opaque): the model, MagicaVoxel `.vox` import ([`vox`]), the
+//! compact segment format ([`segment`]), the brick occupancy grid the renderers traverse and
+//! the `[[voxels]]` scene tables ([`desc`]). No GPU types live here.
+//!
+//! A model is a box of `dims` voxels (x east, y north, z up in its own frame, one unit per
+//! voxel) holding palette indices 1..=255 (0 = empty) and, optionally, extra per-voxel
+//! attribute bytes that the segment format carries (declared by their byte sizes).
+
+pub mod desc;
+pub mod segment;
+pub mod vox;
+
+pub use desc::{VoxelDesc, VoxelInstance};
+
+use crate::{Error, Result};
+
+/// Voxels per brick side: the coarse level of the hierarchical DDA (WGSL `VOX_BRICK`).
+pub const BRICK: u32 = 8;
+/// Voxels per brick.
+pub const BRICK_VOXELS: usize = (BRICK * BRICK * BRICK) as usize;
+/// Largest model side in voxels (a format limit: positions fit 16 bits on the GPU side).
+pub const MAX_SIDE: u32 = 4096;
+/// Marks an empty brick in [`Bricks::table`].
+pub const EMPTY_BRICK: u32 = u32::MAX;
+
+/// One occupied voxel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct Voxel {
+    pub pos: [u32; 3],
+    /// Palette index, 1..=255.
+    pub index: u8,
+}
+
+/// A voxel model. `voxels` are in canonical order (column `x + dims.x * y`, then z), with no
+/// duplicates; `extra` holds `extra_stride()` bytes per voxel in the same order.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct VoxelModel {
+    pub dims: [u32; 3],
+    /// sRGB RGBA per palette index (entry 0 is unused: index 0 means empty).
+    pub palette: Vec<[u8; 4]>,
+    pub voxels: Vec<Voxel>,
+    /// Byte size of each extra attribute (the segment header declares them).
+    pub extra_sizes: Vec<u8>,
+    pub extra: Vec<u8>,
+}
+
+impl VoxelModel {
+    /// A model from voxels in any order; later duplicates of a position replace earlier ones.
+    /// `what` names the source in errors.
+    pub fn new(
+        what: &str,
+        dims: [u32; 3],
+        palette: Vec<[u8; 4]>,
+        mut voxels: Vec<Voxel>,
+    ) -> Result<VoxelModel> {
+        check_dims(what, dims)?;
+        if palette.len() != 256 {
+            return Err(Error::invalid(
+                what,
+                format!("palette has {} entries, need 256", palette.len()),
+            ));
+        }
+        for v in &voxels {
+            if v.index == 0 || (0..3).any(|a| v.pos[a] >= dims[a]) {
+                return Err(Error::invalid(
+                    what,
+                    format!(
+                        "voxel {:?} (palette index {}) is empty or outside the {}x{}x{} box",
+                        v.pos, v.index, dims[0], dims[1], dims[2]
+                    ),
+                ));
+            }
+        }
+        let key = |v: &Voxel| (v.pos[0] as u64 + dims[0] as u64 * v.pos[1] as u64, v.pos[2]);
+        // Stable sort keeps the input order among duplicates; keep the last one.
+        voxels.sort_by_key(key);
+        let mut out: Vec<Voxel> = Vec::with_capacity(voxels.len());
+        for v in voxels {
+            match out.last_mut() {
+                Some(last) if last.pos == v.pos => *last = v,
+                _ => out.push(v),
+            }
+        }
+        Ok(VoxelModel {
+            dims,
+            palette,
+            voxels: out,
+            extra_sizes: Vec::new(),
+            extra: Vec::new(),
+        })
+    }
+
+    /// Bytes of extra attributes per voxel.
+    pub fn extra_stride(&self) -> usize {
+        self.extra_sizes.iter().map(|&s| s as usize).sum()
+    }
+
+    /// Bytes of a dense grid of this model with one byte per voxel plus its extra attributes
+    /// (the comparison the segment format's ratio is quoted against).
+    pub fn dense_bytes(&self) -> u64 {
+        let n = self.dims.iter().map(|&d| d as u64).product::<u64>();
+        n * (1 + self.extra_stride() as u64)
+    }
+
+    /// Dense palette-index grid, index `x + dx (y + dy z)`.
+    pub fn dense(&self) -> Vec<u8> {
+        let [dx, dy, dz] = self.dims.map(|d| d as usize);
+        let mut g = vec![0u8; dx * dy * dz];
+        for v in &self.voxels {
+            let [x, y, z] = v.pos.map(|c| c as usize);
+            g[x + dx * (y + dy * z)] = v.index;
+        }
+        g
+    }
+
+    /// The brick occupancy grid and brick pool the DDA traverses.
+    pub fn bricks(&self) -> Bricks {
+        let bd = self.dims.map(|d| d.div_ceil(BRICK));
+        let mut table = vec![EMPTY_BRICK; bd.iter().map(|&d| d as usize).product()];
+        let mut pool: Vec<u8> = Vec::new();
+        for v in &self.voxels {
+            let b = v.pos.map(|c| c / BRICK);
+            let bi = (b[0] + bd[0] * (b[1] + bd[1] * b[2])) as usize;
+            if table[bi] == EMPTY_BRICK {
+                table[bi] = (pool.len() / BRICK_VOXELS) as u32;
+                pool.resize(pool.len() + BRICK_VOXELS, 0);
+            }
+            let l = v.pos.map(|c| c % BRICK);
+            pool[table[bi] as usize * BRICK_VOXELS
+                + (l[0] + BRICK * (l[1] + BRICK * l[2])) as usize] = v.index;
+        }
+        Bricks {
+            dims: self.dims,
+            brick_dims: bd,
+            table,
+            pool,
+        }
+    }
+}
+
+/// Two-level occupancy: per brick of [`BRICK`]³ voxels, the index of its block in `pool`
+/// ([`EMPTY_BRICK`] if it holds no voxel); each block holds the palette indices of its voxels,
+/// local index `x + 8 (y + 8 z)`.
+#[derive(Clone, Debug)]
+pub struct Bricks {
+    pub dims: [u32; 3],
+    pub brick_dims: [u32; 3],
+    pub table: Vec<u32>,
+    pub pool: Vec<u8>,
+}
+
+impl Bricks {
+    /// Palette index of voxel `p` (0 = empty or outside).
+    pub fn get(&self, p: [i64; 3]) -> u8 {
+        if (0..3).any(|a| p[a] < 0 || p[a] >= self.dims[a] as i64) {
+            return 0;
+        }
+        let p = p.map(|c| c as u32);
+        let b = self.brick(p.map(|c| c / BRICK));
+        if b == EMPTY_BRICK {
+            return 0;
+        }
+        let l = p.map(|c| c % BRICK);
+        self.pool[b as usize * BRICK_VOXELS + (l[0] + BRICK * (l[1] + BRICK * l[2])) as usize]
+    }
+
+    /// Pool block of brick `b` (in range).
+    pub fn brick(&self, b: [u32; 3]) -> u32 {
+        let bd = self.brick_dims;
+        self.table[(b[0] + bd[0] * (b[1] + bd[1] * b[2])) as usize]
+    }
+
+    /// Occupied bricks.
+    pub fn occupied(&self) -> usize {
+        self.pool.len() / BRICK_VOXELS
+    }
+}
+
+pub(crate) fn check_dims(what: &str, dims: [u32; 3]) -> Result<()> {
+    if dims.iter().any(|&d| d == 0 || d > MAX_SIDE) {
+        return Err(Error::invalid(
+            what,
+            format!(
+                "model size {}x{}x{} voxels: every side must be 1..={MAX_SIDE}",
+                dims[0], dims[1], dims[2]
+            ),
+        ));
+    }
+    Ok(())
+}

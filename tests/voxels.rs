@@ -1,0 +1,565 @@
+//! Coloured voxel models: `.vox` import, the segment format, the CPU hierarchical DDA against a
+//! brute-force oracle, the GPU pass against the CPU, the CLI.
+
+mod common;
+
+use common::{gpu, gpu_lock, save_failure_image, terrain_from_fn, terrains, Rng};
+use glam::{DMat3, DVec3};
+use relief::cpu::voxel::{brute_force, dda, VoxelScene};
+use relief::gpu::{RenderSettings, TerrainRenderer, TraceMode};
+use relief::scene::{Camera, Pose};
+use relief::voxel::vox::VoxFile;
+use relief::voxel::{segment, Voxel, VoxelInstance, VoxelModel};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+fn vox(name: &str) -> PathBuf {
+    terrains().join("voxels").join(name)
+}
+
+#[test]
+fn vox_files_load_with_the_provenance_voxel_counts() {
+    let deer = VoxFile::load(&vox("deer.vox")).unwrap();
+    assert_eq!(deer.version, 150);
+    assert_eq!(deer.models.len(), 1);
+    assert_eq!(deer.models[0].size, [26, 9, 27]);
+    assert_eq!(deer.model_voxel_counts(), vec![355]);
+    let frames = deer.frames().unwrap();
+    assert_eq!(frames.len(), 1);
+    assert_eq!(frames[0].voxels.len(), 355);
+    assert_eq!(frames[0].dims, [26, 9, 27]);
+
+    let tree = VoxFile::load(&vox("tree.vox")).unwrap();
+    assert_eq!(tree.version, 200);
+    assert_eq!(tree.model_voxel_counts(), vec![376_133, 52_606]);
+    assert!(tree.models.iter().all(|m| m.size == [256, 256, 256]));
+    let t = tree.frames().unwrap();
+    assert_eq!(t.len(), 1);
+    eprintln!(
+        "tree composed: {:?}, {} voxels",
+        t[0].dims,
+        t[0].voxels.len()
+    );
+    // Model 0 is placed twice (rotated ±90° about z), model 1 once: the union holds at least
+    // the larger model and at most all three placements.
+    assert!(t[0].voxels.len() >= 376_133 && t[0].voxels.len() <= 2 * 376_133 + 52_606);
+
+    let axes = VoxFile::load(&vox("axes.vox")).unwrap();
+    assert_eq!(axes.version, 200);
+    assert_eq!(axes.model_voxel_counts(), vec![920, 1640, 1480, 332]);
+    assert!(
+        axes.nodes.len() >= 20,
+        "scene graph has {} nodes",
+        axes.nodes.len()
+    );
+    let a = axes.frames().unwrap();
+    assert_eq!(a.len(), 1);
+    eprintln!(
+        "axes composed: {:?}, {} voxels",
+        a[0].dims,
+        a[0].voxels.len()
+    );
+    // Three arrows each built from models 0..=2 plus the centre cube (model 3), all placed by
+    // the scene graph: the composed box spans the arrows' translations (±47.. ±188 voxels).
+    assert!(a[0].dims.iter().all(|&d| d > 100), "{:?}", a[0].dims);
+    assert!(a[0].voxels.len() > 4000);
+}
+
+#[test]
+fn vox_scene_graph_applies_rotation_and_translation() {
+    // Hand-built v200 file: one 2x1x1 model (x = 0 colour 1, x = 1 colour 2), placed by a
+    // transform with _r = 1 + 16·0 ... : rows (0,1,0)?  Use _r 17: row0 = -y, row1 = +x.
+    let mut b = Vec::new();
+    let chunk = |id: &[u8; 4], content: &[u8]| {
+        let mut c = id.to_vec();
+        c.extend((content.len() as i32).to_le_bytes());
+        c.extend(0i32.to_le_bytes());
+        c.extend(content);
+        c
+    };
+    let i = |v: i32| v.to_le_bytes().to_vec();
+    let s = |t: &str| [i(t.len() as i32), t.as_bytes().to_vec()].concat();
+    let mut kids = Vec::new();
+    kids.extend(chunk(b"SIZE", &[i(2), i(1), i(1)].concat()));
+    kids.extend(chunk(
+        b"XYZI",
+        &[i(2), vec![0, 0, 0, 1, 1, 0, 0, 2]].concat(),
+    ));
+    // nTRN 0 -> nSHP 1, frame dict {_r: "17", _t: "10 20 30"}
+    kids.extend(chunk(
+        b"nTRN",
+        &[
+            i(0),
+            i(0),
+            i(1),
+            i(-1),
+            i(0),
+            i(1),
+            i(2),
+            s("_r"),
+            s("17"),
+            s("_t"),
+            s("10 20 30"),
+        ]
+        .concat(),
+    ));
+    kids.extend(chunk(b"nSHP", &[i(1), i(0), i(1), i(0), i(0)].concat()));
+    b.extend(b"VOX ");
+    b.extend(i(200));
+    b.extend(b"MAIN");
+    b.extend(i(0));
+    b.extend(i(kids.len() as i32));
+    b.extend(&kids);
+    let f = VoxFile::parse(&b, Path::new("hand.vox")).unwrap();
+    let m = &f.frames().unwrap()[0];
+    // Centres: x = 0 -> (-0.5, 0.5, 0.5) -> R: (-0.5, -0.5, 0.5) (row0 = -y, row1 = +x);
+    // x = 1 -> (0.5, 0.5, 0.5) -> (-0.5, 0.5, 0.5): the pair now runs along +y.
+    assert_eq!(m.dims, [1, 2, 1]);
+    let by_y: Vec<u8> = m.voxels.iter().map(|v| v.index).collect();
+    assert_eq!(m.voxels[0].pos, [0, 0, 0]);
+    assert_eq!(by_y, vec![1, 2]);
+    // Truncating the same bytes anywhere gives an error naming the file, never a panic.
+    for cut in 0..b.len() {
+        let e =
+            VoxFile::parse(&b[..cut], Path::new("hand.vox")).and_then(|f| f.frames().map(|_| ()));
+        match e {
+            Err(e) => assert!(e.to_string().contains("hand.vox"), "{e}"),
+            Ok(()) => panic!("truncated at {cut} of {} parsed", b.len()),
+        }
+    }
+}
+
+#[test]
+fn malformed_vox_files_are_refused_without_panics() {
+    let good = std::fs::read(vox("axes.vox")).unwrap();
+    let p = Path::new("bad.vox");
+    assert!(VoxFile::parse(b"RIFF\0\0\0\0", p)
+        .unwrap_err()
+        .to_string()
+        .contains("does not start with \"VOX \""));
+    for cut in [0, 3, 8, 20, 100, 5000, good.len() / 2, good.len() - 1] {
+        let e = VoxFile::parse(&good[..cut], p).and_then(|f| f.frames().map(|_| ()));
+        let msg = e.expect_err("truncated file must fail").to_string();
+        assert!(msg.starts_with("bad.vox"), "{msg}");
+    }
+    // Random corruption: errors or a valid model, never a panic.
+    let mut rng = Rng::new(7);
+    for _ in 0..300 {
+        let mut b = good.clone();
+        for _ in 0..4 {
+            let k = (rng.range(0.0, 1.0) * b.len() as f64) as usize % b.len();
+            b[k] = (rng.range(0.0, 1.0) * 256.0) as u8;
+        }
+        let _ = VoxFile::parse(&b, p).and_then(|f| f.frames().map(|_| ()));
+    }
+    // A voxel outside its model's size is named.
+    let mut b = std::fs::read(vox("deer.vox")).unwrap();
+    let xyzi = b.windows(4).position(|w| w == b"XYZI").unwrap();
+    b[xyzi + 16] = 200; // first voxel's x
+    let msg = VoxFile::parse(&b, p).unwrap_err().to_string();
+    assert!(msg.contains("outside"), "{msg}");
+}
+
+fn random_model(rng: &mut Rng, dims: [u32; 3], fill: f64, extra_sizes: Vec<u8>) -> VoxelModel {
+    let mut voxels = Vec::new();
+    for z in 0..dims[2] {
+        for y in 0..dims[1] {
+            for x in 0..dims[0] {
+                if rng.range(0.0, 1.0) < fill {
+                    voxels.push(Voxel {
+                        pos: [x, y, z],
+                        index: 1 + (rng.range(0.0, 1.0) * 254.0) as u8,
+                    });
+                }
+            }
+        }
+    }
+    let palette = (0..256)
+        .map(|i| [i as u8, (i * 7) as u8, (255 - i) as u8, 255])
+        .collect();
+    let mut m = VoxelModel::new("random", dims, palette, voxels).unwrap();
+    let stride: usize = extra_sizes.iter().map(|&s| s as usize).sum();
+    m.extra = (0..m.voxels.len() * stride)
+        .map(|_| (rng.range(0.0, 1.0) * 256.0) as u8)
+        .collect();
+    m.extra_sizes = extra_sizes;
+    m
+}
+
+#[test]
+fn segment_format_round_trips_bit_exactly_with_extra_attributes() {
+    let mut rng = Rng::new(11);
+    for (dims, fill, extra) in [
+        ([13, 7, 29], 0.3, vec![3, 1]),
+        ([1, 1, 1], 1.0, vec![]),
+        ([40, 3, 70], 0.02, vec![2, 4, 1]),
+        ([9, 9, 9], 0.97, vec![1]),
+    ] {
+        let m = random_model(&mut rng, dims, fill, extra);
+        let bytes = segment::encode(&m);
+        let back = segment::decode(&bytes, Path::new("rt.rvs")).unwrap();
+        assert_eq!(back, m, "model differs after a round trip ({dims:?})");
+        assert_eq!(segment::encode(&back), bytes, "bytes differ ({dims:?})");
+    }
+    // The tree: real data through a file on disk.
+    let tree = VoxFile::load(&vox("tree.vox"))
+        .unwrap()
+        .frames()
+        .unwrap()
+        .remove(0);
+    let dir = common::project_dir().join("target/test-output");
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("tree-roundtrip.rvs");
+    let n = segment::write(&tree, &path).unwrap();
+    let back = segment::read(&path).unwrap();
+    assert_eq!(back, tree);
+    assert_eq!(std::fs::read(&path).unwrap().len() as u64, n);
+    eprintln!(
+        "tree: {} voxels, dense {} B, segment {n} B ({:.1}x smaller)",
+        tree.voxels.len(),
+        tree.dense_bytes(),
+        tree.dense_bytes() as f64 / n as f64
+    );
+}
+
+#[test]
+fn malformed_segment_files_are_refused_without_panics() {
+    let mut rng = Rng::new(5);
+    let m = random_model(&mut rng, [6, 5, 20], 0.4, vec![2]);
+    let good = segment::encode(&m);
+    let p = Path::new("bad.rvs");
+    for cut in 0..good.len() {
+        let msg = segment::decode(&good[..cut], p)
+            .expect_err("truncated segment file must fail")
+            .to_string();
+        assert!(msg.starts_with("bad.rvs"), "{msg}");
+    }
+    for _ in 0..2000 {
+        let mut b = good.clone();
+        let k = (rng.range(0.0, 1.0) * b.len() as f64) as usize % b.len();
+        b[k] ^= 1 << ((rng.range(0.0, 1.0) * 8.0) as u32 % 8);
+        if let Ok(back) = segment::decode(&b, p) {
+            // A flip that still decodes (a palette or attribute byte) stays inside the box.
+            assert!(back
+                .voxels
+                .iter()
+                .all(|v| (0..3).all(|a| v.pos[a] < back.dims[a])));
+        }
+    }
+    let mut b = good.clone();
+    b[8] = 9; // version
+    assert!(segment::decode(&b, p)
+        .unwrap_err()
+        .to_string()
+        .contains("version 9"));
+}
+
+#[test]
+fn cpu_dda_matches_brute_force_on_random_rays() {
+    let mut rng = Rng::new(3);
+    let mut hits = 0;
+    for (dims, fill) in [([21, 17, 13], 0.05), ([8, 8, 8], 0.3), ([35, 9, 40], 0.01)] {
+        let m = random_model(&mut rng, dims, fill, vec![]);
+        let b = m.bricks();
+        let size = DVec3::new(dims[0] as f64, dims[1] as f64, dims[2] as f64);
+        for k in 0..4000 {
+            // Origins around and inside the box, some rays axis-aligned.
+            let o = DVec3::new(
+                rng.range(0.0, 1.0),
+                rng.range(0.0, 1.0),
+                rng.range(0.0, 1.0),
+            ) * size
+                * 2.0
+                - size * 0.5;
+            let mut d = DVec3::new(
+                rng.range(0.0, 1.0) - 0.5,
+                rng.range(0.0, 1.0) - 0.5,
+                rng.range(0.0, 1.0) - 0.5,
+            );
+            if k % 10 == 0 {
+                d[k / 10 % 3] = 0.0;
+            }
+            if d.length() < 1e-3 {
+                continue;
+            }
+            let d = d.normalize() * (0.5 + rng.range(0.0, 1.0) * 3.0);
+            let t_min = if k % 7 == 0 {
+                rng.range(0.0, 1.0) * 5.0
+            } else {
+                0.0
+            };
+            let got = dda(&b, o, d, t_min, 1e9);
+            let want = brute_force(&m, o, d, t_min, 1e9);
+            match (got, want) {
+                (None, None) => {}
+                (Some(h), Some(w)) => {
+                    hits += 1;
+                    assert!(
+                        (h.t - w).abs() <= 1e-9 * (1.0 + w.abs()),
+                        "dda t {} vs brute force {w}: o {o} d {d}",
+                        h.t
+                    );
+                    assert_ne!(b.get(h.voxel), 0);
+                }
+                (g, w) => panic!("dda {g:?} vs brute force {w:?}: o {o} d {d} t_min {t_min}"),
+            }
+        }
+    }
+    assert!(hits > 1000, "only {hits} rays hit");
+}
+
+fn camera(position: DVec3, heading: f64, pitch: f64, w: u32, h: u32) -> Camera {
+    Camera::new(
+        Pose {
+            position,
+            heading,
+            pitch,
+            roll: 0.0,
+            fov: 60.0,
+        },
+        w,
+        h,
+    )
+}
+
+fn instance(file: &str, pos: DVec3, heading: f64, voxel_size: f64) -> VoxelInstance {
+    let frames = relief::voxel::desc::load_frames(&vox(file)).unwrap();
+    let (r, d, f) = relief::scene::attitude_basis(heading, 0.0, 0.0);
+    VoxelInstance::new(
+        file,
+        frames.into_iter().map(Arc::new).collect(),
+        DMat3::from_cols(r, f, -d),
+        pos,
+        voxel_size,
+    )
+}
+
+fn settings(shadows: bool) -> RenderSettings {
+    RenderSettings {
+        mode: TraceMode::Pyramid,
+        shadows,
+        tile_prepass: true,
+        max_steps: 4096,
+    }
+}
+
+#[test]
+fn gpu_voxel_depth_matches_the_cpu_dda() {
+    let _l = gpu_lock();
+    let terrain = terrain_from_fn(65, 10.0, |x, y| 0.02 * x + 0.01 * y);
+    let ground = |x: f64, y: f64| 0.02 * x + 0.01 * y;
+    let models = vec![
+        instance(
+            "deer.vox",
+            DVec3::new(300.0, 330.0, ground(300.0, 330.0)),
+            30.0,
+            0.6,
+        ),
+        instance(
+            "axes.vox",
+            DVec3::new(345.0, 360.0, ground(345.0, 360.0)),
+            -20.0,
+            0.12,
+        ),
+        instance(
+            "tree.vox",
+            DVec3::new(270.0, 370.0, ground(270.0, 370.0)),
+            0.0,
+            0.1,
+        ),
+    ];
+    let scene = VoxelScene::new(models.clone());
+    let (w, h) = (240u32, 160u32);
+    let cam = camera(DVec3::new(310.0, 290.0, 16.0), 0.0, -12.0, w, h);
+    let Some(g) = gpu() else {
+        return;
+    };
+    let mut desc = common::synthetic_scene(w, h, "position = [0.0, 0.0, 100.0]");
+    desc.sun.azimuth = 120.0;
+    desc.sun.elevation = 35.0;
+    let mut r = TerrainRenderer::new(g, &terrain).unwrap();
+    r.set_voxels(g, &models).unwrap();
+    let out = r
+        .capture(g, &terrain, &desc, &cam, &settings(true))
+        .unwrap();
+    let mut agree = 0;
+    let mut voxel_pixels = 0;
+    let mut gpu_voxel = 0;
+    for k in 0..(w * h) as usize {
+        let d = cam.pixel_ray(k as u32 % w, k as u32 / w);
+        let o = cam.pose.position;
+        let ter = relief::cpu::query::cast_ray(&terrain, o, d, 0.0, f64::INFINITY).map(|h| h.t);
+        let vx = scene.cast(o, d, 0.0, ter.unwrap_or(f64::INFINITY), 0.0);
+        let is_vox = out.flags[k] & 32 != 0;
+        gpu_voxel += is_vox as usize;
+        let ok = match (vx, ter) {
+            (Some(v), _) => {
+                voxel_pixels += 1;
+                is_vox && ((out.depth[k] as f64 - v.t) / v.t).abs() <= 1e-3
+            }
+            (None, Some(t)) => !is_vox && ((out.depth[k] as f64 - t) / t).abs() <= 1e-3,
+            (None, None) => !out.depth[k].is_finite(),
+        };
+        agree += ok as usize;
+    }
+    let n = (w * h) as usize;
+    let frac = agree as f64 / n as f64;
+    eprintln!(
+        "{agree}/{n} pixels agree ({:.3}%), {voxel_pixels} CPU voxel pixels, {gpu_voxel} GPU",
+        100.0 * frac
+    );
+    assert!(
+        voxel_pixels > 2000,
+        "only {voxel_pixels} voxel pixels in view"
+    );
+    let shadowed = (0..n)
+        .filter(|&k| out.flags[k] & 32 == 0 && out.flags[k] & 2 != 0)
+        .count();
+    assert!(
+        shadowed > 100,
+        "voxel models cast only {shadowed} shadow pixels"
+    );
+    if frac < 0.995 {
+        let p = save_failure_image("voxels", w, h, &out.rgba);
+        panic!(
+            "only {:.3}% of pixels agree with the CPU DDA; image {}",
+            100.0 * frac,
+            p.display()
+        );
+    }
+}
+
+#[test]
+fn gpu_voxel_shadows_fall_where_the_cpu_says() {
+    let _l = gpu_lock();
+    let terrain = terrain_from_fn(65, 10.0, |_, _| 0.0);
+    let models = vec![instance(
+        "deer.vox",
+        DVec3::new(320.0, 330.0, 0.0),
+        0.0,
+        0.8,
+    )];
+    let scene = VoxelScene::new(models.clone());
+    let (w, h) = (160u32, 120u32);
+    let cam = camera(DVec3::new(320.0, 270.0, 40.0), 0.0, -35.0, w, h);
+    let Some(g) = gpu() else {
+        return;
+    };
+    let mut desc = common::synthetic_scene(w, h, "position = [0.0, 0.0, 100.0]");
+    desc.sun.azimuth = 250.0;
+    desc.sun.elevation = 30.0;
+    let sun = desc.sun.direction();
+    let mut r = TerrainRenderer::new(g, &terrain).unwrap();
+    r.set_voxels(g, &models).unwrap();
+    let out = r
+        .capture(g, &terrain, &desc, &cam, &settings(true))
+        .unwrap();
+    let (mut agree, mut cpu_shadow, mut n) = (0, 0, 0);
+    for k in 0..(w * h) as usize {
+        if out.flags[k] & 33 != 1 {
+            continue; // terrain pixels only
+        }
+        let d = cam.pixel_ray(k as u32 % w, k as u32 / w);
+        let p = cam.pose.position + d * out.depth[k] as f64;
+        let blocked = !scene.clear(p, sun, 0.0);
+        cpu_shadow += blocked as usize;
+        n += 1;
+        agree += (blocked == (out.flags[k] & 2 != 0)) as usize;
+    }
+    eprintln!("{agree}/{n} terrain pixels agree on voxel shadow ({cpu_shadow} shadowed)");
+    assert!(
+        cpu_shadow > 50,
+        "the deer casts only {cpu_shadow} shadow pixels"
+    );
+    assert!(agree as f64 >= 0.995 * n as f64, "{agree}/{n}");
+}
+
+#[test]
+fn oversize_voxel_models_are_refused_with_the_limit() {
+    let _l = gpu_lock();
+    let Some(g) = gpu() else {
+        return;
+    };
+    let limit = g
+        .limits
+        .max_storage_buffer_binding_size
+        .min(g.limits.max_buffer_size);
+    // One voxel in a 4096³ box: its brick table alone is 512³ entries (512 MiB).
+    let side = relief::voxel::MAX_SIDE;
+    let table = (side as u64 / 8).pow(3) * 4;
+    if table <= limit {
+        eprintln!(
+            "Skipping: the adapter allows {limit} bytes per storage buffer, more than {table}"
+        );
+        return;
+    }
+    let palette = vec![[200u8, 100, 50, 255]; 256];
+    let one = vec![Voxel {
+        pos: [5, 6, 7],
+        index: 1,
+    }];
+    let m = VoxelModel::new("huge", [side; 3], palette, one).unwrap();
+    let inst = VoxelInstance::new("big", vec![Arc::new(m)], DMat3::IDENTITY, DVec3::ZERO, 1.0);
+    let terrain = terrain_from_fn(9, 10.0, |_, _| 0.0);
+    let mut r = TerrainRenderer::new(g, &terrain).unwrap();
+    let msg = r.set_voxels(g, &[inst]).unwrap_err().to_string();
+    assert!(
+        msg.contains("voxel brick tables") && msg.contains(&limit.to_string()),
+        "{msg}"
+    );
+}
+
+#[test]
+fn cli_converts_a_vox_file_and_renders_the_tree_demo() {
+    let _l = gpu_lock();
+    let bin = env!("CARGO_BIN_EXE_relief");
+    let dir = common::project_dir().join("target/test-output/voxels-cli");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = std::process::Command::new(bin)
+        .args(["voxels", "convert"])
+        .arg(vox("deer.vox"))
+        .arg(dir.join("deer.rvs"))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{text}");
+    assert!(
+        text.contains("355 voxels") && text.contains("dense"),
+        "{text}"
+    );
+    let back = segment::read(&dir.join("deer.rvs")).unwrap();
+    assert_eq!(back.voxels.len(), 355);
+    // A malformed input fails with the file named and leaves no output.
+    std::fs::write(dir.join("bad.vox"), b"VOX \x96\0\0\0MAIN").unwrap();
+    let out = std::process::Command::new(bin)
+        .args(["voxels", "convert"])
+        .arg(dir.join("bad.vox"))
+        .arg(dir.join("bad.rvs"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("bad.vox"));
+    assert!(!dir.join("bad.rvs").exists());
+    if gpu().is_none() {
+        return;
+    }
+    let out = std::process::Command::new(bin)
+        .arg("render")
+        .arg(terrains().join("tree.toml"))
+        .args(["--size", "160x90", "--out"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let (w, h, depth) =
+        relief::app::capture::read_depth_tiff(&dir.join("depth_0000.tiff")).unwrap();
+    assert_eq!((w, h), (160, 90));
+    // The tree stands 30 m ahead of the camera in the middle of the image.
+    let centre = depth[(45 * 160 + 80) as usize];
+    assert!((25.0..40.0).contains(&centre), "centre depth {centre}");
+}
