@@ -77,6 +77,10 @@ enum Command {
         /// only (default scene: terrains/tree.toml).
         #[arg(long)]
         voxels: bool,
+        /// Measure the density-volume pass instead: plain marching vs empty-space skipping and
+        /// early termination (default scene: terrains/brain.toml).
+        #[arg(long)]
+        volume: bool,
     },
     /// Voxel model files: convert to the segment format (.rvs) and report sizes.
     Voxels {
@@ -405,9 +409,21 @@ fn run(cli: Cli) -> Result<()> {
             dump_rays,
             freeforms,
             voxels,
+            volume,
         }) => {
             if frames == 0 {
                 bail!("--frames must be at least 1");
+            }
+            if volume {
+                let scene = scene.unwrap_or_else(|| PathBuf::from("terrains/brain.toml"));
+                let report = relief::app::volumes::bench(&scene, size, frames)
+                    .with_context(|| format!("benchmarking {}", scene.display()))?;
+                if json {
+                    println!("{}", serde_json::to_string_pretty(&report)?);
+                } else {
+                    relief::app::volumes::print(&report);
+                }
+                return Ok(());
             }
             if voxels {
                 let scene = scene.unwrap_or_else(|| PathBuf::from("terrains/tree.toml"));

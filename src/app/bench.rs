@@ -97,7 +97,7 @@ fn depth_error(out: &FrameOutput, reference: &[(u32, u32, Option<f64>)]) -> Dept
 }
 
 /// The scene at `size` (validated again) and its terrain.
-fn load_at_size(scene_path: &Path, size: (u32, u32)) -> Result<(Scene, Terrain)> {
+pub(crate) fn load_at_size(scene_path: &Path, size: (u32, u32)) -> Result<(Scene, Terrain)> {
     let mut scene = Scene::load(scene_path)?;
     scene.desc.output.width = size.0;
     scene.desc.output.height = size.1;

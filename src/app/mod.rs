@@ -3,5 +3,6 @@
 pub mod bench;
 pub mod capture;
 pub mod view;
+pub mod volumes;
 pub mod voxels;
 pub mod warp;

@@ -120,7 +120,15 @@ impl ProceduralVolume {
                             let base = fbm([p[0], p[1], 0.0], seed, 4);
                             let profile = (h * 6.0).min(1.0) * (1.0 - h * h);
                             let puff = fbm(p, seed ^ 0x5bd1, 5);
-                            (base - (1.0 - cov) + 0.6 * profile * puff - 0.25).max(0.0) * 2.5
+                            // Fade out towards the sides so the box does not show.
+                            let side = (x.min(nx as usize - 1 - x).min(y).min(ny as usize - 1 - y))
+                                as f64
+                                / (0.12 * nx.min(ny) as f64);
+                            let fade = side.min(1.0);
+                            (base - (1.0 - cov) + 0.6 * profile * puff - 0.25).max(0.0)
+                                * 2.5
+                                * fade
+                                * fade
                         } else {
                             let cx = (x as f64 + 0.5) / nx as f64 - 0.5;
                             let cy = (y as f64 + 0.5) / ny as f64 - 0.5;
