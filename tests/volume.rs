@@ -762,3 +762,167 @@ fn cli_renders_the_brain_and_refuses_a_bad_volume_before_writing() {
         meta["volume_pixels"]
     );
 }
+
+#[test]
+fn a_tight_shell_changes_nothing_and_saves_segments() {
+    let _l = gpu_lock();
+    let mut scene = Scene::load(&terrains().join("brain.toml")).unwrap();
+    scene.desc.output.width = 128;
+    scene.desc.output.height = 96;
+    let terrain = scene.load_terrain().unwrap();
+    let vols = scene.volumes(&terrain).unwrap();
+    let cam = scene.camera(0, &terrain);
+    // The smallest axis-aligned ellipsoid around the box centre that holds every voxel the
+    // transfer function makes visible (with a voxel of margin for the trilinear support).
+    let v = &vols[0];
+    let ext = v.extent();
+    let c = ext / 2.0;
+    let sp = DVec3::from(v.grid.spacing);
+    let [nx, ny, nz] = v.grid.dims;
+    let mut r = DVec3::ZERO;
+    let visible: Vec<bool> = (0..256).map(|d| v.table.entries[d][3] > 0.0).collect();
+    for z in 0..nz {
+        for y in 0..ny {
+            for x in 0..nx {
+                if visible[v.grid.voxel(x, y, z) as usize] {
+                    let p = (DVec3::new(x as f64, y as f64, z as f64) + 0.5) * sp - c;
+                    r = r.max(p.abs() + sp * 6.0);
+                }
+            }
+        }
+    }
+    // Scale the ellipsoid with semi-axes r until it holds every visible voxel (with margin).
+    let mut scale: f64 = 0.0;
+    for z in 0..nz {
+        for y in 0..ny {
+            for x in 0..nx {
+                if visible[v.grid.voxel(x, y, z) as usize] {
+                    let p = (DVec3::new(x as f64, y as f64, z as f64) + 0.5) * sp - c;
+                    scale = scale.max(((p.abs() + sp * 6.0) / r).length());
+                }
+            }
+        }
+    }
+    let radii = r * scale;
+    let shelled = Volume {
+        shell: Some((c, radii)),
+        ..v.clone()
+    };
+    let plain = VolumeSettings {
+        skip: false,
+        early_termination: false,
+        ..v.settings
+    };
+    let light = VolumeLight::new(&scene.desc, &terrain);
+    let Some(a) = render_variants(&terrain, &scene.desc, &cam, v, &[plain]) else {
+        return;
+    };
+    let b = render_variants(&terrain, &scene.desc, &cam, &shelled, &[plain]).unwrap();
+    let segs = |o: &FrameOutput| o.volume_segments.iter().map(|&s| s as u64).sum::<u64>();
+    let d = max_diff(&a[0].rgba, &b[0].rgba);
+    eprintln!(
+        "shell radii {radii:.3} m in a {ext:.3} m box: segments {} -> {}, max difference {d}/255",
+        segs(&a[0]),
+        segs(&b[0])
+    );
+    assert!(
+        d <= 1,
+        "a shell around all visible voxels changed the image by {d}/255"
+    );
+    assert!(
+        segs(&b[0]) * 10 < segs(&a[0]) * 9,
+        "the shell saved under 10% of the segments"
+    );
+    // The CPU reference follows the shell too.
+    let k = (48 * 128 + 64) as usize;
+    let rays = {
+        let g = gpu().unwrap();
+        let mut rr = TerrainRenderer::new(g, &terrain).unwrap();
+        rr.capture(g, &terrain, &scene.desc, &cam, &settings())
+            .unwrap();
+        rr.read_ray_table(g).unwrap()
+    };
+    let e = rays[k];
+    let dir = DVec3::new(e[0] as f64, e[1] as f64, e[2] as f64);
+    let with = integrate(
+        &shelled,
+        &light,
+        cam.pose.position,
+        dir,
+        e[3] as f64,
+        f64::INFINITY,
+        [64, 48],
+    );
+    let without = integrate(
+        v,
+        &light,
+        cam.pose.position,
+        dir,
+        e[3] as f64,
+        f64::INFINITY,
+        [64, 48],
+    );
+    assert!(
+        with.segments < without.segments
+            && (with.colour - without.colour).abs().max_element() < 1e-3
+    );
+}
+
+#[test]
+fn procedural_clouds_are_deterministic_and_validated() {
+    let scene = Scene::load(&terrains().join("clouds.toml")).unwrap();
+    let pv = scene.desc.volumes[0].procedural.clone().unwrap();
+    let a = pv.generate("clouds", [60.0; 3]).unwrap();
+    let b = pv.generate("clouds", [60.0; 3]).unwrap();
+    assert!(
+        a.data == b.data,
+        "the same parameters gave different clouds"
+    );
+    let lit = a.data.iter().filter(|&&d| d > 64).count() as f64 / a.data.len() as f64;
+    eprintln!("clouds: {:.1}% of voxels above density 0.25", 100.0 * lit);
+    assert!(
+        (0.01..0.6).contains(&lit),
+        "cloud cover {lit} is degenerate"
+    );
+    let other = relief::volume::procedural::ProceduralVolume {
+        seed: pv.seed + 1,
+        ..pv.clone()
+    };
+    assert!(
+        other.generate("clouds", [60.0; 3]).unwrap().data != a.data,
+        "the seed is ignored"
+    );
+    for (bad, field) in [
+        (
+            relief::volume::procedural::ProceduralVolume {
+                coverage: 1.5,
+                ..pv.clone()
+            },
+            "coverage",
+        ),
+        (
+            relief::volume::procedural::ProceduralVolume {
+                feature: f64::NAN,
+                ..pv.clone()
+            },
+            "feature",
+        ),
+        (
+            relief::volume::procedural::ProceduralVolume {
+                size: [1, 4, 4],
+                ..pv.clone()
+            },
+            "grid size",
+        ),
+        (
+            relief::volume::procedural::ProceduralVolume {
+                kind: "fog".into(),
+                ..pv.clone()
+            },
+            "kind",
+        ),
+    ] {
+        let e = bad.generate("clouds", [60.0; 3]).unwrap_err().to_string();
+        assert!(e.contains(field), "{field}: {e}");
+    }
+}
