@@ -196,13 +196,20 @@ pub fn integrate(
         let tm = 0.5 * (a + b);
         let p = o + d * tm;
         let u = p / ext;
+        let level = if s.mipmaps {
+            (2.0 * cone * tm / voxel).max(1e-30).log2().clamp(0.0, top)
+        } else {
+            0.0
+        };
         if s.skip {
             let vox = u * dims;
             let bi: [u32; 3] = std::array::from_fn(|i| {
                 ((vox[i] / BRICK as f64).floor().max(0.0) as u32).min(bdims[i] - 1)
             });
             let idx = bi[0] + bdims[0] * (bi[1] + bdims[1] * bi[2]);
-            if v.occupancy[idx as usize] == 0 {
+            // Level-0 samples need the exact bit, coarser ones the dilated one.
+            let need = if level > 0.0 { 2 } else { 1 };
+            if v.occupancy[idx as usize] & need == 0 {
                 let sp = DVec3::from(v.grid.spacing);
                 let mut exit = f64::INFINITY;
                 for i in 0..3 {
@@ -217,11 +224,6 @@ pub fn integrate(
                 continue;
             }
         }
-        let level = if s.mipmaps {
-            (2.0 * cone * tm / voxel).max(1e-30).log2().clamp(0.0, top)
-        } else {
-            0.0
-        };
         let smp = v.texture.sample([u.x, u.y, u.z], level);
         res.samples += 1;
         let e = v.table.lookup(smp[0]);

@@ -317,9 +317,10 @@ impl BrickGrid {
         BrickGrid { dims, range }
     }
 
-    /// One word per brick: 1 where the transfer table gives some opacity to a density in the
-    /// brick's range, dilated by one brick in every direction when `dilate` (mip levels above
-    /// 0 read further than the one-voxel border).
+    /// One word per brick: bit 0 where the transfer table gives some opacity to a density in
+    /// the brick's range (exact for level-0 samples, whose trilinear support stays within the
+    /// one-voxel border), bit 1 the same dilated by one brick in every direction when `dilate`
+    /// (coarser mip levels read further), else a copy of bit 0.
     pub fn occupancy(&self, table: &TransferTable, dilate: bool) -> Vec<u32> {
         let [bx, by, bz] = self.dims;
         let idx = |x: u32, y: u32, z: u32| (x + bx * (y + by * z)) as usize;
@@ -329,7 +330,7 @@ impl BrickGrid {
             .map(|&[mn, mx]| table.any_opaque(mn, mx))
             .collect();
         if !dilate {
-            return own.iter().map(|&o| o as u32).collect();
+            return own.iter().map(|&o| o as u32 * 3).collect();
         }
         let mut out = vec![0u32; own.len()];
         for z in 0..bz {
@@ -338,10 +339,11 @@ impl BrickGrid {
                     if !own[idx(x, y, z)] {
                         continue;
                     }
+                    out[idx(x, y, z)] |= 1;
                     for dz in z.saturating_sub(1)..(z + 2).min(bz) {
                         for dy in y.saturating_sub(1)..(y + 2).min(by) {
                             for dx in x.saturating_sub(1)..(x + 2).min(bx) {
-                                out[idx(dx, dy, dz)] = 1;
+                                out[idx(dx, dy, dz)] |= 2;
                             }
                         }
                     }

@@ -95,19 +95,21 @@ fn vol_interval(o: vec3<f32>, d: vec3<f32>, t_max: f32) -> vec3<f32> {
 // which the CPU reference cannot follow through steep transfer functions.
 fn vol_trilinear(u: vec3<f32>, level: u32) -> vec4<f32> {
     let n = vec3<i32>(max(vol.dims.xyz >> vec3<u32>(level), vec3<u32>(1u)));
+    // i32 level: naga's GLSL output bounds-checks with textureSize(sampler, int).
+    let li = i32(level);
     let q = u * vec3<f32>(n) - 0.5;
     let i0 = floor(q);
     let f = q - i0;
     let a = clamp(vec3<i32>(i0), vec3<i32>(0), n - 1);
     let b = clamp(vec3<i32>(i0) + 1, vec3<i32>(0), n - 1);
-    let c000 = textureLoad(vol_tex, a, level);
-    let c100 = textureLoad(vol_tex, vec3<i32>(b.x, a.y, a.z), level);
-    let c010 = textureLoad(vol_tex, vec3<i32>(a.x, b.y, a.z), level);
-    let c110 = textureLoad(vol_tex, vec3<i32>(b.x, b.y, a.z), level);
-    let c001 = textureLoad(vol_tex, vec3<i32>(a.x, a.y, b.z), level);
-    let c101 = textureLoad(vol_tex, vec3<i32>(b.x, a.y, b.z), level);
-    let c011 = textureLoad(vol_tex, vec3<i32>(a.x, b.y, b.z), level);
-    let c111 = textureLoad(vol_tex, b, level);
+    let c000 = textureLoad(vol_tex, a, li);
+    let c100 = textureLoad(vol_tex, vec3<i32>(b.x, a.y, a.z), li);
+    let c010 = textureLoad(vol_tex, vec3<i32>(a.x, b.y, a.z), li);
+    let c110 = textureLoad(vol_tex, vec3<i32>(b.x, b.y, a.z), li);
+    let c001 = textureLoad(vol_tex, vec3<i32>(a.x, a.y, b.z), li);
+    let c101 = textureLoad(vol_tex, vec3<i32>(b.x, a.y, b.z), li);
+    let c011 = textureLoad(vol_tex, vec3<i32>(a.x, b.y, b.z), li);
+    let c111 = textureLoad(vol_tex, b, li);
     let x0 = mix(mix(c000, c100, f.x), mix(c010, c110, f.x), f.y);
     let x1 = mix(mix(c001, c101, f.x), mix(c011, c111, f.x), f.y);
     return mix(x0, x1, f.z);
@@ -194,9 +196,15 @@ fn fs_volume(@builtin(position) pos: vec4<f32>) -> VolOut {
         let tm = 0.5 * (a + b);
         let p = o + d * tm;
         let u = p / ext;
+        var level = 0.0;
+        if ((sw & 8u) != 0u) {
+            level = clamp(log2(max(2.0 * e.w * tm / voxel, 1.0e-30)), 0.0, top);
+        }
         if ((sw & 1u) != 0u) {
             let bi = min(vec3<u32>(max(floor(u * dims / f32(VOL_BRICK)), vec3<f32>(0.0))), vol.bricks.xyz - 1u);
-            if (vol_bricks[bi.x + vol.bricks.x * (bi.y + vol.bricks.y * bi.z)] == 0u) {
+            // Level-0 samples need the exact bit, coarser ones the dilated one.
+            let need = select(1u, 2u, level > 0.0);
+            if ((vol_bricks[bi.x + vol.bricks.x * (bi.y + vol.bricks.y * bi.z)] & need) == 0u) {
                 let lo = vec3<f32>(bi * VOL_BRICK) * vol.spacing.xyz;
                 let hi = vec3<f32>(min((bi + 1u) * VOL_BRICK, vol.dims.xyz)) * vol.spacing.xyz;
                 let face = select(lo, hi, d > vec3<f32>(0.0));
@@ -205,10 +213,6 @@ fn fs_volume(@builtin(position) pos: vec4<f32>) -> VolOut {
                 k = max(k + 1.0, floor((exit - t0) / step - j));
                 continue;
             }
-        }
-        var level = 0.0;
-        if ((sw & 8u) != 0u) {
-            level = clamp(log2(max(2.0 * e.w * tm / voxel, 1.0e-30)), 0.0, top);
         }
         let s = vol_sample(u, level);
         samples += 1u;
