@@ -229,6 +229,7 @@ fn uniform_volume(n: u32, voxel: f64, corner: DVec3, d: u8, opacity: f64, step: 
         data: vec![d; (n * n * n) as usize],
         spacing: [voxel; 3],
         value_range: [0.0, 255.0],
+        slices: 0,
     };
     let tf = TransferFunction {
         points: vec![
@@ -924,5 +925,101 @@ fn procedural_clouds_are_deterministic_and_validated() {
     ] {
         let e = bad.generate("clouds", [60.0; 3]).unwrap_err().to_string();
         assert!(e.contains(field), "{field}: {e}");
+    }
+}
+
+#[test]
+fn function4d_slices_mark_the_zero_crossings_of_each_w() {
+    use relief::volume::procedural::{function4d, ProceduralVolume, POLE};
+    let pv = ProceduralVolume {
+        kind: "function4d".into(),
+        size: [40, 36, 32],
+        seed: 0,
+        coverage: 0.5,
+        feature: 32.0,
+        slices: 5,
+        w_range: [0.0, 2.0],
+        half_extent: 5.0,
+    };
+    let g = pv.generate("f4d", [1.0; 3]).unwrap();
+    assert_eq!(g.slices, 5);
+    let [nx, ny, nz] = g.dims;
+    let mut set = [0usize; 5];
+    for z in 0..nz {
+        for y in 0..ny {
+            for x in 0..nx {
+                let bits = g.voxel(x, y, z);
+                assert_eq!(bits >> 5, 0, "bits beyond the slices at ({x},{y},{z})");
+                for s in 0..5 {
+                    let w = 2.0 * s as f64 / 4.0;
+                    let at = |i: i64, j: i64, k: i64| {
+                        let d = |v: i64, n: u32| -5.0 + (v as f64 + 0.5) / n as f64 * 10.0;
+                        function4d(d(i, nx), d(j, ny), d(k, nz), w)
+                    };
+                    let (xi, yi, zi) = (x as i64, y as i64, z as i64);
+                    let v = at(xi, yi, zi);
+                    let crossing = [
+                        (1, 0, 0),
+                        (-1, 0, 0),
+                        (0, 1, 0),
+                        (0, -1, 0),
+                        (0, 0, 1),
+                        (0, 0, -1),
+                    ]
+                    .iter()
+                    .any(|&(a, b, c)| {
+                        let (i, j, k) = (xi + a, yi + b, zi + c);
+                        i >= 0
+                            && j >= 0
+                            && k >= 0
+                            && i < nx as i64
+                            && j < ny as i64
+                            && k < nz as i64
+                            && {
+                                let u = at(i, j, k);
+                                u <= 0.0 && u > -POLE
+                            }
+                    });
+                    let want = v > 0.0 && v < POLE && crossing;
+                    assert_eq!(
+                        bits >> s & 1 == 1,
+                        want,
+                        "slice {s} at ({x},{y},{z}), g = {v}"
+                    );
+                    set[s] += want as usize;
+                }
+            }
+        }
+    }
+    eprintln!("surface voxels per slice: {set:?}");
+    assert!(
+        set.iter().all(|&n| n > 500),
+        "a slice is nearly empty: {set:?}"
+    );
+}
+
+#[test]
+fn gpu_matches_the_cpu_reference_on_the_4d_function_slices() {
+    let _l = gpu_lock();
+    let mut scene = Scene::load(&terrains().join("function4d.toml")).unwrap();
+    scene.desc.output.width = 128;
+    scene.desc.output.height = 96;
+    let terrain = scene.load_terrain().unwrap();
+    let vols = scene.volumes(&terrain).unwrap();
+    assert_eq!(vols[0].grid.slices, 8);
+    let cam = scene.camera(0, &terrain);
+    let light = VolumeLight::new(&scene.desc, &terrain);
+    let Some((under, out, rays)) = render_pair(&terrain, &scene.desc, &cam, &vols, &[]) else {
+        return;
+    };
+    let cpu = cpu_image(&vols[0], &light, &cam, &under, &rays);
+    let (mean, max, touched) = compare(&out.rgba, &cpu, &under.rgba);
+    eprintln!(
+        "4-D slices: mean |GPU − CPU| {mean:.3}/255, max {max}/255 over {touched} volume pixels"
+    );
+    assert!(touched > 2000, "the volume covers only {touched} pixels");
+    if mean >= 1.0 || max >= 4 {
+        let p = save_failure_image("function4d", 128, 96, &out.rgba);
+        panic!("mean {mean:.3}/255, max {max}/255; {}", p.display());
     }
 }

@@ -224,6 +224,28 @@ pub fn integrate(
                 continue;
             }
         }
+        if v.grid.slices > 0 {
+            // Slice masks: nearest voxel, each set bit absorbs and emits its slice's colour.
+            let vi: [u32; 3] = std::array::from_fn(|i| {
+                ((p[i] / v.grid.spacing[i]).floor().max(0.0) as u32).min(v.grid.dims[i] - 1)
+            });
+            let bits = v.grid.voxel(vi[0], vi[1], vi[2]);
+            res.samples += 1;
+            for i in 0..v.grid.slices as usize {
+                if bits >> i & 1 != 0 {
+                    let e = v.table.entries[i].map(f64::from);
+                    let omega = 1.0 - (-e[3] * (b - a)).exp();
+                    let c = light.haze(DVec3::new(e[0], e[1], e[2]), eye, dir, tm);
+                    res.colour += c * (omega * res.transmittance);
+                    res.transmittance *= 1.0 - omega;
+                }
+            }
+            if s.early_termination && res.transmittance < s.epsilon {
+                break;
+            }
+            k += 1.0;
+            continue;
+        }
         let smp = v.texture.sample([u.x, u.y, u.z], level);
         res.samples += 1;
         let e = v.table.lookup(smp[0]);

@@ -101,7 +101,8 @@ pub struct VolumeUniforms {
     pub spacing: [f32; 4],
     /// Voxels x, y, z; mip levels.
     pub dims: [u32; 4],
-    /// Bricks x, y, z; switches (1 skip, 2 early termination, 4 jitter, 8 mip-maps, 16 shell).
+    /// Bricks x, y, z; switches (1 skip, 2 early termination, 4 jitter, 8 mip-maps, 16 shell,
+    /// 32 slice masks).
     pub bricks: [u32; 4],
     /// Ambient, diffuse, specular weights; shininess.
     pub material: [f32; 4],

@@ -283,7 +283,8 @@ pub fn uniforms(v: &Volume, eye: glam::DVec3) -> VolumeUniforms {
         | (s.early_termination as u32) << 1
         | (s.jitter as u32) << 2
         | (s.mipmaps as u32) << 3
-        | (v.shell.is_some() as u32) << 4;
+        | (v.shell.is_some() as u32) << 4
+        | ((v.grid.slices > 0) as u32) << 5;
     let (sc, sr) = v.shell.unwrap_or((glam::DVec3::ZERO, glam::DVec3::ONE));
     VolumeUniforms {
         eye_local: row(v.to_local(eye), s.step * v.voxel()),

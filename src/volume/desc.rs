@@ -290,6 +290,15 @@ impl Volume {
         material: VolumeMaterial,
         shell: Option<(DVec3, DVec3)>,
     ) -> Volume {
+        // Slice masks are sampled nearest at level 0 only.
+        let settings = if grid.slices > 0 {
+            VolumeSettings {
+                mipmaps: false,
+                ..settings
+            }
+        } else {
+            settings
+        };
         let texture = VolumeTexture::from_grid(&grid);
         let bricks = BrickGrid::new(&grid);
         let mut v = Volume {
@@ -326,6 +335,7 @@ impl Volume {
         self.occupancy = self.bricks.occupancy(
             &self.table,
             self.settings.mipmaps && self.texture.levels.len() > 1,
+            g.slices,
         );
         self.transfer = tf;
     }

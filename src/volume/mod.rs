@@ -44,6 +44,10 @@ pub struct DensityGrid {
     pub spacing: [f64; 3],
     /// Data value of density 0 and of density 255.
     pub value_range: [f64; 2],
+    /// 0 for a density field; otherwise the voxels are bit masks of this many 1-bit slices
+    /// (seed 004's 4-D function: bit i set where slice `w_i` has its surface), sampled
+    /// nearest, each slice classified by transfer-table entry i.
+    pub slices: u32,
 }
 
 /// Checks grid dimensions; `what` names the file or table in the error.
@@ -104,6 +108,7 @@ impl DensityGrid {
             data,
             spacing,
             value_range: [lo, hi],
+            slices: 0,
         };
         g.check(what)?;
         Ok(g)
@@ -229,7 +234,12 @@ impl VolumeTexture {
                     let len = (gr[0] * gr[0] + gr[1] * gr[1] + gr[2] * gr[2]).sqrt();
                     let s = 1.0 / len.max(8.0);
                     let enc = |v: f64| (128.0 + 127.0 * (v * s)).round().clamp(1.0, 255.0) as u8;
-                    texels.push([at(x, y, z) as u8, enc(gr[0]), enc(gr[1]), enc(gr[2])]);
+                    if g.slices > 0 {
+                        // Bit masks have no gradient.
+                        texels.push([at(x, y, z) as u8, 128, 128, 128]);
+                    } else {
+                        texels.push([at(x, y, z) as u8, enc(gr[0]), enc(gr[1]), enc(gr[2])]);
+                    }
                 }
             }
         }
@@ -321,13 +331,20 @@ impl BrickGrid {
     /// the brick's range (exact for level-0 samples, whose trilinear support stays within the
     /// one-voxel border), bit 1 the same dilated by one brick in every direction when `dilate`
     /// (coarser mip levels read further), else a copy of bit 0.
-    pub fn occupancy(&self, table: &TransferTable, dilate: bool) -> Vec<u32> {
+    pub fn occupancy(&self, table: &TransferTable, dilate: bool, slices: u32) -> Vec<u32> {
         let [bx, by, bz] = self.dims;
         let idx = |x: u32, y: u32, z: u32| (x + bx * (y + by * z)) as usize;
         let own: Vec<bool> = self
             .range
             .iter()
-            .map(|&[mn, mx]| table.any_opaque(mn, mx))
+            .map(|&[mn, mx]| {
+                if slices > 0 {
+                    // Bit masks: any set bit whose slice has opacity.
+                    mx > 0 && table.entries[..slices as usize].iter().any(|e| e[3] > 0.0)
+                } else {
+                    table.any_opaque(mn, mx)
+                }
+            })
             .collect();
         if !dilate {
             return own.iter().map(|&o| o as u32 * 3).collect();

@@ -1,5 +1,9 @@
-//! Procedural density fields for simulator scenes: cumulus-like cloud banks (fBm value noise
-//! shaped by a vertical profile). Deterministic: the same parameters give the same bytes.
+//! Procedural fields: cumulus-like cloud banks (fBm value noise shaped by a vertical profile),
+//! a smoke column, and seed 004's 4-D function `g(x, y, z, w)` as `slices` 1-bit grids (bit i
+//! of a voxel set where the surface `g(·, w_i) = 0` passes: `0 < g < POLE` there and
+//! `-POLE < g ≤ 0` at a face neighbour, which leaves out `tan`'s poles), each slice drawn in
+//! its own colour. Deterministic: the same parameters
+//! give the same bytes.
 
 use super::DensityGrid;
 use crate::{Error, Result};
@@ -21,6 +25,33 @@ pub struct ProceduralVolume {
     /// Size of the largest features in voxels.
     #[serde(default = "feature")]
     pub feature: f64,
+    /// function4d: number of w slices (1..=8).
+    #[serde(default = "eight")]
+    pub slices: u32,
+    /// function4d: first and last w.
+    #[serde(default = "w_range")]
+    pub w_range: [f64; 2],
+    /// function4d: the grid spans `[-half_extent, half_extent]³` of the function's domain.
+    #[serde(default = "five")]
+    pub half_extent: f64,
+}
+
+fn eight() -> u32 {
+    8
+}
+fn w_range() -> [f64; 2] {
+    [0.0, std::f64::consts::PI]
+}
+fn five() -> f64 {
+    5.0
+}
+
+/// Zero crossings with |g| beyond this on either side are `tan`'s poles, not surfaces.
+pub const POLE: f64 = 2.0;
+
+/// Seed 004's example: `g = sin(x+w)·cos y + sin y·cos z·tan(z+w) + sin(z+w)·cos x`.
+pub fn function4d(x: f64, y: f64, z: f64, w: f64) -> f64 {
+    (x + w).sin() * y.cos() + y.sin() * z.cos() * (z + w).tan() + (z + w).sin() * x.cos()
 }
 
 fn half() -> f64 {
@@ -87,10 +118,28 @@ impl ProceduralVolume {
                 format!("must be ≥ 1 voxel, got {}", self.feature),
             ));
         }
-        if !["clouds", "smoke"].contains(&self.kind.as_str()) {
+        if !["clouds", "smoke", "function4d"].contains(&self.kind.as_str()) {
             return Err(Error::invalid(
                 format!("{field}.kind"),
-                format!("{:?}: use \"clouds\" or \"smoke\"", self.kind),
+                format!(
+                    "{:?}: use \"clouds\", \"smoke\" or \"function4d\"",
+                    self.kind
+                ),
+            ));
+        }
+        if !(1..=8).contains(&self.slices) {
+            return Err(Error::invalid(
+                format!("{field}.slices"),
+                format!("must be 1..=8, got {}", self.slices),
+            ));
+        }
+        if !self.w_range.iter().all(|w| w.is_finite())
+            || !self.half_extent.is_finite()
+            || self.half_extent <= 0.0
+        {
+            return Err(Error::invalid(
+                format!("{field}.w_range/half_extent"),
+                "must be finite (half_extent > 0)",
             ));
         }
         Ok(())
@@ -99,6 +148,9 @@ impl ProceduralVolume {
     /// Densities in 0..1 (quantised to 8 bits over that range) with spacing `spacing`.
     pub fn generate(&self, field: &str, spacing: [f64; 3]) -> Result<DensityGrid> {
         self.validate(field)?;
+        if self.kind == "function4d" {
+            return Ok(self.slices4d(field, spacing));
+        }
         let [nx, ny, nz] = self.size;
         let n = nx as usize * ny as usize * nz as usize;
         let mut values = vec![0.0; n];
@@ -141,5 +193,82 @@ impl ProceduralVolume {
                 }
             });
         DensityGrid::from_values(field, self.size, &values, spacing, Some([0.0, 1.0]))
+    }
+}
+
+impl ProceduralVolume {
+    /// Domain coordinate of voxel centre `i` of `n`.
+    pub fn domain(&self, i: u32, n: u32) -> f64 {
+        let e = self.half_extent;
+        -e + (i as f64 + 0.5) / n as f64 * 2.0 * e
+    }
+
+    /// `w` of slice `i`.
+    pub fn slice_w(&self, i: u32) -> f64 {
+        let [w0, w1] = self.w_range;
+        if self.slices > 1 {
+            w0 + (w1 - w0) * i as f64 / (self.slices - 1) as f64
+        } else {
+            w0
+        }
+    }
+
+    fn slices4d(&self, field: &str, spacing: [f64; 3]) -> DensityGrid {
+        let [nx, ny, nz] = self.size;
+        let (sx, sy) = (nx as usize, ny as usize);
+        let n = sx * sy * nz as usize;
+        use rayon::prelude::*;
+        let mut bits = vec![0u8; n];
+        for s in 0..self.slices {
+            let w = self.slice_w(s);
+            let value: Vec<f64> = (0..n)
+                .into_par_iter()
+                .map(|i| {
+                    let (x, y, z) = (i % sx, (i / sx) % sy, i / (sx * sy));
+                    function4d(
+                        self.domain(x as u32, nx),
+                        self.domain(y as u32, ny),
+                        self.domain(z as u32, nz),
+                        w,
+                    )
+                })
+                .collect();
+            bits.par_iter_mut().enumerate().for_each(|(i, b)| {
+                if !(value[i] > 0.0 && value[i] < POLE) {
+                    return;
+                }
+                let (x, y, z) = (i % sx, (i / sx) % sy, i / (sx * sy));
+                let out = |dx: i64, dy: i64, dz: i64| {
+                    let (a, b, c) = (x as i64 + dx, y as i64 + dy, z as i64 + dz);
+                    a >= 0
+                        && b >= 0
+                        && c >= 0
+                        && a < sx as i64
+                        && b < sy as i64
+                        && c < nz as i64
+                        && {
+                            let v = value[a as usize + sx * (b as usize + sy * c as usize)];
+                            v <= 0.0 && v > -POLE
+                        }
+                };
+                if out(1, 0, 0)
+                    || out(-1, 0, 0)
+                    || out(0, 1, 0)
+                    || out(0, -1, 0)
+                    || out(0, 0, 1)
+                    || out(0, 0, -1)
+                {
+                    *b |= 1 << s;
+                }
+            });
+        }
+        let _ = field;
+        DensityGrid {
+            dims: self.size,
+            data: bits,
+            spacing,
+            value_range: [0.0, 255.0],
+            slices: self.slices,
+        }
     }
 }

@@ -32,7 +32,7 @@ pub struct TransferFunction {
 }
 
 /// Built-in transfer functions (`transfer = "name"`).
-pub const PRESETS: &[&str] = &["brain", "brain-white", "grey", "cloud", "smoke"];
+pub const PRESETS: &[&str] = &["brain", "brain-white", "grey", "cloud", "smoke", "slices"];
 
 fn p(value: f64, colour: [f64; 3], opacity: f64) -> TfPoint {
     TfPoint {
@@ -78,6 +78,18 @@ impl TransferFunction {
                 p(0.1, [0.3; 3], 0.0),
                 p(1.0, [0.15, 0.14, 0.13], 0.4),
             ],
+            // Slice masks (procedural function4d): slice i at value i, a rainbow from red to
+            // violet, each slice absorbing 20% per voxel.
+            "slices" => (0..8)
+                .map(|i| {
+                    let h = i as f64 / 8.0 * 5.0;
+                    let c = |k: f64| {
+                        let x = (h + k) % 6.0;
+                        1.0 - x.min(4.0 - x).clamp(0.0, 1.0)
+                    };
+                    p(i as f64, [c(5.0), c(3.0), c(1.0)], 0.2)
+                })
+                .collect(),
             _ => {
                 return Err(Error::invalid(
                     "transfer",

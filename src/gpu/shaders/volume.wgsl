@@ -19,7 +19,8 @@ struct Volume {
     spacing: vec4<f32>,
     // Voxels x, y, z; mip levels.
     dims: vec4<u32>,
-    // Bricks x, y, z; switches (1 skip, 2 early termination, 4 jitter, 8 mip-maps, 16 shell).
+    // Bricks x, y, z; switches (1 skip, 2 early termination, 4 jitter, 8 mip-maps, 16 shell,
+    // 32 slice masks).
     bricks: vec4<u32>,
     // Ambient, diffuse, specular weights; shininess.
     material: vec4<f32>,
@@ -40,6 +41,8 @@ struct Volume {
 const VOL_BRICK: u32 = 8u;
 const VOL_TABLE: u32 = 256u;
 const VOL_MAX_SAMPLES: u32 = 65536u;
+// Bits of a slice mask (`volume::procedural` function4d).
+const VOL_SLICES: u32 = 8u;
 
 struct VolOut {
     @location(0) colour: vec4<f32>,
@@ -213,6 +216,25 @@ fn fs_volume(@builtin(position) pos: vec4<f32>) -> VolOut {
                 k = max(k + 1.0, floor((exit - t0) / step - j));
                 continue;
             }
+        }
+        if ((sw & 32u) != 0u) {
+            // Slice masks: nearest voxel, each set bit absorbs and emits its slice's colour.
+            let vi = clamp(vec3<i32>(floor(p / vol.spacing.xyz)), vec3<i32>(0), vec3<i32>(vol.dims.xyz) - 1);
+            let bits = u32(textureLoad(vol_tex, vi, 0).x * 255.0 + 0.5);
+            samples += 1u;
+            for (var i = 0u; i < VOL_SLICES; i += 1u) {
+                if (((bits >> i) & 1u) != 0u) {
+                    let e = vol_table[i];
+                    let omega = 1.0 - exp(-e.w * (b - a));
+                    acc += aerial_perspective(e.xyz, tm, frame.eye.z + tm * up_rate, dl) * (omega * tr);
+                    tr *= 1.0 - omega;
+                }
+            }
+            if ((sw & 2u) != 0u && tr < vol.spacing.w) {
+                break;
+            }
+            k += 1.0;
+            continue;
         }
         let s = vol_sample(u, level);
         samples += 1u;
