@@ -117,6 +117,11 @@ fn bad_nrrd_files_are_refused_with_the_file_named() {
             [header("raw", "100000 2 2", "uint8"), vec![0; 8]].concat(),
             "grid size",
         ),
+        (
+            "too-many.nrrd",
+            [header("gzip", "5000 5000 5000", "uint8"), good[start..].to_vec()].concat(),
+            "downsample",
+        ),
     ];
     for (name, bytes, want) in cases {
         let p = write(&dir, name, &bytes);
@@ -1022,4 +1027,41 @@ fn gpu_matches_the_cpu_reference_on_the_4d_function_slices() {
         let p = save_failure_image("function4d", 128, 96, &out.rgba);
         panic!("mean {mean:.3}/255, max {max}/255; {}", p.display());
     }
+}
+
+#[test]
+fn volumes_over_the_device_limit_are_refused_with_the_limit() {
+    let _l = gpu_lock();
+    let Some(g) = gpu() else {
+        return;
+    };
+    let terrain = terrain_from_fn(3, 1.0, |_, _| 0.0);
+    let max = g.limits.max_texture_dimension_3d;
+    assert!(
+        max < relief::volume::MAX_SIDE,
+        "the adapter allows {max}: nothing to test"
+    );
+    let n = max + 1;
+    let grid = DensityGrid {
+        dims: [n, 2, 2],
+        data: vec![100; n as usize * 4],
+        spacing: [1.0; 3],
+        value_range: [0.0, 255.0],
+        slices: 0,
+    };
+    let v = Volume::new(
+        "long".into(),
+        grid,
+        TransferFunction::preset("grey").unwrap(),
+        DVec3::ZERO,
+        DMat3::IDENTITY,
+        VolumeSettings::default(),
+        VolumeMaterial::default(),
+        None,
+    );
+    let mut r = TerrainRenderer::new(g, &terrain).unwrap();
+    let e = r.set_volumes(g, &[v.clone()]).unwrap_err().to_string();
+    assert!(e.contains("long") && e.contains(&max.to_string()), "{e}");
+    let e = r.set_volumes(g, &[v.clone(), v]).unwrap_err().to_string();
+    assert!(e.contains("one volume"), "{e}");
 }

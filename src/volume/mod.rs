@@ -32,7 +32,9 @@ pub const BRICK: u32 = 8;
 /// to 1.5·2^L away, so with one brick of dilation skipping stays exact up to level 2.
 pub const MAX_MIP: u32 = 2;
 /// Largest accepted grid side (voxels), before any device limit.
-pub const MAX_SIDE: u32 = 4096;
+pub const MAX_SIDE: u32 = 8192;
+/// Largest accepted voxel count (its RGBA texture, 2 GiB, is what the GPU side accepts).
+pub const MAX_VOXELS: u64 = 1 << 29;
 
 /// A scalar field on a regular grid, x fastest, quantised to 8 bits.
 #[derive(Clone, Debug)]
@@ -56,6 +58,15 @@ pub(crate) fn check_dims(what: &str, dims: [u64; 3]) -> Result<[u32; 3]> {
         return Err(Error::invalid(
             what,
             format!("grid size {dims:?}: every side must be 2..={MAX_SIDE} voxels"),
+        ));
+    }
+    let total = dims.iter().product::<u64>();
+    if total > MAX_VOXELS {
+        return Err(Error::invalid(
+            what,
+            format!(
+                "grid size {dims:?}: {total} voxels, at most {MAX_VOXELS}; downsample the volume"
+            ),
         ));
     }
     Ok(dims.map(|d| d as u32))
