@@ -563,3 +563,78 @@ fn cli_converts_a_vox_file_and_renders_the_tree_demo() {
     let centre = depth[(45 * 160 + 80) as usize];
     assert!((25.0..40.0).contains(&centre), "centre depth {centre}");
 }
+
+#[test]
+fn animated_models_show_the_frame_of_the_scene_time_on_gpu_and_cpu() {
+    let _l = gpu_lock();
+    // Two frames of a 12x12x16 model: a pillar that moves from one corner to the opposite.
+    let mut palette = vec![[0u8, 0, 0, 255]; 256];
+    palette[1] = [200, 60, 40, 255];
+    let pillar = |x0: u32, y0: u32| {
+        let mut v = Vec::new();
+        for z in 0..16 {
+            for y in y0..y0 + 4 {
+                for x in x0..x0 + 4 {
+                    v.push(Voxel {
+                        pos: [x, y, z],
+                        index: 1,
+                    });
+                }
+            }
+        }
+        Arc::new(VoxelModel::new("pillar", [12, 12, 16], palette.clone(), v).unwrap())
+    };
+    let frames = vec![pillar(0, 0), pillar(8, 8)];
+    let mut inst = VoxelInstance::new(
+        "pillar",
+        frames,
+        DMat3::IDENTITY,
+        DVec3::new(320.0, 330.0, 0.0),
+        2.0,
+    );
+    inst.fps = 10.0;
+    let terrain = terrain_from_fn(65, 10.0, |_, _| 0.0);
+    let scene = VoxelScene::new(vec![inst.clone()]);
+    let (w, h) = (120u32, 90u32);
+    let cam = camera(DVec3::new(320.0, 270.0, 20.0), 0.0, -5.0, w, h);
+    let Some(g) = gpu() else {
+        return;
+    };
+    let desc = common::synthetic_scene(w, h, "position = [0.0, 0.0, 100.0]");
+    let mut r = TerrainRenderer::new(g, &terrain).unwrap();
+    r.set_voxels(g, &[inst]).unwrap();
+    let mut masks = Vec::new();
+    for time in [0.0, 0.15, 0.25] {
+        r.set_time(time);
+        let out = r
+            .capture(g, &terrain, &desc, &cam, &settings(false))
+            .unwrap();
+        let mut agree = 0;
+        for k in 0..(w * h) as usize {
+            let d = cam.pixel_ray(k as u32 % w, k as u32 / w);
+            let vx = scene.cast(cam.pose.position, d, 0.0, f64::INFINITY, time);
+            let is_vox = out.flags[k] & 32 != 0;
+            agree += match vx {
+                Some(v) => is_vox && ((out.depth[k] as f64 - v.t) / v.t).abs() <= 1e-3,
+                None => !is_vox,
+            } as usize;
+        }
+        let frac = agree as f64 / (w * h) as f64;
+        eprintln!(
+            "t = {time} s (frame {}): {:.2}% of pixels agree",
+            (time * 10.0) as u32 % 2,
+            100.0 * frac
+        );
+        assert!(
+            frac >= 0.995,
+            "t = {time}: only {:.2}% agree with the CPU",
+            100.0 * frac
+        );
+        masks.push(out.flags.iter().map(|f| f & 32 != 0).collect::<Vec<bool>>());
+    }
+    assert!(masks[0] != masks[1], "frame 1 looks like frame 0");
+    assert!(
+        masks[0] == masks[2],
+        "t = 0.25 s (frame 0 again at 10 fps) differs from t = 0"
+    );
+}

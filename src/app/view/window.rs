@@ -870,6 +870,8 @@ impl App {
                 w.renderer.set_eye(e);
             }
             let cam = Camera::new(pose, rw, rh);
+            // Animated voxel models follow the simulation clock.
+            w.renderer.set_time(t);
             let dirs: Vec<PathBuf> = capture_all
                 .iter()
                 .cloned()
