@@ -334,18 +334,33 @@ pub struct FreeFormReport {
     pub with_free_forms_ms: f64,
     /// `with_free_forms_ms / terrain_only_ms` (target ≤ 1.5).
     pub ratio: f64,
-    /// Generated free forms spread over the view: (count, mean frame ms).
+    /// Generated free forms all in the view, 150 m to 4 km away: (count, mean frame ms).
     pub scaling: Vec<(usize, f64)>,
-    /// Frame ms with the most generated objects over the fewest (target ≤ 3).
+    /// Frame ms with the most generated objects over the fewest, all in view.
     pub scaling_ratio: f64,
+    /// Generated free forms spread uniformly over the whole terrain, as a database of objects
+    /// is, most of them out of the view: (count, mean frame ms).
+    pub spread: Vec<(usize, f64)>,
+    /// Frame ms with the most spread objects over the fewest (the target: ≤ 3).
+    pub spread_ratio: f64,
 }
 
-/// `n` perturbed free forms (domed tanks, dented balls, bumpy ellipsoids) on the terrain in
-/// front of the camera, 150 m to 4 km away, deterministic.
+/// Where [`scattered_free_forms`] puts its objects.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Scatter {
+    /// In front of the camera, within the horizontal field of view, 150 m to 4 km away.
+    InView,
+    /// Uniformly over the whole terrain.
+    OverTerrain,
+}
+
+/// `n` perturbed free forms (domed tanks, dented balls, bumpy ellipsoids) on the terrain,
+/// placed as `scatter` says, deterministic.
 pub fn scattered_free_forms(
     terrain: &Terrain,
     cam: &Camera,
     n: usize,
+    scatter: Scatter,
 ) -> Result<Vec<crate::freeform::FreeForm>> {
     let mut state = 0x2545_F491_4F6C_DD1Du64;
     let mut rnd = move || {
@@ -356,11 +371,27 @@ pub fn scattered_free_forms(
     };
     let mut text = String::new();
     let half = 0.5 * cam.pose.fov.to_radians();
+    let (gw, gh) = (
+        terrain.field.width as f64 - 1.0,
+        terrain.field.height as f64 - 1.0,
+    );
     for i in 0..n {
-        let dist = 150.0 + 3850.0 * rnd().powi(2);
-        let ang = cam.pose.heading.to_radians() + half * (2.0 * rnd() - 1.0);
-        let x = cam.pose.position.x + dist * ang.sin();
-        let y = cam.pose.position.y + dist * ang.cos();
+        let (x, y) = match scatter {
+            Scatter::InView => {
+                let dist = 150.0 + 3850.0 * rnd().powi(2);
+                let ang = cam.pose.heading.to_radians() + half * (2.0 * rnd() - 1.0);
+                (
+                    cam.pose.position.x + dist * ang.sin(),
+                    cam.pose.position.y + dist * ang.cos(),
+                )
+            }
+            Scatter::OverTerrain => {
+                let p = terrain
+                    .frame
+                    .grid_to_world(glam::DVec3::new(gw * rnd(), gh * rnd(), 0.0));
+                (p.x, p.y)
+            }
+        };
         let s = 5.0 + 15.0 * rnd();
         let shape = match i % 3 {
             0 => format!(
@@ -431,11 +462,20 @@ pub fn run_freeforms(scene_path: &Path, size: (u32, u32), frames: u32) -> Result
     let terrain_only_ms = frame_ms(&[])?;
     let with_free_forms_ms = frame_ms(&objects)?;
     let mut scaling = Vec::new();
-    for n in [10, 100, 1000] {
-        let generated = scattered_free_forms(&terrain, &cam, n)?;
-        let ms = frame_ms(&generated)?;
-        log::info!("{} generated free forms: {ms:.1} ms", generated.len());
-        scaling.push((generated.len(), ms));
+    let mut spread = Vec::new();
+    for (scatter, out) in [
+        (Scatter::InView, &mut scaling),
+        (Scatter::OverTerrain, &mut spread),
+    ] {
+        for n in [10, 100, 1000] {
+            let generated = scattered_free_forms(&terrain, &cam, n, scatter)?;
+            let ms = frame_ms(&generated)?;
+            log::info!(
+                "{} generated free forms ({scatter:?}): {ms:.1} ms",
+                generated.len()
+            );
+            out.push((generated.len(), ms));
+        }
     }
     Ok(FreeFormReport {
         adapter: gpu.info.name.clone(),
@@ -451,6 +491,8 @@ pub fn run_freeforms(scene_path: &Path, size: (u32, u32), frames: u32) -> Result
         ratio: with_free_forms_ms / terrain_only_ms,
         scaling_ratio: scaling.last().map_or(0.0, |l| l.1) / scaling[0].1,
         scaling,
+        spread_ratio: spread.last().map_or(0.0, |l| l.1) / spread[0].1,
+        spread,
     })
 }
 
@@ -465,13 +507,17 @@ pub fn print_freeforms(r: &FreeFormReport) {
         "terrain only {:.1} ms, with {} free forms ({} quadrics) {:.1} ms: {:.2}x",
         r.terrain_only_ms, r.objects, r.quadrics, r.with_free_forms_ms, r.ratio
     );
-    for (n, ms) in &r.scaling {
-        println!("{n:>5} generated free forms: {ms:.1} ms");
+    for (label, series, ratio) in [
+        ("in the view (150 m - 4 km)", &r.scaling, r.scaling_ratio),
+        ("spread over the terrain", &r.spread, r.spread_ratio),
+    ] {
+        for (n, ms) in series {
+            println!("{n:>5} generated free forms {label}: {ms:.1} ms");
+        }
+        println!(
+            "scaling {} -> {} objects {label}: {ratio:.2}x frame time",
+            series[0].0,
+            series.last().map_or(0, |l| l.0),
+        );
     }
-    println!(
-        "scaling {} -> {} objects: {:.2}x frame time",
-        r.scaling[0].0,
-        r.scaling.last().map_or(0, |l| l.0),
-        r.scaling_ratio
-    );
 }
