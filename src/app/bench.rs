@@ -97,6 +97,29 @@ fn depth_error(out: &FrameOutput, reference: &[(u32, u32, Option<f64>)]) -> Dept
 }
 
 /// The scene at `size` (validated again) and its terrain.
+/// Mean wall-clock milliseconds of `frames` pipelined frames up to `stage` (submit to GPU
+/// idle, no readback), after one untimed frame.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn mean_frame_ms(
+    r: &mut TerrainRenderer,
+    gpu: &Gpu,
+    terrain: &Terrain,
+    desc: &crate::scene::SceneDesc,
+    cam: &Camera,
+    s: &RenderSettings,
+    stage: Stage,
+    frames: u32,
+) -> Result<f64> {
+    r.render(gpu, terrain, desc, cam, s, stage)?;
+    gpu.wait()?;
+    let start = Instant::now();
+    for _ in 0..frames {
+        r.render(gpu, terrain, desc, cam, s, stage)?;
+    }
+    gpu.wait()?;
+    Ok(start.elapsed().as_secs_f64() * 1e3 / frames as f64)
+}
+
 pub(crate) fn load_at_size(scene_path: &Path, size: (u32, u32)) -> Result<(Scene, Terrain)> {
     let mut scene = Scene::load(scene_path)?;
     scene.desc.output.width = size.0;
@@ -187,14 +210,16 @@ pub fn run(
         // Warm-up: shader compilation on first use, target allocation.
         let out = renderer.capture(&gpu, &terrain, &scene.desc, &cam, &s)?;
         let mut time = |stage: Stage| -> Result<f64> {
-            renderer.render(&gpu, &terrain, &scene.desc, &cam, &s, stage)?;
-            gpu.wait()?;
-            let start = Instant::now();
-            for _ in 0..frames {
-                renderer.render(&gpu, &terrain, &scene.desc, &cam, &s, stage)?;
-            }
-            gpu.wait()?;
-            Ok(start.elapsed().as_secs_f64() * 1e3 / frames as f64)
+            mean_frame_ms(
+                &mut renderer,
+                &gpu,
+                &terrain,
+                &scene.desc,
+                &cam,
+                &s,
+                stage,
+                frames,
+            )
         };
         let primary_ms = time(Stage::Cast)?;
         let frame_ms = time(Stage::Shade)?;
@@ -450,14 +475,16 @@ pub fn run_freeforms(scene_path: &Path, size: (u32, u32), frames: u32) -> Result
         renderer.set_objects(&gpu, objects)?;
         // Warm-up: shader compilation on first use, target allocation.
         renderer.capture(&gpu, &terrain, &scene.desc, &cam, &s)?;
-        renderer.render(&gpu, &terrain, &scene.desc, &cam, &s, Stage::Shade)?;
-        gpu.wait()?;
-        let start = Instant::now();
-        for _ in 0..frames {
-            renderer.render(&gpu, &terrain, &scene.desc, &cam, &s, Stage::Shade)?;
-        }
-        gpu.wait()?;
-        Ok(start.elapsed().as_secs_f64() * 1e3 / frames as f64)
+        mean_frame_ms(
+            &mut renderer,
+            &gpu,
+            &terrain,
+            &scene.desc,
+            &cam,
+            &s,
+            Stage::Shade,
+            frames,
+        )
     };
     let terrain_only_ms = frame_ms(&[])?;
     let with_free_forms_ms = frame_ms(&objects)?;

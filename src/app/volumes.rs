@@ -6,7 +6,6 @@ use crate::volume::VolumeSettings;
 use crate::{Error, Result};
 use serde::Serialize;
 use std::path::Path;
-use std::time::Instant;
 
 /// One sampling configuration's figures.
 #[derive(Clone, Debug, Serialize)]
@@ -67,14 +66,16 @@ pub fn bench(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<VolumeR
     let cam = scene.camera(0, &terrain);
     let s = RenderSettings::from_scene(&scene.desc);
     let frame_ms = |r: &mut TerrainRenderer| -> Result<f64> {
-        r.render(&gpu, &terrain, &scene.desc, &cam, &s, Stage::Shade)?;
-        gpu.wait()?;
-        let start = Instant::now();
-        for _ in 0..frames {
-            r.render(&gpu, &terrain, &scene.desc, &cam, &s, Stage::Shade)?;
-        }
-        gpu.wait()?;
-        Ok(start.elapsed().as_secs_f64() * 1e3 / frames as f64)
+        super::bench::mean_frame_ms(
+            r,
+            &gpu,
+            &terrain,
+            &scene.desc,
+            &cam,
+            &s,
+            Stage::Shade,
+            frames,
+        )
     };
     let no_volume_frame_ms = frame_ms(&mut renderer)?;
     renderer.set_volumes(&gpu, std::slice::from_ref(volume))?;

@@ -5,7 +5,6 @@ use crate::scene::Scene;
 use crate::voxel::{desc::load_frames, segment};
 use crate::{Error, Result};
 use std::path::Path;
-use std::time::Instant;
 
 /// Sizes of a model in the formats compared.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -95,14 +94,17 @@ pub fn bench(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<VoxelBe
                 .times
                 .voxels_ms;
         }
-        gpu.wait()?;
-        let start = Instant::now();
-        for _ in 0..frames {
-            r.render(&gpu, &terrain, &scene.desc, &cam, &s, Stage::Shade)?;
-        }
-        gpu.wait()?;
         Ok((
-            start.elapsed().as_secs_f64() * 1e3 / frames as f64,
+            super::bench::mean_frame_ms(
+                &mut r,
+                &gpu,
+                &terrain,
+                &scene.desc,
+                &cam,
+                &s,
+                Stage::Shade,
+                frames,
+            )?,
             pass / frames.min(3) as f64,
             px,
         ))

@@ -3,8 +3,8 @@
 //! shade pipeline that knows free forms.
 
 use super::renderer::{
-    buf, fullscreen_pipeline, fullscreen_pipeline_with, pipeline_layout, storage_entry,
-    target_state, uint_texture_entry, uniform_entry,
+    buf, fullscreen_pipeline, fullscreen_pipeline_with, pipeline_layout, screen_texture,
+    storage_entry, target_state, uint_texture_entry, uniform_entry,
 };
 use super::types::{FfNodeGpu, FfObjectGpu};
 use super::{shaders, Gpu};
@@ -335,23 +335,16 @@ impl ObjectPasses {
             mapped_at_creation: false,
         });
         let target = |label, format| {
-            let tex = dev.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size: wgpu::Extent3d {
-                    width,
-                    height,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
+            let tex = screen_texture(
+                dev,
+                label,
+                [width, height],
                 format,
-                usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                wgpu::TextureUsages::RENDER_ATTACHMENT
                     | wgpu::TextureUsages::TEXTURE_BINDING
                     | wgpu::TextureUsages::COPY_DST
                     | wgpu::TextureUsages::COPY_SRC,
-                view_formats: &[],
-            });
+            );
             let view = tex.create_view(&Default::default());
             (tex, view)
         };

@@ -680,40 +680,26 @@ impl TerrainRenderer {
         if matches!(self.raygen, RayGen::Compute(_)) {
             usage |= wgpu::TextureUsages::STORAGE_BINDING;
         }
-        let ray_table = dev.create_texture(&wgpu::TextureDescriptor {
-            label: Some("ray table"),
-            size: wgpu::Extent3d {
-                width,
-                height,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Rgba32Uint,
+        let ray_table = screen_texture(
+            dev,
+            "ray table",
+            [width, height],
+            wgpu::TextureFormat::Rgba32Uint,
             usage,
-            view_formats: &[],
-        });
+        );
         let ray_table_view = ray_table.create_view(&Default::default());
         let tiles = [width.div_ceil(TILE), height.div_ceil(TILE)];
         let tex = |label, w, h, format| {
-            dev.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size: wgpu::Extent3d {
-                    width: w,
-                    height: h,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
+            screen_texture(
+                dev,
+                label,
+                [w, h],
                 format,
-                usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                wgpu::TextureUsages::RENDER_ATTACHMENT
                     | wgpu::TextureUsages::TEXTURE_BINDING
                     | wgpu::TextureUsages::COPY_SRC
                     | wgpu::TextureUsages::COPY_DST,
-                view_formats: &[],
-            })
+            )
         };
         let tile_tex = tex(
             "tile start",
@@ -1146,6 +1132,30 @@ impl TerrainRenderer {
         }
         Ok(out)
     }
+}
+
+/// A 2-D single-sample texture of `size` pixels, for render targets and screen-sized data.
+pub(crate) fn screen_texture(
+    dev: &wgpu::Device,
+    label: &str,
+    size: [u32; 2],
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+) -> wgpu::Texture {
+    dev.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width: size[0],
+            height: size[1],
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage,
+        view_formats: &[],
+    })
 }
 
 pub(crate) fn pipeline_layout(

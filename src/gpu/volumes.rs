@@ -3,7 +3,8 @@
 //! the shaded image in front of the opaque depth.
 
 use super::renderer::{
-    buf, fullscreen_pipeline, storage_entry, target_state, uint_texture_entry, uniform_entry,
+    buf, fullscreen_pipeline, screen_texture, storage_entry, target_state, uint_texture_entry,
+    uniform_entry,
 };
 use super::types::VolumeUniforms;
 use super::{shaders, Gpu};
@@ -214,22 +215,15 @@ impl VolumePass {
     ) -> VolumeTargets {
         let dev = &gpu.device;
         let tex = |label, format| {
-            dev.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size: wgpu::Extent3d {
-                    width,
-                    height,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
+            screen_texture(
+                dev,
+                label,
+                [width, height],
                 format,
-                usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                wgpu::TextureUsages::RENDER_ATTACHMENT
                     | wgpu::TextureUsages::TEXTURE_BINDING
                     | wgpu::TextureUsages::COPY_SRC,
-                view_formats: &[],
-            })
+            )
         };
         let under = tex("colour under the volume", wgpu::TextureFormat::Rgba8Unorm);
         let stats = tex("volume statistics", STATS_FORMAT);

@@ -7,7 +7,7 @@
 //! pass, so the rest of the renderer sees one G-buffer.
 
 use super::objects::{masked_pipeline, STENCIL_FORMAT};
-use super::renderer::{buf, storage_entry, uint_texture_entry, uniform_entry};
+use super::renderer::{buf, screen_texture, storage_entry, uint_texture_entry, uniform_entry};
 use super::types::VoxInstanceGpu;
 use super::{shaders, Gpu};
 use crate::voxel::{VoxelInstance, VoxelModel, BRICK_VOXELS, EMPTY_BRICK};
@@ -228,20 +228,13 @@ impl VoxelPasses {
     ) -> VoxelTargets {
         let dev = &gpu.device;
         let tex = |label, format, extra| {
-            dev.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size: wgpu::Extent3d {
-                    width,
-                    height,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
+            screen_texture(
+                dev,
+                label,
+                [width, height],
                 format,
-                usage: wgpu::TextureUsages::RENDER_ATTACHMENT | extra,
-                view_formats: &[],
-            })
+                wgpu::TextureUsages::RENDER_ATTACHMENT | extra,
+            )
         };
         let copy = wgpu::TextureUsages::COPY_SRC | wgpu::TextureUsages::COPY_DST;
         let g = tex("voxel g-buffer", wgpu::TextureFormat::Rgba32Uint, copy);
