@@ -272,6 +272,25 @@ enum WarpAction {
         #[arg(long)]
         top_to_bottom: bool,
     },
+    /// Closed-loop check: render the test pattern through the channels, throw it onto the
+    /// screen, view it from the eye; print the angular error (arc-min) and the sharpness of
+    /// direct vs two-pass warping; write the "as seen from the eye" images and verify.json.
+    Verify {
+        config: PathBuf,
+        /// Only this channel (default: all).
+        #[arg(long)]
+        channel: Option<usize>,
+        #[arg(long, value_parser = parse_vec::<3>, allow_hyphen_values = true)]
+        eye: Option<[f64; 3]>,
+        /// Eye-view (fisheye) image size.
+        #[arg(long, value_parser = parse_size, default_value = "480x480")]
+        size: (u32, u32),
+        /// Skip the two-pass comparison.
+        #[arg(long)]
+        no_two_pass: bool,
+        #[arg(long, default_value = "out/verify")]
+        out: PathBuf,
+    },
     /// Write a channel's warp: FILE.pfm = 3-D screen geometry, otherwise a Bourke mesh.
     Export {
         config: PathBuf,
@@ -474,6 +493,25 @@ fn run(cli: Cli) -> Result<()> {
                     relief::display::warp::RowOrder::BottomToTop
                 };
                 println!("{}", relief::app::warp::inspect(&file, order)?);
+            }
+            WarpAction::Verify {
+                config,
+                channel,
+                eye,
+                size,
+                no_two_pass,
+                out,
+            } => {
+                let opts = relief::app::verify::VerifyOptions {
+                    channels: channel.into_iter().collect(),
+                    eye: eye.map(glam::DVec3::from),
+                    size,
+                    two_pass: !no_two_pass,
+                };
+                let (report, files) = relief::app::verify::run(&config, &opts, &out)
+                    .with_context(|| format!("verifying {}", config.display()))?;
+                println!("{}", relief::app::verify::summary(&report));
+                println!("wrote {} files to {}", files.len(), out.display());
             }
             WarpAction::Export {
                 config,
