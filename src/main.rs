@@ -288,6 +288,10 @@ enum WarpAction {
         /// Skip the two-pass comparison.
         #[arg(long)]
         no_two_pass: bool,
+        /// Generate the tables for this eye instead (display frame): the error a stale
+        /// head-tracked table leaves.
+        #[arg(long, value_parser = parse_vec::<3>, allow_hyphen_values = true)]
+        table_eye: Option<[f64; 3]>,
         #[arg(long, default_value = "out/verify")]
         out: PathBuf,
     },
@@ -500,6 +504,7 @@ fn run(cli: Cli) -> Result<()> {
                 eye,
                 size,
                 no_two_pass,
+                table_eye,
                 out,
             } => {
                 let opts = relief::app::verify::VerifyOptions {
@@ -507,6 +512,7 @@ fn run(cli: Cli) -> Result<()> {
                     eye: eye.map(glam::DVec3::from),
                     size,
                     two_pass: !no_two_pass,
+                    table_eye: table_eye.map(glam::DVec3::from),
                 };
                 let (report, files) = relief::app::verify::run(&config, &opts, &out)
                     .with_context(|| format!("verifying {}", config.display()))?;

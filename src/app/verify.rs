@@ -472,6 +472,9 @@ pub struct VerifyOptions {
     /// Eye-view image size.
     pub size: (u32, u32),
     pub two_pass: bool,
+    /// Eye the ray tables are generated for, when it differs from the viewer's (head-tracking
+    /// lag); `None` = the viewer's eye.
+    pub table_eye: Option<DVec3>,
 }
 
 /// Where each covered eye pixel lands: channel and projector image point.
@@ -518,6 +521,7 @@ pub fn verify(
         ));
     }
     let eye = opts.eye.unwrap_or(DVec3::from(cfg.eye.position));
+    let table_eye = opts.table_eye.unwrap_or(eye);
     let points: Vec<ScreenPoints> = chans
         .iter()
         .map(|&c| crate::cpu::distortion::screen_points(&cfg.screen, &cfg.channels[c].projector))
@@ -584,7 +588,7 @@ pub fn verify(
     let mut two = Vec::new();
     let mut figures = Vec::new();
     for (i, &c) in chans.iter().enumerate() {
-        let v = rig.render(gpu, &points[i], eye, &grid, &grating)?;
+        let v = rig.render(gpu, &points[i], table_eye, &grid, &grating)?;
         let tdirs: Vec<Option<DVec3>> = v
             .table
             .iter()

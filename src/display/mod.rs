@@ -222,9 +222,9 @@ impl Screen {
     }
 
     /// The mirror point that reflects light from `from` to `to` (both outside the mirror
-    /// sphere) for a mirror dome; `None` for other screens or when no reflection point is
-    /// found. Solves Alhazen's problem by iterating the bisector condition (the normal halves
-    /// the angle between the directions to `from` and to `to`).
+    /// sphere) for a mirror dome; `None` for other screens or when that point is not visible
+    /// from both. Solves Alhazen's problem in the plane through the mirror centre, `from` and
+    /// `to`: bisection on the arc between them for equal angles of incidence and reflection.
     pub fn mirror_point(&self, from: DVec3, to: DVec3) -> Option<DVec3> {
         let Screen::MirrorDome {
             mirror_centre,
@@ -235,17 +235,31 @@ impl Screen {
             return None;
         };
         let c = DVec3::from(mirror_centre);
-        let mut n = ((from - c).normalize() + (to - c).normalize()).try_normalize()?;
-        for _ in 0..200 {
-            let m = c + n * mirror_radius;
-            let next = ((from - m).normalize() + (to - m).normalize()).try_normalize()?;
-            let step = next.distance(n);
-            n = next;
-            if step < 1e-14 {
-                break;
+        let e1 = (from - c).try_normalize()?;
+        let w = to - c;
+        let e2 = (w - w.dot(e1) * e1)
+            .try_normalize()
+            .unwrap_or_else(|| e1.any_orthonormal_vector());
+        let phi_to = w.dot(e2).atan2(w.dot(e1));
+        let angle = |a: DVec3, b: DVec3| a.cross(b).length().atan2(a.dot(b));
+        let at = |phi: f64| c + (e1 * phi.cos() + e2 * phi.sin()) * mirror_radius;
+        // f < 0 at phi = 0 (facing `from`), f > 0 at phi_to (facing `to`).
+        let f = |phi: f64| {
+            let m = at(phi);
+            let n = m - c;
+            angle(n, from - m) - angle(n, to - m)
+        };
+        let (mut lo, mut hi) = (0.0, phi_to);
+        for _ in 0..80 {
+            let mid = 0.5 * (lo + hi);
+            if f(mid) < 0.0 {
+                lo = mid;
+            } else {
+                hi = mid;
             }
         }
-        let m = c + n * mirror_radius;
+        let m = at(0.5 * (lo + hi));
+        let n = m - c;
         (n.dot(from - m) > 0.0 && n.dot(to - m) > 0.0).then_some(m)
     }
 

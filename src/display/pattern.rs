@@ -61,7 +61,7 @@ fn mix(a: [f64; 3], b: [f64; 3], t: f64) -> [f64; 3] {
 /// Colour (display code values in 0..1, not linear light) of unit world direction `d` seen by
 /// a pixel of cone half-angle `cone` (radians).
 pub fn pattern_colour(d: DVec3, cone: f64, p: &PatternParams) -> [f64; 3] {
-    let el = d.z.clamp(-1.0, 1.0).asin();
+    let el = d.z.atan2(d.truncate().length());
     if p.grating > 0.0 {
         let v = 0.5 + 0.5 * (std::f64::consts::TAU * p.grating * el).cos();
         return [v; 3];
@@ -96,7 +96,11 @@ pub fn pattern_colour(d: DVec3, cone: f64, p: &PatternParams) -> [f64; 3] {
     };
     c = mix(c, [0.85, 0.85, 0.85], grid_el.max(grid_az));
     // Circles around the boresight, and a dot on it.
-    let ang = d.dot(p.boresight).clamp(-1.0, 1.0).acos().to_degrees();
+    let ang = d
+        .cross(p.boresight)
+        .length()
+        .atan2(d.dot(p.boresight))
+        .to_degrees();
     let k_c = round(ang / CIRCLE_DEG);
     let circle = if k_c >= 1.0 {
         cover((ang - k_c * CIRCLE_DEG).abs(), LINE_HALF_WIDTH_DEG, filter)

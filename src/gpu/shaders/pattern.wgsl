@@ -28,7 +28,8 @@ fn cover(dist: f32, half: f32, fw: f32) -> f32 {
 }
 
 fn pattern_colour(d: vec3<f32>, cone: f32) -> vec3<f32> {
-    let el = asin(clamp(d.z, -1.0, 1.0));
+    // atan2 forms: Mesa's f32 asin/acos are off by ~1e-4 rad, its atan2 is not.
+    let el = atan2(d.z, length(d.xy));
     if (pat.boresight.w > 0.0) {
         return vec3<f32>(0.5 + 0.5 * cos(6.283185307179586 * pat.boresight.w * el));
     }
@@ -45,7 +46,8 @@ fn pattern_colour(d: vec3<f32>, cone: f32) -> vec3<f32> {
         grid_az = cover(abs(az_deg - k_az * GRID_DEG) * cos(el), half_az, fw);
     }
     c = mix(c, vec3<f32>(0.85), max(grid_el, grid_az));
-    let ang = acos(clamp(dot(d, pat.boresight.xyz), -1.0, 1.0)) * DEG;
+    let b = pat.boresight.xyz;
+    let ang = atan2(length(cross(d, b)), dot(d, b)) * DEG;
     let k_c = floor(ang / CIRCLE_DEG + 0.5);
     var circle = cover(ang, 0.5, fw);
     if (k_c >= 1.0) {
