@@ -51,6 +51,14 @@ enum Command {
         /// Eye point X,Y,Z in the display frame (overrides the config's eye).
         #[arg(long, value_parser = parse_vec::<3>, allow_hyphen_values = true)]
         eye: Option<[f64; 3]>,
+        /// With --display: two-pass mode (planar/cube images warped bilinearly through the
+        /// table) instead of direct ray casting, for comparison.
+        #[arg(long, requires = "display")]
+        two_pass: bool,
+        /// Render the warp test pattern (5° azimuth/elevation grid, horizon, 10° circles around
+        /// the view direction) instead of the scene.
+        #[arg(long)]
+        pattern: bool,
     },
     /// Open a window: the same renderer in a fixed-rate frame loop, with flight and capture.
     View(Box<ViewArgs>),
@@ -376,6 +384,7 @@ fn run(cli: Cli) -> Result<()> {
                 shadows: None,
                 tile_prepass: None,
                 display: None,
+                pattern: false,
             };
             let files =
                 capture::run(&job).with_context(|| format!("rendering {}", job.scene.display()))?;
@@ -399,6 +408,8 @@ fn run(cli: Cli) -> Result<()> {
             display,
             channel,
             eye,
+            two_pass,
+            pattern,
         }) => {
             let job = capture::RenderJob {
                 scene,
@@ -412,7 +423,9 @@ fn run(cli: Cli) -> Result<()> {
                     config,
                     channel,
                     eye,
+                    two_pass,
                 }),
+                pattern,
             };
             let files =
                 capture::run(&job).with_context(|| format!("rendering {}", job.scene.display()))?;

@@ -852,3 +852,79 @@ pub fn run(
     written.push(json);
     Ok((report, written))
 }
+
+/// Two-pass rendering of a scene for one projector: renders each intermediate face (pinhole
+/// views from the eye, rotated by the camera's attitude like the table) and warps them into
+/// the projector image through the display-frame directions `dirs` with bilinear filtering.
+/// Depth is the nearest face pixel's (approximate near silhouettes); the per-pixel statistics
+/// are zero. Leaves the renderer in table mode for the last face: call `set_display` again
+/// for direct frames.
+#[allow(clippy::too_many_arguments)]
+pub fn render_two_pass(
+    gpu: &Gpu,
+    renderer: &mut TerrainRenderer,
+    terrain: &Terrain,
+    scene: &SceneDesc,
+    pose: Pose,
+    settings: &RenderSettings,
+    faces: &[Face],
+    dirs: &[Option<DVec3>],
+    width: u32,
+    height: u32,
+) -> Result<FrameOutput> {
+    let mut rendered = Vec::new();
+    let mut depths = Vec::new();
+    let mut times = crate::gpu::PassTimes::default();
+    for f in faces {
+        renderer.set_display(gpu, &f.points(), DVec3::ZERO)?;
+        let cam = Camera::new(pose, f.width, f.height);
+        let out = renderer.capture(gpu, terrain, scene, &cam, settings)?;
+        let t = out.times;
+        times.raygen_ms += t.raygen_ms;
+        times.tile_ms += t.tile_ms;
+        times.cast_ms += t.cast_ms;
+        times.objects_ms += t.objects_ms;
+        times.voxels_ms += t.voxels_ms;
+        times.shade_ms += t.shade_ms;
+        times.volume_ms += t.volume_ms;
+        times.readback_ms += t.readback_ms;
+        rendered.push((*f, out.rgba));
+        depths.push(out.depth);
+    }
+    let start = std::time::Instant::now();
+    let rgba = warp_faces(&rendered, dirs);
+    let depth = dirs
+        .par_iter()
+        .map(|d| {
+            d.and_then(|d| {
+                let (i, (f, _)) = rendered
+                    .iter()
+                    .enumerate()
+                    .max_by(|a, b| d.dot(a.1 .0.fwd).total_cmp(&d.dot(b.1 .0.fwd)))?;
+                let (x, y) = f.coord(d)?;
+                let (px, py) = ((x as u32).min(f.width - 1), (y as u32).min(f.height - 1));
+                Some(depths[i][(py * f.width + px) as usize])
+            })
+            .unwrap_or(f32::INFINITY)
+        })
+        .collect();
+    times.readback_ms += start.elapsed().as_secs_f64() * 1e3;
+    let n = (width * height) as usize;
+    Ok(FrameOutput {
+        width,
+        height,
+        rgba,
+        depth,
+        steps: vec![0; n],
+        patch_tests: vec![0; n],
+        shadow_steps: vec![0; n],
+        flags: dirs
+            .iter()
+            .map(|d| if d.is_some() { 0 } else { 8 })
+            .collect(),
+        objects: vec![0; n],
+        volume_samples: Vec::new(),
+        volume_segments: Vec::new(),
+        times,
+    })
+}
