@@ -89,6 +89,12 @@ enum Command {
         /// early termination (default scene: terrains/brain.toml).
         #[arg(long)]
         volume: bool,
+        /// Measure a display config's channel instead (resized to --size, same lens):
+        /// ray-table regeneration and direct-mode frame vs the pinhole frame.
+        #[arg(long)]
+        display: Option<PathBuf>,
+        #[arg(long, default_value_t = 0)]
+        channel: usize,
     },
     /// Voxel model files: convert to the segment format (.rvs) and report sizes.
     Voxels {
@@ -446,9 +452,27 @@ fn run(cli: Cli) -> Result<()> {
             freeforms,
             voxels,
             volume,
+            display,
+            channel,
         }) => {
             if frames == 0 {
                 bail!("--frames must be at least 1");
+            }
+            if let Some(config) = display {
+                let scene = scene.unwrap_or_else(default_scene);
+                let r = relief::app::verify::bench_display(&scene, &config, channel, size, frames)
+                    .with_context(|| format!("benchmarking {}", config.display()))?;
+                if json {
+                    println!("{}", serde_json::to_string_pretty(&r)?);
+                } else {
+                    println!(
+                        "relief bench --display {} (channel {}) on {} at {}x{}, {} frames, {} ({})\n  table regeneration {:.1} ms; direct frame {:.1} ms vs pinhole {:.1} ms: {:.2}x",
+                        r.config, r.channel, r.scene, r.width, r.height, r.frames, r.adapter,
+                        r.backend, r.table_ms, r.direct_frame_ms, r.pinhole_frame_ms,
+                        r.direct_over_pinhole
+                    );
+                }
+                return Ok(());
             }
             if volume {
                 let scene = scene.unwrap_or_else(|| PathBuf::from("terrains/brain.toml"));

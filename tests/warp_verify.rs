@@ -416,3 +416,39 @@ fn cli_verify_and_two_pass_render_write_their_files_and_refuse_bad_input() {
     assert_eq!(img.dimensions(), (512, 512));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn bad_mirror_domes_are_refused_by_field() {
+    let good = std::fs::read_to_string(project_dir().join("distortion/mirror-dome.toml")).unwrap();
+    let dir = std::env::temp_dir().join(format!("relief-mirror-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for (label, text, want) in [
+        (
+            "mirror outside the dome",
+            good.replace(
+                "mirror_centre = [0.0, -2.0, 0.35]",
+                "mirror_centre = [0.0, -2.4, 0.35]",
+            ),
+            "screen.mirror_centre/mirror_radius",
+        ),
+        (
+            "zero mirror",
+            good.replace("mirror_radius = 0.3", "mirror_radius = 0.0"),
+            "screen.mirror_radius",
+        ),
+        (
+            "missing mirror",
+            good.replace("mirror_radius = 0.3\n", ""),
+            "mirror_radius",
+        ),
+    ] {
+        let p = dir.join("bad.toml");
+        std::fs::write(&p, text).unwrap();
+        let err = DisplayConfig::load(&p).expect_err(label).to_string();
+        assert!(
+            err.contains(want) && err.contains("bad.toml"),
+            "{label}: {err}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -928,3 +928,107 @@ pub fn render_two_pass(
         times,
     })
 }
+
+/// `relief bench --display`: ray-table regeneration and direct-mode frame time against a
+/// pinhole frame of the same size and scene.
+#[derive(Clone, Debug, Serialize)]
+pub struct DisplayBench {
+    pub adapter: String,
+    pub backend: String,
+    pub scene: String,
+    pub config: String,
+    pub channel: usize,
+    pub width: u32,
+    pub height: u32,
+    pub frames: u32,
+    /// Mean time of the table-generation pass alone (the eye moves every frame).
+    pub table_ms: f64,
+    /// Mean full frame (table, pre-pass, cast, shade) through the table.
+    pub direct_frame_ms: f64,
+    /// Mean full frame of the scene's pinhole camera at the same size.
+    pub pinhole_frame_ms: f64,
+    pub direct_over_pinhole: f64,
+}
+
+/// Runs [`DisplayBench`]: channel `channel` of `config` resized to `size` (same lens), camera
+/// of frame 0 of `scene_path`, `frames` timed frames after a warm-up.
+pub fn bench_display(
+    scene_path: &Path,
+    config: &Path,
+    channel: usize,
+    size: (u32, u32),
+    frames: u32,
+) -> Result<DisplayBench> {
+    let cfg = DisplayConfig::load(config)?;
+    let ch = cfg.channels.get(channel).ok_or_else(|| {
+        Error::invalid(
+            "--channel",
+            format!(
+                "{} has {} channel(s), asked for index {channel}",
+                config.display(),
+                cfg.channels.len()
+            ),
+        )
+    })?;
+    if frames == 0 {
+        return Err(Error::invalid("--frames", "must be at least 1"));
+    }
+    let mut p = ch.projector;
+    (p.width, p.height) = size;
+    let scene = Scene::load(scene_path)?;
+    let terrain = scene.load_terrain()?;
+    let gpu = Gpu::new()?;
+    let mut cam = scene.camera(0, &terrain);
+    (cam.width, cam.height) = size;
+    let s = RenderSettings::from_scene(&scene.desc);
+    let eye = DVec3::from(cfg.eye.position);
+    let points = crate::cpu::distortion::screen_points(&cfg.screen, &p);
+    let frame_ms = |display: bool| -> Result<(f64, f64)> {
+        let mut r = TerrainRenderer::new(&gpu, &terrain)?;
+        if display {
+            r.set_display(&gpu, &points, eye)?;
+        }
+        r.capture(&gpu, &terrain, &scene.desc, &cam, &s)?;
+        let mut table = 0.0;
+        for k in 0..frames {
+            // The head moves: a new table every frame.
+            r.set_eye(eye + DVec3::new(0.01 * k as f64, 0.0, 0.0));
+            table += r
+                .capture(&gpu, &terrain, &scene.desc, &cam, &s)?
+                .times
+                .raygen_ms;
+        }
+        gpu.wait()?;
+        let start = std::time::Instant::now();
+        for k in 0..frames {
+            r.set_eye(eye + DVec3::new(0.01 * k as f64, 0.0, 0.0));
+            r.render(
+                &gpu,
+                &terrain,
+                &scene.desc,
+                &cam,
+                &s,
+                crate::gpu::Stage::Shade,
+            )?;
+        }
+        gpu.wait()?;
+        let f = frames as f64;
+        Ok((table / f, start.elapsed().as_secs_f64() * 1e3 / f))
+    };
+    let (table_ms, direct_frame_ms) = frame_ms(true)?;
+    let (_, pinhole_frame_ms) = frame_ms(false)?;
+    Ok(DisplayBench {
+        adapter: gpu.info.name.clone(),
+        backend: format!("{:?}", gpu.info.backend),
+        scene: scene_path.display().to_string(),
+        config: config.display().to_string(),
+        channel,
+        width: size.0,
+        height: size.1,
+        frames,
+        table_ms,
+        direct_frame_ms,
+        pinhole_frame_ms,
+        direct_over_pinhole: direct_frame_ms / pinhole_frame_ms,
+    })
+}
