@@ -78,12 +78,10 @@ impl Face {
         }
         let a = d.dot(self.right) / z / self.tan_x;
         let b = d.dot(self.down) / z / self.tan_y;
-        (a.abs() <= 1.0 && b.abs() <= 1.0).then(|| {
-            (
-                (a + 1.0) * 0.5 * self.width as f64,
-                (b + 1.0) * 0.5 * self.height as f64,
-            )
-        })
+        (a.abs() <= 1.0 && b.abs() <= 1.0).then_some((
+            (a + 1.0) * 0.5 * self.width as f64,
+            (b + 1.0) * 0.5 * self.height as f64,
+        ))
     }
 
     /// The face's pixels as virtual screen points (unit directions from an eye at the origin).
@@ -452,6 +450,9 @@ pub struct VerifyReport {
     pub channels: Vec<ChannelFigures>,
 }
 
+/// A channel's frames: width, height, direct grid image, two-pass grid image.
+pub type ChannelFrames = (u32, u32, Vec<u8>, Option<Vec<u8>>);
+
 /// Images of a verification (RGBA8, the eye view's size unless said otherwise).
 pub struct VerifyImages {
     pub as_seen: Vec<u8>,
@@ -459,7 +460,7 @@ pub struct VerifyImages {
     pub diff: Vec<u8>,
     pub as_seen_two_pass: Option<Vec<u8>>,
     /// Per channel: (width, height, direct grid frame, two-pass grid frame).
-    pub frames: Vec<(u32, u32, Vec<u8>, Option<Vec<u8>>)>,
+    pub frames: Vec<ChannelFrames>,
 }
 
 /// What to verify.
