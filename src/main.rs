@@ -51,6 +51,14 @@ enum Command {
         /// Eye point X,Y,Z in the display frame (overrides the config's eye).
         #[arg(long, value_parser = parse_vec::<3>, allow_hyphen_values = true)]
         eye: Option<[f64; 3]>,
+        /// With --display: two-pass mode (planar/cube images warped bilinearly through the
+        /// table) instead of direct ray casting, for comparison.
+        #[arg(long, requires = "display")]
+        two_pass: bool,
+        /// Render the warp test pattern (5° azimuth/elevation grid, horizon, 10° circles around
+        /// the view direction) instead of the scene.
+        #[arg(long)]
+        pattern: bool,
     },
     /// Open a window: the same renderer in a fixed-rate frame loop, with flight and capture.
     View(Box<ViewArgs>),
@@ -81,6 +89,12 @@ enum Command {
         /// early termination (default scene: terrains/brain.toml).
         #[arg(long)]
         volume: bool,
+        /// Measure a display config's channel instead (resized to --size, same lens):
+        /// ray-table regeneration and direct-mode frame vs the pinhole frame.
+        #[arg(long)]
+        display: Option<PathBuf>,
+        #[arg(long, default_value_t = 0)]
+        channel: usize,
     },
     /// Voxel model files: convert to the segment format (.rvs) and report sizes.
     Voxels {
@@ -272,6 +286,29 @@ enum WarpAction {
         #[arg(long)]
         top_to_bottom: bool,
     },
+    /// Closed-loop check: render the test pattern through the channels, throw it onto the
+    /// screen, view it from the eye; print the angular error (arc-min) and the sharpness of
+    /// direct vs two-pass warping; write the "as seen from the eye" images and verify.json.
+    Verify {
+        config: PathBuf,
+        /// Only this channel (default: all).
+        #[arg(long)]
+        channel: Option<usize>,
+        #[arg(long, value_parser = parse_vec::<3>, allow_hyphen_values = true)]
+        eye: Option<[f64; 3]>,
+        /// Eye-view (fisheye) image size.
+        #[arg(long, value_parser = parse_size, default_value = "480x480")]
+        size: (u32, u32),
+        /// Skip the two-pass comparison.
+        #[arg(long)]
+        no_two_pass: bool,
+        /// Generate the tables for this eye instead (display frame): the error a stale
+        /// head-tracked table leaves.
+        #[arg(long, value_parser = parse_vec::<3>, allow_hyphen_values = true)]
+        table_eye: Option<[f64; 3]>,
+        #[arg(long, default_value = "out/verify")]
+        out: PathBuf,
+    },
     /// Write a channel's warp: FILE.pfm = 3-D screen geometry, otherwise a Bourke mesh.
     Export {
         config: PathBuf,
@@ -353,6 +390,7 @@ fn run(cli: Cli) -> Result<()> {
                 shadows: None,
                 tile_prepass: None,
                 display: None,
+                pattern: false,
             };
             let files =
                 capture::run(&job).with_context(|| format!("rendering {}", job.scene.display()))?;
@@ -376,6 +414,8 @@ fn run(cli: Cli) -> Result<()> {
             display,
             channel,
             eye,
+            two_pass,
+            pattern,
         }) => {
             let job = capture::RenderJob {
                 scene,
@@ -389,7 +429,9 @@ fn run(cli: Cli) -> Result<()> {
                     config,
                     channel,
                     eye,
+                    two_pass,
                 }),
+                pattern,
             };
             let files =
                 capture::run(&job).with_context(|| format!("rendering {}", job.scene.display()))?;
@@ -410,9 +452,27 @@ fn run(cli: Cli) -> Result<()> {
             freeforms,
             voxels,
             volume,
+            display,
+            channel,
         }) => {
             if frames == 0 {
                 bail!("--frames must be at least 1");
+            }
+            if let Some(config) = display {
+                let scene = scene.unwrap_or_else(default_scene);
+                let r = relief::app::verify::bench_display(&scene, &config, channel, size, frames)
+                    .with_context(|| format!("benchmarking {}", config.display()))?;
+                if json {
+                    println!("{}", serde_json::to_string_pretty(&r)?);
+                } else {
+                    println!(
+                        "relief bench --display {} (channel {}) on {} at {}x{}, {} frames, {} ({})\n  table regeneration {:.1} ms; direct frame {:.1} ms vs pinhole {:.1} ms: {:.2}x",
+                        r.config, r.channel, r.scene, r.width, r.height, r.frames, r.adapter,
+                        r.backend, r.table_ms, r.direct_frame_ms, r.pinhole_frame_ms,
+                        r.direct_over_pinhole
+                    );
+                }
+                return Ok(());
             }
             if volume {
                 let scene = scene.unwrap_or_else(|| PathBuf::from("terrains/brain.toml"));
@@ -474,6 +534,27 @@ fn run(cli: Cli) -> Result<()> {
                     relief::display::warp::RowOrder::BottomToTop
                 };
                 println!("{}", relief::app::warp::inspect(&file, order)?);
+            }
+            WarpAction::Verify {
+                config,
+                channel,
+                eye,
+                size,
+                no_two_pass,
+                table_eye,
+                out,
+            } => {
+                let opts = relief::app::verify::VerifyOptions {
+                    channels: channel.into_iter().collect(),
+                    eye: eye.map(glam::DVec3::from),
+                    size,
+                    two_pass: !no_two_pass,
+                    table_eye: table_eye.map(glam::DVec3::from),
+                };
+                let (report, files) = relief::app::verify::run(&config, &opts, &out)
+                    .with_context(|| format!("verifying {}", config.display()))?;
+                println!("{}", relief::app::verify::summary(&report));
+                println!("wrote {} files to {}", files.len(), out.display());
             }
             WarpAction::Export {
                 config,

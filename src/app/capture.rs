@@ -162,6 +162,9 @@ pub struct RenderJob {
     pub tile_prepass: Option<bool>,
     /// Render through a distortion table: display config, channel index, eye override.
     pub display: Option<DisplayJob>,
+    /// Render the warp test pattern ([`crate::display::pattern`], circles around the camera's
+    /// forward direction) instead of the scene.
+    pub pattern: bool,
 }
 
 /// The display part of a render job.
@@ -171,6 +174,9 @@ pub struct DisplayJob {
     pub channel: usize,
     /// Eye point in the display frame; the config's eye when `None`.
     pub eye: Option<[f64; 3]>,
+    /// Two-pass mode: render planar (or cube) images from the eye and warp them through the
+    /// table (bilinear), as conventional warping software does; for comparison with direct.
+    pub two_pass: bool,
 }
 
 /// Renders `job.frames` frames and writes them to `job.out_dir`; returns the file paths.
@@ -199,6 +205,8 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
     renderer.set_voxels(&gpu, &voxels)?;
     let fps = scene.desc.path.as_ref().map_or(30.0, |p| p.fps);
     let mut display_meta = serde_json::Value::Null;
+    // Two-pass mode: intermediate faces and the projector pixels' display-frame directions.
+    let mut two_pass: Option<(Vec<super::verify::Face>, Vec<Option<glam::DVec3>>)> = None;
     if let Some(d) = &job.display {
         if job.size.is_some() {
             return Err(Error::invalid(
@@ -229,6 +237,22 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
         }
         let eye = glam::DVec3::from(d.eye.unwrap_or(cfg.eye.position));
         renderer.set_display(&gpu, &points, eye)?;
+        let mut mode = json!("direct: one ray per projector pixel");
+        if d.two_pass {
+            let dirs: Vec<_> = points
+                .points
+                .iter()
+                .map(|s| s.and_then(|s| (s - eye).try_normalize()))
+                .collect();
+            let faces = super::verify::two_pass_faces(p.width, &dirs)?;
+            mode = json!(format!(
+                "two-pass: {} pinhole image(s) of {}x{} from the eye, warped bilinearly through the table",
+                faces.len(),
+                faces[0].width,
+                faces[0].height
+            ));
+            two_pass = Some((faces, dirs));
+        }
         scene.desc.output.width = p.width;
         scene.desc.output.height = p.height;
         display_meta = json!({
@@ -237,6 +261,7 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
             "channel_name": channel.name,
             "eye_display_frame": eye.to_array(),
             "pixels_on_screen": lit,
+            "mode": mode,
             "model": "per-pixel ray = world_from_display * normalize(screen_point(pixel) - eye); world_from_display maps display x, y, z to the camera's right, forward, up",
         });
     }
@@ -252,7 +277,25 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
     for frame in job.first_frame..job.first_frame + job.frames {
         let cam = scene.camera(frame, &terrain);
         renderer.set_time(frame as f64 / fps);
-        let out = renderer.capture(&gpu, &terrain, &scene.desc, &cam, &settings)?;
+        if job.pattern {
+            let params = crate::display::pattern::PatternParams::grid(cam.basis().2);
+            renderer.set_pattern(&gpu, Some(params));
+        }
+        let out = match &two_pass {
+            Some((faces, dirs)) => super::verify::render_two_pass(
+                &gpu,
+                &mut renderer,
+                &terrain,
+                &scene.desc,
+                cam.pose,
+                &settings,
+                faces,
+                dirs,
+                cam.width,
+                cam.height,
+            )?,
+            None => renderer.capture(&gpu, &terrain, &scene.desc, &cam, &settings)?,
+        };
         let png = job.out_dir.join(format!("frame_{frame:04}.png"));
         let tif = job.out_dir.join(format!("depth_{frame:04}.tiff"));
         let meta = job.out_dir.join(format!("frame_{frame:04}.json"));

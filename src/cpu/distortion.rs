@@ -82,3 +82,19 @@ pub fn ray_table(points: &ScreenPoints, eye: DVec3, world_from_display: DMat3) -
         rays,
     }
 }
+
+/// The projector image point (u, v) (pixel centres at +0.5) that lights screen point `s`: the
+/// inverse of [`screen_points`]' mapping, through the lens inverse and, for a mirror dome, the
+/// mirror point that reflects the projector onto `s`. `None` when the lens cannot reach `s` or
+/// the projector's ray through (u, v) meets the screen elsewhere first.
+pub fn projector_coord(screen: &Screen, projector: &Projector, s: DVec3) -> Option<(f64, f64)> {
+    let origin = DVec3::from(projector.position);
+    let aim = match screen {
+        Screen::MirrorDome { .. } => screen.mirror_point(origin, s)?,
+        _ => s,
+    };
+    let (u, v) = projector.pixel(aim - origin)?;
+    let back = screen.intersect(origin, projector.ray(u, v)?)?;
+    let scale = (s - origin).length().max(1.0);
+    (back.distance(s) < 1e-6 * scale).then_some((u, v))
+}

@@ -6,6 +6,7 @@
 //! in it maps to the world through the camera's attitude: x → camera right, y → camera forward,
 //! z → camera up.
 
+pub mod pattern;
 pub mod warp;
 
 use crate::scene::{attitude_basis, check_finite as finite};
@@ -45,6 +46,19 @@ pub enum Screen {
     },
     /// Plane through `point` with unit `normal`.
     Flat { point: [f64; 3], normal: [f64; 3] },
+    /// Spherical-mirror projection (Bourke; `kind = "mirror-dome"`): every projector ray is reflected by a convex
+    /// mirror sphere (`mirror_centre`, `mirror_radius`) onto a dome (`centre`, `radius`,
+    /// `min_elevation` as for `dome`). Projector rays that miss the mirror show nothing; the
+    /// eye sees the dome directly (the mirror hides the dome behind it).
+    #[serde(rename = "mirror-dome")]
+    MirrorDome {
+        centre: [f64; 3],
+        radius: f64,
+        #[serde(default = "minus_ninety")]
+        min_elevation: f64,
+        mirror_centre: [f64; 3],
+        mirror_radius: f64,
+    },
 }
 
 fn minus_ninety() -> f64 {
@@ -130,7 +144,125 @@ impl Projector {
     }
 }
 
+impl Projector {
+    /// Image point (u, v) (pixel centres at +0.5) whose ray has unit-or-not direction `dir`
+    /// (display frame): the inverse of [`Projector::ray`]; `None` behind the lens or outside
+    /// its field.
+    pub fn pixel(&self, dir: DVec3) -> Option<(f64, f64)> {
+        let (w, h) = (self.width as f64, self.height as f64);
+        let (right, down, fwd) = attitude_basis(self.heading, self.pitch, self.roll);
+        let l = DVec3::new(dir.dot(right), dir.dot(down), dir.dot(fwd)).normalize();
+        match self.lens {
+            Lens::Perspective { fov, shift } => {
+                if l.z <= 1e-9 {
+                    return None;
+                }
+                let f = 0.5 * w / (0.5 * fov.to_radians()).tan();
+                let (cx, cy) = (0.5 * w + shift[0] * w, 0.5 * h + shift[1] * h);
+                Some((cx + f * l.x / l.z, cy + f * l.y / l.z))
+            }
+            Lens::Ftheta { fov } => {
+                let theta = l.z.clamp(-1.0, 1.0).acos();
+                let rmax = 0.5 * w.min(h);
+                let r = theta / (0.5 * fov.to_radians()) * rmax;
+                if r > rmax {
+                    return None;
+                }
+                let rho = l.x.hypot(l.y);
+                if rho < 1e-15 {
+                    return Some((0.5 * w, 0.5 * h));
+                }
+                Some((0.5 * w + r * l.x / rho, 0.5 * h + r * l.y / rho))
+            }
+        }
+    }
+}
+
+/// First intersection of a ray with a sphere from outside; `None` if it misses, starts
+/// inside or the sphere is behind.
+fn sphere_entry(origin: DVec3, dir: DVec3, centre: DVec3, radius: f64) -> Option<f64> {
+    let oc = origin - centre;
+    let c = oc.length_squared() - radius * radius;
+    if c <= 0.0 {
+        return None;
+    }
+    let b = dir.dot(oc);
+    let disc = b * b - c;
+    if disc < 0.0 || b >= 0.0 {
+        return None;
+    }
+    // Stable smaller root: c / (-b + sqrt(disc)).
+    Some(c / (-b + disc.sqrt()))
+}
+
 impl Screen {
+    /// The screen point the eye sees along unit `dir` from `eye` (for a mirror dome: the dome,
+    /// unless the mirror is in the way); `None` where the eye sees no screen.
+    pub fn seen_from(&self, eye: DVec3, dir: DVec3) -> Option<DVec3> {
+        match *self {
+            Screen::MirrorDome {
+                centre,
+                radius,
+                min_elevation,
+                mirror_centre,
+                mirror_radius,
+            } => {
+                if sphere_entry(eye, dir, DVec3::from(mirror_centre), mirror_radius).is_some() {
+                    return None;
+                }
+                Screen::Dome {
+                    centre,
+                    radius,
+                    min_elevation,
+                }
+                .intersect(eye, dir)
+            }
+            _ => self.intersect(eye, dir),
+        }
+    }
+
+    /// The mirror point that reflects light from `from` to `to` (both outside the mirror
+    /// sphere) for a mirror dome; `None` for other screens or when that point is not visible
+    /// from both. Solves Alhazen's problem in the plane through the mirror centre, `from` and
+    /// `to`: bisection on the arc between them for equal angles of incidence and reflection.
+    pub fn mirror_point(&self, from: DVec3, to: DVec3) -> Option<DVec3> {
+        let Screen::MirrorDome {
+            mirror_centre,
+            mirror_radius,
+            ..
+        } = *self
+        else {
+            return None;
+        };
+        let c = DVec3::from(mirror_centre);
+        let e1 = (from - c).try_normalize()?;
+        let w = to - c;
+        let e2 = (w - w.dot(e1) * e1)
+            .try_normalize()
+            .unwrap_or_else(|| e1.any_orthonormal_vector());
+        let phi_to = w.dot(e2).atan2(w.dot(e1));
+        let angle = |a: DVec3, b: DVec3| a.cross(b).length().atan2(a.dot(b));
+        let at = |phi: f64| c + (e1 * phi.cos() + e2 * phi.sin()) * mirror_radius;
+        // f < 0 at phi = 0 (facing `from`), f > 0 at phi_to (facing `to`).
+        let f = |phi: f64| {
+            let m = at(phi);
+            let n = m - c;
+            angle(n, from - m) - angle(n, to - m)
+        };
+        let (mut lo, mut hi) = (0.0, phi_to);
+        for _ in 0..80 {
+            let mid = 0.5 * (lo + hi);
+            if f(mid) < 0.0 {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        let m = at(0.5 * (lo + hi));
+        let n = m - c;
+        (n.dot(from - m) > 0.0 && n.dot(to - m) > 0.0).then_some(m)
+    }
+
     /// First intersection in front of `origin` along unit `dir` (the screen point lit by a
     /// projector ray); `None` if the ray misses the screen.
     pub fn intersect(&self, origin: DVec3, dir: DVec3) -> Option<DVec3> {
@@ -188,6 +320,25 @@ impl Screen {
                 let t = (DVec3::from(point) - origin).dot(n) / denom;
                 (t > 0.0).then(|| origin + dir * t)
             }
+            Screen::MirrorDome {
+                centre,
+                radius,
+                min_elevation,
+                mirror_centre,
+                mirror_radius,
+            } => {
+                let mc = DVec3::from(mirror_centre);
+                let t = sphere_entry(origin, dir, mc, mirror_radius)?;
+                let m = origin + dir * t;
+                let n = (m - mc) / mirror_radius;
+                let reflected = (dir - 2.0 * dir.dot(n) * n).normalize();
+                Screen::Dome {
+                    centre,
+                    radius,
+                    min_elevation,
+                }
+                .intersect(m, reflected)
+            }
         }
     }
 }
@@ -238,6 +389,31 @@ impl DisplayConfig {
                     return Err(Error::invalid(
                         "screen.bottom/top",
                         format!("need bottom < top, got {bottom}..{top}"),
+                    ));
+                }
+            }
+            Screen::MirrorDome {
+                centre,
+                radius,
+                min_elevation,
+                mirror_centre,
+                mirror_radius,
+            } => {
+                finite("screen.centre", &centre)?;
+                finite("screen.min_elevation", &[min_elevation])?;
+                finite("screen.mirror_centre", &mirror_centre)?;
+                positive_radius(radius)?;
+                if !(mirror_radius.is_finite() && mirror_radius > 0.0) {
+                    return Err(Error::invalid(
+                        "screen.mirror_radius",
+                        format!("must be > 0 metres, got {mirror_radius}"),
+                    ));
+                }
+                let gap = DVec3::from(mirror_centre).distance(DVec3::from(centre));
+                if gap + mirror_radius >= radius {
+                    return Err(Error::invalid(
+                        "screen.mirror_centre/mirror_radius",
+                        "the mirror must lie inside the dome (|mirror_centre - centre| + mirror_radius < radius)",
                     ));
                 }
             }

@@ -6,6 +6,7 @@
 //! buffers when capturing.
 
 pub mod objects;
+pub mod pattern;
 pub mod renderer;
 pub mod shaders;
 pub mod types;

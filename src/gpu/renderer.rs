@@ -181,6 +181,11 @@ pub struct TerrainRenderer {
     objects: Option<ObjectPasses>,
     volume: Option<super::volumes::VolumePass>,
     voxels: Option<VoxelPasses>,
+    /// Warp test pattern instead of the scene (see [`Self::set_pattern`]).
+    pattern: Option<(
+        super::pattern::PatternPass,
+        crate::display::pattern::PatternParams,
+    )>,
     /// Scene time in seconds (animated voxel models).
     time: f64,
     targets: Option<Targets>,
@@ -477,6 +482,7 @@ impl TerrainRenderer {
             objects: None,
             volume: None,
             voxels: None,
+            pattern: None,
             time: 0.0,
             targets: None,
         })
@@ -642,6 +648,21 @@ impl TerrainRenderer {
             }
             v.volume.settings = settings;
         }
+    }
+
+    /// Renders the warp test pattern ([`crate::display::pattern`]) from the ray table instead
+    /// of the scene while `Some` (the tile, cast and shade passes are skipped); `None` renders
+    /// the scene again.
+    pub fn set_pattern(
+        &mut self,
+        gpu: &Gpu,
+        params: Option<crate::display::pattern::PatternParams>,
+    ) {
+        self.pattern = match (params, self.pattern.take()) {
+            (None, _) => None,
+            (Some(p), Some((pass, _))) => Some((pass, p)),
+            (Some(p), None) => Some((super::pattern::PatternPass::new(gpu), p)),
+        };
     }
 
     /// Sets the scene time (seconds) that picks animated voxel models' frames.
@@ -963,6 +984,13 @@ impl TerrainRenderer {
         };
         self.encode_raygen(&mut enc, t);
         lap(&mut enc, &mut times.raygen_ms)?;
+        if let Some((pass, params)) = &self.pattern {
+            let views = (&t.ray_table_view, &t.colour_view, &t.data_view);
+            pass.encode(gpu, params, &mut enc, views.0, views.1, views.2);
+            lap(&mut enc, &mut times.shade_ms)?;
+            gpu.queue.submit([enc.finish()]);
+            return Ok(times);
+        }
         if tile_on {
             Self::encode_fullscreen(
                 &mut enc,

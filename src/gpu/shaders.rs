@@ -135,6 +135,11 @@ pub fn voxels() -> String {
     .concat()
 }
 
+/// Warp test pattern (fragment): colour from the ray table only.
+pub fn pattern() -> String {
+    [FULLSCREEN, RAY_TABLE, include_str!("shaders/pattern.wgsl")].concat()
+}
+
 /// Every composed pass source with its name, for validation.
 pub fn all() -> Vec<(&'static str, String)> {
     vec![
@@ -148,5 +153,6 @@ pub fn all() -> Vec<(&'static str, String)> {
         ("ff_shadow", ff_shadow()),
         ("volume", volume()),
         ("voxels", voxels()),
+        ("pattern", pattern()),
     ]
 }

@@ -1,0 +1,454 @@
+//! Warp verification: the test pattern (GPU against the CPU reference), the lens and mirror
+//! inverses, the spherical-mirror screen against closed-form reflection, the closed loop on
+//! every demo display configuration and at several eye positions, and direct vs two-pass
+//! sharpness.
+
+mod common;
+
+use common::{gpu, gpu_lock, project_dir};
+use glam::DVec3;
+use relief::app::verify::{verify, PatternRig, VerifyOptions};
+use relief::cpu::distortion::{projector_coord, screen_points};
+use relief::display::pattern::{pattern_rgba8, PatternParams};
+use relief::display::{DisplayConfig, Lens, Projector, Screen};
+
+fn configs() -> Vec<(String, DisplayConfig)> {
+    let mut v: Vec<_> = std::fs::read_dir(project_dir().join("distortion"))
+        .unwrap()
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .map(|p| {
+            (
+                p.file_name().unwrap().to_string_lossy().into_owned(),
+                DisplayConfig::load(&p).unwrap(),
+            )
+        })
+        .collect();
+    v.sort_by(|a, b| a.0.cmp(&b.0));
+    assert!(v.len() >= 5, "demo display configs missing");
+    v
+}
+
+fn opts(size: u32, two_pass: bool) -> VerifyOptions {
+    VerifyOptions {
+        channels: Vec::new(),
+        eye: None,
+        size: (size, size),
+        two_pass,
+        table_eye: None,
+    }
+}
+
+#[test]
+fn lens_inverse_round_trips() {
+    for lens in [
+        Lens::Perspective {
+            fov: 70.0,
+            shift: [0.1, -0.05],
+        },
+        Lens::Ftheta { fov: 200.0 },
+    ] {
+        let p = Projector {
+            position: [0.3, -0.2, 0.1],
+            heading: 30.0,
+            pitch: 40.0,
+            roll: -10.0,
+            width: 120,
+            height: 90,
+            lens,
+        };
+        let mut n = 0;
+        for y in 0..90 {
+            for x in 0..120 {
+                let (u, v) = (x as f64 + 0.37, y as f64 + 0.81);
+                let Some(d) = p.ray(u, v) else { continue };
+                let (bu, bv) = p.pixel(d).expect("a ray's own direction is in the field");
+                assert!(
+                    (bu - u).abs() < 1e-9 && (bv - v).abs() < 1e-9,
+                    "{lens:?} ({u}, {v}) -> ({bu}, {bv})"
+                );
+                n += 1;
+            }
+        }
+        assert!(n > 5000, "{lens:?}: only {n} pixels in the field");
+    }
+}
+
+#[test]
+fn spherical_mirror_reflects_as_in_closed_form() {
+    // Projector at (0, -D, 0) looking +y at a mirror sphere (radius r) at the origin, inside a
+    // dome of radius R around the origin. A ray at angle a from the axis (in the xy plane)
+    // meets the mirror with sin(i) = (D / r) sin(a), at polar angle psi = i - a from -y, and
+    // leaves at angle 2i - a from -y (law of reflection).
+    let (d, r, big_r) = (1.5, 0.3, 4.0);
+    let screen = Screen::MirrorDome {
+        centre: [0.0; 3],
+        radius: big_r,
+        min_elevation: -90.0,
+        mirror_centre: [0.0; 3],
+        mirror_radius: r,
+    };
+    let origin = DVec3::new(0.0, -d, 0.0);
+    let mut checked = 0;
+    for k in -40..=40 {
+        let a = (k as f64 / 40.0) * (r / d).asin() * 0.999;
+        let dir = DVec3::new(a.sin(), a.cos(), 0.0);
+        let i = (d / r * a.sin()).asin();
+        let psi = i - a;
+        let m = DVec3::new(r * psi.sin(), -r * psi.cos(), 0.0);
+        let out = DVec3::new((2.0 * i - a).sin(), -(2.0 * i - a).cos(), 0.0);
+        // |m + t out| = R, positive root.
+        let b = m.dot(out);
+        let t = -b + (b * b - (m.length_squared() - big_r * big_r)).sqrt();
+        let want = m + out * t;
+        let got = screen.intersect(origin, dir).expect("ray hits the mirror");
+        assert!(
+            got.distance(want) < 1e-9,
+            "a = {a}: got {got}, closed form {want}"
+        );
+        // And the inverse: the mirror point that reflects the projector onto the dome point.
+        let back = screen
+            .mirror_point(origin, want)
+            .expect("mirror point found");
+        assert!(
+            back.distance(m) < 1e-9,
+            "a = {a}: mirror point {back} vs {m}"
+        );
+        checked += 1;
+    }
+    assert_eq!(checked, 81);
+    // A ray past the mirror lights nothing.
+    let miss = DVec3::new(0.3, 1.0, 0.0).normalize();
+    assert!(screen.intersect(origin, miss).is_none());
+}
+
+#[test]
+fn projector_coord_inverts_every_demo_channel() {
+    for (name, cfg) in configs() {
+        for (ci, ch) in cfg.channels.iter().enumerate() {
+            let p = ch.projector;
+            let pts = screen_points(&cfg.screen, &p);
+            let (mut n, mut worst) = (0, 0.0f64);
+            for (k, s) in pts.points.iter().enumerate().step_by(13) {
+                let Some(s) = s else { continue };
+                let (u, v) = (
+                    (k as u32 % p.width) as f64 + 0.5,
+                    (k as u32 / p.width) as f64 + 0.5,
+                );
+                let Some((bu, bv)) = projector_coord(&cfg.screen, &p, *s) else {
+                    let m = cfg.screen.mirror_point(DVec3::from(p.position), *s);
+                    let pix = m.and_then(|m| p.pixel(m - DVec3::from(p.position)));
+                    panic!("{name}[{ci}] pixel {k} ({u}, {v}): no inverse; mirror point {m:?} pixel {pix:?}")
+                };
+                worst = worst.max((bu - u).hypot(bv - v));
+                n += 1;
+            }
+            assert!(n > 100, "{name}[{ci}]: {n} pixels");
+            assert!(worst < 1e-4, "{name}[{ci}]: inverse off by {worst} px");
+        }
+    }
+}
+
+#[test]
+fn gpu_pattern_matches_the_cpu_pattern() {
+    let _l = gpu_lock();
+    let Some(g) = gpu() else { return };
+    let mut rig = PatternRig::new(g).unwrap();
+    for (name, cfg) in configs() {
+        let ch = &cfg.channels[0];
+        let mut p = ch.projector;
+        p.width /= 2;
+        p.height /= 2;
+        let pts = screen_points(&cfg.screen, &p);
+        let grid = PatternParams::grid(DVec3::new(0.0, 0.7, 0.7));
+        let grating = PatternParams {
+            boresight: grid.boresight,
+            grating: 60.0,
+        };
+        let eye = DVec3::from(cfg.eye.position);
+        let v = rig.render(g, &pts, eye, &grid, &grating).unwrap();
+        let (mut n, mut off, mut sum) = (0usize, 0usize, 0.0f64);
+        for (k, t) in v.table.iter().enumerate() {
+            if t[3] < 0.0 {
+                assert_eq!(&v.grid[k * 4..k * 4 + 3], &[0, 0, 0], "{name}: black pixel");
+                continue;
+            }
+            let d = DVec3::new(t[0] as f64, t[1] as f64, t[2] as f64);
+            for (img, params) in [(&v.grid, &grid), (&v.grating, &grating)] {
+                let want = pattern_rgba8(d, t[3] as f64, params);
+                let worst = (0..3)
+                    .map(|c| (img[k * 4 + c] as i32 - want[c] as i32).abs())
+                    .max()
+                    .unwrap();
+                sum += worst as f64;
+                if worst > 2 && off < 5 {
+                    eprintln!(
+                        "{name} px {k}: gpu {:?} cpu {want:?} dir {d} cone {} grating {}",
+                        &img[k * 4..k * 4 + 4],
+                        t[3],
+                        params.grating
+                    );
+                }
+                off += usize::from(worst > 2);
+                n += 1;
+            }
+        }
+        assert!(n > 1000, "{name}: {n} samples");
+        assert!(
+            off * 1000 <= n,
+            "{name}: {off} of {n} pattern samples differ from the CPU by more than 2/255"
+        );
+        assert!(
+            sum / (n as f64) < 0.5,
+            "{name}: mean difference {}",
+            sum / n as f64
+        );
+    }
+}
+
+#[test]
+fn closed_loop_error_is_below_one_arcmin_on_every_demo_config() {
+    let _l = gpu_lock();
+    let Some(g) = gpu() else { return };
+    let mut rig = PatternRig::new(g).unwrap();
+    for (name, cfg) in configs() {
+        let (r, img) = verify(g, &mut rig, &cfg, &name, &opts(160, false)).unwrap();
+        eprintln!(
+            "{name}: mean {:.4} max {:.4} arc-min over {} eye pixels",
+            r.mean_error_arcmin, r.max_error_arcmin, r.covered_pixels
+        );
+        assert!(
+            r.covered_pixels > 160 * 160 / 8,
+            "{name}: only {} eye pixels covered",
+            r.covered_pixels
+        );
+        assert!(
+            r.mean_error_arcmin < 1.0,
+            "{name}: mean error {} arc-min",
+            r.mean_error_arcmin
+        );
+        for c in &r.channels {
+            assert!(c.eye_pixels > 0, "{name}: channel {} never seen", c.name);
+        }
+        assert_eq!(img.as_seen.len(), 160 * 160 * 4);
+    }
+}
+
+#[test]
+fn moving_eye_tables_follow_the_eye_and_a_stale_table_is_caught() {
+    let _l = gpu_lock();
+    let Some(g) = gpu() else { return };
+    let cfg = DisplayConfig::load(&project_dir().join("distortion/dome-moving-eye.toml")).unwrap();
+    let mut rig = PatternRig::new(g).unwrap();
+    let base = DVec3::from(cfg.eye.position);
+    let mut tables: Vec<Vec<[f32; 4]>> = Vec::new();
+    let pts = screen_points(&cfg.screen, &cfg.channels[0].projector);
+    let grid = PatternParams::grid(DVec3::Z);
+    for offset in [
+        DVec3::ZERO,
+        DVec3::new(0.15, 0.0, 0.0),
+        DVec3::new(-0.1, 0.2, 0.1),
+        DVec3::new(0.0, -0.2, 0.25),
+    ] {
+        let eye = base + offset;
+        let o = VerifyOptions {
+            eye: Some(eye),
+            ..opts(128, false)
+        };
+        let (r, _) = verify(g, &mut rig, &cfg, "dome-moving-eye", &o).unwrap();
+        assert!(
+            r.mean_error_arcmin < 1.0 && r.covered_pixels > 3000,
+            "eye {eye}: mean {} arc-min over {} pixels",
+            r.mean_error_arcmin,
+            r.covered_pixels
+        );
+        tables.push(rig.render(g, &pts, eye, &grid, &grid).unwrap().table);
+    }
+    // The table changes with the eye.
+    for t in &tables[1..] {
+        let moved = t
+            .iter()
+            .zip(&tables[0])
+            .filter(|(a, b)| a[3] >= 0.0 && b[3] >= 0.0)
+            .map(|(a, b)| {
+                let (a, b) = (
+                    DVec3::new(a[0].into(), a[1].into(), a[2].into()),
+                    DVec3::new(b[0].into(), b[1].into(), b[2].into()),
+                );
+                a.angle_between(b)
+            })
+            .fold(0.0f64, f64::max);
+        assert!(moved > 1f64.to_radians(), "table moved only {moved} rad");
+    }
+    // A table generated for an eye 5 cm away (tracking lag) leaves an error the check sees.
+    let o = VerifyOptions {
+        table_eye: Some(base + DVec3::new(0.05, 0.0, 0.0)),
+        ..opts(128, false)
+    };
+    let (r, _) = verify(g, &mut rig, &cfg, "dome-moving-eye", &o).unwrap();
+    assert!(
+        r.mean_error_arcmin > 30.0,
+        "stale table: mean error only {} arc-min",
+        r.mean_error_arcmin
+    );
+}
+
+#[test]
+fn direct_mode_is_sharper_than_two_pass() {
+    // Criterion: at a median 0.4 cycles per projector pixel, direct ray casting keeps at least
+    // 95% of the grating's contrast in the projector image and two-pass warping at least 0.1
+    // less; as seen from the eye, direct keeps at least 0.05 more than two-pass.
+    let _l = gpu_lock();
+    let Some(g) = gpu() else { return };
+    let mut rig = PatternRig::new(g).unwrap();
+    for file in ["cylinder-3ch.toml", "dome-fisheye.toml"] {
+        let cfg = DisplayConfig::load(&project_dir().join("distortion").join(file)).unwrap();
+        let (r, img) = verify(g, &mut rig, &cfg, file, &opts(160, true)).unwrap();
+        for c in &r.channels {
+            let two = c.contrast_two_pass.expect("two-pass ran");
+            eprintln!(
+                "{file}[{}]: contrast direct {:.3}, two-pass {two:.3} ({})",
+                c.channel,
+                c.contrast_direct,
+                c.two_pass_intermediate.as_deref().unwrap_or("")
+            );
+            assert!(
+                c.contrast_direct >= 0.95,
+                "{file}[{}]: direct {}",
+                c.channel,
+                c.contrast_direct
+            );
+            assert!(
+                two <= c.contrast_direct - 0.1,
+                "{file}[{}]: two-pass {two} vs direct {}",
+                c.channel,
+                c.contrast_direct
+            );
+        }
+        let seen_two = r.seen_contrast_two_pass.unwrap();
+        assert!(
+            r.seen_contrast_direct >= seen_two + 0.05,
+            "{file}: as seen, direct {} vs two-pass {seen_two}",
+            r.seen_contrast_direct
+        );
+        assert!(img.as_seen_two_pass.is_some());
+    }
+}
+
+fn relief(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_relief"))
+        .args(args)
+        .env("NODEVICE_SELECT", "1")
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn cli_verify_and_two_pass_render_write_their_files_and_refuse_bad_input() {
+    let _l = gpu_lock();
+    if gpu().is_none() {
+        return;
+    }
+    let dir = std::env::temp_dir().join(format!("relief-verify-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let cfg = project_dir().join("distortion/dome-moving-eye.toml");
+    let out = dir.join("v");
+    let o = relief(&[
+        "warp",
+        "verify",
+        cfg.to_str().unwrap(),
+        "--size",
+        "96x96",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(text.contains("geometric error: mean"), "{text}");
+    for f in [
+        "as_seen_from_eye.png",
+        "reference_from_eye.png",
+        "diff_from_eye.png",
+        "as_seen_from_eye_two_pass.png",
+        "channel_0_direct.png",
+        "channel_0_two_pass.png",
+        "verify.json",
+    ] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("verify.json")).unwrap()).unwrap();
+    assert!(json["mean_error_arcmin"].as_f64().unwrap() < 1.0);
+    // A channel that does not exist: clear error, non-zero exit, nothing written.
+    let bad = dir.join("bad");
+    let o = relief(&[
+        "warp",
+        "verify",
+        cfg.to_str().unwrap(),
+        "--channel",
+        "3",
+        "--out",
+        bad.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(
+        err.contains("--channel") && err.contains("1 channel"),
+        "{err}"
+    );
+    assert!(!bad.exists(), "files written for a refused run");
+    // Two-pass render of the test pattern through the same channel.
+    let r = dir.join("r");
+    let o = relief(&[
+        "render",
+        project_dir().join("terrains/alps.toml").to_str().unwrap(),
+        "--display",
+        cfg.to_str().unwrap(),
+        "--two-pass",
+        "--pattern",
+        "--out",
+        r.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let meta = std::fs::read_to_string(r.join("frame_0000.json")).unwrap();
+    assert!(meta.contains("two-pass: 6 pinhole image(s)"), "{meta}");
+    let img = image::open(r.join("frame_0000.png")).unwrap().to_rgba8();
+    assert_eq!(img.dimensions(), (512, 512));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn bad_mirror_domes_are_refused_by_field() {
+    let good = std::fs::read_to_string(project_dir().join("distortion/mirror-dome.toml")).unwrap();
+    let dir = std::env::temp_dir().join(format!("relief-mirror-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for (label, text, want) in [
+        (
+            "mirror outside the dome",
+            good.replace(
+                "mirror_centre = [0.0, -2.0, 0.35]",
+                "mirror_centre = [0.0, -2.4, 0.35]",
+            ),
+            "screen.mirror_centre/mirror_radius",
+        ),
+        (
+            "zero mirror",
+            good.replace("mirror_radius = 0.3", "mirror_radius = 0.0"),
+            "screen.mirror_radius",
+        ),
+        (
+            "missing mirror",
+            good.replace("mirror_radius = 0.3\n", ""),
+            "mirror_radius",
+        ),
+    ] {
+        let p = dir.join("bad.toml");
+        std::fs::write(&p, text).unwrap();
+        let err = DisplayConfig::load(&p).expect_err(label).to_string();
+        assert!(
+            err.contains(want) && err.contains("bad.toml"),
+            "{label}: {err}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
