@@ -292,3 +292,136 @@ fn gpu_table_matches_cpu_table_and_direct_renders_match_the_oracle() {
         }
     }
 }
+
+#[test]
+fn blend_ramps_of_an_overlap_add_up_to_full_light_and_bad_blends_are_refused() {
+    use relief::display::blend::{ramp, Blend, BlendEdge};
+    let mut rng = common::Rng::new(7);
+    for _ in 0..10_000 {
+        let (x, p) = (rng.range(-0.2, 1.2), rng.range(0.5, 10.0));
+        let s = ramp(x, p) + ramp(1.0 - x, p);
+        assert!(
+            (s - 1.0).abs() < 1e-12,
+            "f({x}) + f(1 - {x}) = {s} for p = {p}"
+        );
+    }
+    let edge = BlendEdge {
+        width: 0.1,
+        exponent: 2.0,
+    };
+    let b = Blend {
+        left: Some(edge),
+        right: None,
+        top: None,
+        bottom: Some(edge),
+        gamma: 2.2,
+    };
+    // Full light away from the edges, none at the border, half light mid-ramp.
+    assert_eq!(b.light_weight(50, 10, 100, 100), 1.0);
+    assert!(b.light_weight(0, 10, 100, 100) < 0.01);
+    assert!((b.light_weight(4, 10, 1000, 100) * 1.0 - ramp(4.5 / 100.0, 2.0)).abs() < 1e-12);
+    assert!(
+        (b.pixel_factor(4, 10, 1000, 100) - ramp(4.5 / 100.0, 2.0).powf(1.0 / 2.2)).abs() < 1e-12
+    );
+    for (bad, field) in [
+        (
+            Blend {
+                left: Some(BlendEdge {
+                    width: 0.7,
+                    exponent: 2.0,
+                }),
+                ..b
+            },
+            "left.width",
+        ),
+        (
+            Blend {
+                top: Some(BlendEdge {
+                    width: 0.1,
+                    exponent: f64::NAN,
+                }),
+                ..b
+            },
+            "top.exponent",
+        ),
+        (Blend { gamma: 0.3, ..b }, "gamma"),
+    ] {
+        let e = bad.validate("channel[0].blend").unwrap_err().to_string();
+        assert!(e.contains(field) && e.contains("channel[0].blend"), "{e}");
+    }
+}
+
+#[test]
+fn gpu_edge_blend_matches_the_cpu_factor_in_direct_mode() {
+    use relief::display::pattern::PatternParams;
+    let _l = common::gpu_lock();
+    let cfg = relief::display::DisplayConfig::load(
+        &common::project_dir().join("distortion/cylinder-3ch.toml"),
+    )
+    .unwrap();
+    let ch = &cfg.channels[1];
+    let blend = ch.blend.expect("the centre channel has blends");
+    let mut p = ch.projector;
+    p.width /= 2;
+    p.height /= 2;
+    let points = relief::cpu::distortion::screen_points(&cfg.screen, &p);
+    let Some(g) = common::gpu() else {
+        return;
+    };
+    let terrain = common::terrain_from_fn(2, 1.0, |_, _| 0.0);
+    let desc = common::synthetic_scene(p.width, p.height, "position = [0.5, 0.5, 100.0]");
+    let cam = relief::scene::Camera::new(
+        relief::scene::Pose {
+            position: DVec3::new(0.5, 0.5, 100.0),
+            heading: 0.0,
+            pitch: 0.0,
+            roll: 0.0,
+            fov: 60.0,
+        },
+        p.width,
+        p.height,
+    );
+    let settings = relief::gpu::RenderSettings::from_scene(&desc);
+    let mut r = relief::gpu::TerrainRenderer::new(g, &terrain).unwrap();
+    r.set_display(g, &points, DVec3::from(cfg.eye.position))
+        .unwrap();
+    r.set_pattern(g, Some(PatternParams::grid(DVec3::Y)));
+    let plain = r.capture(g, &terrain, &desc, &cam, &settings).unwrap();
+    r.set_blend(g, Some(blend));
+    let blended = r.capture(g, &terrain, &desc, &cam, &settings).unwrap();
+    let mut want = plain.rgba.clone();
+    blend.apply_rgba8(&mut want, p.width, p.height);
+    let worst = want
+        .iter()
+        .zip(&blended.rgba)
+        .map(|(a, b)| a.abs_diff(*b))
+        .max()
+        .unwrap();
+    let darkened = (0..want.len() / 4)
+        .filter(|&k| (0..3).any(|c| blended.rgba[4 * k + c] < plain.rgba[4 * k + c]))
+        .count();
+    let edge_px = (0..p.height)
+        .flat_map(|y| (0..p.width).map(move |x| (x, y)))
+        .filter(|&(x, y)| blend.light_weight(x, y, p.width, p.height) < 1.0)
+        .count();
+    eprintln!("{darkened} pixels darkened by the blend ({edge_px} in the ramps); worst |GPU − CPU| {worst}/255");
+    assert!(
+        worst <= 1,
+        "GPU blend differs from the CPU factor by {worst}/255"
+    );
+    assert!(
+        darkened > edge_px / 4,
+        "only {darkened} of {edge_px} ramp pixels darkened"
+    );
+    // Away from the ramps nothing changes.
+    for y in 0..p.height {
+        for x in p.width / 4..3 * p.width / 4 {
+            let k = 4 * (y * p.width + x) as usize;
+            assert_eq!(
+                &blended.rgba[k..k + 3],
+                &plain.rgba[k..k + 3],
+                "pixel ({x}, {y}) changed"
+            );
+        }
+    }
+}

@@ -204,6 +204,7 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
     renderer.set_volumes(&gpu, &volumes)?;
     renderer.set_voxels(&gpu, &voxels)?;
     let fps = scene.desc.path.as_ref().map_or(30.0, |p| p.fps);
+    let mut blend_after_warp = None;
     let mut display_meta = serde_json::Value::Null;
     // Two-pass mode: intermediate faces and the projector pixels' display-frame directions.
     let mut two_pass: Option<(Vec<super::verify::Face>, Vec<Option<glam::DVec3>>)> = None;
@@ -237,6 +238,11 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
         }
         let eye = glam::DVec3::from(d.eye.unwrap_or(cfg.eye.position));
         renderer.set_display(&gpu, &points, eye)?;
+        // Direct mode blends on the GPU; two-pass mode after its CPU warp (below).
+        if !d.two_pass {
+            renderer.set_blend(&gpu, channel.blend);
+        }
+        blend_after_warp = channel.blend.filter(|_| d.two_pass);
         let mut mode = json!("direct: one ray per projector pixel");
         if d.two_pass {
             let dirs: Vec<_> = points
@@ -281,7 +287,7 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
             let params = crate::display::pattern::PatternParams::grid(cam.basis().2);
             renderer.set_pattern(&gpu, Some(params));
         }
-        let out = match &two_pass {
+        let mut out = match &two_pass {
             Some((faces, dirs)) => super::verify::render_two_pass(
                 &gpu,
                 &mut renderer,
@@ -296,6 +302,9 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
             )?,
             None => renderer.capture(&gpu, &terrain, &scene.desc, &cam, &settings)?,
         };
+        if let Some(b) = &blend_after_warp {
+            b.apply_rgba8(&mut out.rgba, out.width, out.height);
+        }
         let png = job.out_dir.join(format!("frame_{frame:04}.png"));
         let tif = job.out_dir.join(format!("depth_{frame:04}.tiff"));
         let meta = job.out_dir.join(format!("frame_{frame:04}.json"));

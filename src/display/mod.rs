@@ -6,6 +6,7 @@
 //! in it maps to the world through the camera's attitude: x → camera right, y → camera forward,
 //! z → camera up.
 
+pub mod blend;
 pub mod pattern;
 pub mod warp;
 
@@ -79,6 +80,9 @@ pub struct Channel {
     #[serde(default)]
     pub name: String,
     pub projector: Projector,
+    /// Soft edges where this projector's image overlaps its neighbours'.
+    #[serde(default)]
+    pub blend: Option<blend::Blend>,
 }
 
 /// Projector pose, resolution and lens.
@@ -433,6 +437,9 @@ impl DisplayConfig {
             let p = &c.projector;
             let f = |k: &str| format!("channel[{i}].projector.{k}");
             finite(&f("position"), &p.position)?;
+            if let Some(b) = &c.blend {
+                b.validate(&format!("channel[{i}].blend"))?;
+            }
             finite(&f("heading/pitch/roll"), &[p.heading, p.pitch, p.roll])?;
             if !(1..=16384).contains(&p.width) || !(1..=16384).contains(&p.height) {
                 return Err(Error::invalid(

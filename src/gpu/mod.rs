@@ -5,6 +5,7 @@
 //! → shade (fragment, full screen: lighting, shadow rays, fog, sky) → copy to readback
 //! buffers when capturing.
 
+pub mod blend;
 pub mod objects;
 pub mod pattern;
 pub mod renderer;

@@ -57,6 +57,8 @@ pub struct PassTimes {
     pub shade_ms: f64,
     /// Volume integration and compositing (0 without a volume).
     pub volume_ms: f64,
+    /// Edge blend (0 without one).
+    pub blend_ms: f64,
     pub readback_ms: f64,
 }
 
@@ -126,6 +128,8 @@ struct Targets {
     objects: Option<(ObjectTargets, wgpu::BindGroup)>,
     /// The shaded image under the volume and the volume pass's statistics.
     volume: Option<super::volumes::VolumeTargets>,
+    /// The finished image before the edge blend.
+    blend: Option<super::blend::BlendTargets>,
     voxels: Option<VoxelTargets>,
 }
 
@@ -180,6 +184,8 @@ pub struct TerrainRenderer {
     table: Option<TableMode>,
     objects: Option<ObjectPasses>,
     volume: Option<super::volumes::VolumePass>,
+    /// Edge blend of a display channel (see [`Self::set_blend`]).
+    blend: Option<super::blend::BlendPass>,
     voxels: Option<VoxelPasses>,
     /// Warp test pattern instead of the scene (see [`Self::set_pattern`]).
     pattern: Option<(
@@ -481,6 +487,7 @@ impl TerrainRenderer {
             table: None,
             objects: None,
             volume: None,
+            blend: None,
             voxels: None,
             pattern: None,
             time: 0.0,
@@ -665,6 +672,13 @@ impl TerrainRenderer {
         };
     }
 
+    /// Sets (or, with `None`, removes) the edge blend applied to the finished image, in display
+    /// space after the warp ([`crate::display::blend`]).
+    pub fn set_blend(&mut self, gpu: &Gpu, blend: Option<crate::display::blend::Blend>) {
+        self.blend = blend.map(|b| super::blend::BlendPass::new(gpu, b));
+        self.targets = None;
+    }
+
     /// Sets the scene time (seconds) that picks animated voxel models' frames.
     pub fn set_time(&mut self, seconds: f64) {
         self.time = seconds;
@@ -837,7 +851,9 @@ impl TerrainRenderer {
                 .map_or(&gbuffer_view, |(ot, _)| &ot.gbuffer_view);
             v.targets(gpu, width, height, &self.frame_ub, &ray_table_view, g)
         });
+        let blend = self.blend.as_ref().map(|b| b.targets(gpu, width, height));
         self.targets = Some(Targets {
+            blend,
             volume,
             objects,
             voxels,
@@ -988,6 +1004,8 @@ impl TerrainRenderer {
             let views = (&t.ray_table_view, &t.colour_view, &t.data_view);
             pass.encode(gpu, params, &mut enc, views.0, views.1, views.2);
             lap(&mut enc, &mut times.shade_ms)?;
+            self.encode_blend(&mut enc, t);
+            lap(&mut enc, &mut times.blend_ms)?;
             gpu.queue.submit([enc.finish()]);
             return Ok(times);
         }
@@ -1048,9 +1066,27 @@ impl TerrainRenderer {
                 );
                 lap(&mut enc, &mut times.volume_ms)?;
             }
+            self.encode_blend(&mut enc, t);
+            lap(&mut enc, &mut times.blend_ms)?;
         }
         gpu.queue.submit([enc.finish()]);
         Ok(times)
+    }
+
+    /// Records the edge blend, if any: copy the finished image aside, write it back blended.
+    fn encode_blend(&self, enc: &mut wgpu::CommandEncoder, t: &Targets) {
+        if let (Some(b), Some(bt)) = (&self.blend, &t.blend) {
+            enc.copy_texture_to_texture(
+                t.colour.as_image_copy(),
+                bt.src.as_image_copy(),
+                wgpu::Extent3d {
+                    width: t.width,
+                    height: t.height,
+                    depth_or_array_layers: 1,
+                },
+            );
+            Self::encode_fullscreen(enc, "blend", &b.pipeline, &bt.bg, &[&t.colour_view]);
+        }
     }
 
     /// Renders one frame up to `stage` without reading it back (for benchmarks and the frame

@@ -140,6 +140,11 @@ pub fn pattern() -> String {
     [FULLSCREEN, RAY_TABLE, include_str!("shaders/pattern.wgsl")].concat()
 }
 
+/// Edge-blend pass (fragment): the finished image times each pixel's blend factor.
+pub fn blend() -> String {
+    [FULLSCREEN, include_str!("shaders/blend.wgsl")].concat()
+}
+
 /// Every composed pass source with its name, for validation.
 pub fn all() -> Vec<(&'static str, String)> {
     vec![
@@ -152,6 +157,7 @@ pub fn all() -> Vec<(&'static str, String)> {
         ("objects", objects()),
         ("ff_shadow", ff_shadow()),
         ("volume", volume()),
+        ("blend", blend()),
         ("voxels", voxels()),
         ("pattern", pattern()),
     ]

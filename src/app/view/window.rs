@@ -37,6 +37,7 @@ struct ChannelSpec {
     name: String,
     points: ScreenPoints,
     eye: DVec3,
+    blend: Option<crate::display::blend::Blend>,
     width: u32,
     height: u32,
     config: PathBuf,
@@ -140,6 +141,7 @@ fn prepare(opts: &ViewOptions) -> Result<Prepared> {
                 name: ch.name.clone(),
                 points,
                 eye,
+                blend: ch.blend,
                 width: p.width,
                 height: p.height,
                 config: cfg_path.clone(),
@@ -614,6 +616,7 @@ impl App {
             if let Some(c) = channel {
                 let c = &self.prep.channels[c];
                 renderer.set_display(&gpu, &c.points, c.eye)?;
+                renderer.set_blend(&gpu, c.blend);
             }
             let mut win = Win {
                 present: PresentPass::new(&gpu.device, format),

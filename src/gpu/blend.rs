@@ -1,0 +1,114 @@
+//! The edge-blend pass: after everything else, the finished image is copied aside and written
+//! back multiplied by each pixel's blend factor (`shaders/blend.wgsl`; CPU reference
+//! [`crate::display::blend`]).
+
+use super::renderer::{fullscreen_pipeline, screen_texture, target_state, uniform_entry};
+use super::{shaders, Gpu};
+use crate::display::blend::Blend;
+
+/// Mirrors WGSL `BlendParams` in `shaders/blend.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct BlendUniforms {
+    pub size: [u32; 4],
+    pub widths: [f32; 4],
+    pub exponents: [f32; 4],
+    pub gamma: [f32; 4],
+}
+
+/// Pipeline and parameters of the blend pass.
+pub(crate) struct BlendPass {
+    bgl: wgpu::BindGroupLayout,
+    pub pipeline: wgpu::RenderPipeline,
+    ub: wgpu::Buffer,
+    pub blend: Blend,
+}
+
+/// Size-dependent resources: the copy of the finished image the pass reads.
+pub(crate) struct BlendTargets {
+    pub src: wgpu::Texture,
+    pub bg: wgpu::BindGroup,
+}
+
+impl BlendPass {
+    pub fn new(gpu: &Gpu, blend: Blend) -> BlendPass {
+        let dev = &gpu.device;
+        let fs = wgpu::ShaderStages::FRAGMENT;
+        let bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("blend"),
+            entries: &[
+                uniform_entry(0, fs),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: fs,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+            ],
+        });
+        let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("blend.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(shaders::blend().into()),
+        });
+        let pipeline = fullscreen_pipeline(
+            dev,
+            "blend",
+            &module,
+            "fs_blend",
+            &bgl,
+            &[Some(target_state(wgpu::TextureFormat::Rgba8Unorm))],
+        );
+        let ub = dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("blend uniforms"),
+            size: std::mem::size_of::<BlendUniforms>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        BlendPass {
+            bgl,
+            pipeline,
+            ub,
+            blend,
+        }
+    }
+
+    pub fn targets(&self, gpu: &Gpu, width: u32, height: u32) -> BlendTargets {
+        let dev = &gpu.device;
+        let src = screen_texture(
+            dev,
+            "image before the blend",
+            [width, height],
+            wgpu::TextureFormat::Rgba8Unorm,
+            wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        );
+        let view = src.create_view(&Default::default());
+        let e = |e: Option<crate::display::blend::BlendEdge>| {
+            e.map_or((0.0, 1.0), |e| (e.width as f32, e.exponent as f32))
+        };
+        let b = &self.blend;
+        let edges = [e(b.left), e(b.right), e(b.top), e(b.bottom)];
+        let u = BlendUniforms {
+            size: [width, height, 0, 0],
+            widths: edges.map(|x| x.0),
+            exponents: edges.map(|x| x.1),
+            gamma: [(1.0 / b.gamma) as f32, 0.0, 0.0, 0.0],
+        };
+        gpu.queue.write_buffer(&self.ub, 0, bytemuck::bytes_of(&u));
+        let bg = dev.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("blend"),
+            layout: &self.bgl,
+            entries: &[
+                super::renderer::buf(0, &self.ub),
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(&view),
+                },
+            ],
+        });
+        BlendTargets { src, bg }
+    }
+}
