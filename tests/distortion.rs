@@ -425,3 +425,68 @@ fn gpu_edge_blend_matches_the_cpu_factor_in_direct_mode() {
         }
     }
 }
+
+#[test]
+fn a_channel_view_offset_turns_the_gpu_table_as_the_cpu_reference_does() {
+    let _l = gpu_lock();
+    let cfg = DisplayConfig::load(&project_dir().join("distortion/cylinder-3ch.toml")).unwrap();
+    let mut p = cfg.channels[1].projector;
+    p.width /= 4;
+    p.height /= 4;
+    let points = screen_points(&cfg.screen, &p);
+    let eye = DVec3::from(cfg.eye.position);
+    let offset = relief::display::ViewOffset {
+        heading: 25.0,
+        pitch: -4.0,
+        roll: 3.0,
+    };
+    let Some(g) = gpu() else {
+        return;
+    };
+    let terrain = common::terrain_from_fn(2, 1.0, |_, _| 0.0);
+    let desc = common::synthetic_scene(p.width, p.height, "position = [0.5, 0.5, 100.0]");
+    let pose = relief::scene::Pose {
+        position: DVec3::new(0.5, 0.5, 100.0),
+        heading: 30.0,
+        pitch: 5.0,
+        roll: -10.0,
+        fov: 60.0,
+    };
+    let cam = Camera::new(pose, p.width, p.height);
+    let settings = RenderSettings::from_scene(&desc);
+    let mut r = TerrainRenderer::new(g, &terrain).unwrap();
+    r.set_display(g, &points, eye).unwrap();
+    r.set_pattern(
+        g,
+        Some(relief::display::pattern::PatternParams::grid(DVec3::Y)),
+    );
+    r.set_view_offset(offset.matrix());
+    r.capture(g, &terrain, &desc, &cam, &settings).unwrap();
+    let gpu_table = r.read_ray_table(g).unwrap();
+    let w = world_from_display(pose.heading, pose.pitch, pose.roll);
+    let with = ray_table(&points, eye, w * offset.matrix());
+    let without = ray_table(&points, eye, w);
+    let (mut worst, mut turned, mut n) = (0.0f64, f64::INFINITY, 0);
+    for (k, e) in gpu_table.iter().enumerate() {
+        let (Some((d, _)), Some((d0, _))) = (with.rays[k], without.rays[k]) else {
+            assert!(e[3] < 0.0, "pixel {k} shows a screen only on the GPU");
+            continue;
+        };
+        let gd = DVec3::new(e[0] as f64, e[1] as f64, e[2] as f64);
+        worst = worst.max(gd.angle_between(d).to_degrees() * 60.0);
+        turned = turned.min(gd.angle_between(d0).to_degrees());
+        n += 1;
+    }
+    eprintln!(
+        "{n} rays: GPU vs CPU with the offset {worst:.4} arc-min; every ray turned ≥ {turned:.2}°"
+    );
+    assert!(n > 1000);
+    assert!(
+        worst < 0.5,
+        "GPU table with a view offset is {worst} arc-min off the CPU"
+    );
+    assert!(
+        turned > 5.0,
+        "the offset did not turn the table (min {turned}°)"
+    );
+}

@@ -238,6 +238,9 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
         }
         let eye = glam::DVec3::from(d.eye.unwrap_or(cfg.eye.position));
         renderer.set_display(&gpu, &points, eye)?;
+        if let Some(v) = channel.view {
+            renderer.set_view_offset(v.matrix());
+        }
         // Direct mode blends on the GPU; two-pass mode after its CPU warp (below).
         if !d.two_pass {
             renderer.set_blend(&gpu, channel.blend);
@@ -249,6 +252,7 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
                 .points
                 .iter()
                 .map(|s| s.and_then(|s| (s - eye).try_normalize()))
+                .map(|d| d.map(|d| channel.view.map_or(d, |v| v.matrix() * d)))
                 .collect();
             let faces = super::verify::two_pass_faces(p.width, &dirs)?;
             mode = json!(format!(

@@ -83,6 +83,28 @@ pub struct Channel {
     /// Soft edges where this projector's image overlaps its neighbours'.
     #[serde(default)]
     pub blend: Option<blend::Blend>,
+    /// This channel's view offset in the vehicle.
+    #[serde(default)]
+    pub view: Option<ViewOffset>,
+}
+
+/// `view = { heading, pitch, roll }` (degrees, as for the camera): turns what a channel shows
+/// relative to the vehicle, e.g. to aim a channel of a fixed screen elsewhere for testing, or
+/// to correct a display frame that is not aligned with the vehicle's axes. World direction =
+/// vehicle attitude · offset · display direction.
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct ViewOffset {
+    pub heading: f64,
+    pub pitch: f64,
+    pub roll: f64,
+}
+
+impl ViewOffset {
+    /// The rotation of display directions.
+    pub fn matrix(&self) -> glam::DMat3 {
+        crate::cpu::distortion::world_from_display(self.heading, self.pitch, self.roll)
+    }
 }
 
 /// Projector pose, resolution and lens.
@@ -437,6 +459,9 @@ impl DisplayConfig {
             let p = &c.projector;
             let f = |k: &str| format!("channel[{i}].projector.{k}");
             finite(&f("position"), &p.position)?;
+            if let Some(v) = &c.view {
+                finite(&format!("channel[{i}].view"), &[v.heading, v.pitch, v.roll])?;
+            }
             if let Some(b) = &c.blend {
                 b.validate(&format!("channel[{i}].blend"))?;
             }

@@ -206,6 +206,8 @@ struct TableMode {
     points_view: wgpu::TextureView,
     size: [u32; 2],
     eye: glam::DVec3,
+    /// The channel's view offset (display frame rotation applied before the vehicle's).
+    offset: glam::DMat3,
 }
 
 pub(crate) fn storage_entry(
@@ -588,9 +590,19 @@ impl TerrainRenderer {
             points_view: texture.create_view(&Default::default()),
             size: [points.width, points.height],
             eye,
+            offset: glam::DMat3::IDENTITY,
         });
         self.targets = None;
         Ok(())
+    }
+
+    /// Sets the channel's view offset for table ray generation: world direction =
+    /// vehicle attitude · `offset` · display direction (see
+    /// [`crate::display::ViewOffset`]). Reset to identity by [`Self::set_display`].
+    pub fn set_view_offset(&mut self, offset: glam::DMat3) {
+        if let Some(t) = &mut self.table {
+            t.offset = offset;
+        }
     }
 
     /// Uploads the scene's free forms (none: the terrain-only passes). Objects are binned per
@@ -979,10 +991,10 @@ impl TerrainRenderer {
         gpu.queue.write_buffer(
             &self.raygen_ub,
             0,
-            bytemuck::bytes_of(&raygen_uniforms(
-                cam,
-                self.table.as_ref().map_or(glam::DVec3::ZERO, |t| t.eye),
-            )),
+            bytemuck::bytes_of(&match &self.table {
+                Some(t) => table_raygen_uniforms(cam, t.eye, t.offset),
+                None => raygen_uniforms(cam, glam::DVec3::ZERO),
+            }),
         );
         let mut times = PassTimes::default();
         let tile_on = s.tile_prepass && s.mode == TraceMode::Pyramid;
@@ -1375,6 +1387,23 @@ pub fn raygen_uniforms(cam: &Camera, display_eye: glam::DVec3) -> RayGenUniforms
         intrinsics: [fx as f32, fy as f32, cx as f32, cy as f32],
         size: [cam.width, cam.height, 0, 0],
         eye: v4(display_eye, 1.0),
+    }
+}
+
+/// [`raygen_uniforms`] for table ray generation with a channel view offset: the basis
+/// becomes the columns of `world_from_display · offset`.
+pub fn table_raygen_uniforms(
+    cam: &Camera,
+    display_eye: glam::DVec3,
+    offset: glam::DMat3,
+) -> RayGenUniforms {
+    let (r, d, f) = cam.basis();
+    let m = glam::DMat3::from_cols(r, f, -d) * offset;
+    RayGenUniforms {
+        right: v4(m.col(0), 0.0),
+        down: v4(-m.col(2), 0.0),
+        forward: v4(m.col(1), 0.0),
+        ..raygen_uniforms(cam, display_eye)
     }
 }
 

@@ -38,6 +38,7 @@ struct ChannelSpec {
     points: ScreenPoints,
     eye: DVec3,
     blend: Option<crate::display::blend::Blend>,
+    view: Option<crate::display::ViewOffset>,
     width: u32,
     height: u32,
     config: PathBuf,
@@ -142,6 +143,7 @@ fn prepare(opts: &ViewOptions) -> Result<Prepared> {
                 points,
                 eye,
                 blend: ch.blend,
+                view: ch.view,
                 width: p.width,
                 height: p.height,
                 config: cfg_path.clone(),
@@ -617,6 +619,9 @@ impl App {
                 let c = &self.prep.channels[c];
                 renderer.set_display(&gpu, &c.points, c.eye)?;
                 renderer.set_blend(&gpu, c.blend);
+                if let Some(v) = c.view {
+                    renderer.set_view_offset(v.matrix());
+                }
             }
             let mut win = Win {
                 present: PresentPass::new(&gpu.device, format),
