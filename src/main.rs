@@ -59,6 +59,10 @@ enum Command {
         /// the view direction) instead of the scene.
         #[arg(long)]
         pattern: bool,
+        /// Render a square dome master (angular fisheye of this many degrees, 180 for a
+        /// hemisphere; zenith at the centre, forward at the bottom) instead of a pinhole view.
+        #[arg(long, conflicts_with = "display")]
+        dome_master: Option<f64>,
     },
     /// Open a window: the same renderer in a fixed-rate frame loop, with flight and capture.
     View(Box<ViewArgs>),
@@ -279,6 +283,23 @@ enum VoxelsAction {
 
 #[derive(Subcommand)]
 enum WarpAction {
+    /// Warp a dome master (square angular fisheye, zenith at the centre, front at the bottom)
+    /// into one channel's projector image through its table, with its edge blend.
+    Apply {
+        config: PathBuf,
+        #[arg(long, default_value_t = 0)]
+        channel: usize,
+        #[arg(long, value_parser = parse_vec::<3>, allow_hyphen_values = true)]
+        eye: Option<[f64; 3]>,
+        /// The dome-master PNG.
+        #[arg(long)]
+        dome_master: PathBuf,
+        /// Its field of view in degrees.
+        #[arg(long, default_value_t = 180.0)]
+        fov: f64,
+        #[arg(long)]
+        out: PathBuf,
+    },
     /// Describe a warp file (.pfm, or a Bourke mesh).
     Inspect {
         file: PathBuf,
@@ -391,6 +412,7 @@ fn run(cli: Cli) -> Result<()> {
                 tile_prepass: None,
                 display: None,
                 pattern: false,
+                dome_master: None,
             };
             let files =
                 capture::run(&job).with_context(|| format!("rendering {}", job.scene.display()))?;
@@ -416,6 +438,7 @@ fn run(cli: Cli) -> Result<()> {
             eye,
             two_pass,
             pattern,
+            dome_master,
         }) => {
             let job = capture::RenderJob {
                 scene,
@@ -432,6 +455,7 @@ fn run(cli: Cli) -> Result<()> {
                     two_pass,
                 }),
                 pattern,
+                dome_master,
             };
             let files =
                 capture::run(&job).with_context(|| format!("rendering {}", job.scene.display()))?;
@@ -555,6 +579,26 @@ fn run(cli: Cli) -> Result<()> {
                     .with_context(|| format!("verifying {}", config.display()))?;
                 println!("{}", relief::app::verify::summary(&report));
                 println!("wrote {} files to {}", files.len(), out.display());
+            }
+            WarpAction::Apply {
+                config,
+                channel,
+                eye,
+                dome_master,
+                fov,
+                out,
+            } => {
+                println!(
+                    "{}",
+                    relief::app::warp::apply_dome_master(
+                        &config,
+                        channel,
+                        eye,
+                        &dome_master,
+                        fov,
+                        &out
+                    )?
+                );
             }
             WarpAction::Export {
                 config,

@@ -452,3 +452,168 @@ fn bad_mirror_domes_are_refused_by_field() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn dome_master_pixels_and_directions_round_trip() {
+    use relief::display::dome_master::{direction, pixel};
+    for fov in [180.0, 220.0, 120.0] {
+        let size = 512;
+        // Zenith at the centre, the front (display +y) at the bottom, +x to the right.
+        assert!(
+            direction(256.0, 256.0, size, fov)
+                .unwrap()
+                .distance(DVec3::Z)
+                < 1e-12
+        );
+        let bottom = direction(256.0, 511.0, size, fov).unwrap();
+        let right = direction(511.0, 256.0, size, fov).unwrap();
+        assert!(
+            bottom.y > 0.9 * (0.5 * fov).to_radians().sin().min(1.0) && bottom.x.abs() < 1e-12,
+            "{bottom}"
+        );
+        assert!(right.x > 0.0 && right.y.abs() < 1e-12, "{right}");
+        assert!(
+            direction(2.0, 2.0, size, fov).is_none(),
+            "corner outside the circle"
+        );
+        let mut worst: f64 = 0.0;
+        for k in 0..2000 {
+            let (x, y) = ((k * 37 % 512) as f64 + 0.25, (k * 91 % 512) as f64 + 0.75);
+            if let Some(d) = direction(x, y, size, fov) {
+                assert!((d.length() - 1.0).abs() < 1e-12);
+                let (px, py) = pixel(d, size, fov).unwrap();
+                worst = worst.max((px - x).hypot(py - y));
+            }
+        }
+        assert!(worst < 1e-9, "fov {fov}: round trip off by {worst} px");
+    }
+    assert!(
+        pixel(DVec3::new(0.0, 1.0, -0.5), 512, 180.0).is_none(),
+        "below the horizon"
+    );
+}
+
+#[test]
+fn warp_apply_gives_each_projector_pixel_the_dome_master_colour_of_its_direction() {
+    use relief::display::dome_master::direction;
+    let dir = std::env::temp_dir().join(format!("relief-test-{}-dome-master", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    // A smooth dome master: colour = (d + 1) / 2 of the pixel's direction.
+    let size = 512u32;
+    let enc = |d: DVec3| [d.x, d.y, d.z].map(|v| ((v + 1.0) * 0.5 * 255.0).round() as u8);
+    let mut img = vec![0u8; (size * size * 4) as usize];
+    for y in 0..size {
+        for x in 0..size {
+            let k = ((y * size + x) * 4) as usize;
+            if let Some(d) = direction(x as f64 + 0.5, y as f64 + 0.5, size, 180.0) {
+                img[k..k + 3].copy_from_slice(&enc(d));
+            }
+            img[k + 3] = 255;
+        }
+    }
+    let master = dir.join("master.png");
+    relief::app::capture::write_png(&master, size, size, &img).unwrap();
+    let config = project_dir().join("distortion/dome-5proj.toml");
+    let cfg = DisplayConfig::load(&config).unwrap();
+    for channel in [0usize, 4] {
+        let out = dir.join(format!("ch{channel}.png"));
+        relief::app::warp::apply_dome_master(&config, channel, None, &master, 180.0, &out).unwrap();
+        let got = image::open(&out).unwrap().to_rgba8();
+        let p = cfg.channels[channel].projector;
+        assert_eq!(got.dimensions(), (p.width, p.height));
+        let pts = screen_points(&cfg.screen, &p);
+        let eye = DVec3::from(cfg.eye.position);
+        let (mut n, mut worst) = (0usize, 0u8);
+        for (k, s) in pts.points.iter().enumerate() {
+            let Some(d) = s.and_then(|s| (s - eye).try_normalize()) else {
+                continue;
+            };
+            // Stay a pixel inside the master's circle, where bilinear reads only lit texels.
+            if d.z < 0.02 {
+                continue;
+            }
+            let want = enc(d);
+            let px = got.get_pixel(k as u32 % p.width, k as u32 / p.width).0;
+            for c in 0..3 {
+                worst = worst.max(px[c].abs_diff(want[c]));
+            }
+            n += 1;
+        }
+        eprintln!("channel {channel}: {n} pixels, worst |warped − exact| {worst}/255");
+        assert!(
+            n > 10_000,
+            "channel {channel}: only {n} pixels inside the master"
+        );
+        assert!(
+            worst <= 2,
+            "channel {channel}: warped colour off by {worst}/255"
+        );
+    }
+    // Bad input: not square, not an image.
+    let e =
+        relief::app::warp::apply_dome_master(&config, 0, None, &config, 180.0, &dir.join("x.png"))
+            .unwrap_err()
+            .to_string();
+    assert!(
+        e.contains("dome-5proj.toml") && e.contains("dome master"),
+        "{e}"
+    );
+    relief::app::capture::write_png(&dir.join("wide.png"), 4, 2, &[0; 32]).unwrap();
+    let e = relief::app::warp::apply_dome_master(
+        &config,
+        0,
+        None,
+        &dir.join("wide.png"),
+        180.0,
+        &dir.join("x.png"),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("square"), "{e}");
+    assert!(!dir.join("x.png").exists());
+}
+
+#[test]
+fn cli_renders_a_square_dome_master() {
+    let _l = gpu_lock();
+    if gpu().is_none() {
+        return;
+    }
+    let dir = std::env::temp_dir().join(format!("relief-test-{}-dm-cli", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let o = relief(&[
+        "render",
+        "terrains/alps.toml",
+        "--dome-master",
+        "180",
+        "--pattern",
+        "--size",
+        "96x64",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let img = image::open(dir.join("frame_0000.png")).unwrap().to_rgba8();
+    assert_eq!(img.dimensions(), (64, 64));
+    assert_eq!(
+        &img.get_pixel(0, 0).0[..3],
+        &[0, 0, 0],
+        "corner outside the fisheye is black"
+    );
+    assert_ne!(
+        &img.get_pixel(32, 32).0[..3],
+        &[0, 0, 0],
+        "the zenith shows the pattern"
+    );
+    let o = relief(&[
+        "render",
+        "terrains/alps.toml",
+        "--dome-master",
+        "0",
+        "--out",
+        dir.join("bad").to_str().unwrap(),
+    ]);
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--dome-master"));
+    let _ = std::fs::remove_dir_all(&dir);
+}

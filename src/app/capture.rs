@@ -165,6 +165,9 @@ pub struct RenderJob {
     /// Render the warp test pattern ([`crate::display::pattern`], circles around the camera's
     /// forward direction) instead of the scene.
     pub pattern: bool,
+    /// Render a dome master of this field of view (degrees) instead of a pinhole image:
+    /// an angular fisheye around the vehicle's up axis ([`crate::display::dome_master`]).
+    pub dome_master: Option<f64>,
 }
 
 /// The display part of a render job.
@@ -273,6 +276,27 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
             "pixels_on_screen": lit,
             "mode": mode,
             "model": "per-pixel ray = world_from_display * normalize(screen_point(pixel) - eye); world_from_display maps display x, y, z to the camera's right, forward, up",
+        });
+    }
+    if let Some(fov) = job.dome_master {
+        crate::display::dome_master::check_fov("--dome-master", fov)?;
+        if job.display.is_some() {
+            return Err(Error::invalid(
+                "--dome-master",
+                "renders the fulldome master itself; drop --display (use `relief warp apply` to \
+                 warp a dome master into a projector channel)",
+            ));
+        }
+        let o = &mut scene.desc.output;
+        let size = o.width.min(o.height);
+        (o.width, o.height) = (size, size);
+        let points = super::verify::view_points(size, size, |x, y| {
+            crate::display::dome_master::direction(x, y, size, fov)
+        });
+        renderer.set_display(&gpu, &points, glam::DVec3::ZERO)?;
+        display_meta = json!({
+            "mode": format!("dome master: {fov}° angular fisheye, {size}x{size}"),
+            "model": "zenith (vehicle up) at the centre, vehicle forward at the bottom, right to the right; radius proportional to the angle from the zenith",
         });
     }
     let mut settings = RenderSettings::from_scene(&scene.desc);

@@ -171,3 +171,76 @@ pub fn export(
         out.display()
     ))
 }
+
+/// `relief warp apply`: warps a dome master (an existing fulldome frame, see
+/// [`crate::display::dome_master`]) into one channel's projector image through the channel's
+/// table, bilinearly, then applies the channel's edge blend, as a media server would. Writes a
+/// PNG at the projector's resolution; black where the projector misses the screen or the
+/// direction lies beyond the master's field. Returns a one-line summary.
+pub fn apply_dome_master(
+    config: &Path,
+    channel: usize,
+    eye: Option<[f64; 3]>,
+    input: &Path,
+    fov: f64,
+    out: &Path,
+) -> Result<String> {
+    crate::display::dome_master::check_fov("--fov", fov)?;
+    let cfg = DisplayConfig::load(config)?;
+    let ch = cfg.channels.get(channel).ok_or_else(|| {
+        Error::invalid(
+            "--channel",
+            format!(
+                "{} has {} channel(s), asked for index {channel}",
+                config.display(),
+                cfg.channels.len()
+            ),
+        )
+    })?;
+    let img = image::open(input)
+        .map_err(|e| Error::format(input, format!("cannot read the dome master: {e}")))?
+        .to_rgba8();
+    let (w, h) = img.dimensions();
+    if w != h || w < 2 {
+        return Err(Error::format(
+            input,
+            format!("a dome master is a square image, this one is {w}x{h}"),
+        ));
+    }
+    let p = ch.projector;
+    let pts = screen_points(&cfg.screen, &p);
+    let eye = eye.map_or(DVec3::from(cfg.eye.position), DVec3::from);
+    crate::scene::check_finite("--eye", &eye.to_array())?;
+    let offset = ch.view.map(|v| v.matrix());
+    let src = img.as_raw();
+    let mut rgba = vec![0u8; (p.width * p.height * 4) as usize];
+    let (mut lit, mut covered) = (0usize, 0usize);
+    for (k, s) in pts.points.iter().enumerate() {
+        rgba[4 * k + 3] = 255;
+        let Some(d) = s.and_then(|s| (s - eye).try_normalize()) else {
+            continue;
+        };
+        lit += 1;
+        let d = offset.map_or(d, |o| o * d);
+        let Some((x, y)) = crate::display::dome_master::pixel(d, w, fov) else {
+            continue;
+        };
+        covered += 1;
+        let c = super::verify::sample_rgba8(src, w, h, x, y);
+        for i in 0..3 {
+            rgba[4 * k + i] = (c[i] * 255.0).round() as u8;
+        }
+    }
+    if let Some(b) = &ch.blend {
+        b.apply_rgba8(&mut rgba, p.width, p.height);
+    }
+    super::capture::write_png(out, p.width, p.height, &rgba)?;
+    Ok(format!(
+        "{}: channel {channel} ({}x{}), {lit} pixels on the screen, {covered} inside the {fov}° master{} -> {}",
+        input.display(),
+        p.width,
+        p.height,
+        if ch.blend.is_some() { ", edge blend applied" } else { "" },
+        out.display()
+    ))
+}

@@ -7,6 +7,7 @@
 //! z → camera up.
 
 pub mod blend;
+pub mod dome_master;
 pub mod pattern;
 pub mod warp;
 
