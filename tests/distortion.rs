@@ -44,6 +44,7 @@ fn ftheta_projector_at_dome_centre_gives_the_ftheta_mapping() {
         width: 96,
         height: 96,
         lens: Lens::Ftheta { fov: 180.0 },
+        distortion: None,
     };
     let table = ray_table(
         &screen_points(&screen, &p),
@@ -100,6 +101,7 @@ fn off_centre_eye_on_a_cylinder_matches_closed_form_geometry() {
             fov: 64.0,
             shift: [0.05, -0.02],
         },
+        distortion: None,
     };
     let eye = DVec3::new(0.3, -0.2, 0.1);
     let (heading, pitch, roll) = (140.0, -3.0, 4.0);
@@ -488,5 +490,48 @@ fn a_channel_view_offset_turns_the_gpu_table_as_the_cpu_reference_does() {
     assert!(
         turned > 5.0,
         "the offset did not turn the table (min {turned}°)"
+    );
+}
+
+#[test]
+fn measured_lens_distortion_moves_the_screen_points_and_folding_models_are_refused() {
+    let cfg = DisplayConfig::load(&project_dir().join("distortion/dome-5proj.toml")).unwrap();
+    let p = cfg.channels[0].projector;
+    let d = p.distortion.expect("the front channel has a measured lens");
+    let ideal = Projector {
+        distortion: None,
+        ..p
+    };
+    let (a, b) = (
+        screen_points(&cfg.screen, &p),
+        screen_points(&cfg.screen, &ideal),
+    );
+    // Corner pixel: barrel distortion pulls the imaged corner inwards, so the real pixel there
+    // sees further out than the ideal lens says.
+    let k = 0;
+    let (pa, pb) = (a.points[k].unwrap(), b.points[k].unwrap());
+    let eye = DVec3::from(cfg.eye.position);
+    let moved = (pa - eye).angle_between(pb - eye).to_degrees();
+    eprintln!("corner ray moved {moved:.3}° by {d:?}");
+    assert!(moved > 0.5, "distortion moved the corner ray only {moved}°");
+    // The model round-trips through the projector's own pixel function.
+    let dir = (pa - DVec3::from(p.position)).normalize();
+    let (u, v) = p.pixel(dir).unwrap();
+    assert!(
+        (u - 0.5).abs() < 1e-6 && (v - 0.5).abs() < 1e-6,
+        "({u}, {v})"
+    );
+    // A model that folds over inside the image is refused, naming the field.
+    let text = std::fs::read_to_string(project_dir().join("distortion/dome-5proj.toml"))
+        .unwrap()
+        .replace("k1 = -0.04, k2 = 0.006", "k1 = -0.9, k2 = 0.0");
+    let dir = std::env::temp_dir().join(format!("relief-test-{}-fold", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("fold.toml");
+    std::fs::write(&path, text).unwrap();
+    let e = DisplayConfig::load(&path).unwrap_err().to_string();
+    assert!(
+        e.contains("channel[0].projector.distortion") && e.contains("invert"),
+        "{e}"
     );
 }

@@ -47,7 +47,20 @@ fn lens_inverse_round_trips() {
             shift: [0.1, -0.05],
         },
         Lens::Ftheta { fov: 200.0 },
-    ] {
+    ]
+    .into_iter()
+    .flat_map(|l| {
+        // Each lens ideal and with a measured distortion (barrel + tangential).
+        let measured = relief::display::LensDistortion {
+            k1: -0.05,
+            k2: 0.01,
+            k3: 0.0,
+            p1: 0.002,
+            p2: -0.001,
+        };
+        [(l, None), (l, Some(measured))]
+    }) {
+        let (lens, distortion) = lens;
         let p = Projector {
             position: [0.3, -0.2, 0.1],
             heading: 30.0,
@@ -56,6 +69,7 @@ fn lens_inverse_round_trips() {
             width: 120,
             height: 90,
             lens,
+            distortion,
         };
         let mut n = 0;
         for y in 0..90 {
@@ -65,7 +79,7 @@ fn lens_inverse_round_trips() {
                 let (bu, bv) = p.pixel(d).expect("a ray's own direction is in the field");
                 assert!(
                     (bu - u).abs() < 1e-9 && (bv - v).abs() < 1e-9,
-                    "{lens:?} ({u}, {v}) -> ({bu}, {bv})"
+                    "{lens:?} {distortion:?} ({u}, {v}) -> ({bu}, {bv})"
                 );
                 n += 1;
             }

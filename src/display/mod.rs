@@ -122,6 +122,65 @@ pub struct Projector {
     pub width: u32,
     pub height: u32,
     pub lens: Lens,
+    /// Measured lens distortion on top of the ideal lens.
+    #[serde(default)]
+    pub distortion: Option<LensDistortion>,
+}
+
+/// `distortion = { k1, k2, k3, p1, p2 }`: Brown–Conrady radial (k) and tangential (p)
+/// coefficients of a measured projector lens, in the lens's normalised image coordinates
+/// (perspective: `(u − cx)/f`; f-theta: offset from the centre over the fisheye radius). The
+/// ideal point `q` is imaged at `D(q) = q·(1 + k1 r² + k2 r⁴ + k3 r⁶) + (2 p1 x y + p2 (r² + 2x²),
+/// p1 (r² + 2y²) + 2 p2 x y)`. Screen points (and so the per-frame table) use the inverse.
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct LensDistortion {
+    pub k1: f64,
+    pub k2: f64,
+    pub k3: f64,
+    pub p1: f64,
+    pub p2: f64,
+}
+
+impl LensDistortion {
+    /// Where the ideal normalised point `q` is imaged.
+    pub fn apply(&self, q: [f64; 2]) -> [f64; 2] {
+        let [x, y] = q;
+        let r2 = x * x + y * y;
+        let radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));
+        [
+            x * radial + 2.0 * self.p1 * x * y + self.p2 * (r2 + 2.0 * x * x),
+            y * radial + self.p1 * (r2 + 2.0 * y * y) + 2.0 * self.p2 * x * y,
+        ]
+    }
+
+    /// The ideal point imaged at `a` (Newton's method, numeric Jacobian); `None` if it does not
+    /// converge (the distortion folds over there).
+    pub fn invert(&self, a: [f64; 2]) -> Option<[f64; 2]> {
+        let mut q = a;
+        for _ in 0..50 {
+            let d = self.apply(q);
+            let e = [d[0] - a[0], d[1] - a[1]];
+            if e[0].hypot(e[1]) < 1e-14 {
+                return Some(q);
+            }
+            let h = 1e-7;
+            let dx = self.apply([q[0] + h, q[1]]);
+            let dy = self.apply([q[0], q[1] + h]);
+            let (j00, j10) = ((dx[0] - d[0]) / h, (dx[1] - d[1]) / h);
+            let (j01, j11) = ((dy[0] - d[0]) / h, (dy[1] - d[1]) / h);
+            let det = j00 * j11 - j01 * j10;
+            if !det.is_finite() || det.abs() < 1e-12 {
+                return None;
+            }
+            q = [
+                q[0] - (j11 * e[0] - j01 * e[1]) / det,
+                q[1] - (-j10 * e[0] + j00 * e[1]) / det,
+            ];
+        }
+        let d = self.apply(q);
+        ((d[0] - a[0]).hypot(d[1] - a[1]) < 1e-10).then_some(q)
+    }
 }
 
 /// Projector lens.
@@ -149,12 +208,14 @@ impl Projector {
             Lens::Perspective { fov, shift } => {
                 let f = 0.5 * w / (0.5 * fov.to_radians()).tan();
                 let (cx, cy) = (0.5 * w + shift[0] * w, 0.5 * h + shift[1] * h);
-                DVec3::new((u - cx) / f, (v - cy) / f, 1.0).normalize()
+                let [x, y] = self.undistort([(u - cx) / f, (v - cy) / f])?;
+                DVec3::new(x, y, 1.0).normalize()
             }
             Lens::Ftheta { fov } => {
-                let (du, dv) = (u - 0.5 * w, v - 0.5 * h);
-                let r = (du * du + dv * dv).sqrt();
                 let rmax = 0.5 * w.min(h);
+                let [qx, qy] = self.undistort([(u - 0.5 * w) / rmax, (v - 0.5 * h) / rmax])?;
+                let (du, dv) = (qx * rmax, qy * rmax);
+                let r = (du * du + dv * dv).sqrt();
                 let theta = r / rmax * 0.5 * fov.to_radians();
                 if r > rmax {
                     return None;
@@ -168,6 +229,19 @@ impl Projector {
         };
         let (right, down, fwd) = attitude_basis(self.heading, self.pitch, self.roll);
         Some(DMat3::from_cols(right, down, fwd) * local)
+    }
+
+    /// Ideal normalised point of an imaged one (identity without distortion).
+    fn undistort(&self, a: [f64; 2]) -> Option<[f64; 2]> {
+        match &self.distortion {
+            Some(d) => d.invert(a),
+            None => Some(a),
+        }
+    }
+
+    /// Imaged normalised point of an ideal one (identity without distortion).
+    fn distort(&self, q: [f64; 2]) -> [f64; 2] {
+        self.distortion.map_or(q, |d| d.apply(q))
     }
 }
 
@@ -186,7 +260,8 @@ impl Projector {
                 }
                 let f = 0.5 * w / (0.5 * fov.to_radians()).tan();
                 let (cx, cy) = (0.5 * w + shift[0] * w, 0.5 * h + shift[1] * h);
-                Some((cx + f * l.x / l.z, cy + f * l.y / l.z))
+                let [x, y] = self.distort([l.x / l.z, l.y / l.z]);
+                Some((cx + f * x, cy + f * y))
             }
             Lens::Ftheta { fov } => {
                 let theta = l.z.clamp(-1.0, 1.0).acos();
@@ -196,10 +271,13 @@ impl Projector {
                     return None;
                 }
                 let rho = l.x.hypot(l.y);
-                if rho < 1e-15 {
-                    return Some((0.5 * w, 0.5 * h));
-                }
-                Some((0.5 * w + r * l.x / rho, 0.5 * h + r * l.y / rho))
+                let q = if rho < 1e-15 {
+                    [0.0, 0.0]
+                } else {
+                    [r / rmax * l.x / rho, r / rmax * l.y / rho]
+                };
+                let [x, y] = self.distort(q);
+                Some((0.5 * w + x * rmax, 0.5 * h + y * rmax))
             }
         }
     }
@@ -472,6 +550,32 @@ impl DisplayConfig {
                     f("width/height"),
                     format!("must be 1..=16384, got {}x{}", p.width, p.height),
                 ));
+            }
+            if let Some(d) = &p.distortion {
+                let k = [d.k1, d.k2, d.k3, d.p1, d.p2];
+                if k.iter().any(|v| !v.is_finite() || v.abs() > 10.0) {
+                    return Err(Error::invalid(
+                        f("distortion"),
+                        format!("coefficients must be finite and within ±10, got {k:?}"),
+                    ));
+                }
+                // The measured model must be invertible over the whole image.
+                let corners = [(0.0, 0.0), (p.width as f64, 0.0), (0.0, p.height as f64)];
+                let edge = corners
+                    .iter()
+                    .chain(&[
+                        (p.width as f64, p.height as f64),
+                        (0.5 * p.width as f64, 0.0),
+                    ])
+                    .all(|&(u, v)| p.ray(u, v).is_some() || matches!(p.lens, Lens::Ftheta { .. }));
+                if !edge {
+                    return Err(Error::invalid(
+                        f("distortion"),
+                        "does not invert over the image (the polynomial folds over before the \
+                         corners): check the coefficients' signs and units (normalised \
+                         coordinates, not pixels)",
+                    ));
+                }
             }
             match p.lens {
                 Lens::Perspective { fov, shift } => {
