@@ -5,7 +5,8 @@
 //! reference that `relief warp verify` and the tests use.
 //!
 //! Grid mode: azimuth/elevation lines every 5° (every 90° of azimuth thicker), a thick
-//! horizon, circles every 10° around a boresight and a dot on it, on a background tinted by
+//! horizon, numeric labels (every 10° of elevation at every 30° of azimuth the elevation in
+//! degrees; on the horizon the azimuth), circles every 10° around a boresight and a dot on it, on a background tinted by
 //! hemisphere (east/west, above/below the horizon). Grating mode: a sinusoid in elevation,
 //! `0.5 + 0.5 cos(2π f el)` (f cycles per radian), for sharpness measurements.
 //! Directions: world x east, y north, z up; azimuth clockwise from north.
@@ -20,6 +21,57 @@ const LINE_HALF_WIDTH_DEG: f64 = 0.12;
 const MAJOR_HALF_WIDTH_DEG: f64 = 0.25;
 const HORIZON_HALF_WIDTH_DEG: f64 = 0.4;
 const MIN_FILTER_DEG: f64 = 0.02;
+/// Label rows (degrees of elevation) and columns (degrees of azimuth).
+pub const LABEL_EL_DEG: f64 = 10.0;
+pub const LABEL_AZ_DEG: f64 = 30.0;
+/// One glyph pixel (degrees); glyphs are 3x5 pixels in 4-pixel-wide cells.
+pub const LABEL_CELL_DEG: f64 = 0.3;
+/// Offset of a label from its grid crossing, up and to the right (degrees).
+pub const LABEL_GAP_DEG: f64 = 0.4;
+/// 3x5 glyphs of `0`..`9` and `-`, rows top to bottom, 15 bits, most significant first
+/// (WGSL `pat_glyph`).
+const GLYPHS: [u32; 11] = [
+    0x7b6f, 0x2c97, 0x73e7, 0x73cf, 0x5bc9, 0x79cf, 0x79ef, 0x7249, 0x7bef, 0x7bcf, 0x1c0,
+];
+
+/// Whether a direction at azimuth/elevation (degrees; `el` radians) falls on a lit glyph
+/// pixel of a grid label (WGSL `pat_label`).
+fn label_ink(az_deg: f64, el_deg: f64, el: f64) -> bool {
+    if el_deg.abs() >= 85.0 {
+        return false;
+    }
+    let j = (el_deg / LABEL_EL_DEG).floor();
+    let k = (az_deg / LABEL_AZ_DEG).floor();
+    let x = (az_deg - k * LABEL_AZ_DEG) * el.cos() - LABEL_GAP_DEG;
+    let y = el_deg - j * LABEL_EL_DEG - LABEL_GAP_DEG;
+    if x < 0.0 || y < 0.0 {
+        return false;
+    }
+    let value = if j == 0.0 {
+        (k * LABEL_AZ_DEG).rem_euclid(360.0) as i32
+    } else {
+        (j * LABEL_EL_DEG) as i32
+    };
+    let a = value.unsigned_abs();
+    let neg = u32::from(value < 0);
+    let digits = 1 + u32::from(a >= 10) + u32::from(a >= 100);
+    let ci = (x / (4.0 * LABEL_CELL_DEG)).floor() as u32;
+    if ci >= digits + neg {
+        return false;
+    }
+    let gx = ((x - ci as f64 * 4.0 * LABEL_CELL_DEG) / LABEL_CELL_DEG).floor() as u32;
+    let gy_up = (y / LABEL_CELL_DEG).floor() as u32;
+    if gx >= 3 || gy_up >= 5 {
+        return false;
+    }
+    let glyph = if neg == 1 && ci == 0 {
+        GLYPHS[10]
+    } else {
+        let i = ci - neg;
+        GLYPHS[(a / 10u32.pow(digits - 1 - i) % 10) as usize]
+    };
+    (glyph >> (14 - ((4 - gy_up) * 3 + gx))) & 1 == 1
+}
 
 /// What the pattern draws.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -95,6 +147,9 @@ pub fn pattern_colour(d: DVec3, cone: f64, p: &PatternParams) -> [f64; 3] {
         0.0
     };
     c = mix(c, [0.85, 0.85, 0.85], grid_el.max(grid_az));
+    if label_ink(az_deg, el_deg, el) {
+        c = [1.0, 1.0, 1.0];
+    }
     // Circles around the boresight, and a dot on it.
     let ang = d
         .cross(p.boresight)
