@@ -245,6 +245,23 @@ fn closed_loop_error_is_below_one_arcmin_on_every_demo_config() {
             assert!(c.eye_pixels > 0, "{name}: channel {} never seen", c.name);
         }
         assert_eq!(img.as_seen.len(), 160 * 160 * 4);
+        // Geometric blends hand the light over across every overlap.
+        if cfg.channels.iter().all(|c| c.blend.is_some_and(|b| b.auto)) {
+            let [lo, mean, hi] = r.blend_sum.expect("blended channels overlap");
+            eprintln!(
+                "{name}: blended light over {} overlap pixels: min {lo:.3} mean {mean:.4} max {hi:.3}",
+                r.overlap_pixels
+            );
+            assert!(
+                r.overlap_pixels > 50,
+                "{name}: {} overlap pixels",
+                r.overlap_pixels
+            );
+            assert!(
+                (mean - 1.0).abs() < 0.02 && lo > 0.85 && hi < 1.15,
+                "{name}: blended light sums to {lo:.3}..{hi:.3} (mean {mean:.3}), not 1"
+            );
+        }
     }
 }
 

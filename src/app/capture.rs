@@ -245,10 +245,12 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
             renderer.set_view_offset(v.matrix());
         }
         // Direct mode blends on the GPU; two-pass mode after its CPU warp (below).
-        if !d.two_pass {
-            renderer.set_blend(&gpu, channel.blend);
+        let blend = crate::display::blend::ChannelBlend::new(&cfg, d.channel);
+        if d.two_pass {
+            blend_after_warp = blend;
+        } else {
+            renderer.set_blend(&gpu, blend.as_ref())?;
         }
-        blend_after_warp = channel.blend.filter(|_| d.two_pass);
         let mut mode = json!("direct: one ray per projector pixel");
         if d.two_pass {
             let dirs: Vec<_> = points
@@ -331,7 +333,7 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
             None => renderer.capture(&gpu, &terrain, &scene.desc, &cam, &settings)?,
         };
         if let Some(b) = &blend_after_warp {
-            b.apply_rgba8(&mut out.rgba, out.width, out.height);
+            b.apply_rgba8(&mut out.rgba);
         }
         let png = job.out_dir.join(format!("frame_{frame:04}.png"));
         let tif = job.out_dir.join(format!("depth_{frame:04}.tiff"));

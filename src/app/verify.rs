@@ -447,6 +447,12 @@ pub struct VerifyReport {
     /// Mean absolute difference of the grid pattern as seen vs the reference (0..255).
     pub grid_mean_abs_diff: f64,
     pub grid_mean_abs_diff_two_pass: Option<f64>,
+    /// Eye pixels whose screen point two or more projectors light.
+    pub overlap_pixels: usize,
+    /// Over those pixels, the sum of the channels' edge-blend light weights at the point
+    /// (ideal 1: the blends hand the light over without a seam): min, mean, max. `None`
+    /// without overlaps.
+    pub blend_sum: Option<[f64; 3]>,
     pub channels: Vec<ChannelFigures>,
 }
 
@@ -645,25 +651,50 @@ pub fn verify(
 
     // Close the loop per eye pixel.
     let projectors: Vec<Projector> = chans.iter().map(|&c| cfg.channels[c].projector).collect();
-    let landings: Vec<Landing> = (0..ew * eh)
+    let blends: Vec<_> = chans
+        .iter()
+        .map(|&c| crate::display::blend::ChannelBlend::new(cfg, c))
+        .collect();
+    // Per eye pixel: the landing in the channel that holds the point deepest, and, where
+    // several channels light the point, the sum of their blend light weights.
+    let landed: Vec<(Option<(usize, f64, f64)>, Option<f64>)> = (0..ew * eh)
         .into_par_iter()
         .map(|k| {
-            let e = eye_pts.points[k as usize]?;
-            let s = cfg.screen.seen_from(eye, e)?;
+            let Some(s) = eye_pts.points[k as usize].and_then(|e| cfg.screen.seen_from(eye, e))
+            else {
+                return (None, None);
+            };
             let mut best: Option<(usize, f64, f64, f64)> = None;
+            let (mut lit, mut weight) = (0, 0.0);
             for (i, p) in projectors.iter().enumerate() {
                 if let Some((u, v, m)) = land(&cfg.screen, p, s) {
                     let t = &views[i].table;
-                    if sample_table(t, p.width, p.height, u, v).is_some()
-                        && best.is_none_or(|b| m > b.3)
-                    {
-                        best = Some((i, u, v, m));
+                    if sample_table(t, p.width, p.height, u, v).is_some() {
+                        lit += 1;
+                        weight += blends[i]
+                            .as_ref()
+                            .map_or(1.0, |b| b.light_weight(u.floor() as u32, v.floor() as u32));
+                        if best.is_none_or(|b| m > b.3) {
+                            best = Some((i, u, v, m));
+                        }
                     }
                 }
             }
-            best.map(|(i, u, v, _)| (i, u, v))
+            (
+                best.map(|(i, u, v, _)| (i, u, v)),
+                (lit > 1).then_some(weight),
+            )
         })
         .collect();
+    let landings: Vec<Landing> = landed.iter().map(|l| l.0).collect();
+    let sums: Vec<f64> = landed.iter().filter_map(|l| l.1).collect();
+    let blend_sum = (!sums.is_empty()).then(|| {
+        [
+            sums.iter().copied().fold(f64::INFINITY, f64::min),
+            sums.iter().sum::<f64>() / sums.len() as f64,
+            sums.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        ]
+    });
     let n = (ew * eh) as usize;
     let mut as_seen = vec![0u8; n * 4];
     let mut as_seen_two = opts.two_pass.then(|| vec![0u8; n * 4]);
@@ -747,6 +778,8 @@ pub fn verify(
             .then(|| contrast_slope(&seen_pairs_two).unwrap_or(0.0)),
         grid_mean_abs_diff: grid_diff / covered as f64,
         grid_mean_abs_diff_two_pass: opts.two_pass.then(|| grid_diff_two / covered as f64),
+        overlap_pixels: sums.len(),
+        blend_sum,
         channels: figures,
     };
     let mut two_iter = two.into_iter();
@@ -796,6 +829,12 @@ pub fn summary(r: &VerifyReport) -> String {
     );
     if let Some(t) = r.grid_mean_abs_diff_two_pass {
         s += &format!(" direct, {t:.2}/255 two-pass");
+    }
+    if let Some([lo, mean, hi]) = r.blend_sum {
+        s += &format!(
+            "\n  overlaps: {} eye pixels lit by 2+ projectors; blended light sum min {lo:.3} / mean {mean:.3} / max {hi:.3} (ideal 1)",
+            r.overlap_pixels
+        );
     }
     for c in &r.channels {
         s += &format!(

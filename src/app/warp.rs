@@ -231,8 +231,8 @@ pub fn apply_dome_master(
             rgba[4 * k + i] = (c[i] * 255.0).round() as u8;
         }
     }
-    if let Some(b) = &ch.blend {
-        b.apply_rgba8(&mut rgba, p.width, p.height);
+    if let Some(b) = crate::display::blend::ChannelBlend::new(&cfg, channel) {
+        b.apply_rgba8(&mut rgba);
     }
     super::capture::write_png(out, p.width, p.height, &rgba)?;
     Ok(format!(

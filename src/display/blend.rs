@@ -18,6 +18,13 @@ pub struct Blend {
     /// Projector gamma (light ∝ pixel value^gamma).
     #[serde(default = "default_gamma")]
     pub gamma: f64,
+    /// Geometric blend: weights from where the other channels of the configuration light the
+    /// same screen point (see [`geometric_weights`]); the edges above multiply on top.
+    #[serde(default)]
+    pub auto: bool,
+    /// Exponent of the geometric blend's falloff towards the image border.
+    #[serde(default = "default_exponent")]
+    pub auto_exponent: f64,
 }
 
 /// One edge: ramp `width` (fraction of the image width or height) and curve exponent.
@@ -65,6 +72,12 @@ impl Blend {
                 }
             }
         }
+        if !(0.5..=10.0).contains(&self.auto_exponent) {
+            return Err(Error::invalid(
+                format!("{field}.auto_exponent"),
+                format!("must be in 0.5..=10, got {}", self.auto_exponent),
+            ));
+        }
         if !(1.0..=4.0).contains(&self.gamma) {
             return Err(Error::invalid(
                 format!("{field}.gamma"),
@@ -102,20 +115,130 @@ impl Blend {
         w
     }
 
-    /// Factor on the pixel value: `light_weight^(1/gamma)`.
-    pub fn pixel_factor(&self, x: u32, y: u32, width: u32, height: u32) -> f64 {
-        self.light_weight(x, y, width, height)
-            .powf(1.0 / self.gamma)
+    /// Factor on the pixel value: `(light_weight · mask)^(1/gamma)`, `mask` being the
+    /// pixel's geometric weight (1 without one).
+    pub fn pixel_factor(&self, x: u32, y: u32, width: u32, height: u32, mask: f64) -> f64 {
+        (self.light_weight(x, y, width, height) * mask).powf(1.0 / self.gamma)
     }
 
     /// Blends an RGBA8 image (row 0 at the top) in place, as the GPU pass does: colour
-    /// channels times the pixel factor, rounded; alpha kept.
-    pub fn apply_rgba8(&self, rgba: &mut [u8], width: u32, height: u32) {
+    /// channels times the pixel factor, rounded; alpha kept. `mask`: the geometric weights
+    /// (one per pixel) of an `auto` blend.
+    pub fn apply_rgba8(&self, rgba: &mut [u8], width: u32, height: u32, mask: Option<&[f32]>) {
         for (k, px) in rgba.chunks_exact_mut(4).enumerate() {
-            let f = self.pixel_factor(k as u32 % width, k as u32 / width, width, height);
+            let m = mask.map_or(1.0, |m| m[k] as f64);
+            let f = self.pixel_factor(k as u32 % width, k as u32 / width, width, height, m);
             for c in &mut px[..3] {
                 *c = (*c as f64 * f).round() as u8;
             }
         }
+    }
+}
+
+/// Distance (pixels) of image point (u, v) from the nearest border of a `w x h` image, or
+/// `None` outside it.
+pub fn border_margin(u: f64, v: f64, w: u32, h: u32) -> Option<f64> {
+    let m = u.min(w as f64 - u).min(v).min(h as f64 - v);
+    (m >= 0.0).then_some(m)
+}
+
+/// The geometric blend weight of projector `own` (image point `(u, v)`) at screen point `s`
+/// among `others`: `m^p / Σ m_j^p`, `m` being each image point's distance from its image
+/// border relative to the image's smaller side.
+pub fn geometric_weight<'a>(
+    screen: &super::Screen,
+    own: &super::Projector,
+    (u, v): (f64, f64),
+    s: glam::DVec3,
+    others: impl Iterator<Item = &'a super::Projector>,
+    p: f64,
+) -> f64 {
+    let rel = |m: f64, pr: &super::Projector| m / pr.width.min(pr.height) as f64;
+    let Some(m) = border_margin(u, v, own.width, own.height) else {
+        return 0.0;
+    };
+    let mine = rel(m, own).powf(p);
+    let mut total = mine;
+    for q in others {
+        if let Some((qu, qv)) = crate::cpu::distortion::projector_coord(screen, q, s) {
+            if let Some(mq) = border_margin(qu, qv, q.width, q.height) {
+                total += rel(mq, q).powf(p);
+            }
+        }
+    }
+    if total > 0.0 {
+        mine / total
+    } else {
+        1.0
+    }
+}
+
+/// Geometric blend weights of `channel` of `cfg`, one per projector pixel (row 0 at the top;
+/// see [`geometric_weight`]): where several projectors light the same screen point their
+/// weights add up to 1 and each falls to 0 at its image border. 1 where only this channel
+/// lights the screen, 0 where it lights none.
+pub fn geometric_weights(cfg: &super::DisplayConfig, channel: usize, p: f64) -> Vec<f32> {
+    use rayon::prelude::*;
+    let own = cfg.channels[channel].projector;
+    let pts = crate::cpu::distortion::screen_points(&cfg.screen, &own);
+    pts.points
+        .par_iter()
+        .enumerate()
+        .map(|(k, s)| {
+            let Some(s) = s else { return 0.0 };
+            let uv = (
+                (k as u32 % own.width) as f64 + 0.5,
+                (k as u32 / own.width) as f64 + 0.5,
+            );
+            let others = cfg
+                .channels
+                .iter()
+                .enumerate()
+                .filter(|(j, _)| *j != channel)
+                .map(|(_, c)| &c.projector);
+            geometric_weight(&cfg.screen, &own, uv, *s, others, p) as f32
+        })
+        .collect()
+}
+
+/// A channel's blend ready to apply: its ramps and, for an `auto` blend, the per-pixel
+/// geometric weights.
+#[derive(Clone, Debug)]
+pub struct ChannelBlend {
+    pub blend: Blend,
+    /// Geometric weights, `width x height`, row 0 at the top.
+    pub mask: Option<Vec<f32>>,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl ChannelBlend {
+    /// The blend of `channel` of `cfg`, if it has one.
+    pub fn new(cfg: &super::DisplayConfig, channel: usize) -> Option<ChannelBlend> {
+        let c = cfg.channels.get(channel)?;
+        let blend = c.blend?;
+        let p = c.projector;
+        Some(ChannelBlend {
+            blend,
+            mask: blend
+                .auto
+                .then(|| geometric_weights(cfg, channel, blend.auto_exponent)),
+            width: p.width,
+            height: p.height,
+        })
+    }
+
+    /// Light weight at pixel (x, y): ramps times the geometric weight.
+    pub fn light_weight(&self, x: u32, y: u32) -> f64 {
+        let m = self.mask.as_ref().map_or(1.0, |m| {
+            m[(y.min(self.height - 1) * self.width + x.min(self.width - 1)) as usize] as f64
+        });
+        self.blend.light_weight(x, y, self.width, self.height) * m
+    }
+
+    /// Blends an RGBA8 image of the channel's size in place (see [`Blend::apply_rgba8`]).
+    pub fn apply_rgba8(&self, rgba: &mut [u8]) {
+        self.blend
+            .apply_rgba8(rgba, self.width, self.height, self.mask.as_deref());
     }
 }

@@ -4,7 +4,8 @@
 
 use super::renderer::{fullscreen_pipeline, screen_texture, target_state, uniform_entry};
 use super::{shaders, Gpu};
-use crate::display::blend::Blend;
+use crate::display::blend::{Blend, ChannelBlend};
+use crate::{Error, Result};
 
 /// Mirrors WGSL `BlendParams` in `shaders/blend.wgsl`.
 #[repr(C)]
@@ -22,6 +23,9 @@ pub(crate) struct BlendPass {
     pub pipeline: wgpu::RenderPipeline,
     ub: wgpu::Buffer,
     pub blend: Blend,
+    /// Geometric weights (R32Float, the channel's size; 1x1 of 1.0 without).
+    mask: wgpu::TextureView,
+    mask_size: Option<[u32; 2]>,
 }
 
 /// Size-dependent resources: the copy of the finished image the pass reads.
@@ -31,7 +35,8 @@ pub(crate) struct BlendTargets {
 }
 
 impl BlendPass {
-    pub fn new(gpu: &Gpu, blend: Blend) -> BlendPass {
+    pub fn new(gpu: &Gpu, cb: &ChannelBlend) -> Result<BlendPass> {
+        let blend = cb.blend;
         let dev = &gpu.device;
         let fs = wgpu::ShaderStages::FRAGMENT;
         let bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -40,6 +45,16 @@ impl BlendPass {
                 uniform_entry(0, fs),
                 wgpu::BindGroupLayoutEntry {
                     binding: 1,
+                    visibility: fs,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 2,
                     visibility: fs,
                     ty: wgpu::BindingType::Texture {
                         sample_type: wgpu::TextureSampleType::Float { filterable: false },
@@ -68,15 +83,58 @@ impl BlendPass {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        BlendPass {
+        let (size, data) = match &cb.mask {
+            Some(m) => ([cb.width, cb.height], m.as_slice()),
+            None => ([1, 1], &[1.0f32][..]),
+        };
+        let max = gpu.limits.max_texture_dimension_2d;
+        if size[0] > max || size[1] > max {
+            return Err(Error::Limit {
+                what: "blend mask".into(),
+                msg: format!("{}x{} over the adapter's {max}", size[0], size[1]),
+            });
+        }
+        let tex = screen_texture(
+            dev,
+            "blend mask",
+            size,
+            wgpu::TextureFormat::R32Float,
+            wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        );
+        gpu.queue.write_texture(
+            tex.as_image_copy(),
+            bytemuck::cast_slice(data),
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(size[0] * 4),
+                rows_per_image: Some(size[1]),
+            },
+            wgpu::Extent3d {
+                width: size[0],
+                height: size[1],
+                depth_or_array_layers: 1,
+            },
+        );
+        Ok(BlendPass {
             bgl,
             pipeline,
             ub,
             blend,
-        }
+            mask: tex.create_view(&Default::default()),
+            mask_size: cb.mask.as_ref().map(|_| [cb.width, cb.height]),
+        })
     }
 
-    pub fn targets(&self, gpu: &Gpu, width: u32, height: u32) -> BlendTargets {
+    pub fn targets(&self, gpu: &Gpu, width: u32, height: u32) -> Result<BlendTargets> {
+        if let Some([w, h]) = self.mask_size.filter(|s| *s != [width, height]) {
+            return Err(Error::invalid(
+                "blend",
+                format!(
+                    "the channel's geometric blend is {w}x{h}, the frame {width}x{height}: \
+                     render at the projector's resolution"
+                ),
+            ));
+        }
         let dev = &gpu.device;
         let src = screen_texture(
             dev,
@@ -95,7 +153,12 @@ impl BlendPass {
             size: [width, height, 0, 0],
             widths: edges.map(|x| x.0),
             exponents: edges.map(|x| x.1),
-            gamma: [(1.0 / b.gamma) as f32, 0.0, 0.0, 0.0],
+            gamma: [
+                (1.0 / b.gamma) as f32,
+                self.mask_size.is_some() as u32 as f32,
+                0.0,
+                0.0,
+            ],
         };
         gpu.queue.write_buffer(&self.ub, 0, bytemuck::bytes_of(&u));
         let bg = dev.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -107,8 +170,12 @@ impl BlendPass {
                     binding: 1,
                     resource: wgpu::BindingResource::TextureView(&view),
                 },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::TextureView(&self.mask),
+                },
             ],
         });
-        BlendTargets { src, bg }
+        Ok(BlendTargets { src, bg })
     }
 }

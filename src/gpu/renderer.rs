@@ -686,9 +686,16 @@ impl TerrainRenderer {
 
     /// Sets (or, with `None`, removes) the edge blend applied to the finished image, in display
     /// space after the warp ([`crate::display::blend`]).
-    pub fn set_blend(&mut self, gpu: &Gpu, blend: Option<crate::display::blend::Blend>) {
-        self.blend = blend.map(|b| super::blend::BlendPass::new(gpu, b));
+    pub fn set_blend(
+        &mut self,
+        gpu: &Gpu,
+        blend: Option<&crate::display::blend::ChannelBlend>,
+    ) -> Result<()> {
+        self.blend = blend
+            .map(|b| super::blend::BlendPass::new(gpu, b))
+            .transpose()?;
         self.targets = None;
+        Ok(())
     }
 
     /// Sets the scene time (seconds) that picks animated voxel models' frames.
@@ -863,7 +870,11 @@ impl TerrainRenderer {
                 .map_or(&gbuffer_view, |(ot, _)| &ot.gbuffer_view);
             v.targets(gpu, width, height, &self.frame_ub, &ray_table_view, g)
         });
-        let blend = self.blend.as_ref().map(|b| b.targets(gpu, width, height));
+        let blend = self
+            .blend
+            .as_ref()
+            .map(|b| b.targets(gpu, width, height))
+            .transpose()?;
         self.targets = Some(Targets {
             blend,
             volume,

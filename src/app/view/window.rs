@@ -37,7 +37,7 @@ struct ChannelSpec {
     name: String,
     points: ScreenPoints,
     eye: DVec3,
-    blend: Option<crate::display::blend::Blend>,
+    blend: Option<crate::display::blend::ChannelBlend>,
     view: Option<crate::display::ViewOffset>,
     width: u32,
     height: u32,
@@ -142,7 +142,7 @@ fn prepare(opts: &ViewOptions) -> Result<Prepared> {
                 name: ch.name.clone(),
                 points,
                 eye,
-                blend: ch.blend,
+                blend: crate::display::blend::ChannelBlend::new(&cfg, index),
                 view: ch.view,
                 width: p.width,
                 height: p.height,
@@ -618,7 +618,7 @@ impl App {
             if let Some(c) = channel {
                 let c = &self.prep.channels[c];
                 renderer.set_display(&gpu, &c.points, c.eye)?;
-                renderer.set_blend(&gpu, c.blend);
+                renderer.set_blend(&gpu, c.blend.as_ref())?;
                 if let Some(v) = c.view {
                     renderer.set_view_offset(v.matrix());
                 }

@@ -9,12 +9,14 @@ struct BlendParams {
     widths: vec4<f32>,
     // Curve exponents of the same edges.
     exponents: vec4<f32>,
-    // x: 1 / gamma.
+    // x: 1 / gamma; y: 1 when the geometric mask applies.
     gamma: vec4<f32>,
 }
 
 @group(0) @binding(0) var<uniform> blend: BlendParams;
 @group(0) @binding(1) var blend_src: texture_2d<f32>;
+// Geometric blend weights (display::blend::geometric_weights), one per pixel.
+@group(0) @binding(2) var blend_mask: texture_2d<f32>;
 
 fn blend_ramp(d: f32, width: f32, p: f32) -> f32 {
     if (width <= 0.0) {
@@ -36,5 +38,9 @@ fn fs_blend(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
         * blend_ramp(1.0 - uv.x, blend.widths.y, blend.exponents.y)
         * blend_ramp(uv.y, blend.widths.z, blend.exponents.z)
         * blend_ramp(1.0 - uv.y, blend.widths.w, blend.exponents.w);
-    return vec4<f32>(c.xyz * pow(w, blend.gamma.x), c.w);
+    var m = 1.0;
+    if (blend.gamma.y > 0.0) {
+        m = textureLoad(blend_mask, vec2<i32>(px), 0).x;
+    }
+    return vec4<f32>(c.xyz * pow(w * m, blend.gamma.x), c.w);
 }
