@@ -286,7 +286,15 @@ enum WarpAction {
     /// Warp a dome master (square angular fisheye, zenith at the centre, front at the bottom)
     /// into one channel's projector image through its table, with its edge blend.
     Apply {
-        config: PathBuf,
+        /// Display config (or give --mesh and --size instead).
+        #[arg(required_unless_present = "mesh")]
+        config: Option<PathBuf>,
+        /// A Bourke type-2 warp mesh instead of a display config.
+        #[arg(long, conflicts_with = "config", requires = "size")]
+        mesh: Option<PathBuf>,
+        /// Projector image size WxH (with --mesh).
+        #[arg(long, value_parser = parse_size)]
+        size: Option<(u32, u32)>,
         #[arg(long, default_value_t = 0)]
         channel: usize,
         #[arg(long, value_parser = parse_vec::<3>, allow_hyphen_values = true)]
@@ -582,23 +590,29 @@ fn run(cli: Cli) -> Result<()> {
             }
             WarpAction::Apply {
                 config,
+                mesh,
+                size,
                 channel,
                 eye,
                 dome_master,
                 fov,
                 out,
             } => {
-                println!(
-                    "{}",
-                    relief::app::warp::apply_dome_master(
+                let msg = match (config, mesh, size) {
+                    (Some(config), None, _) => relief::app::warp::apply_dome_master(
                         &config,
                         channel,
                         eye,
                         &dome_master,
                         fov,
-                        &out
-                    )?
-                );
+                        &out,
+                    )?,
+                    (None, Some(mesh), Some(size)) => {
+                        relief::app::warp::apply_mesh(&mesh, &dome_master, size, &out)?
+                    }
+                    _ => bail!("give a display CONFIG, or --mesh MESH --size WxH"),
+                };
+                println!("{msg}");
             }
             WarpAction::Export {
                 config,

@@ -153,7 +153,7 @@ fn cli_exports_and_inspects_a_dome_warp() {
             text.contains(if name.ends_with("pfm") {
                 "PFM 512x512"
             } else {
-                "64x64 nodes"
+                "65x65 nodes"
             }),
             "{text}"
         );

@@ -648,3 +648,84 @@ fn cli_renders_a_square_dome_master() {
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--dome-master"));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn an_exported_bourke_mesh_warps_a_dome_master_like_the_display_model() {
+    use relief::display::dome_master::direction;
+    let dir = std::env::temp_dir().join(format!("relief-test-{}-mesh-apply", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let size = 512u32;
+    let enc = |d: DVec3| [d.x, d.y, d.z].map(|v| ((v + 1.0) * 0.5 * 255.0).round() as u8);
+    let mut img = vec![0u8; (size * size * 4) as usize];
+    for y in 0..size {
+        for x in 0..size {
+            let k = ((y * size + x) * 4) as usize;
+            if let Some(d) = direction(x as f64 + 0.5, y as f64 + 0.5, size, 180.0) {
+                img[k..k + 3].copy_from_slice(&enc(d));
+            }
+            img[k + 3] = 255;
+        }
+    }
+    let master = dir.join("master.png");
+    relief::app::capture::write_png(&master, size, size, &img).unwrap();
+    let config = project_dir().join("distortion/dome-5proj.toml");
+    let cfg = DisplayConfig::load(&config).unwrap();
+    let channel = 4; // the zenith projector: all of it inside the 180° master
+    let p = cfg.channels[channel].projector;
+    let mesh = dir.join("zenith.data");
+    relief::app::warp::export(&config, channel, None, &mesh, 4).unwrap();
+    let via_mesh = dir.join("mesh.png");
+    let via_model = dir.join("model.png");
+    relief::app::warp::apply_mesh(&mesh, &master, (p.width, p.height), &via_mesh).unwrap();
+    relief::app::warp::apply_dome_master(&config, channel, None, &master, 180.0, &via_model)
+        .unwrap();
+    let a = image::open(&via_mesh).unwrap().to_rgba8();
+    let b = image::open(&via_model).unwrap().to_rgba8();
+    let (mut n, mut sum, mut worst) = (0usize, 0u64, 0u8);
+    for (pa, pb) in a.pixels().zip(b.pixels()) {
+        if pb.0[..3] == [0, 0, 0] {
+            continue;
+        }
+        n += 1;
+        for c in 0..3 {
+            let d = pa.0[c].abs_diff(pb.0[c]);
+            sum += d as u64;
+            worst = worst.max(d);
+        }
+    }
+    let mean = sum as f64 / (3 * n.max(1)) as f64;
+    eprintln!("{n} pixels: mesh vs model mean {mean:.3}/255, worst {worst}/255");
+    assert!(n > 50_000, "only {n} lit pixels");
+    assert!(
+        mean < 0.5 && worst <= 3,
+        "mesh warp differs from the model: mean {mean}, worst {worst}"
+    );
+    // A small ordered mesh works; a disordered one is refused, naming the file.
+    std::fs::write(
+        dir.join("small.data"),
+        "2\n2 2\n-1 -1 0 0 1\n1 -1 1 0 1\n-1 1 0 1 1\n1 1 1 1 1\n",
+    )
+    .unwrap();
+    let ok =
+        relief::app::warp::apply_mesh(&dir.join("small.data"), &master, (8, 8), &dir.join("b.png"));
+    assert!(ok.is_ok(), "a 2x2 ordered mesh is fine: {ok:?}");
+    std::fs::write(
+        dir.join("disordered.data"),
+        "2\n2 2\n1 -1 0 0 1\n-1 -1 1 0 1\n-1 1 0 1 1\n1 1 1 1 1\n",
+    )
+    .unwrap();
+    let e = relief::app::warp::apply_mesh(
+        &dir.join("disordered.data"),
+        &master,
+        (8, 8),
+        &dir.join("c.png"),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("disordered.data") && e.contains("increase"),
+        "{e}"
+    );
+    assert!(!dir.join("c.png").exists());
+}

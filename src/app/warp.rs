@@ -120,7 +120,9 @@ pub fn export(
     let eye = DVec3::from(eye.unwrap_or(cfg.eye.position));
     let (w, h) = (p.width, p.height);
     let aspect = w as f64 / h as f64;
-    let (nx, ny) = ((w - 1) / step + 1, (h - 1) / step + 1);
+    // Nodes every `step` pixels and one on the last pixel column and row, so the mesh covers
+    // the whole image.
+    let (nx, ny) = ((w - 1).div_ceil(step) + 1, (h - 1).div_ceil(step) + 1);
     let mut nodes = Vec::with_capacity((nx * ny) as usize);
     for j in 0..ny {
         // Rows bottom to top.
@@ -131,20 +133,23 @@ pub fn export(
             let y = 1.0 - (py as f64 + 0.5) / h as f64 * 2.0;
             let node = match pts.points[py * w as usize + px] {
                 Some(q) => {
+                    // The 180° dome master's point (crate::display::dome_master: zenith at
+                    // the centre, front at the bottom), v = 0 at the bottom.
                     let d = (q - eye).normalize();
-                    let theta = d.z.clamp(-1.0, 1.0).acos();
-                    let r = theta / std::f64::consts::PI; // 0.5 at 90°
-                    let az = d.x.atan2(d.y);
-                    let (u, v) = (0.5 + r * az.sin(), 0.5 + r * az.cos());
-                    MeshNode {
-                        x,
-                        y,
-                        u,
-                        v,
-                        i: if theta <= std::f64::consts::FRAC_PI_2 {
-                            1.0
-                        } else {
-                            -1.0
+                    match crate::display::dome_master::pixel(d, 1, 180.0) {
+                        Some((u, v)) => MeshNode {
+                            x,
+                            y,
+                            u,
+                            v: 1.0 - v,
+                            i: 1.0,
+                        },
+                        None => MeshNode {
+                            x,
+                            y,
+                            u: 0.5,
+                            v: 0.5,
+                            i: -1.0,
                         },
                     }
                 }
@@ -241,6 +246,103 @@ pub fn apply_dome_master(
         p.width,
         p.height,
         if ch.blend.is_some() { ", edge blend applied" } else { "" },
+        out.display()
+    ))
+}
+
+/// `relief warp apply --mesh`: warps a dome master into a projector image of `size` through a
+/// Paul Bourke type-2 mesh (nodes at projector positions x in ±aspect, y in ±1 up, holding the
+/// master's u, v (v = 0 at the bottom) and a brightness), interpolating bilinearly between
+/// nodes and multiplying by the interpolated brightness, as Bourke's own tools do. Cells with
+/// an unused node (negative brightness) stay black.
+pub fn apply_mesh(mesh: &Path, input: &Path, size: (u32, u32), out: &Path) -> Result<String> {
+    let m = read_bourke(mesh)?;
+    if m.mesh_type != 2 {
+        return Err(Error::format(
+            mesh,
+            format!(
+                "type {} mesh: `warp apply` uses rectangular (type 2) meshes",
+                m.mesh_type
+            ),
+        ));
+    }
+    let (w, h) = size;
+    if !(1..=16384).contains(&w) || !(1..=16384).contains(&h) {
+        return Err(Error::invalid(
+            "--size",
+            format!("{w}x{h} is not 1..=16384 pixels"),
+        ));
+    }
+    let (nx, ny) = (m.nx, m.ny);
+    if nx < 2 || ny < 2 || m.nodes.len() != nx * ny {
+        return Err(Error::format(
+            mesh,
+            format!("{nx}x{ny} nodes is not a grid to interpolate"),
+        ));
+    }
+    let node = |i: usize, j: usize| &m.nodes[j * nx + i];
+    // Node columns and rows must be ordered: x increasing along a row, y up the rows.
+    let xs: Vec<f64> = (0..nx).map(|i| node(i, 0).x).collect();
+    let ys: Vec<f64> = (0..ny).map(|j| node(0, j).y).collect();
+    if xs.windows(2).any(|p| p[1] <= p[0]) || ys.windows(2).any(|p| p[1] <= p[0]) {
+        return Err(Error::format(
+            mesh,
+            "node x must increase along each row and y up the rows (bottom row first)",
+        ));
+    }
+    let img = image::open(input)
+        .map_err(|e| Error::format(input, format!("cannot read the dome master: {e}")))?
+        .to_rgba8();
+    let (mw, mh) = img.dimensions();
+    let aspect = w as f64 / h as f64;
+    let mut rgba = vec![0u8; (w * h * 4) as usize];
+    let mut lit = 0usize;
+    for py in 0..h {
+        let y = 1.0 - (py as f64 + 0.5) / h as f64 * 2.0;
+        let Some(j) = ys.windows(2).position(|p| y >= p[0] && y <= p[1]) else {
+            continue;
+        };
+        let fy = (y - ys[j]) / (ys[j + 1] - ys[j]);
+        for px in 0..w {
+            let k = ((py * w + px) * 4) as usize;
+            rgba[k + 3] = 255;
+            let x = ((px as f64 + 0.5) / w as f64 * 2.0 - 1.0) * aspect;
+            let Some(i) = xs.windows(2).position(|p| x >= p[0] && x <= p[1]) else {
+                continue;
+            };
+            let fx = (x - xs[i]) / (xs[i + 1] - xs[i]);
+            let c = [
+                node(i, j),
+                node(i + 1, j),
+                node(i, j + 1),
+                node(i + 1, j + 1),
+            ];
+            if c.iter().any(|n| n.i < 0.0) {
+                continue;
+            }
+            let lerp = |f: fn(&MeshNode) -> f64| {
+                (f(c[0]) * (1.0 - fx) + f(c[1]) * fx) * (1.0 - fy)
+                    + (f(c[2]) * (1.0 - fx) + f(c[3]) * fx) * fy
+            };
+            let (u, v, bright) = (lerp(|n| n.u), lerp(|n| n.v), lerp(|n| n.i));
+            let s = super::verify::sample_rgba8(
+                img.as_raw(),
+                mw,
+                mh,
+                u * mw as f64,
+                (1.0 - v) * mh as f64,
+            );
+            for ch in 0..3 {
+                rgba[k + ch] = (s[ch] * bright.clamp(0.0, 1.0) * 255.0).round() as u8;
+            }
+            lit += 1;
+        }
+    }
+    super::capture::write_png(out, w, h, &rgba)?;
+    Ok(format!(
+        "{}: {w}x{h} through the {nx}x{ny}-node mesh {}, {lit} pixels lit -> {}",
+        input.display(),
+        mesh.display(),
         out.display()
     ))
 }
