@@ -573,3 +573,110 @@ fn measured_lens_distortion_moves_the_screen_points_and_folding_models_are_refus
         "{e}"
     );
 }
+
+#[test]
+fn a_measured_pfm_warp_drives_the_table_like_the_model_it_came_from() {
+    let _l = gpu_lock();
+    let dir = std::env::temp_dir().join(format!("relief-test-{}-pfm-warp", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let src = project_dir().join("distortion/dome-5proj.toml");
+    // The zenith channel's geometry exported as a 3-D PFM, then used as a measured warp.
+    relief::app::warp::export(&src, 4, None, &dir.join("zenith.pfm"), 8).unwrap();
+    let text = std::fs::read_to_string(&src).unwrap();
+    let with_warp = text.replace(
+        "name = \"zenith\"",
+        "name = \"zenith\"\nwarp = \"zenith.pfm\"",
+    );
+    assert_ne!(with_warp, text);
+    std::fs::write(dir.join("measured.toml"), &with_warp).unwrap();
+    let cfg = DisplayConfig::load(&dir.join("measured.toml")).unwrap();
+    let model = screen_points(&cfg.screen, &cfg.channels[4].projector);
+    let measured = cfg.channel_points(4).unwrap();
+    let mut worst: f64 = 0.0;
+    for (a, b) in model.points.iter().zip(&measured.points) {
+        match (a, b) {
+            (Some(a), Some(b)) => worst = worst.max(a.distance(*b)),
+            (None, None) => {}
+            _ => panic!("screen coverage differs between the model and its exported warp"),
+        }
+    }
+    assert!(worst < 1e-5, "warp file points {worst} m off the model's");
+    let eye = DVec3::from(cfg.eye.position);
+    if let Some(g) = gpu() {
+        let terrain = common::terrain_from_fn(2, 1.0, |_, _| 0.0);
+        let (w, h) = (measured.width, measured.height);
+        let desc = common::synthetic_scene(w, h, "position = [0.5, 0.5, 100.0]");
+        let pose = relief::scene::Pose {
+            position: DVec3::new(0.5, 0.5, 100.0),
+            heading: 10.0,
+            pitch: 0.0,
+            roll: 0.0,
+            fov: 60.0,
+        };
+        let cam = Camera::new(pose, w, h);
+        let mut r = TerrainRenderer::new(g, &terrain).unwrap();
+        r.set_display(g, &measured, eye).unwrap();
+        r.set_pattern(
+            g,
+            Some(relief::display::pattern::PatternParams::grid(DVec3::Z)),
+        );
+        r.capture(g, &terrain, &desc, &cam, &RenderSettings::from_scene(&desc))
+            .unwrap();
+        let table = r.read_ray_table(g).unwrap();
+        let cpu = ray_table(&model, eye, world_from_display(10.0, 0.0, 0.0));
+        let mut worst_arcmin: f64 = 0.0;
+        for (e, c) in table.iter().zip(&cpu.rays) {
+            if let Some((d, _)) = c {
+                let gd = DVec3::new(e[0] as f64, e[1] as f64, e[2] as f64);
+                worst_arcmin = worst_arcmin.max(gd.angle_between(*d).to_degrees() * 60.0);
+            }
+        }
+        eprintln!("measured warp: points within {worst:.2e} m, GPU table within {worst_arcmin:.4} arc-min of the model's");
+        assert!(worst_arcmin < 0.5);
+    }
+    // Bad warps: 2-D u,v, wrong size, unknown row order, geometric blend with a warp file.
+    std::fs::copy(
+        project_dir().join("tests/data/surface1.pfm"),
+        dir.join("uv.pfm"),
+    )
+    .unwrap();
+    for (name, edit, want) in [
+        ("uv", "warp = \"uv.pfm\"", "3-D"),
+        ("size", "", "resolution"),
+        (
+            "rows",
+            "warp = \"zenith.pfm\"\nwarp_rows = \"sideways\"",
+            "warp_rows",
+        ),
+    ] {
+        // The size case keeps the file and shrinks the projector after loading.
+        let t = if name == "size" {
+            with_warp.clone()
+        } else {
+            text.replace("name = \"zenith\"", &format!("name = \"zenith\"\n{edit}"))
+        };
+        let p = dir.join(format!("{name}.toml"));
+        std::fs::write(&p, &t).unwrap();
+        let e = match DisplayConfig::load(&p) {
+            Err(e) => e.to_string(),
+            Ok(c) => {
+                let mut c = c;
+                if name == "size" {
+                    c.channels[4].projector.width = 10;
+                }
+                c.channel_points(4).unwrap_err().to_string()
+            }
+        };
+        assert!(e.contains(want), "{name}: {e}");
+    }
+    let auto = with_warp.replace(
+        "name = \"front\"",
+        "name = \"front\"\n[channel.blend]\nauto = true",
+    );
+    std::fs::write(dir.join("auto.toml"), auto).unwrap();
+    let e = DisplayConfig::load(&dir.join("auto.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("blend.auto") && e.contains("warp"), "{e}");
+}

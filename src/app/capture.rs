@@ -231,7 +231,7 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
             )
         })?;
         let p = channel.projector;
-        let points = crate::cpu::distortion::screen_points(&cfg.screen, &p);
+        let points = cfg.channel_points(d.channel)?;
         let lit = points.points.iter().filter(|p| p.is_some()).count();
         if lit == 0 {
             return Err(Error::invalid(

@@ -527,6 +527,13 @@ pub fn verify(
             format!("eye view must be 8..=4096 pixels per side, got {ew}x{eh}"),
         ));
     }
+    if let Some(&c) = chans.iter().find(|&&c| cfg.channels[c].warp.is_some()) {
+        return Err(Error::invalid(
+            format!("{name} channel {c}"),
+            "uses a measured warp file: the closed loop inverts the projector model, so verify \
+             the model the warp was measured against",
+        ));
+    }
     let eye = opts.eye.unwrap_or(DVec3::from(cfg.eye.position));
     let table_eye = opts.table_eye.unwrap_or(eye);
     let points: Vec<ScreenPoints> = chans

@@ -213,7 +213,7 @@ pub fn apply_dome_master(
         ));
     }
     let p = ch.projector;
-    let pts = screen_points(&cfg.screen, &p);
+    let pts = cfg.channel_points(channel)?;
     let eye = eye.map_or(DVec3::from(cfg.eye.position), DVec3::from);
     crate::scene::check_finite("--eye", &eye.to_array())?;
     let offset = ch.view.map(|v| v.matrix());

@@ -25,6 +25,9 @@ pub struct DisplayConfig {
     pub eye: Eye,
     #[serde(rename = "channel")]
     pub channels: Vec<Channel>,
+    /// Directory relative warp files start from (the config file's).
+    #[serde(skip)]
+    pub base_dir: std::path::PathBuf,
 }
 
 /// The projection surface.
@@ -87,6 +90,14 @@ pub struct Channel {
     /// This channel's view offset in the vehicle.
     #[serde(default)]
     pub view: Option<ViewOffset>,
+    /// A measured warp instead of the projector model's geometry: an MPCDI-style 3-D PFM
+    /// holding each projector pixel's screen point (display frame, metres; NaN = no screen),
+    /// relative to the config file, at the projector's resolution.
+    #[serde(default)]
+    pub warp: Option<std::path::PathBuf>,
+    /// Row order of `warp`: "bottom-to-top" (default, as netpbm) or "top-to-bottom".
+    #[serde(default)]
+    pub warp_rows: Option<String>,
 }
 
 /// `view = { heading, pitch, roll }` (degrees, as for the camera): turns what a channel shows
@@ -467,7 +478,91 @@ impl DisplayConfig {
             .map_err(|e| Error::format(path, format!("display config error: {e}")))?;
         cfg.validate()
             .map_err(|e| Error::format(path, e.to_string()))?;
+        let mut cfg = cfg;
+        cfg.base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
         Ok(cfg)
+    }
+
+    /// The screen point of every pixel of `channel`: from its measured `warp` file if it has
+    /// one, else from the projector model ([`crate::cpu::distortion::screen_points`]).
+    pub fn channel_points(&self, channel: usize) -> Result<crate::cpu::distortion::ScreenPoints> {
+        let c = self.channels.get(channel).ok_or_else(|| {
+            Error::invalid(
+                "channel",
+                format!(
+                    "{} channel(s), asked for index {channel}",
+                    self.channels.len()
+                ),
+            )
+        })?;
+        let p = &c.projector;
+        let Some(file) = &c.warp else {
+            return Ok(crate::cpu::distortion::screen_points(&self.screen, p));
+        };
+        let path = self.base_dir.join(file);
+        let order = match c.warp_rows.as_deref() {
+            None | Some("bottom-to-top") => warp::RowOrder::BottomToTop,
+            Some("top-to-bottom") => warp::RowOrder::TopToBottom,
+            Some(o) => {
+                return Err(Error::invalid(
+                    format!("channel[{channel}].warp_rows"),
+                    format!("{o:?}: use \"bottom-to-top\" or \"top-to-bottom\""),
+                ))
+            }
+        };
+        let pfm = warp::read_pfm(&path, order)?;
+        if pfm.channels != 3 {
+            return Err(Error::format(
+                &path,
+                format!(
+                    "a {}-channel PFM: a channel's warp must be 3-D screen geometry (X, Y, Z per \
+                     pixel); 2-D u,v warps map into content images, not onto a screen",
+                    pfm.channels
+                ),
+            ));
+        }
+        // A 2-D u,v warp stored in three channels (MPCDI style): u, v in 0..1, the third 0
+        // or not a number.
+        let uv: Vec<&[f32]> = pfm
+            .data
+            .chunks_exact(3)
+            .filter(|q| q[0].is_finite() && q[1].is_finite())
+            .collect();
+        if !uv.is_empty()
+            && uv.iter().all(|q| {
+                (q[2] == 0.0 || !q[2].is_finite())
+                    && (0.0..=1.0).contains(&q[0])
+                    && (0.0..=1.0).contains(&q[1])
+            })
+        {
+            return Err(Error::format(
+                &path,
+                "looks like a 2-D u,v warp (third channel 0 or NaN, u and v in 0..1): a \
+                 channel's warp must be 3-D screen geometry (X, Y, Z per pixel, metres)",
+            ));
+        }
+        if (pfm.width, pfm.height) != (p.width, p.height) {
+            return Err(Error::format(
+                &path,
+                format!(
+                    "{}x{} warp for a {}x{} projector: export it at the projector's resolution",
+                    pfm.width, pfm.height, p.width, p.height
+                ),
+            ));
+        }
+        let points = pfm
+            .data
+            .chunks_exact(3)
+            .map(|q| {
+                let v = DVec3::new(q[0] as f64, q[1] as f64, q[2] as f64);
+                v.is_finite().then_some(v)
+            })
+            .collect();
+        Ok(crate::cpu::distortion::ScreenPoints {
+            width: p.width,
+            height: p.height,
+            points,
+        })
     }
 
     /// Checks ranges; errors name the field.
@@ -542,6 +637,13 @@ impl DisplayConfig {
                 finite(&format!("channel[{i}].view"), &[v.heading, v.pitch, v.roll])?;
             }
             if let Some(b) = &c.blend {
+                if b.auto && self.channels.iter().any(|c| c.warp.is_some()) {
+                    return Err(Error::invalid(
+                        format!("channel[{i}].blend.auto"),
+                        "geometric blends invert the projector models; with measured warp files \
+                         give fixed edge ramps instead",
+                    ));
+                }
                 b.validate(&format!("channel[{i}].blend"))?;
             }
             finite(&f("heading/pitch/roll"), &[p.heading, p.pitch, p.roll])?;

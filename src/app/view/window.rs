@@ -130,7 +130,7 @@ fn prepare(opts: &ViewOptions) -> Result<Prepared> {
         for index in wanted {
             let ch = &cfg.channels[index];
             let p = ch.projector;
-            let points = crate::cpu::distortion::screen_points(&cfg.screen, &p);
+            let points = cfg.channel_points(index)?;
             if points.points.iter().all(|p| p.is_none()) {
                 return Err(invalid(
                     &format!("{} channel {index}", cfg_path.display()),
