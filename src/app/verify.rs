@@ -664,7 +664,7 @@ pub fn verify(
         .collect();
     // Per eye pixel: the landing in the channel that holds the point deepest, and, where
     // several channels light the point, the sum of their blend light weights.
-    let landed: Vec<(Option<(usize, f64, f64)>, Option<f64>)> = (0..ew * eh)
+    let landed: Vec<(Landing, Option<f64>)> = (0..ew * eh)
         .into_par_iter()
         .map(|k| {
             let Some(s) = eye_pts.points[k as usize].and_then(|e| cfg.screen.seen_from(eye, e))

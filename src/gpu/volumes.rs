@@ -28,6 +28,7 @@ pub(crate) struct VolumePass {
 
 /// Size-dependent resources: the shaded image the pass reads, its statistics target.
 pub(crate) struct VolumeTargets {
+    /// Kept with its view for the targets' lifetime.
     pub _under: wgpu::Texture,
     pub under_view: wgpu::TextureView,
     pub stats: wgpu::Texture,
