@@ -662,25 +662,37 @@ pub fn verify(
         .iter()
         .map(|&c| crate::display::blend::ChannelBlend::new(cfg, c))
         .collect();
-    // Per eye pixel: the landing in the channel that holds the point deepest, and, where
-    // several channels light the point, the sum of their blend light weights.
-    let landed: Vec<(Landing, Option<f64>)> = (0..ew * eh)
+    // Per eye pixel: the landing in the channel that holds the point deepest; where several
+    // channels light the point, the sum of their blend light weights; and, when the channels
+    // blend, the light they add up to there: (Σ w_i · value_i^γ)^(1/γ).
+    let blended = blends.iter().any(|b| b.is_some());
+    let landed: Vec<(Landing, Option<f64>, Option<[f64; 3]>)> = (0..ew * eh)
         .into_par_iter()
         .map(|k| {
             let Some(s) = eye_pts.points[k as usize].and_then(|e| cfg.screen.seen_from(eye, e))
             else {
-                return (None, None);
+                return (None, None, None);
             };
             let mut best: Option<(usize, f64, f64, f64)> = None;
             let (mut lit, mut weight) = (0, 0.0);
+            let mut light = [0.0f64; 3];
+            let mut gamma = 2.2;
             for (i, p) in projectors.iter().enumerate() {
                 if let Some((u, v, m)) = land(&cfg.screen, p, s) {
                     let t = &views[i].table;
                     if sample_table(t, p.width, p.height, u, v).is_some() {
                         lit += 1;
-                        weight += blends[i]
+                        let w = blends[i]
                             .as_ref()
                             .map_or(1.0, |b| b.light_weight(u.floor() as u32, v.floor() as u32));
+                        weight += w;
+                        if blended {
+                            gamma = blends[i].as_ref().map_or(gamma, |b| b.blend.gamma);
+                            let c = sample_rgba8(&views[i].grid, p.width, p.height, u, v);
+                            for ch in 0..3 {
+                                light[ch] += w * c[ch].powf(gamma);
+                            }
+                        }
                         if best.is_none_or(|b| m > b.3) {
                             best = Some((i, u, v, m));
                         }
@@ -690,6 +702,7 @@ pub fn verify(
             (
                 best.map(|(i, u, v, _)| (i, u, v)),
                 (lit > 1).then_some(weight),
+                (blended && lit > 0).then(|| light.map(|l| l.powf(1.0 / gamma))),
             )
         })
         .collect();
@@ -733,7 +746,10 @@ pub fn verify(
         per[i].0 += 1;
         per[i].1 += err;
         per[i].2 = per[i].2.max(err);
-        let seen = sample_rgba8(&views[i].grid, pw, ph, u, v);
+        // With blends, what the eye sees is the channels' light added up.
+        let seen = landed[k]
+            .2
+            .unwrap_or_else(|| sample_rgba8(&views[i].grid, pw, ph, u, v));
         let want = &reference.grid[k * 4..k * 4 + 3];
         let px = quantise(seen);
         as_seen[k * 4..k * 4 + 4].copy_from_slice(&px);
