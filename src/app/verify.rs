@@ -682,9 +682,7 @@ pub fn verify(
                     let t = &views[i].table;
                     if sample_table(t, p.width, p.height, u, v).is_some() {
                         lit += 1;
-                        let w = blends[i]
-                            .as_ref()
-                            .map_or(1.0, |b| b.light_weight(u.floor() as u32, v.floor() as u32));
+                        let w = blends[i].as_ref().map_or(1.0, |b| b.light_weight_at(u, v));
                         weight += w;
                         if blended {
                             gamma = blends[i].as_ref().map_or(gamma, |b| b.blend.gamma);

@@ -99,8 +99,14 @@ impl Blend {
     /// Light weight at the centre of pixel (x, y) of a `width x height` image (row 0 at the
     /// top): the product of the edges' ramps.
     pub fn light_weight(&self, x: u32, y: u32, width: u32, height: u32) -> f64 {
-        let u = (x as f64 + 0.5) / width as f64;
-        let v = (y as f64 + 0.5) / height as f64;
+        self.light_weight_uv(
+            (x as f64 + 0.5) / width as f64,
+            (y as f64 + 0.5) / height as f64,
+        )
+    }
+
+    /// Light weight at image point (u, v) in fractions of the image (0..1, v down).
+    pub fn light_weight_uv(&self, u: f64, v: f64) -> f64 {
         let mut w = 1.0;
         for (d, e) in [
             (u, self.left),
@@ -234,6 +240,28 @@ impl ChannelBlend {
             m[(y.min(self.height - 1) * self.width + x.min(self.width - 1)) as usize] as f64
         });
         self.blend.light_weight(x, y, self.width, self.height) * m
+    }
+
+    /// Light weight at the image point (u, v) (pixels, centres at +0.5) as the screen receives
+    /// it: the ramps at that point times the geometric weights interpolated bilinearly
+    /// between pixel centres (a pixel's light spreads over its footprint).
+    pub fn light_weight_at(&self, u: f64, v: f64) -> f64 {
+        let (w, h) = (self.width as f64, self.height as f64);
+        let ramps = self.blend.light_weight_uv(u / w, v / h);
+        let Some(m) = &self.mask else {
+            return ramps;
+        };
+        let (fx, fy) = (u - 0.5, v - 0.5);
+        let (x0, y0) = (fx.floor(), fy.floor());
+        let (ax, ay) = (fx - x0, fy - y0);
+        let at = |x: f64, y: f64| {
+            let x = x.clamp(0.0, w - 1.0) as usize;
+            let y = y.clamp(0.0, h - 1.0) as usize;
+            m[y * self.width as usize + x] as f64
+        };
+        let top = at(x0, y0) * (1.0 - ax) + at(x0 + 1.0, y0) * ax;
+        let bottom = at(x0, y0 + 1.0) * (1.0 - ax) + at(x0 + 1.0, y0 + 1.0) * ax;
+        ramps * (top * (1.0 - ay) + bottom * ay)
     }
 
     /// Blends an RGBA8 image of the channel's size in place (see [`Blend::apply_rgba8`]).
