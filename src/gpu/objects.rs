@@ -521,8 +521,7 @@ impl ObjectPasses {
     /// before shading).
     pub fn encode_shadows(&self, enc: &mut wgpu::CommandEncoder, t: &ObjectTargets) {
         self.bin(enc, t, true);
-        // The shadow mark reads the final G-buffer (binding 4 of the shadow bind group).
-        self.masked(enc, t, &self.mark_shadow, &t.shadow_bg, None);
+        self.masked(enc, t, &self.mark_shadow, &t.cast_bg, None);
         self.masked(
             enc,
             t,

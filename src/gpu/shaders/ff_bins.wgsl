@@ -108,3 +108,19 @@ fn ff_blocked(px: vec2<u32>, ro: vec3<f32>, rd: vec3<f32>) -> bool {
     }
     return false;
 }
+
+// Stencil mark passes (no colour output): keep only pixels whose bin has objects in the list,
+// so the free-form passes behind a stencil test skip the rest of the screen before shading.
+@fragment
+fn fs_mark_primary(@builtin(position) pos: vec4<f32>) {
+    if (ff_bins[ff_bin_base(vec2<u32>(pos.xy), 0u)] == 0u) {
+        discard;
+    }
+}
+
+@fragment
+fn fs_mark_shadow(@builtin(position) pos: vec4<f32>) {
+    if (ff_bins[ff_bin_base(vec2<u32>(pos.xy), 1u)] == 0u) {
+        discard;
+    }
+}
