@@ -524,28 +524,32 @@ fn dome_master_pixels_and_directions_round_trip() {
     );
 }
 
-#[test]
-fn warp_apply_gives_each_projector_pixel_the_dome_master_colour_of_its_direction() {
+/// The colour a smooth synthetic dome master holds for direction `d`: (d + 1) / 2.
+fn master_colour(d: DVec3) -> [u8; 3] {
+    [d.x, d.y, d.z].map(|v| ((v + 1.0) * 0.5 * 255.0).round() as u8)
+}
+
+/// Writes a 512² 180° dome master of [`master_colour`] into `dir`; returns its path.
+fn smooth_dome_master(dir: &std::path::Path) -> std::path::PathBuf {
     use relief::display::dome_master::direction;
-    let dir = std::env::temp_dir().join(format!("relief-test-{}-dome-master", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    // A smooth dome master: colour = (d + 1) / 2 of the pixel's direction.
     let size = 512u32;
-    let enc = |d: DVec3| [d.x, d.y, d.z].map(|v| ((v + 1.0) * 0.5 * 255.0).round() as u8);
     let mut img = vec![0u8; (size * size * 4) as usize];
     for y in 0..size {
         for x in 0..size {
             let k = ((y * size + x) * 4) as usize;
             if let Some(d) = direction(x as f64 + 0.5, y as f64 + 0.5, size, 180.0) {
-                img[k..k + 3].copy_from_slice(&enc(d));
+                img[k..k + 3].copy_from_slice(&master_colour(d));
             }
             img[k + 3] = 255;
         }
     }
     let master = dir.join("master.png");
     relief::app::capture::write_png(&master, size, size, &img).unwrap();
-    // The demo dome without its edge blends: the colours are compared unattenuated.
+    master
+}
+
+/// The demo dome without its edge blends (so colours compare unattenuated), written to `dir`.
+fn unblended_dome(dir: &std::path::Path) -> std::path::PathBuf {
     let config = dir.join("dome-5proj-unblended.toml");
     std::fs::write(
         &config,
@@ -554,6 +558,16 @@ fn warp_apply_gives_each_projector_pixel_the_dome_master_colour_of_its_direction
             .replace("[channel.blend]\nauto = true\n", ""),
     )
     .unwrap();
+    config
+}
+
+#[test]
+fn warp_apply_gives_each_projector_pixel_the_dome_master_colour_of_its_direction() {
+    let dir = std::env::temp_dir().join(format!("relief-test-{}-dome-master", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let master = smooth_dome_master(&dir);
+    let config = unblended_dome(&dir);
     let cfg = DisplayConfig::load(&config).unwrap();
     for channel in [0usize, 4] {
         let out = dir.join(format!("ch{channel}.png"));
@@ -572,7 +586,7 @@ fn warp_apply_gives_each_projector_pixel_the_dome_master_colour_of_its_direction
             if d.z < 0.02 {
                 continue;
             }
-            let want = enc(d);
+            let want = master_colour(d);
             let px = got.get_pixel(k as u32 % p.width, k as u32 / p.width).0;
             for c in 0..3 {
                 worst = worst.max(px[c].abs_diff(want[c]));
@@ -659,33 +673,11 @@ fn cli_renders_a_square_dome_master() {
 
 #[test]
 fn an_exported_bourke_mesh_warps_a_dome_master_like_the_display_model() {
-    use relief::display::dome_master::direction;
     let dir = std::env::temp_dir().join(format!("relief-test-{}-mesh-apply", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
-    let size = 512u32;
-    let enc = |d: DVec3| [d.x, d.y, d.z].map(|v| ((v + 1.0) * 0.5 * 255.0).round() as u8);
-    let mut img = vec![0u8; (size * size * 4) as usize];
-    for y in 0..size {
-        for x in 0..size {
-            let k = ((y * size + x) * 4) as usize;
-            if let Some(d) = direction(x as f64 + 0.5, y as f64 + 0.5, size, 180.0) {
-                img[k..k + 3].copy_from_slice(&enc(d));
-            }
-            img[k + 3] = 255;
-        }
-    }
-    let master = dir.join("master.png");
-    relief::app::capture::write_png(&master, size, size, &img).unwrap();
-    // The demo dome without its edge blends: the colours are compared unattenuated.
-    let config = dir.join("dome-5proj-unblended.toml");
-    std::fs::write(
-        &config,
-        std::fs::read_to_string(project_dir().join("distortion/dome-5proj.toml"))
-            .unwrap()
-            .replace("[channel.blend]\nauto = true\n", ""),
-    )
-    .unwrap();
+    let master = smooth_dome_master(&dir);
+    let config = unblended_dome(&dir);
     let cfg = DisplayConfig::load(&config).unwrap();
     let channel = 4; // the zenith projector: all of it inside the 180° master
     let p = cfg.channels[channel].projector;

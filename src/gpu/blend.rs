@@ -2,7 +2,9 @@
 //! back multiplied by each pixel's blend factor (`shaders/blend.wgsl`; CPU reference
 //! [`crate::display::blend`]).
 
-use super::renderer::{fullscreen_pipeline, screen_texture, target_state, uniform_entry};
+use super::renderer::{
+    float_texture_entry, fullscreen_pipeline, screen_texture, target_state, uniform_entry,
+};
 use super::{shaders, Gpu};
 use crate::display::blend::{Blend, ChannelBlend};
 use crate::{Error, Result};
@@ -43,26 +45,8 @@ impl BlendPass {
             label: Some("blend"),
             entries: &[
                 uniform_entry(0, fs),
-                wgpu::BindGroupLayoutEntry {
-                    binding: 1,
-                    visibility: fs,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 2,
-                    visibility: fs,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
+                float_texture_entry(1, fs, wgpu::TextureViewDimension::D2),
+                float_texture_entry(2, fs, wgpu::TextureViewDimension::D2),
             ],
         });
         let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {

@@ -257,6 +257,24 @@ pub(crate) fn uint_texture_entry(
     }
 }
 
+/// An unfiltered float texture binding (loaded with `textureLoad`) of `dim`.
+pub(crate) fn float_texture_entry(
+    binding: u32,
+    vis: wgpu::ShaderStages,
+    dim: wgpu::TextureViewDimension,
+) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: vis,
+        ty: wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Float { filterable: false },
+            view_dimension: dim,
+            multisampled: false,
+        },
+        count: None,
+    }
+}
+
 /// Checks that a buffer of `bytes` fits the device; the error names the data and the limit.
 pub fn check_buffer_limit(gpu: &Gpu, what: &str, bytes: u64) -> Result<()> {
     let limit = gpu

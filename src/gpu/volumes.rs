@@ -3,8 +3,8 @@
 //! the shaded image in front of the opaque depth.
 
 use super::renderer::{
-    buf, fullscreen_pipeline, screen_texture, storage_entry, target_state, uint_texture_entry,
-    uniform_entry,
+    buf, float_texture_entry, fullscreen_pipeline, screen_texture, storage_entry, target_state,
+    uint_texture_entry, uniform_entry,
 };
 use super::types::VolumeUniforms;
 use super::{shaders, Gpu};
@@ -132,27 +132,9 @@ impl VolumePass {
             entries: &[
                 uniform_entry(0, fs),
                 uint_texture_entry(3, fs),
-                wgpu::BindGroupLayoutEntry {
-                    binding: 10,
-                    visibility: fs,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
+                float_texture_entry(10, fs, wgpu::TextureViewDimension::D2),
                 uint_texture_entry(11, fs),
-                wgpu::BindGroupLayoutEntry {
-                    binding: 12,
-                    visibility: fs,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                        view_dimension: wgpu::TextureViewDimension::D3,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
+                float_texture_entry(12, fs, wgpu::TextureViewDimension::D3),
                 storage_entry(14, fs, true),
                 storage_entry(15, fs, true),
                 uniform_entry(16, fs),

@@ -87,6 +87,11 @@ pub(crate) fn decode_samples(
 ) -> Result<Vec<f64>> {
     let k = Kind::parse(kind)
         .ok_or_else(|| Error::format(path, format!("unsupported sample type {kind:?}")))?;
+    decode(path, k, big_endian, bytes, count)
+}
+
+fn decode(path: &Path, k: Kind, big_endian: bool, bytes: &[u8], count: usize) -> Result<Vec<f64>> {
+    let kind = format!("{k:?}");
     let need = count
         .checked_mul(k.size())
         .ok_or_else(|| Error::format(path, "sample count overflows"))?;
@@ -292,24 +297,11 @@ pub fn load(path: &Path, range: Option<[f64; 2]>) -> Result<DensityGrid> {
             )))
         }
     };
-    let values = decode_samples(path, nrrd_name(kind), big_endian, &raw, count)?;
+    let values = decode(path, kind, big_endian, &raw, count)?;
     let range = range.or(match kind {
         Kind::U8 => Some([0.0, 255.0]),
         Kind::I8 => Some([-128.0, 127.0]),
         _ => None,
     });
     DensityGrid::from_values(&path.display().to_string(), dims, &values, spacing, range)
-}
-
-fn nrrd_name(k: Kind) -> &'static str {
-    match k {
-        Kind::I8 => "int8",
-        Kind::U8 => "uint8",
-        Kind::I16 => "int16",
-        Kind::U16 => "uint16",
-        Kind::I32 => "int32",
-        Kind::U32 => "uint32",
-        Kind::F32 => "float",
-        Kind::F64 => "double",
-    }
 }
