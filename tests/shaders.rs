@@ -45,6 +45,22 @@ fn free_form_constants_match_the_cpu_side() {
         src.contains(&levels),
         "WGSL and cpu::freeform::GPU_LEVELS differ"
     );
+    let shadow_levels = format!(
+        "const FF_SHADOW_LEVELS: u32 = {}u;",
+        relief::cpu::freeform::GPU_SHADOW_LEVELS
+    );
+    assert!(
+        src.contains(&shadow_levels),
+        "WGSL and cpu::freeform::GPU_SHADOW_LEVELS differ"
+    );
+    let leaf = format!(
+        "const FF_LEAF: f32 = {:e};",
+        relief::cpu::freeform::GPU_LEAF
+    );
+    assert!(
+        src.contains(&leaf),
+        "WGSL and cpu::freeform::GPU_LEAF differ"
+    );
     let nodes = format!(
         "const FF_MAX_NODES: u32 = {}u;",
         relief::freeform::MAX_NODES

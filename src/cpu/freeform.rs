@@ -20,6 +20,14 @@ use glam::DVec3;
 /// Interval-halving depth of the GPU search (WGSL `FF_LEVELS`): leaves of `L / 2^16`, refined
 /// by linear interpolation, are far below the 1e-4 relative depth the tests ask for.
 pub const GPU_LEVELS: u32 = 16;
+/// The GPU stops halving earlier where a leaf is already below this fraction of the object's
+/// size (half its box diagonal; WGSL `FF_LEAF`): the refined root lies in its leaf, so its
+/// distance from the surface stays below a quarter of the 1e-3 · size the tests allow.
+pub const GPU_LEAF: f64 = 2.5e-4;
+/// Interval-halving depth of the GPU's shadow rays (WGSL `FF_SHADOW_LEVELS`): they only ask
+/// whether a root exists, so a leaf of `L / 2^10` whose enclosure admits `F' ≤ 0` counts as
+/// blocked (a ray passing within about that of the surface may be called blocked).
+pub const GPU_SHADOW_LEVELS: u32 = 10;
 /// Interval-halving depth of the CPU reference.
 pub const CPU_LEVELS: u32 = 44;
 /// Enclosure evaluations after which a search gives up (reported, never silent).

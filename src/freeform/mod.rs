@@ -208,6 +208,37 @@ impl FreeForm {
         unreachable!("node 0 is the base quadric at depth 0")
     }
 
+    /// Is the solid convex? True for a plain object (no perturbations) whose quadric has a
+    /// positive semi-definite quadratic part: `F` is then a convex function, its sublevel set
+    /// `F ≤ 0` is convex and so is its intersection with the box (boxes, spheres, ellipsoids,
+    /// cylinders, paraboloids, planes; not cones or hyperboloids). A ray leaving a convex
+    /// solid's surface outwards never meets it again: the shadow binning uses this.
+    pub fn is_convex(&self) -> bool {
+        let [node] = self.nodes.as_slice() else {
+            return false;
+        };
+        let [a, b, c, d, e, f, ..] = node.q.0;
+        let scale = [a, b, c, d, e, f]
+            .iter()
+            .fold(0.0f64, |m, v| m.max(v.abs()));
+        if scale == 0.0 {
+            return true; // linear: a half-space
+        }
+        // All principal minors of [[a d e] [d b f] [e f c]] / scale non-negative, to rounding.
+        let [a, b, c] = [a, b, c].map(|v| v / scale);
+        let [d, e, f] = [d, e, f].map(|v| 0.5 * v / scale);
+        let minors = [
+            a,
+            b,
+            c,
+            a * b - d * d,
+            a * c - e * e,
+            b * c - f * f,
+            a * (b * c - f * f) - d * (d * c - f * e) + e * (d * f - b * e),
+        ];
+        minors.iter().all(|&m| m >= -1e-9)
+    }
+
     /// Half the bounding-box diagonal: the object's size scale.
     pub fn size(&self) -> f64 {
         0.5 * (self.bounds[1] - self.bounds[0]).length()

@@ -134,6 +134,23 @@ impl Gpu {
         format!("{} ({:?})", self.info.name, self.info.backend)
     }
 
+    /// Profiling aid: with `RELIEF_TRACE_PASSES` set, submits what `enc` holds, waits for it
+    /// and logs the time as sub-pass `what` (info level). It serialises the frame, so frame
+    /// times taken with it on are not comparable with those taken without.
+    pub(crate) fn trace_lap(&self, enc: &mut wgpu::CommandEncoder, what: &str) {
+        static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+        if !*ON.get_or_init(|| std::env::var_os("RELIEF_TRACE_PASSES").is_some()) {
+            return;
+        }
+        let start = std::time::Instant::now();
+        let done = std::mem::replace(enc, self.device.create_command_encoder(&Default::default()));
+        self.queue.submit([done.finish()]);
+        match self.wait() {
+            Ok(()) => log::info!("  {what}: {:.1} ms", start.elapsed().as_secs_f64() * 1e3),
+            Err(e) => log::warn!("  {what}: {e}"),
+        }
+    }
+
     /// Waits for all submitted work. The GL backend gives up an indefinite wait after a few
     /// seconds, so long frames are waited for in a loop.
     pub fn wait(&self) -> Result<()> {

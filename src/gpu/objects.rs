@@ -3,8 +3,8 @@
 //! shade pipeline that knows free forms.
 
 use super::renderer::{
-    buf, fullscreen_pipeline, fullscreen_pipeline_with, pipeline_layout, screen_texture,
-    storage_entry, target_state, uint_texture_entry, uniform_entry,
+    buf, fullscreen_pipeline, pipeline_layout, render_pipeline, screen_texture, storage_entry,
+    target_state, uint_texture_entry, uniform_entry,
 };
 use super::types::{FfNodeGpu, FfObjectGpu};
 use super::{shaders, Gpu};
@@ -55,7 +55,12 @@ pub fn pack(objects: &[FreeForm]) -> (Vec<FfObjectGpu>, Vec<FfNodeGpu>) {
                 f32::from_bits(ff.nodes.len() as u32),
             ],
             colour: [m.colour[0], m.colour[1], m.colour[2], m.shininess],
-            material: [m.ambient, m.diffuse, m.specular, 0.0],
+            material: [
+                m.ambient,
+                m.diffuse,
+                m.specular,
+                if ff.is_convex() { 1.0 } else { 0.0 },
+            ],
             sphere: [
                 centre.x as f32,
                 centre.y as f32,
@@ -77,10 +82,12 @@ pub(crate) struct ObjectPasses {
     pub shade_bgl: wgpu::BindGroupLayout,
     bin_primary: wgpu::ComputePipeline,
     bin_shadow: wgpu::ComputePipeline,
-    cast: wgpu::RenderPipeline,
-    shadow: wgpu::RenderPipeline,
-    mark_primary: wgpu::RenderPipeline,
-    mark_shadow: wgpu::RenderPipeline,
+    /// Objects of each kind: [plain (one quadric), perturbed].
+    kinds: [u32; 2],
+    /// Cast passes, [plain, perturbed].
+    cast: [wgpu::RenderPipeline; 2],
+    /// Shadow passes, [plain, perturbed].
+    shadow: [wgpu::RenderPipeline; 2],
     pub shade: wgpu::RenderPipeline,
 }
 
@@ -94,61 +101,6 @@ pub(crate) struct ObjectTargets {
     pub gbuffer: wgpu::Texture,
     pub gbuffer_view: wgpu::TextureView,
     shadow_view: wgpu::TextureView,
-    /// Stencil 1 where the pixel's bin has objects in the list being processed.
-    stencil_view: wgpu::TextureView,
-}
-
-pub(crate) const STENCIL_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth24PlusStencil8;
-
-fn stencil_state(write: bool) -> wgpu::DepthStencilState {
-    let face = wgpu::StencilFaceState {
-        compare: if write {
-            wgpu::CompareFunction::Always
-        } else {
-            wgpu::CompareFunction::Equal
-        },
-        fail_op: wgpu::StencilOperation::Keep,
-        depth_fail_op: wgpu::StencilOperation::Keep,
-        pass_op: if write {
-            wgpu::StencilOperation::Replace
-        } else {
-            wgpu::StencilOperation::Keep
-        },
-    };
-    wgpu::DepthStencilState {
-        format: STENCIL_FORMAT,
-        depth_write_enabled: Some(false),
-        depth_compare: Some(wgpu::CompareFunction::Always),
-        stencil: wgpu::StencilState {
-            front: face,
-            back: face,
-            read_mask: 0xff,
-            write_mask: 0xff,
-        },
-        bias: Default::default(),
-    }
-}
-
-/// A full-screen pipeline behind (or, without a colour target, writing) the stencil mask.
-pub(crate) fn masked_pipeline(
-    dev: &wgpu::Device,
-    label: &str,
-    m: &wgpu::ShaderModule,
-    entry: &str,
-    bgl: &wgpu::BindGroupLayout,
-    target: Option<wgpu::TextureFormat>,
-) -> wgpu::RenderPipeline {
-    let targets: Vec<Option<wgpu::ColorTargetState>> =
-        target.map(|f| Some(target_state(f))).into_iter().collect();
-    fullscreen_pipeline_with(
-        dev,
-        label,
-        m,
-        entry,
-        bgl,
-        &targets,
-        Some(stencil_state(target.is_none())),
-    )
 }
 
 fn view(binding: u32, v: &wgpu::TextureView) -> wgpu::BindGroupEntry<'_> {
@@ -197,6 +149,7 @@ impl ObjectPasses {
         });
         let cs = wgpu::ShaderStages::COMPUTE;
         let fs = wgpu::ShaderStages::FRAGMENT;
+        let vfs = wgpu::ShaderStages::VERTEX_FRAGMENT;
         let bin_bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("free-form bins"),
             entries: &[
@@ -210,12 +163,12 @@ impl ObjectPasses {
         let cast_bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("free-form cast"),
             entries: &[
-                uniform_entry(0, fs),
+                uniform_entry(0, vfs),
                 uint_texture_entry(3, fs),
                 uint_texture_entry(4, fs),
                 storage_entry(6, fs, true),
                 storage_entry(7, fs, true),
-                storage_entry(8, fs, true),
+                storage_entry(8, vfs, true),
             ],
         });
         let shade_bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -253,38 +206,41 @@ impl ObjectPasses {
         };
         let bin_primary = compute("cs_bin_primary");
         let bin_shadow = compute("cs_bin_shadow");
-        let cast = masked_pipeline(
-            dev,
-            "free-form cast",
-            &cast_mod,
-            "fs_objects",
-            &cast_bgl,
-            Some(wgpu::TextureFormat::Rgba32Uint),
-        );
-        let shadow = masked_pipeline(
-            dev,
-            "free-form shadows",
-            &shadow_mod,
-            "fs_ff_shadow",
-            &cast_bgl,
-            Some(wgpu::TextureFormat::R32Uint),
-        );
-        let mark_primary = masked_pipeline(
-            dev,
-            "mark bins (primary)",
-            &cast_mod,
-            "fs_mark_primary",
-            &cast_bgl,
-            None,
-        );
-        let mark_shadow = masked_pipeline(
-            dev,
-            "mark bins (shadow)",
-            &cast_mod,
-            "fs_mark_shadow",
-            &cast_bgl,
-            None,
-        );
+        // One pass per list and object kind, drawn as a quad per bin with such objects.
+        let binned = |m: &wgpu::ShaderModule, entries: [&str; 2], format| {
+            render_pipeline(
+                dev,
+                entries[1],
+                m,
+                entries,
+                &cast_bgl,
+                &[Some(target_state(format))],
+                None,
+            )
+        };
+        let g = wgpu::TextureFormat::Rgba32Uint;
+        let cast = [
+            binned(&cast_mod, ["vs_bins_primary_plain", "fs_objects_plain"], g),
+            binned(
+                &cast_mod,
+                ["vs_bins_primary_general", "fs_objects_general"],
+                g,
+            ),
+        ];
+        let r = wgpu::TextureFormat::R32Uint;
+        let shadow = [
+            binned(
+                &shadow_mod,
+                ["vs_bins_shadow_plain", "fs_ff_shadow_plain"],
+                r,
+            ),
+            binned(
+                &shadow_mod,
+                ["vs_bins_shadow_general", "fs_ff_shadow_general"],
+                r,
+            ),
+        ];
+        let plain = objects.iter().filter(|o| o.nodes.len() == 1).count() as u32;
         let shade = fullscreen_pipeline(
             dev,
             "shade (free forms)",
@@ -305,10 +261,9 @@ impl ObjectPasses {
             shade_bgl,
             bin_primary,
             bin_shadow,
+            kinds: [plain, objects.len() as u32 - plain],
             cast,
             shadow,
-            mark_primary,
-            mark_shadow,
             shade,
         })
     }
@@ -351,7 +306,6 @@ impl ObjectPasses {
         let (gbuffer, gbuffer_view) =
             target("g-buffer with free forms", wgpu::TextureFormat::Rgba32Uint);
         let (_, shadow_view) = target("free-form shadows", wgpu::TextureFormat::R32Uint);
-        let (_, stencil_view) = target("free-form bin mask", STENCIL_FORMAT);
         let bin_bg = |label, depth: &wgpu::TextureView| {
             dev.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some(label),
@@ -390,7 +344,6 @@ impl ObjectPasses {
             gbuffer,
             gbuffer_view,
             shadow_view,
-            stencil_view,
         })
     }
 
@@ -442,95 +395,92 @@ impl ObjectPasses {
             },
             &[],
         );
-        pass.dispatch_workgroups(t.bins[0].div_ceil(8), t.bins[1].div_ceil(8), 1);
+        pass.dispatch_workgroups((t.bins[0] * t.bins[1]).div_ceil(64), 1, 1);
     }
 
-    /// One full-screen pass: marks the stencil (`colour` None) or runs behind it, loading or
-    /// clearing its colour target (pixels the mask skips keep what was there).
-    fn masked(
+    /// One pass over the bins listing objects of the pass's kind, into `target`.
+    fn binned(
         &self,
         enc: &mut wgpu::CommandEncoder,
         t: &ObjectTargets,
         pipeline: &wgpu::RenderPipeline,
         bg: &wgpu::BindGroup,
-        colour: Option<(&wgpu::TextureView, wgpu::LoadOp<wgpu::Color>)>,
+        target: &wgpu::TextureView,
+        load: wgpu::LoadOp<wgpu::Color>,
     ) {
-        let attachments: Vec<_> = colour
-            .map(|(view, load)| {
-                Some(wgpu::RenderPassColorAttachment {
-                    view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load,
-                        store: wgpu::StoreOp::Store,
-                    },
-                })
-            })
-            .into_iter()
-            .collect();
         let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("free forms (masked)"),
-            color_attachments: &attachments,
-            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view: &t.stencil_view,
-                depth_ops: None,
-                stencil_ops: Some(wgpu::Operations {
-                    load: if colour.is_none() {
-                        wgpu::LoadOp::Clear(0)
-                    } else {
-                        wgpu::LoadOp::Load
-                    },
+            label: Some("free forms (binned)"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: target,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load,
                     store: wgpu::StoreOp::Store,
-                }),
-            }),
+                },
+            })],
+            depth_stencil_attachment: None,
             timestamp_writes: None,
             occlusion_query_set: None,
             multiview_mask: None,
         });
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, bg, &[]);
-        pass.set_stencil_reference(1);
-        pass.draw(0..3, 0..1);
+        pass.draw(0..6 * t.bins[0] * t.bins[1], 0..1);
     }
 
-    /// Records the primary binning and the free-form cast (after the terrain cast).
+    /// Records the primary binning and the free-form cast (after the terrain cast): the
+    /// free-form G-buffer starts as a copy of the terrain's; the plain pass writes its nearer
+    /// hits into it; when both kinds exist the result is copied back into `terrain_gbuffer`
+    /// (the perturbed pass's input: it reads the nearest hit so far) before the perturbed pass.
     pub fn encode_cast(
         &self,
+        gpu: &Gpu,
         enc: &mut wgpu::CommandEncoder,
         t: &ObjectTargets,
         terrain_gbuffer: &wgpu::Texture,
     ) {
         self.bin(enc, t, false);
-        enc.copy_texture_to_texture(
-            terrain_gbuffer.as_image_copy(),
-            t.gbuffer.as_image_copy(),
-            terrain_gbuffer.size(),
-        );
-        self.masked(enc, t, &self.mark_primary, &t.cast_bg, None);
-        self.masked(
-            enc,
-            t,
-            &self.cast,
-            &t.cast_bg,
-            Some((&t.gbuffer_view, wgpu::LoadOp::Load)),
-        );
+        gpu.trace_lap(enc, "bin primary");
+        let copy = |enc: &mut wgpu::CommandEncoder, from: &wgpu::Texture, to: &wgpu::Texture| {
+            enc.copy_texture_to_texture(from.as_image_copy(), to.as_image_copy(), from.size())
+        };
+        copy(enc, terrain_gbuffer, &t.gbuffer);
+        gpu.trace_lap(enc, "copy");
+        let load = wgpu::LoadOp::Load;
+        if self.kinds[0] > 0 {
+            self.binned(enc, t, &self.cast[0], &t.cast_bg, &t.gbuffer_view, load);
+            gpu.trace_lap(enc, "cast plain");
+        }
+        if self.kinds[1] > 0 {
+            if self.kinds[0] > 0 {
+                copy(enc, &t.gbuffer, terrain_gbuffer);
+            }
+            self.binned(enc, t, &self.cast[1], &t.cast_bg, &t.gbuffer_view, load);
+            gpu.trace_lap(enc, "cast general");
+        }
     }
 
-    /// Records the shadow binning and the free-form shadow pass (after the free-form cast,
+    /// Records the shadow binning and the free-form shadow passes (after the free-form cast,
     /// before shading).
-    pub fn encode_shadows(&self, enc: &mut wgpu::CommandEncoder, t: &ObjectTargets) {
+    pub fn encode_shadows(&self, gpu: &Gpu, enc: &mut wgpu::CommandEncoder, t: &ObjectTargets) {
         self.bin(enc, t, true);
-        self.masked(enc, t, &self.mark_shadow, &t.cast_bg, None);
-        self.masked(
-            enc,
-            t,
-            &self.shadow,
-            &t.shadow_bg,
-            Some((
-                &t.shadow_view,
-                wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-            )),
-        );
+        gpu.trace_lap(enc, "bin shadow");
+        let mut load = wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT);
+        for kind in 0..2 {
+            if self.kinds[kind] > 0 {
+                let (pipeline, bg) = (&self.shadow[kind], &t.shadow_bg);
+                self.binned(enc, t, pipeline, bg, &t.shadow_view, load);
+                load = wgpu::LoadOp::Load;
+                gpu.trace_lap(
+                    enc,
+                    if kind == 0 {
+                        "shadow plain"
+                    } else {
+                        "shadow general"
+                    },
+                );
+            }
+        }
     }
 }

@@ -1069,7 +1069,7 @@ impl TerrainRenderer {
         lap(&mut enc, &mut times.cast_ms)?;
         let objects = self.objects.as_ref().zip(t.objects.as_ref());
         if let Some((o, (ot, _))) = objects {
-            o.encode_cast(&mut enc, ot, &t.gbuffer);
+            o.encode_cast(gpu, &mut enc, ot, &t.gbuffer);
             lap(&mut enc, &mut times.objects_ms)?;
         }
         let voxels = self.voxels.as_ref().zip(t.voxels.as_ref());
@@ -1087,7 +1087,7 @@ impl TerrainRenderer {
             let (pipeline, bg) = match objects {
                 Some((o, (ot, bg))) => {
                     if s.shadows {
-                        o.encode_shadows(&mut enc, ot);
+                        o.encode_shadows(gpu, &mut enc, ot);
                     }
                     (&o.shade, bg)
                 }
@@ -1294,7 +1294,7 @@ pub(crate) fn fullscreen_pipeline(
     fullscreen_pipeline_with(dev, label, m, entry, bgl, targets, None)
 }
 
-/// [`fullscreen_pipeline`] with a depth-stencil state (the free-form passes' bin mask).
+/// [`fullscreen_pipeline`] with a depth-stencil state (the voxel passes' mask).
 pub(crate) fn fullscreen_pipeline_with(
     dev: &wgpu::Device,
     label: &str,
@@ -1304,12 +1304,35 @@ pub(crate) fn fullscreen_pipeline_with(
     targets: &[Option<wgpu::ColorTargetState>],
     depth_stencil: Option<wgpu::DepthStencilState>,
 ) -> wgpu::RenderPipeline {
+    render_pipeline(
+        dev,
+        label,
+        m,
+        ["vs_fullscreen", entry],
+        bgl,
+        targets,
+        depth_stencil,
+    )
+}
+
+/// A render pipeline of module `m` with vertex and fragment entry points `entries`, no vertex
+/// buffers (the vertex shader makes its positions).
+pub(crate) fn render_pipeline(
+    dev: &wgpu::Device,
+    label: &str,
+    m: &wgpu::ShaderModule,
+    entries: [&str; 2],
+    bgl: &wgpu::BindGroupLayout,
+    targets: &[Option<wgpu::ColorTargetState>],
+    depth_stencil: Option<wgpu::DepthStencilState>,
+) -> wgpu::RenderPipeline {
+    let [vertex, entry] = entries;
     dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some(label),
         layout: Some(&pipeline_layout(dev, bgl)),
         vertex: wgpu::VertexState {
             module: m,
-            entry_point: Some("vs_fullscreen"),
+            entry_point: Some(vertex),
             compilation_options: Default::default(),
             buffers: &[],
         },

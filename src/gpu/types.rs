@@ -63,7 +63,7 @@ pub struct FfObjectGpu {
     pub box_max: [f32; 4],
     /// Linear RGB; w = specular exponent.
     pub colour: [f32; 4],
-    /// Qa, Qd, Qs, unused.
+    /// Qa, Qd, Qs; 1 for a convex solid (`FreeForm::is_convex`), else 0.
     pub material: [f32; 4],
     /// World bounding sphere: centre, radius.
     pub sphere: [f32; 4],

@@ -6,8 +6,10 @@
 //! flag 64 where a voxel blocks the sun. The G-buffer is copied in and back around each masked
 //! pass, so the rest of the renderer sees one G-buffer.
 
-use super::objects::{masked_pipeline, STENCIL_FORMAT};
-use super::renderer::{buf, screen_texture, storage_entry, uint_texture_entry, uniform_entry};
+use super::renderer::{
+    buf, fullscreen_pipeline_with, screen_texture, storage_entry, target_state, uint_texture_entry,
+    uniform_entry,
+};
 use super::types::VoxInstanceGpu;
 use super::{shaders, Gpu};
 use crate::voxel::{VoxelInstance, VoxelModel, BRICK_VOXELS, EMPTY_BRICK};
@@ -15,6 +17,59 @@ use crate::{Error, Result};
 use std::collections::HashMap;
 use std::sync::Arc;
 use wgpu::util::DeviceExt;
+
+const STENCIL_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth24PlusStencil8;
+
+fn stencil_state(write: bool) -> wgpu::DepthStencilState {
+    let face = wgpu::StencilFaceState {
+        compare: if write {
+            wgpu::CompareFunction::Always
+        } else {
+            wgpu::CompareFunction::Equal
+        },
+        fail_op: wgpu::StencilOperation::Keep,
+        depth_fail_op: wgpu::StencilOperation::Keep,
+        pass_op: if write {
+            wgpu::StencilOperation::Replace
+        } else {
+            wgpu::StencilOperation::Keep
+        },
+    };
+    wgpu::DepthStencilState {
+        format: STENCIL_FORMAT,
+        depth_write_enabled: Some(false),
+        depth_compare: Some(wgpu::CompareFunction::Always),
+        stencil: wgpu::StencilState {
+            front: face,
+            back: face,
+            read_mask: 0xff,
+            write_mask: 0xff,
+        },
+        bias: Default::default(),
+    }
+}
+
+/// A full-screen pipeline behind (or, without a colour target, writing) the stencil mask.
+fn masked_pipeline(
+    dev: &wgpu::Device,
+    label: &str,
+    m: &wgpu::ShaderModule,
+    entry: &str,
+    bgl: &wgpu::BindGroupLayout,
+    target: Option<wgpu::TextureFormat>,
+) -> wgpu::RenderPipeline {
+    let targets: Vec<Option<wgpu::ColorTargetState>> =
+        target.map(|f| Some(target_state(f))).into_iter().collect();
+    fullscreen_pipeline_with(
+        dev,
+        label,
+        m,
+        entry,
+        bgl,
+        &targets,
+        Some(stencil_state(target.is_none())),
+    )
+}
 
 /// Where one frame's data lies in the shared buffers.
 #[derive(Clone, Copy, Debug)]

@@ -4,13 +4,17 @@
 //   the farthest terrain hit of the bin;
 // * list 1 (shadow rays): objects whose bounding sphere comes within reach of the sun-ward
 //   extrusion of a sphere around every surface point the bin shows.
-// Pixels then test only their bin's objects: cost grows with objects per bin.
+// Each list keeps plain objects (one quadric) and perturbed ones apart (layout in
+// ff_bins.wgsl). Pixels then test only their bin's objects: cost grows with objects per bin.
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(4) var gbuffer: texture_2d<u32>;
 @group(0) @binding(8) var<storage, read_write> ff_bins_out: array<u32>;
 
+// Keep in step with ff_bins.wgsl.
 const FF_BIN: u32 = 16u;
+const FF_OVERFLOW: u32 = 0xffffffffu;
+const NOT_ONE: u32 = 0xffffffffu;
 
 fn angle_between(a: vec3<f32>, b: vec3<f32>) -> f32 {
     return atan2(length(cross(a, b)), dot(a, b));
@@ -33,6 +37,24 @@ fn bin_border(p0: vec2<u32>, last: vec2<u32>, k: u32) -> vec2<u32> {
     return vec2<u32>(last.x, p0.y + min(k - 2u * w - h, h - 1u));
 }
 
+// Does the segment o + u dir, u in [0, u_max] (dir unit, world), come within `r` of the
+// object's bounding box? Slab test of the segment against the box grown by r on every side
+// (in the object frame): a point within Euclidean distance r of the box lies in the grown box,
+// so `false` is a proof that the r-neighbourhood of the segment misses the box.
+fn segment_near_box(ob: FfObject, o_world: vec3<f32>, dir: vec3<f32>, r: f32, u_max: f32) -> bool {
+    let o = ff_to_local(ob, o_world - ob.position.xyz);
+    let d = ff_to_local(ob, dir);
+    let ds = select(d, vec3<f32>(1.0e-20), abs(d) < vec3<f32>(1.0e-20));
+    let inv = 1.0 / ds;
+    let ta = (ob.box_min.xyz - vec3<f32>(r) - o) * inv;
+    let tb = (ob.box_max.xyz + vec3<f32>(r) - o) * inv;
+    let tn = min(ta, tb);
+    let tf = max(ta, tb);
+    let t0 = max(max(tn.x, tn.y), max(tn.z, 0.0));
+    let t1 = min(min(tf.x, tf.y), min(tf.z, u_max));
+    return t0 <= t1;
+}
+
 fn bin_objects(b: vec2<u32>, list: u32) {
     if (b.x >= frame.objects.y || b.y >= frame.objects.z) {
         return;
@@ -46,6 +68,8 @@ fn bin_objects(b: vec2<u32>, list: u32) {
     var t_hi = 0.0;
     var hits = 0u;
     var sky = false;
+    // The free form every surface pixel of the bin shows, if there is one (NOT_ONE otherwise).
+    var only = NOT_ONE;
     for (var y = p0.y; y < p1.y; y++) {
         for (var x = p0.x; x < p1.x; x++) {
             let g = textureLoad(gbuffer, vec2<i32>(i32(x), i32(y)), 0);
@@ -53,6 +77,8 @@ fn bin_objects(b: vec2<u32>, list: u32) {
                 let t = bitcast<f32>(g.x);
                 t_lo = min(t_lo, t);
                 t_hi = max(t_hi, t);
+                let id = select(NOT_ONE, g.y & 0xffffu, (g.w & 16u) != 0u);
+                only = select(select(only, NOT_ONE, id != only), id, hits == 0u);
                 hits += 1u;
             } else if ((g.w & 8u) == 0u) {
                 sky = true;
@@ -88,6 +114,8 @@ fn bin_objects(b: vec2<u32>, list: u32) {
         }
     }
     theta = 1.1 * theta + cone + 1.0e-4;
+    let tan_theta = tan(min(theta, 1.0));
+    let sec_theta = 1.0 / cos(min(theta, 1.0));
     let eye = frame.eye_world.xyz;
     // Shadow list: a sphere around the bin's surface points (the cone between t_lo and t_hi),
     // padded for the shadow rays' offset from the surface.
@@ -101,8 +129,19 @@ fn bin_objects(b: vec2<u32>, list: u32) {
     sr += 1.0 + 1.0e-3 * t_hi;
     let sun = frame.sun_world.xyz;
     let cap = frame.objects.w;
-    var count = 0u;
+    var n_plain = 0u;
+    var n_general = 0u;
+    // A convex solid cannot shadow its own surface (the shadow pass starts its rays off the
+    // surface, towards the sun): a bin showing only one convex free form leaves it out of its
+    // shadow list (a runway: otherwise every runway pixel would test the runway).
+    var self_only = NOT_ONE;
+    if (list == 1u && only != NOT_ONE && ff_objects[only].material.w > 0.0) {
+        self_only = only;
+    }
     for (var i = 0u; i < frame.objects.x; i++) {
+        if (i == self_only) {
+            continue;
+        }
         let sp = ff_objects[i].sphere;
         var keep = false;
         if (list == 0u) {
@@ -111,29 +150,61 @@ fn bin_objects(b: vec2<u32>, list: u32) {
             if (dist <= sp.w) {
                 keep = true;
             } else if (dist - sp.w <= t_hi) {
-                keep = angle_between(axis, v) <= theta + asin(min(sp.w / dist, 1.0)) + 1.0e-4;
+                // Sphere against the cone without trigonometry per object: a centre at axial
+                // distance u and radial distance perp lies (perp - u tan θ) cos θ from the
+                // cone's side, so it meets the cone when perp <= u tan θ + R / cos θ (u < 0
+                // taken as 0: more permissive; a centre near the apex is caught above).
+                let u = dot(v, axis);
+                let perp = length(v - axis * u);
+                keep = theta >= 1.0 || perp <= max(u, 0.0) * tan_theta + sp.w * sec_theta + 1.0e-4 * dist;
+            }
+            // The sphere of a long, thin object (a runway) covers far more of the screen than
+            // its box, above all when the eye is inside the sphere: a bin's rays lie within
+            // t tan(theta) of the axis at axial distance t, so the axis segment up to the
+            // nearer of the farthest surface point and the sphere's far side must come within
+            // that of the box.
+            if (keep && theta < 1.0) {
+                let reach = min(t_hi, dist + sp.w);
+                let r = reach * tan_theta + 1.0e-2 + 1.0e-5 * reach;
+                keep = segment_near_box(ff_objects[i], eye, axis, r, reach);
             }
         } else {
             let v = sp.xyz - sc;
             let u = max(dot(v, sun), 0.0);
             keep = length(v - sun * u) <= sp.w + sr;
+            // The same for the sun-ward extrusion of the bin's surface sphere against the box.
+            if (keep) {
+                keep = segment_near_box(ff_objects[i], sc, sun, sr + 1.0e-2 + 1.0e-5 * sr, BIG);
+            }
         }
         if (keep) {
-            if (count < cap) {
-                ff_bins_out[base + 1u + count] = i;
+            // Plain objects (one quadric) from the front of the slots, perturbed ones from the
+            // back (see ff_bins.wgsl).
+            let plain = bitcast<u32>(ff_objects[i].box_max.w) == 1u;
+            if (n_plain + n_general < cap) {
+                ff_bins_out[select(base + cap - n_general, base + 1u + n_plain, plain)] = i;
             }
-            count += 1u;
+            n_plain += select(0u, 1u, plain);
+            n_general += select(1u, 0u, plain);
         }
     }
-    ff_bins_out[base] = count;
+    ff_bins_out[base] = select(n_plain | (n_general << 16u), FF_OVERFLOW, n_plain + n_general > cap);
 }
 
-@compute @workgroup_size(8, 8)
-fn cs_bin_primary(@builtin(global_invocation_id) gid: vec3<u32>) {
-    bin_objects(gid.xy, 0u);
+// Bin of invocation `lid` of workgroup `wg` (of `groups`): strided, so that every workgroup
+// samples the whole screen. Mesa's CPU adapters hand each thread a fixed block of workgroups;
+// with row-major bins one thread would get the sky and the other the objects.
+fn strided_bin(wg: u32, lid: u32, groups: u32) -> vec2<u32> {
+    let i = wg + groups * lid;
+    return vec2<u32>(i % frame.objects.y, i / frame.objects.y);
 }
 
-@compute @workgroup_size(8, 8)
-fn cs_bin_shadow(@builtin(global_invocation_id) gid: vec3<u32>) {
-    bin_objects(gid.xy, 1u);
+@compute @workgroup_size(64)
+fn cs_bin_primary(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lid: u32, @builtin(num_workgroups) n: vec3<u32>) {
+    bin_objects(strided_bin(wg.x, lid, n.x), 0u);
+}
+
+@compute @workgroup_size(64)
+fn cs_bin_shadow(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lid: u32, @builtin(num_workgroups) n: vec3<u32>) {
+    bin_objects(strided_bin(wg.x, lid, n.x), 1u);
 }

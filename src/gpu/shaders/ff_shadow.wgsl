@@ -1,16 +1,18 @@
-// Free-form shadow pass: per lit-facing surface pixel, does a free form of the pixel's shadow
-// list block the ray to the sun? Writes 1 (blocked) or 0 for the shade pass. Its own pass so
+// Free-form shadow passes: per lit-facing surface pixel of a bin with shadow-list objects,
+// does a free form block the ray to the sun? Writes 1 where one does and discards elsewhere
+// (the target starts cleared to 0). One entry point per object kind, each drawn only over the
+// bins whose shadow list holds objects of its kind (`vs_bins_shadow_*`). Its own passes so
 // that the shade pass carries no intersection code.
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(4) var gbuffer: texture_2d<u32>;
 
-@fragment
-fn fs_ff_shadow(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
-    let px = vec2<u32>(pos.xy);
+// Origin of the pixel's shadow ray (w = 1), or w = 0 where no ray is needed (sky, a free-form
+// surface facing away from the sun).
+fn shadow_origin(px: vec2<u32>) -> vec4<f32> {
     let g = textureLoad(gbuffer, vec2<i32>(px), 0);
     if ((g.w & 1u) == 0u) {
-        return vec4<u32>(0u);
+        return vec4<f32>(0.0);
     }
     let sun = frame.sun_world.xyz;
     var p = frame.eye_world.xyz + ray_dir(px) * bitcast<f32>(g.x);
@@ -19,9 +21,29 @@ fn fs_ff_shadow(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
         // terrain is not a free form).
         let n = oct_decode(g.z);
         if (dot(n, sun) <= 0.0) {
-            return vec4<u32>(0u);
+            return vec4<f32>(0.0);
         }
         p += n * ff_objects[g.y & 0xffffu].position.w;
     }
-    return vec4<u32>(select(0u, 1u, ff_blocked(px, p, sun)), 0u, 0u, 0u);
+    return vec4<f32>(p, 1.0);
+}
+
+@fragment
+fn fs_ff_shadow_plain(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
+    let px = vec2<u32>(pos.xy);
+    let o = shadow_origin(px);
+    if (o.w == 0.0 || !ff_plain_blocked(px, o.xyz, frame.sun_world.xyz)) {
+        discard;
+    }
+    return vec4<u32>(1u, 0u, 0u, 0u);
+}
+
+@fragment
+fn fs_ff_shadow_general(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
+    let px = vec2<u32>(pos.xy);
+    let o = shadow_origin(px);
+    if (o.w == 0.0 || !ff_blocked(px, o.xyz, frame.sun_world.xyz)) {
+        discard;
+    }
+    return vec4<u32>(1u, 0u, 0u, 0u);
 }

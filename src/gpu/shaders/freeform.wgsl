@@ -18,7 +18,7 @@ struct FfObject {
     box_max: vec4<f32>,
     // Linear RGB; w = specular exponent.
     colour: vec4<f32>,
-    // Qa, Qd, Qs.
+    // Qa, Qd, Qs; w = 1 for a convex solid (`FreeForm::is_convex`), else 0.
     material: vec4<f32>,
     // World bounding sphere: centre, radius.
     sphere: vec4<f32>,
@@ -41,6 +41,10 @@ struct FfNode {
 const FF_MAX_NODES: u32 = 16u;
 const FF_MAX_DEPTH: u32 = 3u;
 const FF_LEVELS: u32 = 16u;
+// Shadow rays only ask whether a root exists: leaves of L / 2^10 (4 cm on a 40 m box) whose
+// enclosure still admits F' <= 0 count as blocked, without the endpoint refinement.
+const FF_SHADOW_LEVELS: u32 = 10u;
+const FF_LEAF: f32 = 2.5e-4;
 const FF_MAX_ITERATIONS: u32 = 1024u;
 
 // No arrays here: llvmpipe zero-initialises every function-scope array of an inlined shader
@@ -231,12 +235,13 @@ fn ff_span(ob: FfObject, ro: vec3<f32>, rd: vec3<f32>, t_min: f32, t_max: f32) -
 }
 
 // First hit of the world ray ro + t rd (rd unit) with object `id`, t in [t_min, t_max]; the
-// normal is left to `ff_normal`. One loop drives every enclosure evaluation through a single
+// normal is left to `ff_normal`. `any`: shadow rays, which only need to know whether there is
+// a hit (FF_SHADOW_LEVELS, no refinement; the hit's t is then a leaf's start). One loop drives every enclosure evaluation through a single
 // call site (Mesa inlines each call and its SIMD rasteriser runs every loop body at least
 // once per fragment block): phase 0 evaluates F'(p0); phase 1 is the depth-first search, in
 // which interval (k, i) is [i, i + 1] · L / 2^k; phases 2 and 3 evaluate F' at the ends of
 // the leaf for the final linear interpolation.
-fn ff_intersect(id: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32, t_max: f32) -> FfHit {
+fn ff_intersect(id: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32, t_max: f32, any: bool) -> FfHit {
     var h: FfHit;
     h.hit = false;
     h.t = t_max;
@@ -256,6 +261,10 @@ fn ff_intersect(id: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32, t_max: f32) -
     let count = min(bitcast<u32>(ob.box_max.w), FF_MAX_NODES);
     let p0 = o + d * t0;
     let len = t1 - t0;
+    // Leaves need be no finer than FF_LEAF of the object's size: the refined root lies in its
+    // leaf, so its distance from the surface is below that (a quarter of what the tests allow).
+    let fine = u32(clamp(ceil(log2(len / (FF_LEAF * ob.sphere.w))), 1.0, f32(FF_LEVELS)));
+    let levels = min(fine, select(FF_LEVELS, FF_SHADOW_LEVELS, any));
     var phase = 0u;
     var k = 0u;
     var i = 0u;
@@ -319,7 +328,11 @@ fn ff_intersect(id: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32, t_max: f32) -
             break;
         }
         if (e <= 0.0) {
-            if (k == FF_LEVELS) {
+            if (k == levels) {
+                if (any) {
+                    s = a;
+                    break;
+                }
                 phase = 2u;
             } else {
                 k += 1u;
@@ -344,6 +357,53 @@ fn ff_intersect(id: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32, t_max: f32) -
     }
     h.hit = true;
     h.t = t0 + s;
+    return h;
+}
+
+// A plain object (one quadric, no perturbations: `box_max.w` bits = 1) in closed form, with
+// its unit world normal: the answer of `ff_intersect`'s phase 0 and stable root without its
+// loop, so the passes over plain objects carry no enclosure search at all (on Mesa's SIMD
+// rasteriser a fragment block pays for a loop body even when no lane needs it).
+fn ff_plain_hit(id: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32, t_max: f32) -> FfHit {
+    var h: FfHit;
+    h.hit = false;
+    h.t = t_max;
+    h.n = vec3<f32>(0.0);
+    h.iterations = 0u;
+    let ob = ff_objects[id];
+    let span = ff_span(ob, ro, rd, t_min, t_max);
+    if (span.t0 > span.t1) {
+        return h;
+    }
+    h.iterations = 1u;
+    let node = ff_nodes[bitcast<u32>(ob.box_min.w)];
+    let d = span.d;
+    let p0 = span.o + d * span.t0;
+    let c = ff_along(node, p0, d);
+    var s = 0.0;
+    if (c.z <= 0.0) {
+        // Entering the solid through the box: the face's normal.
+        var face = -d;
+        if (span.t0 > t_min) {
+            if (span.t0 == span.tn.x) {
+                face = vec3<f32>(-sign(d.x), 0.0, 0.0);
+            } else if (span.t0 == span.tn.y) {
+                face = vec3<f32>(0.0, -sign(d.y), 0.0);
+            } else {
+                face = vec3<f32>(0.0, 0.0, -sign(d.z));
+            }
+        }
+        h.n = ff_to_world(ob, face);
+    } else {
+        s = ff_plain_root(c, span.t1 - span.t0);
+        if (s < 0.0) {
+            return h;
+        }
+        let g = ff_grad(node, p0 + d * s);
+        h.n = select(-rd, ff_to_world(ob, normalize(g)), dot(g, g) > 0.0);
+    }
+    h.hit = true;
+    h.t = span.t0 + s;
     return h;
 }
 

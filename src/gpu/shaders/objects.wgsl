@@ -1,25 +1,50 @@
-// Free-form cast pass: per pixel, the nearest free form of the pixel's bin in front of the
-// terrain hit replaces it in the G-buffer (distance, object id | iterations << 16, packed
-// normal, flags 1 | 16).
+// Free-form cast passes: per pixel of a bin with objects, the nearest free form of the pixel's
+// bin in front of the current hit replaces it in the G-buffer (distance, object id |
+// iterations << 16, packed unit normal, flags 1 | 16); pixels without a nearer free form are
+// discarded and keep what the target holds. Two entry points, one per object kind: plain
+// objects in closed form, then perturbed ones by the enclosure search, each drawn only over
+// the bins that list objects of its kind (`vs_bins_primary_*`).
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(4) var gbuffer_in: texture_2d<u32>;
 
-@fragment
-fn fs_objects(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
-    let px = vec2<u32>(pos.xy);
+// The pixel's current hit distance (BIG for sky); negative where the pixel shows no screen.
+fn current_far(px: vec2<u32>) -> f32 {
     let g = textureLoad(gbuffer_in, vec2<i32>(px), 0);
     if ((g.w & 8u) != 0u) {
-        return g;
+        return -1.0;
     }
-    var far = BIG;
-    if ((g.w & 1u) != 0u) {
-        far = bitcast<f32>(g.x);
+    return select(BIG, bitcast<f32>(g.x), (g.w & 1u) != 0u);
+}
+
+fn gbuffer_hit(best: FfNearest, n: vec3<f32>) -> vec4<u32> {
+    return vec4<u32>(bitcast<u32>(best.hit.t), best.id | (min(best.iterations, 0xffffu) << 16u), oct_encode(n), 1u | 16u);
+}
+
+@fragment
+fn fs_objects_plain(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
+    let px = vec2<u32>(pos.xy);
+    let far = current_far(px);
+    if (far < 0.0) {
+        discard;
+    }
+    let best = ff_plain_nearest(px, 0u, frame.eye_world.xyz, ray_dir(px), 0.0, far);
+    if (!best.hit.hit) {
+        discard;
+    }
+    return gbuffer_hit(best, best.hit.n);
+}
+
+@fragment
+fn fs_objects_general(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
+    let px = vec2<u32>(pos.xy);
+    let far = current_far(px);
+    if (far < 0.0) {
+        discard;
     }
     let best = ff_nearest(px, 0u, frame.eye_world.xyz, ray_dir(px), 0.0, far);
     if (!best.hit.hit) {
-        return g;
+        discard;
     }
-    let n = ff_normal(best.id, best.hit, frame.eye_world.xyz, ray_dir(px));
-    return vec4<u32>(bitcast<u32>(best.hit.t), best.id | (min(best.iterations, 0xffffu) << 16u), oct_encode(n), 1u | 16u);
+    return gbuffer_hit(best, ff_normal(best.id, best.hit, frame.eye_world.xyz, ray_dir(px)));
 }
