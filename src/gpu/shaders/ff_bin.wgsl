@@ -16,10 +16,6 @@ const FF_BIN: u32 = 16u;
 const FF_OVERFLOW: u32 = 0xffffffffu;
 const NOT_ONE: u32 = 0xffffffffu;
 
-fn angle_between(a: vec3<f32>, b: vec3<f32>) -> f32 {
-    return atan2(length(cross(a, b)), dot(a, b));
-}
-
 // Pixel k of a walk around the border of the bin [p0, last] (k < 2 * (width + height); the
 // corners are visited twice).
 fn bin_border(p0: vec2<u32>, last: vec2<u32>, k: u32) -> vec2<u32> {
@@ -93,26 +89,35 @@ fn bin_objects(b: vec2<u32>, list: u32) {
         return;
     }
     // Cone of the bin's rays from its border pixels (the ray table is smooth over a bin, so
-    // the extreme directions lie on the border), padded by the widest pixel cone and 10%.
-    var sum = vec3<f32>(0.0);
-    var cone = 0.0;
+    // the extreme directions lie on the border), padded by the widest pixel cone and 10%. The
+    // axis is the centre pixel's ray (the mean border ray where the centre shows no screen);
+    // the half-angle comes from the largest chord |e - axis|, without trigonometry per pixel.
     let last = p1 - vec2<u32>(1u);
     let perimeter = 2u * ((p1.x - p0.x) + (p1.y - p0.y));
+    let centre = ray_entry((p0 + last) / 2u);
+    var axis = centre.xyz;
+    var cone = max(centre.w, 0.0);
+    if (centre.w < 0.0) {
+        var sum = vec3<f32>(0.0);
+        for (var k = 0u; k < perimeter; k++) {
+            let e = ray_entry(bin_border(p0, last, k));
+            if (e.w >= 0.0) {
+                sum += e.xyz;
+            }
+        }
+        axis = normalize(sum + vec3<f32>(0.0, 0.0, 1.0e-30));
+    }
+    var chord2 = 0.0;
     for (var k = 0u; k < perimeter; k++) {
         let e = ray_entry(bin_border(p0, last, k));
         if (e.w >= 0.0) {
-            sum += e.xyz;
+            let c = e.xyz - axis;
+            chord2 = max(chord2, dot(c, c));
             cone = max(cone, e.w);
         }
     }
-    let axis = normalize(sum + vec3<f32>(0.0, 0.0, 1.0e-30));
-    var theta = 0.0;
-    for (var k = 0u; k < perimeter; k++) {
-        let e = ray_entry(bin_border(p0, last, k));
-        if (e.w >= 0.0) {
-            theta = max(theta, angle_between(axis, e.xyz));
-        }
-    }
+    let half_chord = 0.5 * sqrt(min(chord2, 4.0));
+    var theta = 2.0 * atan2(half_chord, sqrt(max(1.0 - half_chord * half_chord, 0.0)));
     theta = 1.1 * theta + cone + 1.0e-4;
     let tan_theta = tan(min(theta, 1.0));
     let sec_theta = 1.0 / cos(min(theta, 1.0));
