@@ -71,3 +71,27 @@ fn free_form_constants_match_the_cpu_side() {
     );
     assert!(src.contains(&nodes) && src.contains(&depth));
 }
+
+#[test]
+fn full_screen_passes_never_discard() {
+    // The full-screen passes start from LoadOp::DontCare (renderer `encode_fullscreen`): that is
+    // sound only while every pixel is written, i.e. no fragment of theirs discards.
+    use relief::gpu::shaders;
+    for (name, src) in [
+        ("raygen", shaders::raygen()),
+        ("tile", shaders::tile()),
+        ("cast", shaders::cast()),
+        ("shade", shaders::shade()),
+        ("shade (free forms)", shaders::shade_objects()),
+        ("volume", shaders::volume()),
+        ("pattern", shaders::pattern()),
+        ("blend", shaders::blend()),
+    ] {
+        let code: String = src
+            .lines()
+            .map(|l| l.split("//").next().unwrap_or(""))
+            .collect::<Vec<_>>()
+            .join("\n");
+        assert!(!code.contains("discard"), "{name} discards a fragment");
+    }
+}

@@ -96,11 +96,13 @@ fn depth_error(out: &FrameOutput, reference: &[(u32, u32, Option<f64>)]) -> Dept
     }
 }
 
-/// The scene at `size` (validated again) and its terrain.
-/// Mean wall-clock milliseconds of `frames` pipelined frames up to `stage` (submit to GPU
-/// idle, no readback), after one untimed frame.
+/// Wall-clock milliseconds per frame up to `stage` (submit to GPU idle, no readback), after
+/// one untimed frame: `frames` frames in pairs, each pair submitted back to back as a frame
+/// loop does (the CPU side of one frame overlaps the other's rendering), the median over the
+/// pairs. The median, not the mean: on a shared machine slow spells come and go, and one of
+/// them should not decide a figure.
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn mean_frame_ms(
+pub(crate) fn median_frame_ms(
     r: &mut TerrainRenderer,
     gpu: &Gpu,
     terrain: &Terrain,
@@ -112,14 +114,19 @@ pub(crate) fn mean_frame_ms(
 ) -> Result<f64> {
     r.render(gpu, terrain, desc, cam, s, stage)?;
     gpu.wait()?;
-    let start = Instant::now();
-    for _ in 0..frames {
-        r.render(gpu, terrain, desc, cam, s, stage)?;
+    let mut times = Vec::new();
+    for _ in 0..(frames / 2).max(1) {
+        let start = Instant::now();
+        for _ in 0..2 {
+            r.render(gpu, terrain, desc, cam, s, stage)?;
+        }
+        gpu.wait()?;
+        times.push(start.elapsed().as_secs_f64() * 1e3 / 2.0);
     }
-    gpu.wait()?;
-    Ok(start.elapsed().as_secs_f64() * 1e3 / frames as f64)
+    Ok(median(times))
 }
 
+/// The scene at `size` (validated again) and its terrain.
 pub(crate) fn load_at_size(scene_path: &Path, size: (u32, u32)) -> Result<(Scene, Terrain)> {
     let mut scene = Scene::load(scene_path)?;
     scene.desc.output.width = size.0;
@@ -210,7 +217,7 @@ pub fn run(
         // Warm-up: shader compilation on first use, target allocation.
         let out = renderer.capture(&gpu, &terrain, &scene.desc, &cam, &s)?;
         let mut time = |stage: Stage| -> Result<f64> {
-            mean_frame_ms(
+            median_frame_ms(
                 &mut renderer,
                 &gpu,
                 &terrain,
@@ -360,12 +367,12 @@ pub struct FreeFormReport {
     pub with_free_forms_ms: f64,
     /// `with_free_forms_ms / terrain_only_ms` (target ≤ 1.5).
     pub ratio: f64,
-    /// Generated free forms all in the view, 150 m to 4 km away: (count, mean frame ms).
+    /// Generated free forms all in the view, 150 m to 4 km away: (count, median frame ms).
     pub scaling: Vec<(usize, f64)>,
     /// Frame ms with the most generated objects over the fewest, all in view.
     pub scaling_ratio: f64,
     /// Generated free forms spread uniformly over the whole terrain, as a database of objects
-    /// is, most of them out of the view: (count, mean frame ms).
+    /// is, most of them out of the view: (count, median frame ms).
     pub spread: Vec<(usize, f64)>,
     /// Frame ms with the most spread objects over the fewest (the target: ≤ 3).
     pub spread_ratio: f64,
@@ -499,7 +506,7 @@ pub fn run_freeforms(scene_path: &Path, size: (u32, u32), frames: u32) -> Result
         renderer.set_objects(&gpu, objects)?;
         // Warm-up: shader compilation on first use, target allocation.
         renderer.capture(&gpu, &terrain, &scene.desc, &cam, &s)?;
-        mean_frame_ms(
+        median_frame_ms(
             &mut renderer,
             &gpu,
             &terrain,

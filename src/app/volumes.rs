@@ -11,7 +11,7 @@ use std::path::Path;
 #[derive(Clone, Debug, Serialize)]
 pub struct VolumeRun {
     pub name: String,
-    /// Mean frame time, all passes pipelined (ms).
+    /// Median frame time, each frame timed alone from submit to GPU idle (ms).
     pub frame_ms: f64,
     /// Fastest volume pass alone, submitted and waited for on its own (ms).
     pub volume_ms: f64,
@@ -66,7 +66,7 @@ pub fn bench(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<VolumeR
     let cam = scene.camera(0, &terrain);
     let s = RenderSettings::from_scene(&scene.desc);
     let frame_ms = |r: &mut TerrainRenderer| -> Result<f64> {
-        super::bench::mean_frame_ms(
+        super::bench::median_frame_ms(
             r,
             &gpu,
             &terrain,

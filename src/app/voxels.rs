@@ -95,7 +95,7 @@ pub fn bench(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<VoxelBe
                 .voxels_ms;
         }
         Ok((
-            super::bench::mean_frame_ms(
+            super::bench::median_frame_ms(
                 &mut r,
                 &gpu,
                 &terrain,

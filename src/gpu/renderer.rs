@@ -961,7 +961,11 @@ impl TerrainRenderer {
                     depth_slice: None,
                     resolve_target: None,
                     ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                        // SAFETY: the full-screen triangle covers every pixel and no full-screen
+                        // pass discards (`tests/shaders.rs` checks), so every pixel is written
+                        // before it is read or stored. A clear costs Mesa's CPU adapters about
+                        // as much as a trivial full-screen pass of its own.
+                        load: wgpu::LoadOp::DontCare(unsafe { wgpu::LoadOpDontCare::enabled() }),
                         store: wgpu::StoreOp::Store,
                     },
                 })
