@@ -235,29 +235,50 @@ fn traverse_from(r: Ray, t_min: f32, t_max: f32, max_steps: u32, start_level: u3
     let top = frame.grid.z - 1u;
     let dir = walk_dir(r);
     var w = walk_start(r, tt.x, min(start_level, top));
+    // Two nested loops for SIMD rasterisers: the inner one only steps through the pyramid and
+    // stops at a level-0 cell the segment may touch; the patch test runs after it, once for
+    // all lanes that stopped, instead of inside every stepping iteration that one lane needs
+    // (the same visits and step counts as the CPU reference's single loop).
     loop {
-        if (res.steps >= max_steps) {
-            res.exhausted = true;
+        var candidate = false;
+        var exits = vec2<f32>(0.0);
+        var t_exit = 0.0;
+        loop {
+            if (res.steps >= max_steps) {
+                res.exhausted = true;
+                break;
+            }
+            res.steps += 1u;
+            exits = cell_exits(r, dir, w);
+            t_exit = max(min(min(exits.x, exits.y), t1), w.t);
+            let cmax = pyr_get(w.level, w.cell.x, w.cell.y) + frame.heights_range.w;
+            let z_low = min(r.o.z + r.d.z * w.t, r.o.z + r.d.z * t_exit);
+            if (z_low <= cmax) {
+                if (w.level > 0u) {
+                    w = descend(r, dir, w);
+                    continue;
+                }
+                candidate = true;
+                break;
+            }
+            if (t_exit >= t1) {
+                break;
+            }
+            w = advance(dir, w, exits, t_exit, top);
+            if (!walk_inside(w)) {
+                break;
+            }
+        }
+        if (!candidate) {
             break;
         }
-        res.steps += 1u;
-        let exits = cell_exits(r, dir, w);
-        let t_exit = max(min(min(exits.x, exits.y), t1), w.t);
-        let cmax = pyr_get(w.level, w.cell.x, w.cell.y) + frame.heights_range.w;
-        let z_low = min(r.o.z + r.d.z * w.t, r.o.z + r.d.z * t_exit);
-        if (z_low <= cmax) {
-            if (w.level > 0u) {
-                w = descend(r, dir, w);
-                continue;
-            }
-            res.patches += 1u;
-            let th = patch_hit(r, w.cell.x, w.cell.y, w.t, t_exit);
-            if (th >= 0.0) {
-                res.hit = true;
-                res.t = th;
-                res.cell = w.cell;
-                return res;
-            }
+        res.patches += 1u;
+        let th = patch_hit(r, w.cell.x, w.cell.y, w.t, t_exit);
+        if (th >= 0.0) {
+            res.hit = true;
+            res.t = th;
+            res.cell = w.cell;
+            return res;
         }
         if (t_exit >= t1) {
             break;
