@@ -8,18 +8,18 @@
 @group(0) @binding(2) var<storage, read> pyramid: array<f32>;
 @group(0) @binding(4) var tile_start: texture_2d<u32>;
 
-fn primary_ray(pos: vec4<f32>) -> Ray {
-    let px = vec2<u32>(pos.xy);
+fn primary_ray(e: vec4<f32>) -> Ray {
     var r: Ray;
     r.o = frame.eye.xyz;
-    r.d = to_grid_dir(ray_dir(px));
+    r.d = to_grid_dir(e.xyz);
     return r;
 }
 
 // The product: pyramid traversal from the tile's start distance.
 @fragment
 fn fs_cast(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
-    if (ray_entry(vec2<u32>(pos.xy)).w < 0.0) {
+    let e = ray_entry(vec2<u32>(pos.xy));
+    if (e.w < 0.0) {
         return no_screen_gbuffer();
     }
     var t_min = 0.0;
@@ -29,15 +29,16 @@ fn fs_cast(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
         t_min = bitcast<f32>(s.x);
         level = s.y;
     }
-    return encode_gbuffer(traverse_from(primary_ray(pos), t_min, BIG, frame.mode.y, level));
+    return encode_gbuffer(traverse_from(primary_ray(e), t_min, BIG, frame.mode.y, level));
 }
 
 // Benchmark baseline: fixed-step march (its own entry point, so neither pays for the other's
 // code on SIMD software rasterisers).
 @fragment
 fn fs_cast_march(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
-    if (ray_entry(vec2<u32>(pos.xy)).w < 0.0) {
+    let e = ray_entry(vec2<u32>(pos.xy));
+    if (e.w < 0.0) {
         return no_screen_gbuffer();
     }
-    return encode_gbuffer(march(primary_ray(pos), 0.0, BIG, frame.mode.y));
+    return encode_gbuffer(march(primary_ray(e), 0.0, BIG, frame.mode.y));
 }

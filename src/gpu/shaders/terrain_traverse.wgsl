@@ -37,8 +37,10 @@ fn pyramid_index(level: u32, ix: i32, iy: i32) -> u32 {
     if (u32(ix) >= side || u32(iy) >= side) {
         return NO_CELL;
     }
-    let n = frame.pyramid_dims.x;
-    return (n * n - side * side) / 3u * 4u + u32(iy) * side + u32(ix);
+    // Levels above: 4 (N² - side²) / 3 = 4 side² (4^L - 1) / 3 cells, and (4^L - 1) / 3 is
+    // L ones in base 4 (0x5555… masked): shifts and masks, no integer division per step.
+    let ones = 0x55555555u & ((1u << (2u * level)) - 1u);
+    return ((ones * side * side) << 2u) + u32(iy) * side + u32(ix);
 }
 
 fn pyr_get(level: u32, ix: i32, iy: i32) -> f32 {
