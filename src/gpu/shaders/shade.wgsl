@@ -144,7 +144,9 @@ fn fs_shade(@builtin(position) pos: vec4<f32>) -> Out {
         var sr: Ray;
         sr.o = p + vec3<f32>(n_geom.x * off * frame.spacing.z, n_geom.y * off * frame.spacing.w, n_geom.z * off);
         sr.d = frame.sun_grid.xyz;
-        let st = traverse(sr, 0.0, BIG, frame.mode.y);
+        // From level 0 in the origin's cell: the origin lies on (just above) a surface, so
+        // the top-down descent would test cell after cell the ray is known to touch.
+        let st = traverse_from(sr, 0.0, BIG, frame.mode.y, 0u);
         shadow_steps = st.steps;
         if (st.hit || objects_shadow(px) || (flags & 64u) != 0u) {
             lit = 0.0;
