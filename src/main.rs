@@ -89,8 +89,8 @@ enum Command {
         /// only (default scene: terrains/tree.toml).
         #[arg(long)]
         voxels: bool,
-        /// Measure the density-volume pass instead: plain marching vs empty-space skipping and
-        /// early termination (default scene: terrains/brain.toml).
+        /// Measure the density-volume pass instead (the scene's first volume): plain marching vs
+        /// empty-space skipping and early termination (default scene: terrains/brain.toml).
         #[arg(long)]
         volume: bool,
         /// Measure a display config's channel instead (resized to --size, same lens):

@@ -16,6 +16,7 @@ pub mod voxels;
 
 pub use renderer::{
     FrameOutput, KernelPath, PassTimes, RenderSettings, Stage, TerrainRenderer, TraceMode,
+    MAX_VOLUMES,
 };
 
 use crate::{Error, Result};

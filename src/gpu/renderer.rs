@@ -11,6 +11,9 @@ use crate::{Error, Result};
 use std::time::Instant;
 use wgpu::util::DeviceExt;
 
+/// Density volumes a scene may hold (each is a full-screen pass per frame).
+pub const MAX_VOLUMES: usize = 8;
+
 /// Screen tile side of the tile pre-pass (WGSL `TILE`).
 pub const TILE: u32 = 8;
 
@@ -127,7 +130,7 @@ struct Targets {
     /// Free-form bins, G-buffer and the shade bind group that reads them.
     objects: Option<(ObjectTargets, wgpu::BindGroup)>,
     /// The shaded image under the volume and the volume pass's statistics.
-    volume: Option<super::volumes::VolumeTargets>,
+    volumes: Vec<super::volumes::VolumeTargets>,
     /// The finished image before the edge blend.
     blend: Option<super::blend::BlendTargets>,
     voxels: Option<VoxelTargets>,
@@ -183,7 +186,7 @@ pub struct TerrainRenderer {
     tile_mod: wgpu::ShaderModule,
     table: Option<TableMode>,
     objects: Option<ObjectPasses>,
-    volume: Option<super::volumes::VolumePass>,
+    volumes: Vec<super::volumes::VolumePass>,
     /// Edge blend of a display channel (see [`Self::set_blend`]).
     blend: Option<super::blend::BlendPass>,
     voxels: Option<VoxelPasses>,
@@ -506,7 +509,7 @@ impl TerrainRenderer {
             tile_mod,
             table: None,
             objects: None,
-            volume: None,
+            volumes: Vec::new(),
             blend: None,
             voxels: None,
             pattern: None,
@@ -635,24 +638,33 @@ impl TerrainRenderer {
         Ok(())
     }
 
-    /// Uploads the scene's density volume (none: no volume pass). One volume per scene.
+    /// Uploads the scene's density volumes (none: no volume pass). Each frame composites them
+    /// one after the other, farthest box centre first, each over the image so far and each cut
+    /// at the opaque depth: exact for volumes whose boxes do not interleave along a ray.
     pub fn set_volumes(&mut self, gpu: &Gpu, volumes: &[crate::volume::Volume]) -> Result<()> {
-        if volumes.len() > 1 {
+        if volumes.len() > MAX_VOLUMES {
             return Err(Error::invalid(
                 "volumes",
                 format!(
-                    "{} [[volumes]] tables; the renderer composites one volume per scene: \
-                     merge them into one grid",
+                    "{} [[volumes]] tables, at most {MAX_VOLUMES}: merge some into one grid",
                     volumes.len()
                 ),
             ));
         }
-        self.volume = match volumes.first() {
-            Some(v) => Some(super::volumes::VolumePass::new(gpu, v)?),
-            None => None,
-        };
+        self.volumes = volumes
+            .iter()
+            .map(|v| super::volumes::VolumePass::new(gpu, v))
+            .collect::<Result<_>>()?;
         self.targets = None;
         Ok(())
+    }
+
+    /// Indices of the volumes, farthest box centre from `eye` first (compositing order).
+    fn volume_order(&self, eye: glam::DVec3) -> Vec<usize> {
+        let dist = |i: usize| self.volumes[i].volume.world_centre().distance(eye);
+        let mut order: Vec<usize> = (0..self.volumes.len()).collect();
+        order.sort_by(|&a, &b| dist(b).total_cmp(&dist(a)));
+        order
     }
 
     /// Uploads the scene's voxel models (none: no voxel passes). Refuses models over the
@@ -667,17 +679,18 @@ impl TerrainRenderer {
         Ok(())
     }
 
-    /// Reclassifies the volume with a new transfer function (table and brick occupancy are
-    /// recomputed and uploaded).
+    /// Reclassifies the volumes with a new transfer function (table and brick occupancy are
+    /// recomputed and uploaded), all of them.
     pub fn set_volume_transfer(&mut self, gpu: &Gpu, tf: crate::volume::TransferFunction) {
-        if let Some(v) = &mut self.volume {
-            v.set_transfer(gpu, tf);
+        for v in &mut self.volumes {
+            v.set_transfer(gpu, tf.clone());
         }
     }
 
-    /// Changes the volume's sampling switches (step, skipping, termination, jitter, mip-maps).
+    /// Changes the volumes' sampling switches (step, skipping, termination, jitter, mip-maps),
+    /// all of them.
     pub fn set_volume_settings(&mut self, gpu: &Gpu, settings: crate::volume::VolumeSettings) {
-        if let Some(v) = &mut self.volume {
+        for v in &mut self.volumes {
             if v.volume.settings.mipmaps != settings.mipmaps {
                 v.volume.settings = settings;
                 let tf = v.volume.transfer.clone();
@@ -872,16 +885,20 @@ impl TerrainRenderer {
             }
             None => None,
         };
-        let volume = self.volume.as_ref().map(|v| {
-            v.targets(
-                gpu,
-                width,
-                height,
-                &self.frame_ub,
-                &ray_table_view,
-                &data.create_view(&Default::default()),
-            )
-        });
+        let volumes = self
+            .volumes
+            .iter()
+            .map(|v| {
+                v.targets(
+                    gpu,
+                    width,
+                    height,
+                    &self.frame_ub,
+                    &ray_table_view,
+                    &data.create_view(&Default::default()),
+                )
+            })
+            .collect();
         let voxels = self.voxels.as_ref().map(|v| {
             let g = objects
                 .as_ref()
@@ -895,7 +912,7 @@ impl TerrainRenderer {
             .transpose()?;
         self.targets = Some(Targets {
             blend,
-            volume,
+            volumes,
             objects,
             voxels,
             width,
@@ -1097,18 +1114,26 @@ impl TerrainRenderer {
                 }
                 None => (&self.shade_pipeline, &t.shade_bg),
             };
-            let shaded = t.volume.as_ref().map_or(&t.colour_view, |v| &v.under_view);
+            // Shade into the first volume's input; each volume pass composites over its own
+            // input and writes the next one's (the last writes the colour target).
+            let order = self.volume_order(cam.pose.position);
+            let input = |k: usize| order.get(k).map(|&i| &t.volumes[i].under_view);
+            let shaded = input(0).unwrap_or(&t.colour_view);
             Self::encode_fullscreen(&mut enc, "shade", pipeline, bg, &[shaded, &t.data_view]);
             lap(&mut enc, &mut times.shade_ms)?;
-            if let (Some(v), Some(vt)) = (&self.volume, &t.volume) {
+            for (k, &i) in order.iter().enumerate() {
+                let (v, vt) = (&self.volumes[i], &t.volumes[i]);
                 v.write_uniforms(gpu, cam.pose.position);
+                let out = input(k + 1).unwrap_or(&t.colour_view);
                 Self::encode_fullscreen(
                     &mut enc,
                     "volume",
                     &v.pipeline,
                     &vt.bg,
-                    &[&t.colour_view, &vt.stats_view],
+                    &[out, &vt.stats_view],
                 );
+            }
+            if !order.is_empty() {
                 lap(&mut enc, &mut times.volume_ms)?;
             }
             self.encode_blend(&mut enc, t);
@@ -1184,7 +1209,7 @@ impl TerrainRenderer {
                 },
             );
         }
-        if let Some(vt) = &t.volume {
+        for vt in &t.volumes {
             enc.copy_texture_to_buffer(
                 vt.stats.as_image_copy(),
                 wgpu::TexelCopyBufferInfo {
@@ -1205,10 +1230,17 @@ impl TerrainRenderer {
         gpu.queue.submit([enc.finish()]);
         let rgba = read_buffer(gpu, &t.colour_rb, w * 4, h)?;
         let data = read_buffer(gpu, &t.data_rb, w * 16, h)?;
-        let stats = match &t.volume {
-            Some(vt) => read_buffer(gpu, &vt.stats_rb, w * 8, h)?,
-            None => Vec::new(),
-        };
+        // Volume statistics, summed over the volumes.
+        let mut stats: Vec<[u32; 2]> = Vec::new();
+        for vt in &t.volumes {
+            let bytes = read_buffer(gpu, &vt.stats_rb, w * 8, h)?;
+            stats.resize(bytes.len() / 8, [0, 0]);
+            for (s, px) in stats.iter_mut().zip(bytes.chunks_exact(8)) {
+                let word = |i: usize| u32::from_le_bytes([px[i], px[i + 1], px[i + 2], px[i + 3]]);
+                s[0] += word(0);
+                s[1] += word(4);
+            }
+        }
         times.readback_ms = start.elapsed().as_secs_f64() * 1e3;
         let words: &[u32] = bytemuck::cast_slice(&data);
         let n = (w * h) as usize;
@@ -1226,10 +1258,9 @@ impl TerrainRenderer {
             volume_segments: Vec::new(),
             times,
         };
-        for px in stats.chunks_exact(8) {
-            let word = |i: usize| u32::from_le_bytes([px[i], px[i + 1], px[i + 2], px[i + 3]]);
-            out.volume_samples.push(word(0));
-            out.volume_segments.push(word(4));
+        for [samples, segments] in stats {
+            out.volume_samples.push(samples);
+            out.volume_segments.push(segments);
         }
         for px in words.chunks_exact(4) {
             out.depth.push(f32::from_bits(px[0]));

@@ -345,6 +345,11 @@ impl Volume {
         DVec3::from(self.grid.extent())
     }
 
+    /// World position of the box centre.
+    pub fn world_centre(&self) -> DVec3 {
+        self.corner + self.rotation * (0.5 * self.extent())
+    }
+
     /// A world point in the volume frame (metres from the corner).
     pub fn to_local(&self, p: DVec3) -> DVec3 {
         self.rotation.transpose() * (p - self.corner)
