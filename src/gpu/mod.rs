@@ -27,6 +27,8 @@ pub struct Gpu {
     pub queue: wgpu::Queue,
     pub info: wgpu::AdapterInfo,
     pub limits: wgpu::Limits,
+    /// What a downlevel (GL, GLES) adapter can do; full on Vulkan, Metal and DX12.
+    pub downlevel: wgpu::DownlevelFlags,
 }
 
 impl Gpu {
@@ -127,6 +129,7 @@ impl Gpu {
             queue,
             info,
             limits,
+            downlevel: adapter.get_downlevel_capabilities().flags,
         })
     }
 

@@ -1,6 +1,7 @@
 //! Free-form passes: object data uploaded once, the binning pass (compute, one invocation per
-//! 16x16-pixel bin, primary and shadow lists), the free-form cast pass (fragment) and the
-//! shade pipeline that knows free forms.
+//! 16x16-pixel bin, primary and shadow lists, plain and perturbed objects apart), the cast and
+//! shadow passes (fragment, one per object kind, drawn as quads over runs of bins that list
+//! objects of that kind) and the shade pipeline that knows free forms.
 
 use super::renderer::{
     buf, fullscreen_pipeline, pipeline_layout, render_pipeline, screen_texture, storage_entry,
@@ -129,6 +130,17 @@ impl ObjectPasses {
                 what: "storage buffers per shader stage".into(),
                 msg: format!(
                     "free forms need {STORAGE_BUFFERS}, the adapter {} allows {have}; render the scene without [[objects]]",
+                    gpu.info.name
+                ),
+            });
+        }
+        if !gpu.downlevel.contains(wgpu::DownlevelFlags::VERTEX_STORAGE) {
+            return Err(Error::Limit {
+                what: "storage buffers in vertex shaders".into(),
+                msg: format!(
+                    "the free-form passes draw their bins from a storage buffer, which {} does \
+                     not allow in vertex shaders; render the scene without [[objects]] or on \
+                     another adapter (WGPU_BACKEND=vulkan)",
                     gpu.info.name
                 ),
             });
