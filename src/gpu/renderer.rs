@@ -129,7 +129,7 @@ struct Targets {
     data_rb: wgpu::Buffer,
     /// Free-form bins, G-buffer and the shade bind group that reads them.
     objects: Option<(ObjectTargets, wgpu::BindGroup)>,
-    /// The shaded image under the volume and the volume pass's statistics.
+    /// Per volume: the image under it (its pass's input) and its pass's statistics.
     volumes: Vec<super::volumes::VolumeTargets>,
     /// The finished image before the edge blend.
     blend: Option<super::blend::BlendTargets>,
