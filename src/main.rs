@@ -73,7 +73,8 @@ enum Command {
         #[arg(long, value_parser = parse_size, default_value = "1280x720")]
         size: (u32, u32),
         /// Timed frames per configuration (submitted in pairs as a frame loop does; the median
-        /// over the pairs is reported).
+        /// over the pairs is reported; the --freeforms headline ratio alternates single frames
+        /// of its two configurations instead).
         #[arg(long, default_value_t = 10)]
         frames: u32,
         /// Print one JSON object instead of a table.
