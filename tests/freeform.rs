@@ -749,6 +749,34 @@ fn cpu_pixel(
     )
 }
 
+/// Per pixel against the CPU oracle: the object the CPU sees there (None for terrain or sky)
+/// and whether the GPU agrees (same sky/terrain/object class and id, depth within 0.1%).
+fn oracle_agreement(
+    terrain: &Terrain,
+    objects: &[FreeForm],
+    cam: &Camera,
+    out: &FrameOutput,
+) -> Vec<(Option<usize>, bool)> {
+    (0..cam.width * cam.height)
+        .into_par_iter()
+        .map(|k| {
+            let gpu_obj = out.objects[k as usize].checked_sub(1).map(|i| i as usize);
+            let depth = out.depth[k as usize] as f64;
+            match cpu_pixel(terrain, objects, cam, k) {
+                None => (None, !depth.is_finite()),
+                Some(hit) => {
+                    let (cpu_obj, same_surface) = match hit.surface {
+                        Surface::Object(i) => (Some(i), gpu_obj == Some(i)),
+                        Surface::Terrain { .. } => (None, gpu_obj.is_none()),
+                    };
+                    let depth_ok = ((depth - hit.t) / hit.t).abs() <= 1e-3;
+                    (cpu_obj, same_surface && depth_ok)
+                }
+            }
+        })
+        .collect()
+}
+
 #[test]
 fn gpu_matches_cpu_oracle_on_the_airfield_demo() {
     let _l = gpu_lock();
@@ -772,29 +800,9 @@ fn gpu_matches_cpu_oracle_on_the_airfield_demo() {
         .capture(g, &terrain, &scene.desc, &cam, &settings(true))
         .unwrap();
     let n = 320 * 240;
-    let cpu: Vec<Option<cff::SceneHit>> = (0..n)
-        .into_par_iter()
-        .map(|k| cpu_pixel(&terrain, &objects, &cam, k))
-        .collect();
-    let mut agree = 0;
-    let mut object_pixels = 0;
-    for k in 0..n as usize {
-        let gpu_obj = out.objects[k].checked_sub(1).map(|i| i as usize);
-        let ok = match &cpu[k] {
-            None => !out.depth[k].is_finite(),
-            Some(hit) => {
-                let same_surface = match hit.surface {
-                    Surface::Object(i) => {
-                        object_pixels += 1;
-                        gpu_obj == Some(i)
-                    }
-                    Surface::Terrain { .. } => gpu_obj.is_none(),
-                };
-                same_surface && ((out.depth[k] as f64 - hit.t) / hit.t).abs() <= 1e-3
-            }
-        };
-        agree += ok as usize;
-    }
+    let pixels = oracle_agreement(&terrain, &objects, &cam, &out);
+    let agree = pixels.iter().filter(|p| p.1).count();
+    let object_pixels = pixels.iter().filter(|p| p.0.is_some()).count();
     let frac = agree as f64 / n as f64;
     eprintln!(
         "{agree}/{n} pixels agree ({:.3}%), {object_pixels} free-form pixels",
@@ -850,25 +858,15 @@ fn overflowing_bins_still_find_the_nearest_object_of_both_kinds() {
         return;
     };
     let n = cam.width * cam.height;
+    let pixels = oracle_agreement(&terrain, &objects, &cam, &out);
     let (mut agree, mut object_pixels, mut object_agree, mut kinds) = (0, 0, 0, [0, 0]);
-    for k in 0..n {
-        let gpu_obj = out.objects[k as usize].checked_sub(1).map(|i| i as usize);
-        let ok = match cpu_pixel(&terrain, &objects, &cam, k) {
-            None => !out.depth[k as usize].is_finite(),
-            Some(hit) => {
-                let same = match hit.surface {
-                    Surface::Object(i) => {
-                        object_pixels += 1;
-                        kinds[(objects[i].nodes.len() > 1) as usize] += 1;
-                        gpu_obj == Some(i)
-                    }
-                    Surface::Terrain { .. } => gpu_obj.is_none(),
-                };
-                same && ((out.depth[k as usize] as f64 - hit.t) / hit.t).abs() <= 1e-3
-            }
-        };
+    for &(cpu_obj, ok) in &pixels {
         agree += ok as u32;
-        object_agree += (ok && gpu_obj.is_some()) as u32;
+        if let Some(i) = cpu_obj {
+            object_pixels += 1;
+            object_agree += ok as u32;
+            kinds[(objects[i].nodes.len() > 1) as usize] += 1;
+        }
     }
     let frac = agree as f64 / n as f64;
     eprintln!("{agree}/{n} agree, {object_agree}/{object_pixels} object pixels (plain, perturbed: {kinds:?})");

@@ -351,10 +351,11 @@ fn render_pair(
     Some((under, out, rays))
 }
 
-/// The CPU reference image: the volume integral per pixel along the GPU's own rays, cut at
-/// the GPU's opaque depth, over the GPU's image without the volume.
+/// The CPU reference image: the volume integrals per pixel along the GPU's own rays, cut at
+/// the GPU's opaque depth, over the GPU's image without the volumes; `volumes` in compositing
+/// order (farthest first), each over the 8-bit result of the ones before, as on the GPU.
 fn cpu_image(
-    v: &Volume,
+    volumes: &[&Volume],
     light: &VolumeLight,
     cam: &Camera,
     under: &FrameOutput,
@@ -377,8 +378,10 @@ fn cpu_image(
                 f64::INFINITY
             };
             let px = [k as u32 % w, k as u32 / w];
-            let res = integrate(v, light, cam.pose.position, dir, e[3] as f64, t_max, px);
-            composite(&res, [u[0], u[1], u[2]])
+            volumes.iter().fold([u[0], u[1], u[2]], |c, v| {
+                let res = integrate(v, light, cam.pose.position, dir, e[3] as f64, t_max, px);
+                composite(&res, c)
+            })
         })
         .collect()
 }
@@ -415,7 +418,7 @@ fn gpu_volume_matches_the_cpu_reference_on_the_brain_with_two_transfer_functions
         let Some((under, out, rays)) = render_pair(&terrain, &scene.desc, &cam, &vols, &[]) else {
             return;
         };
-        let cpu = cpu_image(&vols[0], &light, &cam, &under, &rays);
+        let cpu = cpu_image(&[&vols[0]], &light, &cam, &under, &rays);
         let (mean, max, touched) = compare(&out.rgba, &cpu, &under.rgba);
         let samples: u64 = out.volume_samples.iter().map(|&s| s as u64).sum();
         eprintln!(
@@ -661,31 +664,7 @@ fn several_volumes_composite_back_to_front_like_the_cpu_reference() {
         let d = |v: &Volume| v.world_centre().distance(cam.pose.position);
         d(b).total_cmp(&d(a))
     });
-    let w = cam.width;
-    let cpu: Vec<[u8; 3]> = (0..rays.len())
-        .into_par_iter()
-        .map(|k| {
-            let e = rays[k];
-            let u = &under.rgba[4 * k..4 * k + 3];
-            let mut c = [u[0], u[1], u[2]];
-            if e[3] < 0.0 {
-                return c;
-            }
-            let dir = DVec3::new(e[0] as f64, e[1] as f64, e[2] as f64);
-            let depth = under.depth[k] as f64;
-            let t_max = if depth.is_finite() {
-                depth
-            } else {
-                f64::INFINITY
-            };
-            let px = [k as u32 % w, k as u32 / w];
-            for v in &order {
-                let res = integrate(v, &light, cam.pose.position, dir, e[3] as f64, t_max, px);
-                c = composite(&res, c);
-            }
-            c
-        })
-        .collect();
+    let cpu = cpu_image(&order, &light, &cam, &under, &rays);
     let (mean, max, touched) = compare(&out.rgba, &cpu, &under.rgba);
     // Pixels where two volumes overlap on screen: both changed the colour.
     let overlap = (0..rays.len())
@@ -1111,7 +1090,7 @@ fn gpu_matches_the_cpu_reference_on_the_4d_function_slices() {
     let Some((under, out, rays)) = render_pair(&terrain, &scene.desc, &cam, &vols, &[]) else {
         return;
     };
-    let cpu = cpu_image(&vols[0], &light, &cam, &under, &rays);
+    let cpu = cpu_image(&[&vols[0]], &light, &cam, &under, &rays);
     let (mean, max, touched) = compare(&out.rgba, &cpu, &under.rgba);
     eprintln!(
         "4-D slices: mean |GPU − CPU| {mean:.3}/255, max {max}/255 over {touched} volume pixels"

@@ -5,7 +5,7 @@
 
 use super::renderer::{
     buf, fullscreen_pipeline, pipeline_layout, render_pipeline, screen_texture, storage_entry,
-    target_state, uint_texture_entry, uniform_entry,
+    target_state, uint_texture_entry, uniform_entry, view,
 };
 use super::types::{FfNodeGpu, FfObjectGpu};
 use super::{shaders, Gpu};
@@ -102,13 +102,6 @@ pub(crate) struct ObjectTargets {
     pub gbuffer: wgpu::Texture,
     pub gbuffer_view: wgpu::TextureView,
     shadow_view: wgpu::TextureView,
-}
-
-fn view(binding: u32, v: &wgpu::TextureView) -> wgpu::BindGroupEntry<'_> {
-    wgpu::BindGroupEntry {
-        binding,
-        resource: wgpu::BindingResource::TextureView(v),
-    }
 }
 
 impl ObjectPasses {

@@ -1392,6 +1392,13 @@ pub(crate) fn buf(binding: u32, b: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
     }
 }
 
+pub(crate) fn view(binding: u32, v: &wgpu::TextureView) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry {
+        binding,
+        resource: wgpu::BindingResource::TextureView(v),
+    }
+}
+
 impl TerrainRenderer {
     /// Reads back the ray table of the last frame: per pixel (direction xyz, cone half-angle;
     /// negative where the pixel shows no screen). For tests and warp tools.

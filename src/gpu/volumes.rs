@@ -4,7 +4,7 @@
 
 use super::renderer::{
     buf, float_texture_entry, fullscreen_pipeline, screen_texture, storage_entry, target_state,
-    uint_texture_entry, uniform_entry,
+    uint_texture_entry, uniform_entry, view,
 };
 use super::types::VolumeUniforms;
 use super::{shaders, Gpu};
@@ -212,19 +212,15 @@ impl VolumePass {
         let stats = tex("volume statistics", STATS_FORMAT);
         let under_view = under.create_view(&Default::default());
         let stats_view = stats.create_view(&Default::default());
-        let tv = |binding, v| wgpu::BindGroupEntry {
-            binding,
-            resource: wgpu::BindingResource::TextureView(v),
-        };
         let bg = dev.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("volume"),
             layout: &self.bgl,
             entries: &[
                 buf(0, frame_ub),
-                tv(3, ray_table),
-                tv(10, &under_view),
-                tv(11, data),
-                tv(12, &self.view),
+                view(3, ray_table),
+                view(10, &under_view),
+                view(11, data),
+                view(12, &self.view),
                 buf(14, &self.table),
                 buf(15, &self.bricks),
                 buf(16, &self.uniforms),

@@ -8,7 +8,7 @@
 
 use super::renderer::{
     buf, fullscreen_pipeline_with, screen_texture, storage_entry, target_state, uint_texture_entry,
-    uniform_entry,
+    uniform_entry, view,
 };
 use super::types::VoxInstanceGpu;
 use super::{shaders, Gpu};
@@ -294,10 +294,6 @@ impl VoxelPasses {
         let copy = wgpu::TextureUsages::COPY_SRC | wgpu::TextureUsages::COPY_DST;
         let g = tex("voxel g-buffer", wgpu::TextureFormat::Rgba32Uint, copy);
         let s = tex("voxel mask", STENCIL_FORMAT, wgpu::TextureUsages::empty());
-        let view = |b, v| wgpu::BindGroupEntry {
-            binding: b,
-            resource: wgpu::BindingResource::TextureView(v),
-        };
         let bg = dev.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("voxels"),
             layout: &self.bgl,
