@@ -76,13 +76,17 @@ fn free_form_constants_match_the_cpu_side() {
 fn full_screen_passes_never_discard() {
     // The full-screen passes start from LoadOp::DontCare (renderer `encode_fullscreen`): that is
     // sound only while every pixel is written, i.e. no fragment of theirs discards.
+    use relief::gpu::shade::ShadeFeatures;
     use relief::gpu::shaders;
     for (name, src) in [
         ("raygen", shaders::raygen()),
         ("tile", shaders::tile()),
         ("cast", shaders::cast()),
-        ("shade", shaders::shade()),
-        ("shade (free forms)", shaders::shade_objects()),
+        ("shade", shaders::shade(ShadeFeatures::ALL)),
+        (
+            "shade (free forms)",
+            shaders::shade_objects(ShadeFeatures::ALL),
+        ),
         ("volume", shaders::volume()),
         ("pattern", shaders::pattern()),
         ("blend", shaders::blend()),

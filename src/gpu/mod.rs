@@ -9,6 +9,7 @@ pub mod blend;
 pub mod objects;
 pub mod pattern;
 pub mod renderer;
+pub mod shade;
 pub mod shaders;
 pub mod types;
 pub mod volumes;

@@ -4,9 +4,10 @@
 //! objects of that kind) and the shade pipeline that knows free forms.
 
 use super::renderer::{
-    buf, fullscreen_pipeline, pipeline_layout, render_pipeline, screen_texture, storage_entry,
-    target_state, uint_texture_entry, uniform_entry, view,
+    buf, pipeline_layout, render_pipeline, screen_texture, storage_entry, target_state,
+    uint_texture_entry, uniform_entry, view,
 };
+use super::shade::ShadePipelines;
 use super::types::{FfNodeGpu, FfObjectGpu};
 use super::{shaders, Gpu};
 use crate::freeform::FreeForm;
@@ -89,7 +90,7 @@ pub(crate) struct ObjectPasses {
     cast: [wgpu::RenderPipeline; 2],
     /// Shadow passes, [plain, perturbed].
     shadow: [wgpu::RenderPipeline; 2],
-    pub shade: wgpu::RenderPipeline,
+    pub shade: ShadePipelines,
 }
 
 /// Size-dependent resources of the free-form passes.
@@ -197,7 +198,6 @@ impl ObjectPasses {
         };
         let bin_mod = module("ff_bin.wgsl", shaders::ff_bin());
         let cast_mod = module("objects.wgsl", shaders::objects());
-        let shade_mod = module("shade.wgsl (free forms)", shaders::shade_objects());
         let shadow_mod = module("ff_shadow.wgsl", shaders::ff_shadow());
         let compute = |entry: &str| {
             dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
@@ -246,16 +246,10 @@ impl ObjectPasses {
             ),
         ];
         let plain = objects.iter().filter(|o| o.nodes.len() == 1).count() as u32;
-        let shade = fullscreen_pipeline(
-            dev,
+        let shade = ShadePipelines::new(
             "shade (free forms)",
-            &shade_mod,
-            "fs_shade",
-            &shade_bgl,
-            &[
-                Some(target_state(wgpu::TextureFormat::Rgba8Unorm)),
-                Some(target_state(wgpu::TextureFormat::Rgba32Uint)),
-            ],
+            shaders::shade_objects,
+            shade_bgl.clone(),
         );
         Ok(ObjectPasses {
             count: objects.len() as u32,

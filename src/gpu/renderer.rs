@@ -2,6 +2,7 @@
 //! per-frame uniforms, the three passes and readback.
 
 use super::objects::{ObjectPasses, ObjectTargets};
+use super::shade::{ShadeFeatures, ShadePipelines};
 use super::types::{FrameUniforms, RayGenUniforms, MAX_LEVELS};
 use super::voxels::{VoxelPasses, VoxelTargets};
 use super::{shaders, Gpu};
@@ -181,7 +182,10 @@ pub struct TerrainRenderer {
     tile_pipeline: wgpu::RenderPipeline,
     cast_pipeline: wgpu::RenderPipeline,
     march_pipeline: wgpu::RenderPipeline,
-    shade_pipeline: wgpu::RenderPipeline,
+    /// Terrain-only shade pipelines (with free forms, [`ObjectPasses`] has its own).
+    shade: ShadePipelines,
+    /// The terrain has a draped image (a shade-pipeline constant).
+    has_drape: bool,
     raygen_mod: wgpu::ShaderModule,
     tile_mod: wgpu::ShaderModule,
     table: Option<TableMode>,
@@ -427,7 +431,6 @@ impl TerrainRenderer {
         let raygen_mod = module("raygen.wgsl", shaders::raygen());
         let tile_mod = module("tile.wgsl", shaders::tile());
         let cast_mod = module("cast.wgsl", shaders::cast());
-        let shade_mod = module("shade.wgsl", shaders::shade());
         let layout = |bgl: &wgpu::BindGroupLayout| pipeline_layout(dev, bgl);
         let fullscreen = |label: &str,
                           m: &wgpu::ShaderModule,
@@ -478,16 +481,8 @@ impl TerrainRenderer {
             &cast_bgl,
             &[target(wgpu::TextureFormat::Rgba32Uint)],
         );
-        let shade_pipeline = fullscreen(
-            "shade",
-            &shade_mod,
-            "fs_shade",
-            &shade_bgl,
-            &[
-                target(wgpu::TextureFormat::Rgba8Unorm),
-                target(wgpu::TextureFormat::Rgba32Uint),
-            ],
-        );
+        let shade = ShadePipelines::new("shade", shaders::shade, shade_bgl.clone());
+        let has_drape = terrain.drape.is_some();
         Ok(TerrainRenderer {
             heights,
             pyramid,
@@ -504,7 +499,8 @@ impl TerrainRenderer {
             tile_pipeline,
             cast_pipeline,
             march_pipeline,
-            shade_pipeline,
+            shade,
+            has_drape,
             raygen_mod,
             tile_mod,
             table: None,
@@ -1025,6 +1021,15 @@ impl TerrainRenderer {
             }
         }
         self.ensure_targets(gpu, cam.width, cam.height)?;
+        let features = ShadeFeatures {
+            shadows: s.shadows,
+            drape: self.has_drape,
+            voxels: self.voxels.is_some(),
+        };
+        let shade_index = match &mut self.objects {
+            Some(o) => o.shade.prepare(&gpu.device, features),
+            None => self.shade.prepare(&gpu.device, features),
+        };
         let t = self.targets.as_ref().expect("targets just ensured");
         let mut fu = frame_uniforms(terrain, scene, cam, s, t.tiles);
         fu.pyramid_dims = [self.pyramid_side, 0, 0, 0];
@@ -1110,9 +1115,9 @@ impl TerrainRenderer {
                     if s.shadows {
                         o.encode_shadows(gpu, &mut enc, ot);
                     }
-                    (&o.shade, bg)
+                    (o.shade.get(shade_index), bg)
                 }
-                None => (&self.shade_pipeline, &t.shade_bg),
+                None => (self.shade.get(shade_index), &t.shade_bg),
             };
             // Shade into the first volume's input; each volume pass composites over its own
             // input and writes the next one's (the last writes the colour target).

@@ -1,6 +1,8 @@
 //! WGSL sources. One file per pass; shared code lives in included files that are prepended
 //! here (WGSL has no include directive).
 
+use super::shade::ShadeFeatures;
+
 const FRAME: &str = include_str!("shaders/frame.wgsl");
 const FULLSCREEN: &str = include_str!("shaders/fullscreen.wgsl");
 const TRAVERSE: &str = include_str!("shaders/terrain_traverse.wgsl");
@@ -41,9 +43,11 @@ pub fn cast() -> String {
     .concat()
 }
 
-/// Shade pass (fragment): lighting, shadow rays, fog, sky from the G-buffer.
-pub fn shade() -> String {
+/// Shade pass (fragment): lighting, shadow rays, fog, sky from the G-buffer, with the
+/// optional features `f` compiled in.
+pub fn shade(f: ShadeFeatures) -> String {
     [
+        &f.wgsl_constants(),
         FRAME,
         FULLSCREEN,
         RAY_TABLE,
@@ -58,8 +62,9 @@ pub fn shade() -> String {
 
 /// Shade pass for scenes with free forms: as [`shade`], plus free-form shading and the
 /// free-form shadow pass's answers.
-pub fn shade_objects() -> String {
+pub fn shade_objects(f: ShadeFeatures) -> String {
     [
+        &f.wgsl_constants(),
         FRAME,
         FULLSCREEN,
         RAY_TABLE,
@@ -151,8 +156,13 @@ pub fn all() -> Vec<(&'static str, String)> {
         ("raygen", raygen()),
         ("tile", tile()),
         ("cast", cast()),
-        ("shade", shade()),
-        ("shade_objects", shade_objects()),
+        ("shade", shade(ShadeFeatures::ALL)),
+        ("shade (no options)", shade(ShadeFeatures::NONE)),
+        ("shade_objects", shade_objects(ShadeFeatures::ALL)),
+        (
+            "shade_objects (no options)",
+            shade_objects(ShadeFeatures::NONE),
+        ),
         ("ff_bin", ff_bin()),
         ("objects", objects()),
         ("ff_shadow", ff_shadow()),

@@ -9,6 +9,15 @@
 @group(0) @binding(4) var gbuffer: texture_2d<u32>;
 @group(0) @binding(5) var<storage, read> drape: array<u32>;
 
+// Feature constants SHADOWS, DRAPE and VOXELS (bool) are prepended per pipeline
+// (`gpu::shade::ShadeFeatures`): Mesa's CPU rasterisers run both sides of every branch for the
+// whole SIMD block, uniform or not, so a switched-off feature still costs its full price unless
+// it is compiled out (a shadow ray never cast cost 18 ms of a 72 ms shade pass, an untaken drape
+// lookup 12 ms; 1280x720, GL/llvmpipe).
+// SHADOWS: sun shadow rays (terrain, and the free-form and voxel passes' answers).
+// DRAPE: colour from the draped RGB image instead of the elevation/slope ramp.
+// VOXELS: the scene has voxel models (G-buffer flag 32, voxel shadow flag 64).
+
 struct Out {
     @location(0) colour: vec4<f32>,
     // x: f32 bits of the ray distance (+inf bits for sky), y: traversal steps,
@@ -55,7 +64,7 @@ fn drape_texel(x: i32, y: i32) -> vec3<f32> {
 }
 
 fn albedo(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
-    if (frame.grid.w != 0u) {
+    if (DRAPE) {
         let q = frame.drape_map.xy + frame.drape_map.zw * p.xy;
         let f = floor(q);
         let a = q - f;
@@ -93,25 +102,36 @@ fn fs_shade(@builtin(position) pos: vec4<f32>) -> Out {
     let dir_w = ray_dir(px);
     let dl = to_local(dir_w);
     var out: Out;
+    var c: vec3<f32>;
+    // One path per pixel kind, each leaving linear colour in c, and one sRGB encoding at the
+    // end (the SIMD rasteriser runs every path, so nothing is repeated per path).
+    if ((g.w & 1u) == 0u) {
+        // Sky, or (flag 8) no screen under this pixel: black.
+        let no_screen = (g.w & 8u) != 0u;
+        c = select(sky(dl), vec3<f32>(0.0), no_screen);
+        out.data = select(vec4<u32>(INF_BITS, g.z, min(g.w >> 8u, 0xffffu), g.w & 0xffu), vec4<u32>(INF_BITS, 0u, 0u, g.w & 0xffu), no_screen);
+    } else {
+        let s = shade_surface(px, g, dir_w, dl);
+        c = s.colour.xyz;
+        out.data = s.data;
+    }
+    out.colour = vec4<f32>(srgb_encode(c), 1.0);
+    return out;
+}
+
+// Lit and fogged linear colour (not yet sRGB) and capture data of a surface pixel (terrain,
+// free form or voxel model) with G-buffer g.
+fn shade_surface(px: vec2<u32>, g: vec4<u32>, dir_w: vec3<f32>, dl: vec3<f32>) -> Out {
+    var out: Out;
     var flags = g.w & 0xffu;
     let patches = g.w >> 8u;
-    if ((flags & 8u) != 0u) {
-        out.colour = vec4<f32>(0.0, 0.0, 0.0, 1.0);
-        out.data = vec4<u32>(INF_BITS, 0u, 0u, flags);
-        return out;
-    }
-    if ((flags & 1u) == 0u) {
-        out.colour = vec4<f32>(srgb_encode(sky(dl)), 1.0);
-        out.data = vec4<u32>(INF_BITS, g.z, min(patches, 0xffffu), flags);
-        return out;
-    }
     let t = bitcast<f32>(g.x);
     let ro = frame.eye.xyz;
     let p = ro + to_grid_dir(dir_w) * t;
     let sun = frame.sun_local.xyz;
     let is_object = (flags & 16u) != 0u;
     // Voxel models (flag 32): palette RGBA in y, packed world face normal in z.
-    let is_voxel = (flags & 32u) != 0u;
+    let is_voxel = VOXELS && (flags & 32u) != 0u;
     // Geometric normal (local frame) for the shadow ray and offset of its origin (metres),
     // shading normal.
     var n_geom: vec3<f32>;
@@ -140,7 +160,7 @@ fn fs_shade(@builtin(position) pos: vec4<f32>) -> Out {
     }
     var lit = select(0.0, 1.0, dot(n_geom, sun) > 0.0);
     var shadow_steps = 0u;
-    if (frame.mode.z != 0u && lit > 0.0) {
+    if (SHADOWS && lit > 0.0) {
         var sr: Ray;
         sr.o = p + vec3<f32>(n_geom.x * off * frame.spacing.z, n_geom.y * off * frame.spacing.w, n_geom.z * off);
         sr.d = frame.sun_grid.xyz;
@@ -148,7 +168,7 @@ fn fs_shade(@builtin(position) pos: vec4<f32>) -> Out {
         // the top-down descent would test cell after cell the ray is known to touch.
         let st = traverse_from(sr, 0.0, BIG, frame.mode.y, 0u);
         shadow_steps = st.steps;
-        if (st.hit || objects_shadow(px) || (flags & 64u) != 0u) {
+        if (st.hit || objects_shadow(px) || (VOXELS && (flags & 64u) != 0u)) {
             lit = 0.0;
             flags |= 2u;
         }
@@ -170,6 +190,6 @@ fn fs_shade(@builtin(position) pos: vec4<f32>) -> Out {
         c = base * (diffuse + ambient_light(n));
         out.data = vec4<u32>(g.x, g.z, min(patches, 0xffffu) | (min(shadow_steps, 0xffffu) << 16u), flags);
     }
-    out.colour = vec4<f32>(srgb_encode(aerial_perspective(c, t, p.z, dl)), 1.0);
+    out.colour = vec4<f32>(aerial_perspective(c, t, p.z, dl), 1.0);
     return out;
 }
