@@ -78,6 +78,7 @@ fn full_screen_passes_never_discard() {
     // sound only while every pixel is written, i.e. no fragment of theirs discards.
     use relief::gpu::shade::ShadeFeatures;
     use relief::gpu::shaders;
+    use relief::gpu::volumes::VolumeSwitches;
     for (name, src) in [
         ("raygen", shaders::raygen()),
         ("tile", shaders::tile()),
@@ -87,7 +88,7 @@ fn full_screen_passes_never_discard() {
             "shade (free forms)",
             shaders::shade_objects(ShadeFeatures::ALL),
         ),
-        ("volume", shaders::volume()),
+        ("volume", shaders::volume(VolumeSwitches::ALL)),
         ("pattern", shaders::pattern()),
         ("blend", shaders::blend()),
     ] {

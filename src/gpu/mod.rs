@@ -11,6 +11,7 @@ pub mod pattern;
 pub mod renderer;
 pub mod shade;
 pub mod shaders;
+pub mod specialise;
 pub mod types;
 pub mod volumes;
 pub mod voxels;

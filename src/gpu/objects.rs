@@ -7,7 +7,7 @@ use super::renderer::{
     buf, pipeline_layout, render_pipeline, screen_texture, storage_entry, target_state,
     uint_texture_entry, uniform_entry, view,
 };
-use super::shade::ShadePipelines;
+use super::shade::{shade_pipelines, ShadePipelines};
 use super::types::{FfNodeGpu, FfObjectGpu};
 use super::{shaders, Gpu};
 use crate::freeform::FreeForm;
@@ -246,7 +246,7 @@ impl ObjectPasses {
             ),
         ];
         let plain = objects.iter().filter(|o| o.nodes.len() == 1).count() as u32;
-        let shade = ShadePipelines::new(
+        let shade = shade_pipelines(
             "shade (free forms)",
             shaders::shade_objects,
             shade_bgl.clone(),

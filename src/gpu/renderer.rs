@@ -2,7 +2,7 @@
 //! per-frame uniforms, the three passes and readback.
 
 use super::objects::{ObjectPasses, ObjectTargets};
-use super::shade::{ShadeFeatures, ShadePipelines};
+use super::shade::{shade_pipelines, ShadeFeatures, ShadePipelines};
 use super::types::{FrameUniforms, RayGenUniforms, MAX_LEVELS};
 use super::voxels::{VoxelPasses, VoxelTargets};
 use super::{shaders, Gpu};
@@ -481,7 +481,7 @@ impl TerrainRenderer {
             &cast_bgl,
             &[target(wgpu::TextureFormat::Rgba32Uint)],
         );
-        let shade = ShadePipelines::new("shade", shaders::shade, shade_bgl.clone());
+        let shade = shade_pipelines("shade", shaders::shade, shade_bgl.clone());
         let has_drape = terrain.drape.is_some();
         Ok(TerrainRenderer {
             heights,
@@ -1127,13 +1127,13 @@ impl TerrainRenderer {
             Self::encode_fullscreen(&mut enc, "shade", pipeline, bg, &[shaded, &t.data_view]);
             lap(&mut enc, &mut times.shade_ms)?;
             for (k, &i) in order.iter().enumerate() {
-                let (v, vt) = (&self.volumes[i], &t.volumes[i]);
+                let (v, vt) = (&mut self.volumes[i], &t.volumes[i]);
                 v.write_uniforms(gpu, cam.pose.position);
                 let out = input(k + 1).unwrap_or(&t.colour_view);
                 Self::encode_fullscreen(
                     &mut enc,
                     "volume",
-                    &v.pipeline,
+                    v.pipeline(&gpu.device),
                     &vt.bg,
                     &[out, &vt.stats_view],
                 );

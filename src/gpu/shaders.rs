@@ -2,6 +2,8 @@
 //! here (WGSL has no include directive).
 
 use super::shade::ShadeFeatures;
+use super::specialise::Switches;
+use super::volumes::VolumeSwitches;
 
 const FRAME: &str = include_str!("shaders/frame.wgsl");
 const FULLSCREEN: &str = include_str!("shaders/fullscreen.wgsl");
@@ -116,9 +118,10 @@ pub fn objects() -> String {
 }
 
 /// Volume pass (fragment): integrates a density volume in front of the opaque depth and
-/// composites it over the shaded image.
-pub fn volume() -> String {
+/// composites it over the shaded image, with the sampling switches `sw` compiled in.
+pub fn volume(sw: VolumeSwitches) -> String {
     [
+        &sw.wgsl_constants(),
         FRAME,
         FULLSCREEN,
         RAY_TABLE,
@@ -166,7 +169,8 @@ pub fn all() -> Vec<(&'static str, String)> {
         ("ff_bin", ff_bin()),
         ("objects", objects()),
         ("ff_shadow", ff_shadow()),
-        ("volume", volume()),
+        ("volume", volume(VolumeSwitches::ALL)),
+        ("volume (no options)", volume(VolumeSwitches::NONE)),
         ("blend", blend()),
         ("voxels", voxels()),
         ("pattern", pattern()),

@@ -3,9 +3,10 @@
 //! the shaded image in front of the opaque depth.
 
 use super::renderer::{
-    buf, float_texture_entry, fullscreen_pipeline, screen_texture, storage_entry, target_state,
-    uint_texture_entry, uniform_entry, view,
+    buf, float_texture_entry, screen_texture, storage_entry, target_state, uint_texture_entry,
+    uniform_entry, view,
 };
+use super::specialise::{wgsl_bools, SpecialisedPipelines, Switches};
 use super::types::VolumeUniforms;
 use super::{shaders, Gpu};
 use crate::volume::Volume;
@@ -19,7 +20,7 @@ pub const STATS_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rg32Uint;
 pub(crate) struct VolumePass {
     pub volume: Volume,
     bgl: wgpu::BindGroupLayout,
-    pub pipeline: wgpu::RenderPipeline,
+    pipelines: SpecialisedPipelines<VolumeSwitches>,
     view: wgpu::TextureView,
     table: wgpu::Buffer,
     bricks: wgpu::Buffer,
@@ -140,17 +141,12 @@ impl VolumePass {
                 uniform_entry(16, fs),
             ],
         });
-        let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("volume.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(shaders::volume().into()),
-        });
-        let pipeline = fullscreen_pipeline(
-            dev,
+        let pipelines = SpecialisedPipelines::new(
             "volume",
-            &module,
+            shaders::volume,
             "fs_volume",
-            &bgl,
-            &[
+            bgl.clone(),
+            vec![
                 Some(target_state(wgpu::TextureFormat::Rgba8Unorm)),
                 Some(target_state(STATS_FORMAT)),
             ],
@@ -158,7 +154,7 @@ impl VolumePass {
         Ok(VolumePass {
             volume: volume.clone(),
             bgl,
-            pipeline,
+            pipelines,
             view,
             table,
             bricks,
@@ -176,6 +172,14 @@ impl VolumePass {
             0,
             bytemuck::cast_slice(&self.volume.occupancy),
         );
+    }
+
+    /// The pipeline for the volume's current sampling switches, built on first use.
+    pub fn pipeline(&mut self, dev: &wgpu::Device) -> &wgpu::RenderPipeline {
+        let i = self
+            .pipelines
+            .prepare(dev, VolumeSwitches::of(&self.volume));
+        self.pipelines.get(i)
     }
 
     /// Uploads the per-frame uniforms for an eye at world position `eye`.
@@ -240,6 +244,70 @@ impl VolumePass {
             stats_rb,
             bg,
         }
+    }
+}
+
+/// The volume pass's compile-time switches (see [`super::specialise`] for why).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct VolumeSwitches {
+    /// Empty-space skipping through the brick occupancy.
+    pub skip: bool,
+    /// Early ray termination.
+    pub termination: bool,
+    /// Jittered sample positions.
+    pub jitter: bool,
+    /// Mip level from the pixel footprint.
+    pub mipmaps: bool,
+    /// Rays start at an ellipsoid shell.
+    pub shell: bool,
+    /// 1-bit slice masks (the 4-D function's `w` slices) instead of densities.
+    pub slices: bool,
+}
+
+impl VolumeSwitches {
+    /// Every switch on.
+    pub const ALL: VolumeSwitches = VolumeSwitches {
+        skip: true,
+        termination: true,
+        jitter: true,
+        mipmaps: true,
+        shell: true,
+        slices: true,
+    };
+    /// Every switch off.
+    pub const NONE: VolumeSwitches = VolumeSwitches {
+        skip: false,
+        termination: false,
+        jitter: false,
+        mipmaps: false,
+        shell: false,
+        slices: false,
+    };
+
+    /// The switches volume `v` renders with.
+    pub fn of(v: &Volume) -> VolumeSwitches {
+        let s = &v.settings;
+        VolumeSwitches {
+            skip: s.skip,
+            termination: s.early_termination,
+            jitter: s.jitter,
+            mipmaps: s.mipmaps,
+            shell: v.shell.is_some(),
+            slices: v.grid.slices > 0,
+        }
+    }
+}
+
+impl Switches for VolumeSwitches {
+    fn wgsl_constants(&self) -> String {
+        wgsl_bools(&[
+            ("SKIP", self.skip),
+            ("TERMINATION", self.termination),
+            ("JITTER", self.jitter),
+            ("MIPMAPS", self.mipmaps),
+            ("SHELL", self.shell),
+            ("SLICES", self.slices),
+        ])
     }
 }
 

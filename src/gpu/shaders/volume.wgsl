@@ -20,7 +20,8 @@ struct Volume {
     // Voxels x, y, z; mip levels.
     dims: vec4<u32>,
     // Bricks x, y, z; switches (1 skip, 2 early termination, 4 jitter, 8 mip-maps, 16 shell,
-    // 32 slice masks).
+    // 32 slice masks), for the record: the pass branches on the compile-time constants SKIP,
+    // TERMINATION, JITTER, MIPMAPS, SHELL and SLICES (`gpu::volumes::VolumeSwitches`).
     bricks: vec4<u32>,
     // Ambient, diffuse, specular weights; shininess.
     material: vec4<f32>,
@@ -77,7 +78,7 @@ fn vol_interval(o: vec3<f32>, d: vec3<f32>, t_max: f32) -> vec3<f32> {
     let t0 = max(max(lo.x, lo.y), max(lo.z, 0.0));
     var te = min(min(hi.x, hi.y), min(hi.z, t_max));
     var ts = t0;
-    if ((vol.bricks.w & 16u) != 0u) {
+    if (SHELL) {
         let oc = (o - vol.shell_centre.xyz) / vol.shell_radii.xyz;
         let dd = d / vol.shell_radii.xyz;
         let a = dot(dd, dd);
@@ -164,9 +165,8 @@ fn fs_volume(@builtin(position) pos: vec4<f32>) -> VolOut {
         return out;
     }
     let step = vol.eye_local.w;
-    let sw = vol.bricks.w;
     var j = 0.0;
-    if ((sw & 4u) != 0u) {
+    if (JITTER) {
         j = vol_jitter(px);
     }
     let ext = vol.extent.xyz;
@@ -200,10 +200,10 @@ fn fs_volume(@builtin(position) pos: vec4<f32>) -> VolOut {
         let p = o + d * tm;
         let u = p / ext;
         var level = 0.0;
-        if ((sw & 8u) != 0u) {
+        if (MIPMAPS) {
             level = clamp(log2(max(2.0 * e.w * tm / voxel, 1.0e-30)), 0.0, top);
         }
-        if ((sw & 1u) != 0u) {
+        if (SKIP) {
             let bi = min(vec3<u32>(max(floor(u * dims / f32(VOL_BRICK)), vec3<f32>(0.0))), vol.bricks.xyz - 1u);
             // Level-0 samples need the exact bit, coarser ones the dilated one.
             let need = select(1u, 2u, level > 0.0);
@@ -217,7 +217,7 @@ fn fs_volume(@builtin(position) pos: vec4<f32>) -> VolOut {
                 continue;
             }
         }
-        if ((sw & 32u) != 0u) {
+        if (SLICES) {
             // Slice masks: nearest voxel, each set bit absorbs and emits its slice's colour.
             let vi = clamp(vec3<i32>(floor(p / vol.spacing.xyz)), vec3<i32>(0), vec3<i32>(vol.dims.xyz) - 1);
             let bits = u32(textureLoad(vol_tex, vi, 0).x * 255.0 + 0.5);
@@ -230,7 +230,7 @@ fn fs_volume(@builtin(position) pos: vec4<f32>) -> VolOut {
                     tr *= 1.0 - omega;
                 }
             }
-            if ((sw & 2u) != 0u && tr < vol.spacing.w) {
+            if (TERMINATION && tr < vol.spacing.w) {
                 break;
             }
             k += 1.0;
@@ -256,7 +256,7 @@ fn fs_volume(@builtin(position) pos: vec4<f32>) -> VolOut {
             let lit = aerial_perspective(i, tm, frame.eye.z + tm * up_rate, dl);
             acc += lit * (omega * tr);
             tr *= 1.0 - omega;
-            if ((sw & 2u) != 0u && tr < vol.spacing.w) {
+            if (TERMINATION && tr < vol.spacing.w) {
                 break;
             }
         }
