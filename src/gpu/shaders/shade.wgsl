@@ -39,17 +39,43 @@ fn sky(dl: vec3<f32>) -> vec3<f32> {
     return c;
 }
 
-// Height gradient (metres per grid unit) at sample (i, j) by central differences.
-fn sample_gradient(i: i32, j: i32) -> vec2<f32> {
+// Terrain at cell (i, j), (u, v) in the cell: the heights of its corners (h00, h10, h01, h11)
+// and the smooth shading gradient (metres per grid unit), bilinear between the corners'
+// central differences. Twelve loads: the 4x4 samples around the cell less its corners
+// (clamped at the grid's edge), each loaded once.
+struct CellShape {
+    h: vec4<f32>,
+    gradient: vec2<f32>,
+}
+
+fn cell_shape(i: i32, j: i32, u: f32, v: f32) -> CellShape {
     let wx = i32(frame.grid.x) - 1;
     let wy = i32(frame.grid.y) - 1;
-    let i0 = u32(max(i - 1, 0));
-    let i1 = u32(min(i + 1, wx));
-    let j0 = u32(max(j - 1, 0));
-    let j1 = u32(min(j + 1, wy));
-    let gx = (sample_height(i1, u32(j)) - sample_height(i0, u32(j))) / f32(i1 - i0);
-    let gy = (sample_height(u32(i), j1) - sample_height(u32(i), j0)) / f32(j1 - j0);
-    return vec2<f32>(gx, gy);
+    let xm = u32(max(i - 1, 0));
+    let x0 = u32(i);
+    let x1 = u32(min(i + 1, wx));
+    let x2 = u32(min(i + 2, wx));
+    let ym = u32(max(j - 1, 0));
+    let y0 = u32(j);
+    let y1 = u32(min(j + 1, wy));
+    let y2 = u32(min(j + 2, wy));
+    // Rows j and j + 1 across columns i - 1 ..= i + 2; columns i and i + 1 at rows j - 1, j + 2.
+    let a = vec4<f32>(sample_height(xm, y0), sample_height(x0, y0), sample_height(x1, y0), sample_height(x2, y0));
+    let b = vec4<f32>(sample_height(xm, y1), sample_height(x0, y1), sample_height(x1, y1), sample_height(x2, y1));
+    let below = vec2<f32>(sample_height(x0, ym), sample_height(x1, ym));
+    let above = vec2<f32>(sample_height(x0, y2), sample_height(x1, y2));
+    let dx0 = f32(x1 - xm);
+    let dx1 = f32(x2 - x0);
+    let dy0 = f32(y1 - ym);
+    let dy1 = f32(y2 - y0);
+    let g00 = vec2<f32>((a.z - a.x) / dx0, (b.y - below.x) / dy0);
+    let g10 = vec2<f32>((a.w - a.y) / dx1, (b.z - below.y) / dy0);
+    let g01 = vec2<f32>((b.z - b.x) / dx0, (above.x - a.y) / dy1);
+    let g11 = vec2<f32>((b.w - b.y) / dx1, (above.y - a.z) / dy1);
+    var c: CellShape;
+    c.h = vec4<f32>(a.y, a.z, b.y, b.z);
+    c.gradient = mix(mix(g00, g10, u), mix(g01, g11, u), v);
+    return c;
 }
 
 fn local_normal(g: vec2<f32>) -> vec3<f32> {
@@ -147,16 +173,13 @@ fn shade_surface(px: vec2<u32>, g: vec4<u32>, dir_w: vec3<f32>, dl: vec3<f32>) -
     } else {
         let i = i32(g.y & 0xffffu);
         let j = i32(g.y >> 16u);
-        let h00 = sample_height(u32(i), u32(j));
-        let h10 = sample_height(u32(i + 1), u32(j));
-        let h01 = sample_height(u32(i), u32(j + 1));
-        let h11 = sample_height(u32(i + 1), u32(j + 1));
         let u = clamp(p.x - f32(i), 0.0, 1.0);
         let v = clamp(p.y - f32(j), 0.0, 1.0);
-        let e = h00 - h10 - h01 + h11;
-        n_geom = local_normal(vec2<f32>(h10 - h00 + e * v, h01 - h00 + e * u));
-        let gr = mix(mix(sample_gradient(i, j), sample_gradient(i + 1, j), u), mix(sample_gradient(i, j + 1), sample_gradient(i + 1, j + 1), u), v);
-        n = local_normal(gr);
+        let cell = cell_shape(i, j, u, v);
+        let h = cell.h;
+        let e = h.x - h.y - h.z + h.w;
+        n_geom = local_normal(vec2<f32>(h.y - h.x + e * v, h.z - h.x + e * u));
+        n = local_normal(cell.gradient);
     }
     var lit = select(0.0, 1.0, dot(n_geom, sun) > 0.0);
     var shadow_steps = 0u;
