@@ -1105,3 +1105,54 @@ fn cli_renders_the_airfield_and_refuses_a_bad_object_before_writing() {
     assert!(depth.iter().filter(|d| d.is_finite()).count() > 8000);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn a_frame_after_another_equals_a_frame_from_a_fresh_renderer() {
+    // Per-frame state must not leak between frames (the free-form shadow target is never
+    // cleared: its marks carry the frame's stamp). Frame B rendered after frame A (another
+    // heading, so A's shadows fall on other pixels) must equal frame B from a fresh renderer,
+    // byte for byte, with and without shadows in between.
+    let _l = gpu_lock();
+    let mut scene = Scene::load(&terrains().join("airfield.toml")).unwrap();
+    scene.desc.output.width = 160;
+    scene.desc.output.height = 120;
+    let terrain = scene.load_terrain().unwrap();
+    let objects = scene.free_forms(&terrain).unwrap();
+    let b = scene.camera(0, &terrain);
+    let mut a = b.clone();
+    a.pose.heading += 12.0;
+    let Some(g) = gpu() else {
+        return;
+    };
+    let fresh = {
+        let mut r = TerrainRenderer::new(g, &terrain).unwrap();
+        r.set_objects(g, &objects).unwrap();
+        r.capture(g, &terrain, &scene.desc, &b, &settings(true))
+            .unwrap()
+    };
+    let shadowed = fresh.flags.iter().filter(|&&f| f & 2 != 0).count();
+    assert!(shadowed > 20, "only {shadowed} pixels in shadow");
+    let mut r = TerrainRenderer::new(g, &terrain).unwrap();
+    r.set_objects(g, &objects).unwrap();
+    for before in [true, false] {
+        r.capture(g, &terrain, &scene.desc, &a, &settings(before))
+            .unwrap();
+        let after = r
+            .capture(g, &terrain, &scene.desc, &b, &settings(true))
+            .unwrap();
+        let differ = (0..fresh.flags.len())
+            .filter(|&i| {
+                fresh.rgba[4 * i..4 * i + 4] != after.rgba[4 * i..4 * i + 4]
+                    || fresh.flags[i] != after.flags[i]
+                    || fresh.depth[i].to_bits() != after.depth[i].to_bits()
+            })
+            .count();
+        if differ > 0 {
+            let p = save_failure_image("frame-after-frame", 160, 120, &after.rgba);
+            panic!(
+                "{differ} pixels differ from a fresh renderer's frame (previous frame with shadows: {before}); image {}",
+                p.display()
+            );
+        }
+    }
+}

@@ -397,12 +397,13 @@ impl ObjectPasses {
         pass.dispatch_workgroups((t.bins[0] * t.bins[1]).div_ceil(64), 1, 1);
     }
 
-    /// One pass over the bins listing objects of the pass's kind, into `target`.
+    /// One render pass into `target` drawing, for each pipeline, the bins listing objects of
+    /// its kind.
     fn binned(
         &self,
         enc: &mut wgpu::CommandEncoder,
         t: &ObjectTargets,
-        pipeline: &wgpu::RenderPipeline,
+        pipelines: &[&wgpu::RenderPipeline],
         bg: &wgpu::BindGroup,
         target: &wgpu::TextureView,
         load: wgpu::LoadOp<wgpu::Color>,
@@ -423,9 +424,11 @@ impl ObjectPasses {
             occlusion_query_set: None,
             multiview_mask: None,
         });
-        pass.set_pipeline(pipeline);
         pass.set_bind_group(0, bg, &[]);
-        pass.draw(0..6 * t.bins[0] * t.bins[1], 0..1);
+        for pipeline in pipelines {
+            pass.set_pipeline(pipeline);
+            pass.draw(0..6 * t.bins[0] * t.bins[1], 0..1);
+        }
     }
 
     /// Records the primary binning and the free-form cast (after the terrain cast): the
@@ -448,14 +451,14 @@ impl ObjectPasses {
         gpu.trace_lap(enc, "copy");
         let load = wgpu::LoadOp::Load;
         if self.kinds[0] > 0 {
-            self.binned(enc, t, &self.cast[0], &t.cast_bg, &t.gbuffer_view, load);
+            self.binned(enc, t, &[&self.cast[0]], &t.cast_bg, &t.gbuffer_view, load);
             gpu.trace_lap(enc, "cast plain");
         }
         if self.kinds[1] > 0 {
             if self.kinds[0] > 0 {
                 copy(enc, &t.gbuffer, terrain_gbuffer);
             }
-            self.binned(enc, t, &self.cast[1], &t.cast_bg, &t.gbuffer_view, load);
+            self.binned(enc, t, &[&self.cast[1]], &t.cast_bg, &t.gbuffer_view, load);
             gpu.trace_lap(enc, "cast general");
         }
     }
@@ -465,21 +468,22 @@ impl ObjectPasses {
     pub fn encode_shadows(&self, gpu: &Gpu, enc: &mut wgpu::CommandEncoder, t: &ObjectTargets) {
         self.bin(enc, t, true);
         gpu.trace_lap(enc, "bin shadow");
-        let mut load = wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT);
-        for kind in 0..2 {
-            if self.kinds[kind] > 0 {
-                let (pipeline, bg) = (&self.shadow[kind], &t.shadow_bg);
-                self.binned(enc, t, pipeline, bg, &t.shadow_view, load);
-                load = wgpu::LoadOp::Load;
-                gpu.trace_lap(
-                    enc,
-                    if kind == 0 {
-                        "shadow plain"
-                    } else {
-                        "shadow general"
-                    },
-                );
-            }
-        }
+        // Both kinds in one render pass (they only mark blocked pixels, in any order): one
+        // pass's fixed cost less on Mesa's CPU adapters.
+        let kinds: Vec<&wgpu::RenderPipeline> = (0..2)
+            .filter(|&k| self.kinds[k] > 0)
+            .map(|k| &self.shadow[k])
+            .collect();
+        // No clear (on lavapipe a clear costs about what a pass does): blocked pixels carry
+        // this frame's stamp, anything else in the target is from earlier frames.
+        self.binned(
+            enc,
+            t,
+            &kinds,
+            &t.shadow_bg,
+            &t.shadow_view,
+            wgpu::LoadOp::Load,
+        );
+        gpu.trace_lap(enc, "shadows");
     }
 }

@@ -201,6 +201,8 @@ pub struct TerrainRenderer {
     )>,
     /// Scene time in seconds (animated voxel models).
     time: f64,
+    /// Frames run so far (wrapping, never 0): the frame's stamp in the uniforms.
+    stamp: u32,
     targets: Option<Targets>,
 }
 
@@ -510,6 +512,7 @@ impl TerrainRenderer {
             voxels: None,
             pattern: None,
             time: 0.0,
+            stamp: 0,
             targets: None,
         })
     }
@@ -1033,6 +1036,8 @@ impl TerrainRenderer {
         let t = self.targets.as_ref().expect("targets just ensured");
         let mut fu = frame_uniforms(terrain, scene, cam, s, t.tiles);
         fu.pyramid_dims = [self.pyramid_side, 0, 0, 0];
+        self.stamp = self.stamp.wrapping_add(1).max(1);
+        fu.stamp = [self.stamp, 0, 0, 0];
         if let (Some(o), Some((ot, _))) = (&self.objects, &t.objects) {
             fu.objects = [
                 o.count,
@@ -1589,6 +1594,7 @@ pub fn frame_uniforms(
         eye_world: v4(cam.pose.position, 1.0),
         sun_world: v4(sun, 0.0),
         objects: [0; 4],
+        stamp: [0; 4],
         levels,
     }
 }

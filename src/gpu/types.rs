@@ -32,6 +32,7 @@ pub struct FrameUniforms {
     pub eye_world: [f32; 4],
     pub sun_world: [f32; 4],
     pub objects: [u32; 4],
+    pub stamp: [u32; 4],
     pub levels: [[u32; 4]; MAX_LEVELS],
 }
 
@@ -47,7 +48,7 @@ pub struct RayGenUniforms {
     pub eye: [f32; 4],
 }
 
-const _: () = assert!(std::mem::size_of::<FrameUniforms>() == 16 * (27 + MAX_LEVELS));
+const _: () = assert!(std::mem::size_of::<FrameUniforms>() == 16 * (28 + MAX_LEVELS));
 const _: () = assert!(std::mem::size_of::<RayGenUniforms>() == 96);
 
 /// Mirrors WGSL `FfObject` in `shaders/freeform.wgsl`: one placed free form.

@@ -1,6 +1,6 @@
 // Free-form shadow passes: per lit-facing surface pixel of a bin with shadow-list objects,
-// does a free form block the ray to the sun? Writes 1 where one does and discards elsewhere
-// (the target starts cleared to 0). One entry point per object kind, each drawn only over the
+// does a free form block the ray to the sun? Writes the frame's stamp where one does and
+// discards elsewhere (the target is never cleared: older stamps mean "not blocked"). One entry point per object kind, each drawn only over the
 // bins whose shadow list holds objects of its kind (`vs_bins_shadow_*`). Its own passes so
 // that the shade pass carries no intersection code.
 
@@ -35,7 +35,7 @@ fn fs_ff_shadow_plain(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u3
     if (o.w == 0.0 || !ff_plain_blocked(px, o.xyz, frame.sun_world.xyz)) {
         discard;
     }
-    return vec4<u32>(1u, 0u, 0u, 0u);
+    return vec4<u32>(frame.stamp.x, 0u, 0u, 0u);
 }
 
 @fragment
@@ -45,5 +45,5 @@ fn fs_ff_shadow_general(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<
     if (o.w == 0.0 || !ff_blocked(px, o.xyz, frame.sun_world.xyz)) {
         discard;
     }
-    return vec4<u32>(1u, 0u, 0u, 0u);
+    return vec4<u32>(frame.stamp.x, 0u, 0u, 0u);
 }

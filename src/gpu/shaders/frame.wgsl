@@ -50,6 +50,9 @@ struct Frame {
     sun_world: vec4<f32>,
     // x: free-form count, y, z: object bins across and down, w: bin capacity.
     objects: vec4<u32>,
+    // x: this frame's stamp (never 0; the free-form shadow pass marks blocked pixels with it,
+    // so its target needs no clear), yzw: unused.
+    stamp: vec4<u32>,
     // Per level: cells x, cells y, row stride, offset into `pyramid`.
     levels: array<vec4<u32>, 16>,
 }

@@ -5,7 +5,7 @@
 @group(0) @binding(9) var ff_shadow: texture_2d<u32>;
 
 fn objects_shadow(px: vec2<u32>) -> bool {
-    return textureLoad(ff_shadow, vec2<i32>(px), 0).x != 0u;
+    return textureLoad(ff_shadow, vec2<i32>(px), 0).x == frame.stamp.x;
 }
 
 fn object_shadow_offset(g: vec4<u32>) -> f32 {
