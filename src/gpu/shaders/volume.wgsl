@@ -119,18 +119,26 @@ fn vol_trilinear(u: vec3<f32>, level: u32) -> vec4<f32> {
     return mix(x0, x1, f.z);
 }
 
-// Quadrilinear sample: trilinear in the two levels around `level`, blended.
+// Quadrilinear sample: trilinear in the two levels around `level`, blended. The second level
+// is fetched only when some pixel of the SIMD block needs it: the loop decides at the end of
+// its body, where Mesa's rasterisers leave a loop once no lane goes on (a test at the top
+// still runs the whole body once more for the block).
 fn vol_sample(u: vec3<f32>, level: f32) -> vec4<f32> {
+    if (!MIPMAPS) {
+        return vol_trilinear(u, 0u);
+    }
     let l0 = floor(level);
     let f = level - l0;
-    var lv = u32(l0);
-    var w = 0.0;
+    let lv = u32(l0);
     var acc = vec4<f32>(0.0);
+    var i = 0u;
     // One call site for the trilinear fetch (Mesa inlines every call).
-    for (var i = 0u; i < 2u; i += 1u) {
+    loop {
         let wi = select(1.0 - f, f, i == 1u);
-        if (wi > 0.0) {
-            acc += vol_trilinear(u, min(lv + i, vol.dims.w - 1u)) * wi;
+        acc += vol_trilinear(u, min(lv + i, vol.dims.w - 1u)) * wi;
+        i += 1u;
+        if (i == 2u || f <= 0.0) {
+            break;
         }
     }
     return acc;
@@ -184,39 +192,55 @@ fn fs_volume(@builtin(position) pos: vec4<f32>) -> VolOut {
     var samples = 0u;
     var segments = 0u;
     var k = floor((ts - t0) / step - j);
+    // Two nested loops for SIMD rasterisers (as in the terrain traversal): the inner one only
+    // walks the segment lattice past empty bricks and empty segments to the next segment to
+    // sample; the sampling and lighting run after it, once for all lanes, instead of in every
+    // walking iteration one lane needs. The same segments, samples and counts as one loop.
     loop {
-        let bk = t0 + (k + j) * step;
-        if (bk >= te || segments >= VOL_MAX_SAMPLES) {
+        var found = false;
+        var a = 0.0;
+        var b = 0.0;
+        var level = 0.0;
+        loop {
+            let bk = t0 + (k + j) * step;
+            if (bk >= te || segments >= VOL_MAX_SAMPLES) {
+                break;
+            }
+            segments += 1u;
+            a = max(bk, ts);
+            b = min(t0 + (k + 1.0 + j) * step, te);
+            if (b <= a) {
+                k += 1.0;
+                continue;
+            }
+            let tm = 0.5 * (a + b);
+            if (MIPMAPS) {
+                level = clamp(log2(max(2.0 * e.w * tm / voxel, 1.0e-30)), 0.0, top);
+            }
+            if (SKIP) {
+                let u = (o + d * tm) / ext;
+                let bi = min(vec3<u32>(max(floor(u * dims / f32(VOL_BRICK)), vec3<f32>(0.0))), vol.bricks.xyz - 1u);
+                // Level-0 samples need the exact bit, coarser ones the dilated one.
+                let need = select(1u, 2u, level > 0.0);
+                if ((vol_bricks[bi.x + vol.bricks.x * (bi.y + vol.bricks.y * bi.z)] & need) == 0u) {
+                    let lo = vec3<f32>(bi * VOL_BRICK) * vol.spacing.xyz;
+                    let hi = vec3<f32>(min((bi + 1u) * VOL_BRICK, vol.dims.xyz)) * vol.spacing.xyz;
+                    let face = select(lo, hi, d > vec3<f32>(0.0));
+                    let te3 = select(vec3<f32>(BIG), (face - o) / d, d != vec3<f32>(0.0));
+                    let exit = min(te3.x, min(te3.y, te3.z));
+                    k = max(k + 1.0, floor((exit - t0) / step - j));
+                    continue;
+                }
+            }
+            found = true;
             break;
         }
-        segments += 1u;
-        let a = max(bk, ts);
-        let b = min(t0 + (k + 1.0 + j) * step, te);
-        if (b <= a) {
-            k += 1.0;
-            continue;
+        if (!found) {
+            break;
         }
         let tm = 0.5 * (a + b);
         let p = o + d * tm;
         let u = p / ext;
-        var level = 0.0;
-        if (MIPMAPS) {
-            level = clamp(log2(max(2.0 * e.w * tm / voxel, 1.0e-30)), 0.0, top);
-        }
-        if (SKIP) {
-            let bi = min(vec3<u32>(max(floor(u * dims / f32(VOL_BRICK)), vec3<f32>(0.0))), vol.bricks.xyz - 1u);
-            // Level-0 samples need the exact bit, coarser ones the dilated one.
-            let need = select(1u, 2u, level > 0.0);
-            if ((vol_bricks[bi.x + vol.bricks.x * (bi.y + vol.bricks.y * bi.z)] & need) == 0u) {
-                let lo = vec3<f32>(bi * VOL_BRICK) * vol.spacing.xyz;
-                let hi = vec3<f32>(min((bi + 1u) * VOL_BRICK, vol.dims.xyz)) * vol.spacing.xyz;
-                let face = select(lo, hi, d > vec3<f32>(0.0));
-                let te3 = select(vec3<f32>(BIG), (face - o) / d, d != vec3<f32>(0.0));
-                let exit = min(te3.x, min(te3.y, te3.z));
-                k = max(k + 1.0, floor((exit - t0) / step - j));
-                continue;
-            }
-        }
         if (SLICES) {
             // Slice masks: nearest voxel, each set bit absorbs and emits its slice's colour.
             let vi = clamp(vec3<i32>(floor(p / vol.spacing.xyz)), vec3<i32>(0), vec3<i32>(vol.dims.xyz) - 1);
