@@ -173,8 +173,11 @@ fn ff_nearest(px: vec2<u32>, list: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32
     best.iterations = 0u;
     var far = t_max;
     var w = ff_walk(px, list);
+    var id = ff_next(&w, ro, rd, t_min, far);
+    // Exit tests at the end of the body as well: Mesa's SIMD rasterisers leave a loop only at
+    // the end of an iteration in which no lane goes on, so a test at the top alone runs one
+    // more (masked) intersection per fragment block.
     loop {
-        let id = ff_next(&w, ro, rd, t_min, far);
         if (id == FF_NONE) {
             break;
         }
@@ -185,6 +188,10 @@ fn ff_nearest(px: vec2<u32>, list: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32
             best.hit = h;
             best.id = id;
         }
+        id = ff_next(&w, ro, rd, t_min, far);
+        if (id == FF_NONE) {
+            break;
+        }
     }
     return best;
 }
@@ -192,13 +199,18 @@ fn ff_nearest(px: vec2<u32>, list: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32
 // True when a perturbed object of the pixel's shadow list blocks the ray from `ro` along `rd`.
 fn ff_blocked(px: vec2<u32>, ro: vec3<f32>, rd: vec3<f32>) -> bool {
     var w = ff_walk(px, 1u);
+    var id = ff_next(&w, ro, rd, 0.0, BIG);
+    // Exit tests at the top and at the end of the body (see `ff_nearest`).
     loop {
-        let id = ff_next(&w, ro, rd, 0.0, BIG);
         if (id == FF_NONE) {
             return false;
         }
         if (ff_intersect(id, ro, rd, 0.0, BIG, true).hit) {
             return true;
+        }
+        id = ff_next(&w, ro, rd, 0.0, BIG);
+        if (id == FF_NONE) {
+            return false;
         }
     }
     return false;
@@ -213,17 +225,26 @@ fn ff_plain_nearest(px: vec2<u32>, list: u32, ro: vec3<f32>, rd: vec3<f32>, t_mi
     best.iterations = 0u;
     var far = t_max;
     let l = ff_list(px, list, false);
-    for (var j = 0u; j < l.n; j++) {
-        let id = ff_list_id(l, j);
-        if (id == FF_NONE) {
-            continue;
+    // The exit test at the end of the body (see `ff_nearest`); the passes draw only bins
+    // whose list holds objects of the kind, the guard covers the rest.
+    var j = 0u;
+    loop {
+        if (l.n == 0u) {
+            break;
         }
-        let h = ff_plain_hit(id, ro, rd, t_min, far);
-        best.iterations += h.iterations;
-        if (h.hit && h.t < far) {
-            far = h.t;
-            best.hit = h;
-            best.id = id;
+        let id = ff_list_id(l, j);
+        if (id != FF_NONE) {
+            let h = ff_plain_hit(id, ro, rd, t_min, far);
+            best.iterations += h.iterations;
+            if (h.hit && h.t < far) {
+                far = h.t;
+                best.hit = h;
+                best.id = id;
+            }
+        }
+        j += 1u;
+        if (j >= l.n) {
+            break;
         }
     }
     return best;
@@ -232,10 +253,19 @@ fn ff_plain_nearest(px: vec2<u32>, list: u32, ro: vec3<f32>, rd: vec3<f32>, t_mi
 // True when a plain object of the pixel's shadow list blocks the ray from `ro` along `rd`.
 fn ff_plain_blocked(px: vec2<u32>, ro: vec3<f32>, rd: vec3<f32>) -> bool {
     let l = ff_list(px, 1u, false);
-    for (var j = 0u; j < l.n; j++) {
+    // Exit test at the end of the body (see `ff_plain_nearest`).
+    var j = 0u;
+    loop {
+        if (l.n == 0u) {
+            return false;
+        }
         let id = ff_list_id(l, j);
         if (id != FF_NONE && ff_plain_hit(id, ro, rd, 0.0, BIG).hit) {
             return true;
+        }
+        j += 1u;
+        if (j >= l.n) {
+            return false;
         }
     }
     return false;
