@@ -666,13 +666,58 @@ position = [330.0, 260.0, 0.0]
     assert!(covered > 1000, "only {covered} covered pixels");
 }
 
+/// A ball with four perturbations: five nodes, more than the GPU's per-ray node slots
+/// (`shaders::FF_RAY_NODES`), so a scene holding it runs the general enclosure loop.
+const FIVE_NODES: &str = r#"
+[[objects]]
+name = "five-node ball"
+shape = "sphere"
+radius = 8.0
+position = [0.0, 0.0, 12.0]
+[[objects.perturb]]
+shape = "sphere"
+radius = 3.0
+centre = [8.0, 0.0, 0.0]
+weight = 3.0
+[[objects.perturb]]
+shape = "sphere"
+radius = 3.0
+centre = [-8.0, 0.0, 0.0]
+weight = 3.0
+[[objects.perturb]]
+shape = "sphere"
+radius = 3.0
+centre = [0.0, 0.0, 8.0]
+weight = -2.0
+[[objects.perturb]]
+shape = "ellipsoid"
+radii = [2.0, 10.0, 2.0]
+centre = [0.0, -7.0, 0.0]
+weight = 1.5
+"#;
+
 #[test]
 fn gpu_perturbed_hits_lie_on_the_surface() {
-    let _l = gpu_lock();
+    // Twice: objects of at most FF_RAY_NODES nodes (per-ray node data in the interval search),
+    // then with a five-node object added (the general loop over the node buffer).
     let t = flat_terrain();
-    let mut objects = objects_from_toml(PERTURBED, &t).unwrap();
+    let small = objects_from_toml(PERTURBED, &t).unwrap();
+    assert!(small
+        .iter()
+        .all(|o| o.nodes.len() <= relief::gpu::shaders::FF_RAY_NODES));
+    let mut general = small.clone();
+    general.extend(objects_from_toml(FIVE_NODES, &t).unwrap());
+    assert!(general
+        .iter()
+        .any(|o| o.nodes.len() > relief::gpu::shaders::FF_RAY_NODES));
+    perturbed_hits_lie_on_the_surface(&t, small);
+    perturbed_hits_lie_on_the_surface(&t, general);
+}
+
+fn perturbed_hits_lie_on_the_surface(t: &Terrain, mut objects: Vec<FreeForm>) {
+    let _l = gpu_lock();
     for (i, ff) in objects.iter_mut().enumerate() {
-        ff.position = DVec3::new(250.0 + 45.0 * i as f64, 330.0, ff.position.z);
+        ff.position = DVec3::new(240.0 + 40.0 * i as f64, 330.0, ff.position.z);
     }
     let (w, h) = (240u32, 120u32);
     let cam = Camera::new(
@@ -686,7 +731,7 @@ fn gpu_perturbed_hits_lie_on_the_surface() {
         w,
         h,
     );
-    let Some(out) = render(&t, &objects, &cam, false, None) else {
+    let Some(out) = render(t, &objects, &cam, false, None) else {
         return;
     };
     let mut per_object = vec![0; objects.len()];

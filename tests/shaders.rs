@@ -36,7 +36,15 @@ fn naga_rejects_a_broken_shader() {
 
 #[test]
 fn free_form_constants_match_the_cpu_side() {
-    let src = relief::gpu::shaders::objects();
+    let src = relief::gpu::shaders::objects(true);
+    let ray_nodes = format!(
+        "const FF_RAY_NODES: u32 = {}u;",
+        relief::gpu::shaders::FF_RAY_NODES
+    );
+    assert!(
+        src.contains(&ray_nodes),
+        "WGSL and shaders::FF_RAY_NODES differ"
+    );
     let levels = format!(
         "const FF_LEVELS: u32 = {}u;",
         relief::cpu::freeform::GPU_LEVELS

@@ -197,8 +197,13 @@ impl ObjectPasses {
             })
         };
         let bin_mod = module("ff_bin.wgsl", shaders::ff_bin());
-        let cast_mod = module("objects.wgsl", shaders::objects());
-        let shadow_mod = module("ff_shadow.wgsl", shaders::ff_shadow());
+        // Perturbed objects of at most FF_RAY_NODES nodes (every one in the demo) keep their
+        // node data per ray in the interval search.
+        let small = objects
+            .iter()
+            .all(|o| o.nodes.len() <= shaders::FF_RAY_NODES);
+        let cast_mod = module("objects.wgsl", shaders::objects(small));
+        let shadow_mod = module("ff_shadow.wgsl", shaders::ff_shadow(small));
         let compute = |entry: &str| {
             dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some(entry),

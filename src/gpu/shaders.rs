@@ -72,7 +72,7 @@ pub fn shade_objects(f: ShadeFeatures) -> String {
         RAY_TABLE,
         TRAVERSE,
         GBUFFER,
-        FREEFORM,
+        &freeform(false),
         HAZE,
         include_str!("shaders/shade.wgsl"),
         include_str!("shaders/shade_objects.wgsl"),
@@ -80,37 +80,50 @@ pub fn shade_objects(f: ShadeFeatures) -> String {
     .concat()
 }
 
+/// The free-form intersection code. `small`: every perturbed object of the scene has at most
+/// [`FF_RAY_NODES`] nodes, so the interval search keeps each node's along-ray quadratic for the
+/// whole ray instead of reloading and recomputing it at every enclosure.
+pub fn freeform(small: bool) -> String {
+    format!("const FF_SMALL: bool = {small};\n{FREEFORM}")
+}
+
+/// Most nodes (base quadric and perturbations) of a perturbed object for the `small` free-form
+/// code (`FF_RAY_NODES` in `freeform.wgsl`).
+pub const FF_RAY_NODES: usize = 4;
+
 /// Object binning (compute): per 16x16 bin, the free forms primary and shadow rays test.
 pub fn ff_bin() -> String {
     [
         FRAME,
         RAY_TABLE,
-        FREEFORM,
+        &freeform(false),
         include_str!("shaders/ff_bin.wgsl"),
     ]
     .concat()
 }
 
-/// Free-form shadow pass (fragment): shadow rays against the bins' shadow lists.
-pub fn ff_shadow() -> String {
+/// Free-form shadow pass (fragment): shadow rays against the bins' shadow lists; `small`: see
+/// [`freeform`].
+pub fn ff_shadow(small: bool) -> String {
     [
         FRAME,
         FULLSCREEN,
         RAY_TABLE,
-        FREEFORM,
+        &freeform(small),
         FF_BINS,
         include_str!("shaders/ff_shadow.wgsl"),
     ]
     .concat()
 }
 
-/// Free-form cast pass (fragment): nearest free form in front of the terrain hit.
-pub fn objects() -> String {
+/// Free-form cast pass (fragment): nearest free form in front of the terrain hit; `small`: see
+/// [`freeform`].
+pub fn objects(small: bool) -> String {
     [
         FRAME,
         FULLSCREEN,
         RAY_TABLE,
-        FREEFORM,
+        &freeform(small),
         FF_BINS,
         include_str!("shaders/objects.wgsl"),
     ]
@@ -167,8 +180,10 @@ pub fn all() -> Vec<(&'static str, String)> {
             shade_objects(ShadeFeatures::NONE),
         ),
         ("ff_bin", ff_bin()),
-        ("objects", objects()),
-        ("ff_shadow", ff_shadow()),
+        ("objects", objects(false)),
+        ("objects (small)", objects(true)),
+        ("ff_shadow", ff_shadow(false)),
+        ("ff_shadow (small)", ff_shadow(true)),
         ("volume", volume(VolumeSwitches::ALL)),
         ("volume (no options)", volume(VolumeSwitches::NONE)),
         ("blend", blend()),

@@ -111,6 +111,104 @@ fn ff_range(c: vec3<f32>, a: f32, b: f32) -> vec2<f32> {
     return r;
 }
 
+// A perturbed object's nodes along one ray, for scenes whose perturbed objects all have at most
+// FF_RAY_NODES nodes (FF_SMALL, a constant the passes are built with): each node's (α, β, γ)
+// and weight, and the depths, computed once per ray instead of reloaded from the storage
+// buffer (a per-lane gather on Mesa's CPU adapters) and recomputed at every enclosure. Fields,
+// not an array: llvmpipe zero-initialises function-scope arrays for every fragment.
+const FF_RAY_NODES: u32 = 4u;
+
+struct FfRayNodes {
+    c0: vec4<f32>,
+    c1: vec4<f32>,
+    c2: vec4<f32>,
+    c3: vec4<f32>,
+    depth: vec4<u32>,
+    count: u32,
+}
+
+fn ff_ray_node(n: FfNode, p0: vec3<f32>, dir: vec3<f32>) -> vec4<f32> {
+    return vec4<f32>(ff_along(n, p0, dir), n.q2.z);
+}
+
+fn ff_ray_nodes(first: u32, count: u32, p0: vec3<f32>, dir: vec3<f32>) -> FfRayNodes {
+    let last = first + max(min(count, FF_RAY_NODES), 1u) - 1u;
+    let n0 = ff_nodes[first];
+    let n1 = ff_nodes[min(first + 1u, last)];
+    let n2 = ff_nodes[min(first + 2u, last)];
+    let n3 = ff_nodes[min(first + 3u, last)];
+    var r: FfRayNodes;
+    r.c0 = ff_ray_node(n0, p0, dir);
+    r.c1 = ff_ray_node(n1, p0, dir);
+    r.c2 = ff_ray_node(n2, p0, dir);
+    r.c3 = ff_ray_node(n3, p0, dir);
+    r.depth = vec4<u32>(u32(n0.q2.w), u32(n1.q2.w), u32(n2.q2.w), u32(n3.q2.w));
+    r.count = count;
+    return r;
+}
+
+// The running sums of `ff_enclose` (see there).
+struct FfSums {
+    acc1: vec2<f32>,
+    acc2: vec2<f32>,
+    acc3: vec2<f32>,
+    result: vec2<f32>,
+}
+
+// One node of `ff_enclose`'s reverse pre-order walk: c = (α, β, γ, weight), depth d.
+fn ff_sum_node(s: FfSums, c: vec4<f32>, d: u32, a: f32, b: f32) -> FfSums {
+    var o = s;
+    var v = ff_range(c.xyz, a, b);
+    if (d == 0u) {
+        o.result = v + s.acc1;
+        return o;
+    }
+    if (d == 1u) {
+        v += s.acc2;
+        o.acc2 = vec2<f32>(0.0);
+    } else if (d == 2u) {
+        v += s.acc3;
+        o.acc3 = vec2<f32>(0.0);
+    }
+    let w = c.w;
+    let lo = max(v.x, 0.0);
+    let hi = max(v.y, 0.0);
+    var r = w * vec2<f32>(lo * lo, hi * hi);
+    r = select(r, r.yx, w < 0.0);
+    if (d == 1u) {
+        o.acc1 += r;
+    } else if (d == 2u) {
+        o.acc2 += r;
+    } else {
+        o.acc3 += r;
+    }
+    return o;
+}
+
+// `ff_enclose` from the per-ray node data (FF_SMALL): the same sums in the same order,
+// unrolled over the four slots (slots past the object's count change nothing).
+fn ff_enclose_ray(rn: FfRayNodes, a: f32, b: f32) -> vec2<f32> {
+    var s: FfSums;
+    s.acc1 = vec2<f32>(0.0);
+    s.acc2 = vec2<f32>(0.0);
+    s.acc3 = vec2<f32>(0.0);
+    s.result = vec2<f32>(0.0);
+    var t = ff_sum_node(s, rn.c3, rn.depth.w, a, b);
+    if (rn.count > 3u) {
+        s = t;
+    }
+    t = ff_sum_node(s, rn.c2, rn.depth.z, a, b);
+    if (rn.count > 2u) {
+        s = t;
+    }
+    t = ff_sum_node(s, rn.c1, rn.depth.y, a, b);
+    if (rn.count > 1u) {
+        s = t;
+    }
+    s = ff_sum_node(s, rn.c0, rn.depth.x, a, b);
+    return s.result;
+}
+
 // Enclosure of F'(p0 + s d) over s in [a, b] (object `first`..`first + count` nodes): the tree
 // in reverse pre-order, each node's exact range plus its children's sum, pushed through the
 // monotone w·max(·,0)² into its parent's sum.
@@ -261,6 +359,10 @@ fn ff_intersect(id: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32, t_max: f32, a
     let count = min(bitcast<u32>(ob.box_max.w), FF_MAX_NODES);
     let p0 = o + d * t0;
     let len = t1 - t0;
+    var rn: FfRayNodes;
+    if (FF_SMALL) {
+        rn = ff_ray_nodes(first, count, p0, d);
+    }
     // Leaves need be no finer than FF_LEAF of the object's size: the refined root lies in its
     // leaf, so its distance from the surface is below that (a quarter of what the tests allow).
     let fine = u32(clamp(ceil(log2(len / (FF_LEAF * ob.sphere.w))), 1.0, f32(FF_LEVELS)));
@@ -284,7 +386,12 @@ fn ff_intersect(id: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32, t_max: f32, a
             a = f32(i) * w + w;
             b = a;
         }
-        let e = ff_enclose(first, count, p0, d, a, b).x;
+        var e: f32;
+        if (FF_SMALL) {
+            e = ff_enclose_ray(rn, a, b).x;
+        } else {
+            e = ff_enclose(first, count, p0, d, a, b).x;
+        }
         h.iterations += 1u;
         if (phase == 0u) {
             if (e <= 0.0) {
