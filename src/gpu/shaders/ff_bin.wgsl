@@ -2,8 +2,9 @@
 // table, so it works through any distortion) and the G-buffer:
 // * list 0 (primary rays): objects whose bounding sphere meets the bin's cone of rays before
 //   the farthest terrain hit of the bin;
-// * list 1 (shadow rays): objects whose bounding sphere comes within reach of the sun-ward
-//   extrusion of a sphere around every surface point the bin shows.
+// * list 1 (shadow rays): objects whose box, seen along the sun, covers some surface point
+//   the bin shows and reaches sun-ward of it (bounds of the points in a frame whose third
+//   axis is the sun: a shadow ray projects to a single point of the other two).
 // Each list keeps plain objects (one quadric) and perturbed ones apart (layout in
 // ff_bins.wgsl). Pixels then test only their bin's objects: cost grows with objects per bin.
 
@@ -66,6 +67,16 @@ fn bin_objects(b: vec2<u32>, list: u32) {
     var sky = false;
     // The free form every surface pixel of the bin shows, if there is one (NOT_ONE otherwise).
     var only = NOT_ONE;
+    // Shadow list: the surface points (relative to the eye) in the sun frame (su, sv, sun):
+    // ranges along su and sv, lowest along the sun.
+    let sun = frame.sun_world.xyz;
+    let su = normalize(select(cross(sun, vec3<f32>(1.0, 0.0, 0.0)), cross(sun, vec3<f32>(0.0, 0.0, 1.0)), abs(sun.z) < 0.9));
+    let sv = cross(sun, su);
+    var uv_lo = vec2<f32>(BIG);
+    var uv_hi = vec2<f32>(-BIG);
+    var w_lo = BIG;
+    // Largest shadow-ray offset off a free-form surface the bin shows.
+    var max_off = 0.0;
     for (var y = p0.y; y < p1.y; y++) {
         for (var x = p0.x; x < p1.x; x++) {
             let g = textureLoad(gbuffer, vec2<i32>(i32(x), i32(y)), 0);
@@ -73,6 +84,16 @@ fn bin_objects(b: vec2<u32>, list: u32) {
                 let t = bitcast<f32>(g.x);
                 t_lo = min(t_lo, t);
                 t_hi = max(t_hi, t);
+                if (list == 1u) {
+                    let p = ray_entry(vec2<u32>(x, y)).xyz * t;
+                    let uv = vec2<f32>(dot(p, su), dot(p, sv));
+                    uv_lo = min(uv_lo, uv);
+                    uv_hi = max(uv_hi, uv);
+                    w_lo = min(w_lo, dot(p, sun));
+                    if ((g.w & 16u) != 0u) {
+                        max_off = max(max_off, ff_objects[g.y & 0xffffu].position.w);
+                    }
+                }
                 let id = select(NOT_ONE, g.y & 0xffffu, (g.w & 16u) != 0u);
                 only = select(select(only, NOT_ONE, id != only), id, hits == 0u);
                 hits += 1u;
@@ -122,17 +143,9 @@ fn bin_objects(b: vec2<u32>, list: u32) {
     let tan_theta = tan(min(theta, 1.0));
     let sec_theta = 1.0 / cos(min(theta, 1.0));
     let eye = frame.eye_world.xyz;
-    // Shadow list: a sphere around the bin's surface points (the cone between t_lo and t_hi),
-    // padded for the shadow rays' offset from the surface.
-    var sc = eye;
-    var sr = t_hi;
-    if (theta < 0.5) {
-        let ax_lo = t_lo * cos(theta);
-        sc = eye + axis * (0.5 * (ax_lo + t_hi));
-        sr = sqrt(0.25 * (t_hi - ax_lo) * (t_hi - ax_lo) + (t_hi * sin(theta)) * (t_hi * sin(theta)));
-    }
-    sr += 1.0 + 1.0e-3 * t_hi;
-    let sun = frame.sun_world.xyz;
+    // Padding of the sun-frame bounds: the shadow rays' offset off a free-form surface, and
+    // (by a wide margin) f32 rounding of points up to t_hi away.
+    let pad = max_off + 0.1 + 1.0e-4 * t_hi;
     let cap = frame.objects.w;
     var n_plain = 0u;
     var n_general = 0u;
@@ -174,13 +187,22 @@ fn bin_objects(b: vec2<u32>, list: u32) {
                 keep = segment_near_box(ff_objects[i], eye, axis, r, reach);
             }
         } else {
-            let v = sp.xyz - sc;
-            let u = max(dot(v, sun), 0.0);
-            keep = length(v - sun * u) <= sp.w + sr;
-            // The same for the sun-ward extrusion of the bin's surface sphere against the box.
-            if (keep) {
-                keep = segment_near_box(ff_objects[i], sc, sun, sr + 1.0e-2 + 1.0e-5 * sr, BIG);
-            }
+            // The object's box projected on the sun frame: exact ranges of an oriented box
+            // (centre ± half-extents against the axis in the object frame). A shadow ray
+            // from point p meets the box only if the box's su and sv ranges hold p's and the
+            // box reaches p's height along the sun.
+            let ob = ff_objects[i];
+            let c = ob.position.xyz - eye;
+            let bc = 0.5 * (ob.box_min.xyz + ob.box_max.xyz);
+            let bh = 0.5 * (ob.box_max.xyz - ob.box_min.xyz);
+            let lu = ff_to_local(ob, su);
+            let lv = ff_to_local(ob, sv);
+            let lw = ff_to_local(ob, sun);
+            let centre = vec3<f32>(dot(c, su) + dot(bc, lu), dot(c, sv) + dot(bc, lv), dot(c, sun) + dot(bc, lw));
+            let half = vec3<f32>(dot(bh, abs(lu)), dot(bh, abs(lv)), dot(bh, abs(lw)));
+            let lo = centre.xy - half.xy;
+            let hi = centre.xy + half.xy;
+            keep = all(lo <= uv_hi + pad) && all(hi >= uv_lo - pad) && centre.z + half.z >= w_lo - pad;
         }
         if (keep) {
             // Plain objects (one quadric) from the front of the slots, perturbed ones from the
