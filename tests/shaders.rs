@@ -1,19 +1,53 @@
 //! Every composed WGSL pass parses and validates with naga; no GPU needed.
 
+fn validate(name: &str, src: &str) {
+    let module = match naga::front::wgsl::parse_str(src) {
+        Ok(m) => m,
+        Err(e) => panic!("{name}.wgsl does not parse:\n{}", e.emit_to_string(src)),
+    };
+    let mut v = naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::default(),
+    );
+    if let Err(e) = v.validate(&module) {
+        panic!("{name}.wgsl does not validate:\n{}", e.emit_to_string(src));
+    }
+}
+
 #[test]
 fn all_shaders_validate_with_naga() {
     for (name, src) in relief::gpu::shaders::all() {
-        let module = match naga::front::wgsl::parse_str(&src) {
-            Ok(m) => m,
-            Err(e) => panic!("{name}.wgsl does not parse:\n{}", e.emit_to_string(&src)),
+        validate(name, &src);
+    }
+}
+
+#[test]
+fn every_specialised_variant_validates_with_naga() {
+    // The passes built per switch combination (gpu::specialise): every combination, not only
+    // the all-on and all-off ones `all()` lists.
+    use relief::gpu::shade::ShadeFeatures;
+    use relief::gpu::shaders;
+    use relief::gpu::volumes::VolumeSwitches;
+    let bit = |bits: u32, k: u32| bits & (1 << k) != 0;
+    for bits in 0..8 {
+        let f = ShadeFeatures {
+            shadows: bit(bits, 0),
+            drape: bit(bits, 1),
+            voxels: bit(bits, 2),
         };
-        let mut v = naga::valid::Validator::new(
-            naga::valid::ValidationFlags::all(),
-            naga::valid::Capabilities::default(),
-        );
-        if let Err(e) = v.validate(&module) {
-            panic!("{name}.wgsl does not validate:\n{}", e.emit_to_string(&src));
-        }
+        validate(&format!("shade {f:?}"), &shaders::shade(f));
+        validate(&format!("shade_objects {f:?}"), &shaders::shade_objects(f));
+    }
+    for bits in 0..64 {
+        let sw = VolumeSwitches {
+            skip: bit(bits, 0),
+            termination: bit(bits, 1),
+            jitter: bit(bits, 2),
+            mipmaps: bit(bits, 3),
+            shell: bit(bits, 4),
+            slices: bit(bits, 5),
+        };
+        validate(&format!("volume {sw:?}"), &shaders::volume(sw));
     }
 }
 
