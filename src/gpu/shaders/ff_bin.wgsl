@@ -60,8 +60,7 @@ fn bin_objects(b: vec2<u32>, list: u32) {
     let base = (list * bins + b.y * frame.objects.y + b.x) * (frame.objects.w + 1u);
     let p0 = b * FF_BIN;
     let p1 = min(p0 + FF_BIN, frame.size.xy);
-    // Depth range of the bin's surface points (sky: unbounded for primary rays).
-    var t_lo = BIG;
+    // Farthest surface point of the bin (sky: unbounded for primary rays).
     var t_hi = 0.0;
     var hits = 0u;
     var sky = false;
@@ -82,7 +81,6 @@ fn bin_objects(b: vec2<u32>, list: u32) {
             let g = textureLoad(gbuffer, vec2<i32>(i32(x), i32(y)), 0);
             if ((g.w & 1u) != 0u) {
                 let t = bitcast<f32>(g.x);
-                t_lo = min(t_lo, t);
                 t_hi = max(t_hi, t);
                 if (list == 1u) {
                     let p = ray_entry(vec2<u32>(x, y)).xyz * t;
