@@ -201,6 +201,24 @@ fn bin_objects(b: vec2<u32>, list: u32) {
             let lo = centre.xy - half.xy;
             let hi = centre.xy + half.xy;
             keep = all(lo <= uv_hi + pad) && all(hi >= uv_lo - pad) && centre.z + half.z >= w_lo - pad;
+            // Separating axes between the box and the prism the bin's shadow rays sweep (the
+            // su-sv rectangle of the points, extruded along the sun): besides su, sv and the
+            // sun, the cross products of the sun with the box's edges. They matter for long
+            // boxes lying oblique in the sun frame (a runway), whose su-sv rectangle is loose.
+            let rc = 0.5 * (uv_lo + uv_hi);
+            let rh = 0.5 * (uv_hi - uv_lo);
+            for (var k = 0u; k < 3u; k++) {
+                let edge = select(select(ob.local_2.xyz, ob.local_1.xyz, k == 1u), ob.local_0.xyz, k == 0u);
+                let a3 = cross(sun, edge);
+                let len = length(a3);
+                if (len > 1.0e-3) {
+                    let a = a3 / len;
+                    let a2 = vec2<f32>(dot(a, su), dot(a, sv));
+                    let la = ff_to_local(ob, a);
+                    let gap = abs(dot(c, a) + dot(bc, la) - dot(rc, a2));
+                    keep = keep && gap <= dot(bh, abs(la)) + dot(rh, abs(a2)) + pad;
+                }
+            }
         }
         if (keep) {
             // Plain objects (one quadric) from the front of the slots, perturbed ones from the
