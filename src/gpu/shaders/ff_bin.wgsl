@@ -66,14 +66,8 @@ fn bin_objects(b: vec2<u32>, list: u32) {
     var sky = false;
     // The free form every surface pixel of the bin shows, if there is one (NOT_ONE otherwise).
     var only = NOT_ONE;
-    // Shadow list: the surface points (relative to the eye) in the sun frame (su, sv, sun):
-    // ranges along su and sv, lowest along the sun.
-    let sun = frame.sun_world.xyz;
-    let su = normalize(select(cross(sun, vec3<f32>(1.0, 0.0, 0.0)), cross(sun, vec3<f32>(0.0, 0.0, 1.0)), abs(sun.z) < 0.9));
-    let sv = cross(sun, su);
-    var uv_lo = vec2<f32>(BIG);
-    var uv_hi = vec2<f32>(-BIG);
-    var w_lo = BIG;
+    // Nearest surface point of the bin (shadow list).
+    var t_lo = BIG;
     // Largest shadow-ray offset off a free-form surface the bin shows.
     var max_off = 0.0;
     for (var y = p0.y; y < p1.y; y++) {
@@ -83,11 +77,7 @@ fn bin_objects(b: vec2<u32>, list: u32) {
                 let t = bitcast<f32>(g.x);
                 t_hi = max(t_hi, t);
                 if (list == 1u) {
-                    let p = ray_entry(vec2<u32>(x, y)).xyz * t;
-                    let uv = vec2<f32>(dot(p, su), dot(p, sv));
-                    uv_lo = min(uv_lo, uv);
-                    uv_hi = max(uv_hi, uv);
-                    w_lo = min(w_lo, dot(p, sun));
+                    t_lo = min(t_lo, t);
                     if ((g.w & 16u) != 0u) {
                         max_off = max(max_off, ff_objects[g.y & 0xffffu].position.w);
                     }
@@ -141,6 +131,20 @@ fn bin_objects(b: vec2<u32>, list: u32) {
     let tan_theta = tan(min(theta, 1.0));
     let sec_theta = 1.0 / cos(min(theta, 1.0));
     let eye = frame.eye_world.xyz;
+    // Shadow list: the bin's surface points (relative to the eye) in a sun frame (su, sv,
+    // sun): ranges along su and sv, lowest along the sun. Each point is t d with t in
+    // [t_lo, t_hi] and d within θ of the axis, so d·X lies within θ of axis·X for a unit X
+    // (|d − axis| ≤ θ): bounds from two depths and the cone, no per-pixel ray loads.
+    let sun = frame.sun_world.xyz;
+    let su = normalize(select(cross(sun, vec3<f32>(1.0, 0.0, 0.0)), cross(sun, vec3<f32>(0.0, 0.0, 1.0)), abs(sun.z) < 0.9));
+    let sv = cross(sun, su);
+    let spread = min(theta, 2.0);
+    let ax = vec3<f32>(dot(axis, su), dot(axis, sv), dot(axis, sun));
+    let lo3 = min(t_lo * (ax - spread), t_hi * (ax - spread));
+    let hi3 = max(t_lo * (ax + spread), t_hi * (ax + spread));
+    let uv_lo = lo3.xy;
+    let uv_hi = hi3.xy;
+    let w_lo = lo3.z;
     // Padding of the sun-frame bounds: the shadow rays' offset off a free-form surface, and
     // (by a wide margin) f32 rounding of points up to t_hi away.
     let pad = max_off + 0.1 + 1.0e-4 * t_hi;
