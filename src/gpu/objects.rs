@@ -88,6 +88,8 @@ pub(crate) struct ObjectPasses {
     kinds: [u32; 2],
     /// Cast passes, [plain, perturbed].
     cast: [wgpu::RenderPipeline; 2],
+    /// Pass-through draws for `cast[k]`'s pass over the bins only the other kind lists.
+    copy_through: [wgpu::RenderPipeline; 2],
     /// Shadow passes, [plain, perturbed].
     shadow: [wgpu::RenderPipeline; 2],
     pub shade: ShadePipelines,
@@ -99,10 +101,17 @@ pub(crate) struct ObjectTargets {
     bin_primary_bg: wgpu::BindGroup,
     bin_shadow_bg: wgpu::BindGroup,
     cast_bg: wgpu::BindGroup,
+    /// The cast bind group reading the free-form G-buffer (the perturbed pass's input when
+    /// both kinds exist).
+    cast_plain_bg: wgpu::BindGroup,
     shadow_bg: wgpu::BindGroup,
     pub gbuffer: wgpu::Texture,
     pub gbuffer_view: wgpu::TextureView,
     shadow_view: wgpu::TextureView,
+    /// The casts' result is in the terrain's G-buffer (both kinds of object), not `gbuffer`.
+    pub final_in_terrain: bool,
+    /// View of the G-buffer holding the casts' result.
+    pub final_view: wgpu::TextureView,
 }
 
 impl ObjectPasses {
@@ -237,6 +246,20 @@ impl ObjectPasses {
                 g,
             ),
         ];
+        // With both kinds, each cast pass also copies its input through over the bins only the
+        // other kind lists (see `encode_cast`).
+        let copy_through = [
+            binned(
+                &cast_mod,
+                ["vs_bins_primary_general_only", "fs_copy_gbuffer"],
+                g,
+            ),
+            binned(
+                &cast_mod,
+                ["vs_bins_primary_plain_only", "fs_copy_gbuffer"],
+                g,
+            ),
+        ];
         let r = wgpu::TextureFormat::R32Uint;
         let shadow = [
             binned(
@@ -267,6 +290,7 @@ impl ObjectPasses {
             bin_shadow,
             kinds: [plain, objects.len() as u32 - plain],
             cast,
+            copy_through,
             shadow,
             shade,
         })
@@ -324,7 +348,15 @@ impl ObjectPasses {
             })
         };
         let bin_primary_bg = bin_bg("free-form bins (primary)", terrain_gbuffer);
-        let bin_shadow_bg = bin_bg("free-form bins (shadow)", &gbuffer_view);
+        // The G-buffer the casts leave their result in: with both kinds the terrain's (see
+        // `encode_cast`), else this one.
+        let both = self.kinds[0] > 0 && self.kinds[1] > 0;
+        let final_view = if both {
+            terrain_gbuffer.clone()
+        } else {
+            gbuffer_view.clone()
+        };
+        let bin_shadow_bg = bin_bg("free-form bins (shadow)", &final_view);
         let cast_bg = |label, depth: &wgpu::TextureView| {
             dev.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some(label),
@@ -344,9 +376,12 @@ impl ObjectPasses {
             bin_primary_bg,
             bin_shadow_bg,
             cast_bg: cast_bg("free-form cast", terrain_gbuffer),
-            shadow_bg: cast_bg("free-form shadows", &gbuffer_view),
+            cast_plain_bg: cast_bg("free-form cast (plain result)", &gbuffer_view),
+            shadow_bg: cast_bg("free-form shadows", &final_view),
             gbuffer,
             gbuffer_view,
+            final_in_terrain: both,
+            final_view,
             shadow_view,
         })
     }
@@ -368,7 +403,7 @@ impl ObjectPasses {
                 buf(1, heights),
                 buf(2, pyramid),
                 view(3, ray_table),
-                view(4, &t.gbuffer_view),
+                view(4, &t.final_view),
                 buf(5, drape),
                 buf(6, &self.objects),
                 view(9, &t.shadow_view),
@@ -408,8 +443,7 @@ impl ObjectPasses {
         &self,
         enc: &mut wgpu::CommandEncoder,
         t: &ObjectTargets,
-        pipelines: &[&wgpu::RenderPipeline],
-        bg: &wgpu::BindGroup,
+        draws: &[(&wgpu::RenderPipeline, &wgpu::BindGroup)],
         target: &wgpu::TextureView,
         load: wgpu::LoadOp<wgpu::Color>,
     ) {
@@ -429,43 +463,69 @@ impl ObjectPasses {
             occlusion_query_set: None,
             multiview_mask: None,
         });
-        pass.set_bind_group(0, bg, &[]);
-        for pipeline in pipelines {
+        for (pipeline, bg) in draws {
             pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, *bg, &[]);
             pass.draw(0..6 * t.bins[0] * t.bins[1], 0..1);
         }
     }
 
-    /// Records the primary binning and the free-form cast (after the terrain cast): the
-    /// free-form G-buffer starts as a copy of the terrain's; the plain pass writes its nearer
-    /// hits into it; when both kinds exist the result is copied back into `terrain_gbuffer`
-    /// (the perturbed pass's input: it reads the nearest hit so far) before the perturbed pass.
+    /// Records the primary binning and the free-form cast (after the terrain cast). With one
+    /// kind of object: the free-form G-buffer starts as a copy of the terrain's and that
+    /// kind's pass writes its nearer hits into it. With both kinds, no copies: the plain pass
+    /// reads the terrain's G-buffer and writes the free-form one over the bins either kind
+    /// lists (passing its input through where only perturbed objects are listed); the
+    /// perturbed pass reads that and writes the terrain's G-buffer over the same bins
+    /// (passing through where only plain objects are listed), which then holds the result
+    /// (`ObjectTargets::final_view`; elsewhere it is the terrain's hit, as it should be).
     pub fn encode_cast(
         &self,
         gpu: &Gpu,
         enc: &mut wgpu::CommandEncoder,
         t: &ObjectTargets,
         terrain_gbuffer: &wgpu::Texture,
+        terrain_view: &wgpu::TextureView,
     ) {
         self.bin(enc, t, false);
         gpu.trace_lap(enc, "bin primary");
-        let copy = |enc: &mut wgpu::CommandEncoder, from: &wgpu::Texture, to: &wgpu::Texture| {
-            enc.copy_texture_to_texture(from.as_image_copy(), to.as_image_copy(), from.size())
-        };
-        copy(enc, terrain_gbuffer, &t.gbuffer);
-        gpu.trace_lap(enc, "copy");
         let load = wgpu::LoadOp::Load;
-        if self.kinds[0] > 0 {
-            self.binned(enc, t, &[&self.cast[0]], &t.cast_bg, &t.gbuffer_view, load);
+        if t.final_in_terrain {
+            let plain = [
+                (&self.cast[0], &t.cast_bg),
+                (&self.copy_through[0], &t.cast_bg),
+            ];
+            self.binned(enc, t, &plain, &t.gbuffer_view, load);
             gpu.trace_lap(enc, "cast plain");
-        }
-        if self.kinds[1] > 0 {
-            if self.kinds[0] > 0 {
-                copy(enc, &t.gbuffer, terrain_gbuffer);
-            }
-            self.binned(enc, t, &[&self.cast[1]], &t.cast_bg, &t.gbuffer_view, load);
+            let general = [
+                (&self.cast[1], &t.cast_plain_bg),
+                (&self.copy_through[1], &t.cast_plain_bg),
+            ];
+            self.binned(enc, t, &general, terrain_view, load);
             gpu.trace_lap(enc, "cast general");
+            return;
         }
+        enc.copy_texture_to_texture(
+            terrain_gbuffer.as_image_copy(),
+            t.gbuffer.as_image_copy(),
+            terrain_gbuffer.size(),
+        );
+        gpu.trace_lap(enc, "copy");
+        let kind = if self.kinds[0] > 0 { 0 } else { 1 };
+        self.binned(
+            enc,
+            t,
+            &[(&self.cast[kind], &t.cast_bg)],
+            &t.gbuffer_view,
+            load,
+        );
+        gpu.trace_lap(
+            enc,
+            if kind == 0 {
+                "cast plain"
+            } else {
+                "cast general"
+            },
+        );
     }
 
     /// Records the shadow binning and the free-form shadow passes (after the free-form cast,
@@ -475,20 +535,13 @@ impl ObjectPasses {
         gpu.trace_lap(enc, "bin shadow");
         // Both kinds in one render pass (they only mark blocked pixels, in any order): one
         // pass's fixed cost less on Mesa's CPU adapters.
-        let kinds: Vec<&wgpu::RenderPipeline> = (0..2)
+        let draws: Vec<_> = (0..2)
             .filter(|&k| self.kinds[k] > 0)
-            .map(|k| &self.shadow[k])
+            .map(|k| (&self.shadow[k], &t.shadow_bg))
             .collect();
         // No clear (on lavapipe a clear costs about what a pass does): blocked pixels carry
         // this frame's stamp, anything else in the target is from earlier frames.
-        self.binned(
-            enc,
-            t,
-            &kinds,
-            &t.shadow_bg,
-            &t.shadow_view,
-            wgpu::LoadOp::Load,
-        );
+        self.binned(enc, t, &draws, &t.shadow_view, wgpu::LoadOp::Load);
         gpu.trace_lap(enc, "shadows");
     }
 }

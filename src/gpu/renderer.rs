@@ -901,7 +901,7 @@ impl TerrainRenderer {
         let voxels = self.voxels.as_ref().map(|v| {
             let g = objects
                 .as_ref()
-                .map_or(&gbuffer_view, |(ot, _)| &ot.gbuffer_view);
+                .map_or(&gbuffer_view, |(ot, _)| &ot.final_view);
             v.targets(gpu, width, height, &self.frame_ub, &ray_table_view, g)
         });
         let blend = self
@@ -1100,12 +1100,16 @@ impl TerrainRenderer {
         lap(&mut enc, &mut times.cast_ms)?;
         let objects = self.objects.as_ref().zip(t.objects.as_ref());
         if let Some((o, (ot, _))) = objects {
-            o.encode_cast(gpu, &mut enc, ot, &t.gbuffer);
+            o.encode_cast(gpu, &mut enc, ot, &t.gbuffer, &t.gbuffer_view);
             lap(&mut enc, &mut times.objects_ms)?;
         }
         let voxels = self.voxels.as_ref().zip(t.voxels.as_ref());
-        // The G-buffer the shade pass reads (the free-form one when there are free forms).
-        let final_gbuffer = t.objects.as_ref().map_or(&t.gbuffer, |(ot, _)| &ot.gbuffer);
+        // The G-buffer the shade pass reads (the free-form one when there are free forms of
+        // one kind only; with both kinds the casts end in the terrain's).
+        let final_gbuffer = match &t.objects {
+            Some((ot, _)) if !ot.final_in_terrain => &ot.gbuffer,
+            _ => &t.gbuffer,
+        };
         if let Some((v, vt)) = voxels {
             v.update(gpu, cam.pose.position, self.time);
             v.encode_cast(&mut enc, vt, final_gbuffer);

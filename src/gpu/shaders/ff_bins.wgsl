@@ -70,17 +70,27 @@ fn ff_bin_has(b: u32, list: u32, general: bool) -> bool {
 // pays a fixed cost per instance and per triangle (a 16x16 quad each costs ~3x its area
 // drawn full-screen), hence the runs.
 fn ff_bin_quad(v: u32, b: u32, list: u32, general: bool) -> vec4<f32> {
+    return ff_bin_quad_of(v, b, list, general, false);
+}
+
+// Does bin `b` get drawn: it lists objects of the kind (`only`: and none of the other kind)?
+fn ff_bin_drawn(b: u32, list: u32, general: bool, only: bool) -> bool {
+    return ff_bin_has(b, list, general) && !(only && ff_bin_has(b, list, !general));
+}
+
+// As `ff_bin_quad`, over the bins `ff_bin_drawn` selects.
+fn ff_bin_quad_of(v: u32, b: u32, list: u32, general: bool, only: bool) -> vec4<f32> {
     let none = vec4<f32>(-2.0, -2.0, 0.0, 1.0);
     let per_row = frame.objects.y;
     let x = b % per_row;
-    if (b >= per_row * frame.objects.z || !ff_bin_has(b, list, general)) {
+    if (b >= per_row * frame.objects.z || !ff_bin_drawn(b, list, general, only)) {
         return none;
     }
-    if (x > 0u && ff_bin_has(b - 1u, list, general)) {
+    if (x > 0u && ff_bin_drawn(b - 1u, list, general, only)) {
         return none;
     }
     var end = x + 1u;
-    while (end < per_row && ff_bin_has(b - x + end, list, general)) {
+    while (end < per_row && ff_bin_drawn(b - x + end, list, general, only)) {
         end += 1u;
     }
     // Two triangles: (0,0) (1,0) (1,1) and (0,0) (1,1) (0,1).
@@ -99,6 +109,18 @@ fn vs_bins_primary_plain(@builtin(vertex_index) v: u32) -> @builtin(position) ve
 @vertex
 fn vs_bins_primary_general(@builtin(vertex_index) v: u32) -> @builtin(position) vec4<f32> {
     return ff_bin_quad(v % 6u, v / 6u, 0u, true);
+}
+
+// Bins whose primary list holds plain objects only (and general only): where the other
+// kind's cast pass copies its input through (see `gpu::objects::encode_cast`).
+@vertex
+fn vs_bins_primary_plain_only(@builtin(vertex_index) v: u32) -> @builtin(position) vec4<f32> {
+    return ff_bin_quad_of(v % 6u, v / 6u, 0u, false, true);
+}
+
+@vertex
+fn vs_bins_primary_general_only(@builtin(vertex_index) v: u32) -> @builtin(position) vec4<f32> {
+    return ff_bin_quad_of(v % 6u, v / 6u, 0u, true, true);
 }
 
 @vertex

@@ -1,7 +1,7 @@
 // Free-form cast passes: per pixel of a bin with objects, the nearest free form of the pixel's
 // bin in front of the current hit replaces it in the G-buffer (distance, object id |
-// iterations << 16, packed unit normal, flags 1 | 16); pixels without a nearer free form are
-// discarded and keep what the target holds. Two entry points, one per object kind: plain
+// iterations << 16, packed unit normal, flags 1 | 16); pixels without a nearer free form
+// pass their input through. Two entry points, one per object kind: plain
 // objects in closed form, then perturbed ones by the enclosure search, each drawn only over
 // the bins that list objects of its kind (`vs_bins_primary_*`).
 
@@ -25,12 +25,9 @@ fn gbuffer_hit(best: FfNearest, n: vec3<f32>) -> vec4<u32> {
 fn fs_objects_plain(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
     let px = vec2<u32>(pos.xy);
     let far = current_far(px);
-    if (far < 0.0) {
-        discard;
-    }
     let best = ff_plain_nearest(px, 0u, frame.eye_world.xyz, ray_dir(px), 0.0, far);
-    if (!best.hit.hit) {
-        discard;
+    if (far < 0.0 || !best.hit.hit) {
+        return textureLoad(gbuffer_in, vec2<i32>(px), 0);
     }
     return gbuffer_hit(best, best.hit.n);
 }
@@ -39,12 +36,16 @@ fn fs_objects_plain(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32>
 fn fs_objects_general(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
     let px = vec2<u32>(pos.xy);
     let far = current_far(px);
-    if (far < 0.0) {
-        discard;
-    }
     let best = ff_nearest(px, 0u, frame.eye_world.xyz, ray_dir(px), 0.0, far);
-    if (!best.hit.hit) {
-        discard;
+    if (far < 0.0 || !best.hit.hit) {
+        return textureLoad(gbuffer_in, vec2<i32>(px), 0);
     }
     return gbuffer_hit(best, ff_normal(best.id, best.hit, frame.eye_world.xyz, ray_dir(px)));
+}
+
+// The input G-buffer unchanged: drawn over the bins the other kind's pass covers, so that
+// a pass's target holds the whole result over every listed bin.
+@fragment
+fn fs_copy_gbuffer(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
+    return textureLoad(gbuffer_in, vec2<i32>(vec2<u32>(pos.xy)), 0);
 }
