@@ -1164,7 +1164,7 @@ fn a_frame_after_another_equals_a_frame_from_a_fresh_renderer() {
     let terrain = scene.load_terrain().unwrap();
     let objects = scene.free_forms(&terrain).unwrap();
     let b = scene.camera(0, &terrain);
-    let mut a = b.clone();
+    let mut a = b;
     a.pose.heading += 12.0;
     let Some(g) = gpu() else {
         return;

@@ -1539,7 +1539,7 @@ pub fn frame_uniforms(
     for (dst, l) in levels.iter_mut().zip(&terrain.pyramid.levels) {
         *dst = [l.cells[0], l.cells[1], l.stored[0], l.offset];
     }
-    let (drape_map, drape_size, has_drape) = match &terrain.drape {
+    let (drape_map, drape_size) = match &terrain.drape {
         Some((d, m)) => (
             [
                 m.offset[0] as f32,
@@ -1548,9 +1548,8 @@ pub fn frame_uniforms(
                 m.scale[1] as f32,
             ],
             [d.width as u32, d.height as u32, 0, 0],
-            1,
         ),
-        None => ([0.0; 4], [1, 1, 0, 0], 0),
+        None => ([0.0; 4], [1, 1, 0, 0]),
     };
     let (mode, march) = match s.mode {
         TraceMode::Pyramid => (0, [0.0; 4]),
@@ -1589,9 +1588,9 @@ pub fn frame_uniforms(
             terrain.field.width as u32,
             terrain.field.height as u32,
             terrain.pyramid.levels.len() as u32,
-            has_drape,
+            0,
         ],
-        mode: [mode, s.max_steps, s.shadows as u32, s.tile_prepass as u32],
+        mode: [mode, s.max_steps, 0, s.tile_prepass as u32],
         drape_size,
         march,
         pyramid_dims: [0; 4],

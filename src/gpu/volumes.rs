@@ -320,12 +320,6 @@ pub fn uniforms(v: &Volume, eye: glam::DVec3) -> VolumeUniforms {
     let sp = v.grid.spacing;
     let s = &v.settings;
     let m = &v.material;
-    let switches = (s.skip as u32)
-        | (s.early_termination as u32) << 1
-        | (s.jitter as u32) << 2
-        | (s.mipmaps as u32) << 3
-        | (v.shell.is_some() as u32) << 4
-        | ((v.grid.slices > 0) as u32) << 5;
     let (sc, sr) = v.shell.unwrap_or((glam::DVec3::ZERO, glam::DVec3::ONE));
     VolumeUniforms {
         eye_local: row(v.to_local(eye), s.step * v.voxel()),
@@ -352,7 +346,8 @@ pub fn uniforms(v: &Volume, eye: glam::DVec3) -> VolumeUniforms {
             v.bricks.dims[0],
             v.bricks.dims[1],
             v.bricks.dims[2],
-            switches,
+            // Unused: the pass is built with its switches (`VolumeSwitches`).
+            0,
         ],
         material: [f(m.ambient), f(m.diffuse), f(m.specular), f(m.shininess)],
         shell_centre: row(sc, 0.0),

@@ -34,11 +34,11 @@ struct Frame {
     drape_map: vec4<f32>,
     // width, height, tiles x, tiles y.
     size: vec4<u32>,
-    // samples x, samples y, pyramid levels, drape present (0/1; for the record: the shade pass
-    // is built with DRAPE, see gpu::shade).
+    // samples x, samples y, pyramid levels, unused (the shade pass is built with or without
+    // the drape, see gpu::shade).
     grid: vec4<u32>,
-    // x: 0 = pyramid traversal, 1 = fixed-step march; y: max steps; z: shadows on (for the
-    // record: the shade pass is built with SHADOWS); w: tile pre-pass on.
+    // x: 0 = pyramid traversal, 1 = fixed-step march; y: max steps; z: unused (the shade pass
+    // is built with or without shadows); w: tile pre-pass on.
     mode: vec4<u32>,
     // drape width, height.
     drape_size: vec4<u32>,

@@ -213,39 +213,20 @@ fn ff_enclose_ray(rn: FfRayNodes, a: f32, b: f32) -> vec2<f32> {
 // in reverse pre-order, each node's exact range plus its children's sum, pushed through the
 // monotone w·max(·,0)² into its parent's sum.
 fn ff_enclose(first: u32, count: u32, p0: vec3<f32>, dir: vec3<f32>, a: f32, b: f32) -> vec2<f32> {
-    var acc1 = vec2<f32>(0.0);
-    var acc2 = vec2<f32>(0.0);
-    var acc3 = vec2<f32>(0.0);
-    var result = vec2<f32>(0.0);
+    var s: FfSums;
+    s.acc1 = vec2<f32>(0.0);
+    s.acc2 = vec2<f32>(0.0);
+    s.acc3 = vec2<f32>(0.0);
+    s.result = vec2<f32>(0.0);
     for (var k = count; k > 0u; k--) {
         let n = ff_nodes[first + k - 1u];
         let d = u32(n.q2.w);
-        var v = ff_range(ff_along(n, p0, dir), a, b);
+        s = ff_sum_node(s, ff_ray_node(n, p0, dir), d, a, b);
         if (d == 0u) {
-            result = v + acc1;
             break;
         }
-        if (d == 1u) {
-            v += acc2;
-            acc2 = vec2<f32>(0.0);
-        } else if (d == 2u) {
-            v += acc3;
-            acc3 = vec2<f32>(0.0);
-        }
-        let w = n.q2.z;
-        let lo = max(v.x, 0.0);
-        let hi = max(v.y, 0.0);
-        var r = w * vec2<f32>(lo * lo, hi * hi);
-        r = select(r, r.yx, w < 0.0);
-        if (d == 1u) {
-            acc1 += r;
-        } else if (d == 2u) {
-            acc2 += r;
-        } else {
-            acc3 += r;
-        }
     }
-    return result;
+    return s.result;
 }
 
 // F' and its gradient (continuous: each perturbation adds 2·w·max(Q',0)·∇Q') at an
@@ -332,6 +313,23 @@ fn ff_span(ob: FfObject, ro: vec3<f32>, rd: vec3<f32>, t_min: f32, t_max: f32) -
     return sp;
 }
 
+// Unit world normal of the box face a ray enters the solid through (its own direction reversed
+// when it starts inside the box, t0 = t_min).
+fn ff_entry_face(ob: FfObject, span: FfSpan, t_min: f32) -> vec3<f32> {
+    let d = span.d;
+    var face = -d;
+    if (span.t0 > t_min) {
+        if (span.t0 == span.tn.x) {
+            face = vec3<f32>(-sign(d.x), 0.0, 0.0);
+        } else if (span.t0 == span.tn.y) {
+            face = vec3<f32>(0.0, -sign(d.y), 0.0);
+        } else {
+            face = vec3<f32>(0.0, 0.0, -sign(d.z));
+        }
+    }
+    return ff_to_world(ob, face);
+}
+
 // First hit of the world ray ro + t rd (rd unit) with object `id`, t in [t_min, t_max]; the
 // normal is left to `ff_normal`. `any`: shadow rays, which only need to know whether there is
 // a hit (FF_SHADOW_LEVELS, no refinement; the hit's t is then a leaf's start). One loop drives every enclosure evaluation through a single
@@ -349,7 +347,6 @@ fn ff_intersect(id: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32, t_max: f32, a
     let span = ff_span(ob, ro, rd, t_min, t_max);
     let o = span.o;
     let d = span.d;
-    let tn = span.tn;
     let t0 = span.t0;
     let t1 = span.t1;
     if (t0 > t1) {
@@ -396,17 +393,7 @@ fn ff_intersect(id: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32, t_max: f32, a
         if (phase == 0u) {
             if (e <= 0.0) {
                 // Entering the solid through the box: the face's normal.
-                var face = -d;
-                if (t0 > t_min) {
-                    if (t0 == tn.x) {
-                        face = vec3<f32>(-sign(d.x), 0.0, 0.0);
-                    } else if (t0 == tn.y) {
-                        face = vec3<f32>(0.0, -sign(d.y), 0.0);
-                    } else {
-                        face = vec3<f32>(0.0, 0.0, -sign(d.z));
-                    }
-                }
-                h.n = ff_to_world(ob, face);
+                h.n = ff_entry_face(ob, span, t_min);
                 s = 0.0;
                 break;
             }
@@ -490,17 +477,7 @@ fn ff_plain_hit(id: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32, t_max: f32) -
     var s = 0.0;
     if (c.z <= 0.0) {
         // Entering the solid through the box: the face's normal.
-        var face = -d;
-        if (span.t0 > t_min) {
-            if (span.t0 == span.tn.x) {
-                face = vec3<f32>(-sign(d.x), 0.0, 0.0);
-            } else if (span.t0 == span.tn.y) {
-                face = vec3<f32>(0.0, -sign(d.y), 0.0);
-            } else {
-                face = vec3<f32>(0.0, 0.0, -sign(d.z));
-            }
-        }
-        h.n = ff_to_world(ob, face);
+        h.n = ff_entry_face(ob, span, t_min);
     } else {
         s = ff_plain_root(c, span.t1 - span.t0);
         if (s < 0.0) {

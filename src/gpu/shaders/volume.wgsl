@@ -19,9 +19,8 @@ struct Volume {
     spacing: vec4<f32>,
     // Voxels x, y, z; mip levels.
     dims: vec4<u32>,
-    // Bricks x, y, z; switches (1 skip, 2 early termination, 4 jitter, 8 mip-maps, 16 shell,
-    // 32 slice masks), for the record: the pass branches on the compile-time constants SKIP,
-    // TERMINATION, JITTER, MIPMAPS, SHELL and SLICES (`gpu::volumes::VolumeSwitches`).
+    // Bricks x, y, z; unused (the pass branches on the compile-time constants SKIP,
+    // TERMINATION, JITTER, MIPMAPS, SHELL and SLICES, `gpu::volumes::VolumeSwitches`).
     bricks: vec4<u32>,
     // Ambient, diffuse, specular weights; shininess.
     material: vec4<f32>,
