@@ -25,6 +25,7 @@ fn all_shaders_validate_with_naga() {
 fn every_specialised_variant_validates_with_naga() {
     // The passes built per switch combination (gpu::specialise): every combination, not only
     // the all-on and all-off ones `all()` lists.
+    use relief::gpu::objects::FfTables;
     use relief::gpu::shade::ShadeFeatures;
     use relief::gpu::shaders;
     use relief::gpu::volumes::VolumeSwitches;
@@ -36,7 +37,18 @@ fn every_specialised_variant_validates_with_naga() {
             voxels: bit(bits, 2),
         };
         validate(&format!("shade {f:?}"), &shaders::shade(f));
-        validate(&format!("shade_objects {f:?}"), &shaders::shade_objects(f));
+        for tables in [
+            FfTables::Storage,
+            FfTables::Uniform {
+                objects: 3,
+                nodes: 7,
+            },
+        ] {
+            validate(
+                &format!("shade_objects {f:?} {tables:?}"),
+                &shaders::shade_objects(f, tables),
+            );
+        }
     }
     for bits in 0..64 {
         let sw = VolumeSwitches {
@@ -70,7 +82,7 @@ fn naga_rejects_a_broken_shader() {
 
 #[test]
 fn free_form_constants_match_the_cpu_side() {
-    let src = relief::gpu::shaders::objects(true);
+    let src = relief::gpu::shaders::objects(true, relief::gpu::objects::FfTables::Storage);
     let ray_nodes = format!(
         "const FF_RAY_NODES: u32 = {}u;",
         relief::gpu::shaders::FF_RAY_NODES
@@ -128,7 +140,7 @@ fn full_screen_passes_never_discard() {
         ("shade", shaders::shade(ShadeFeatures::ALL)),
         (
             "shade (free forms)",
-            shaders::shade_objects(ShadeFeatures::ALL),
+            shaders::shade_objects(ShadeFeatures::ALL, relief::gpu::objects::FfTables::Storage),
         ),
         ("volume", shaders::volume(VolumeSwitches::ALL)),
         ("pattern", shaders::pattern()),

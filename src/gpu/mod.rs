@@ -113,6 +113,8 @@ impl Gpu {
             max_texture_dimension_3d: alimits.max_texture_dimension_3d,
             // The shade pass with free forms reads six storage buffers.
             max_storage_buffers_per_shader_stage: alimits.max_storage_buffers_per_shader_stage,
+            // Free-form tables live in uniform buffers where they fit (`objects::FfTables`).
+            max_uniform_buffer_binding_size: alimits.max_uniform_buffer_binding_size,
             ..wgpu::Limits::downlevel_defaults()
         };
         let (device, queue) = adapter

@@ -628,10 +628,30 @@ impl TerrainRenderer {
     /// Uploads the scene's free forms (none: the terrain-only passes). Objects are binned per
     /// 16x16-pixel screen bin every frame, so a pixel tests only its bin's objects.
     pub fn set_objects(&mut self, gpu: &Gpu, objects: &[crate::freeform::FreeForm]) -> Result<()> {
+        self.upload_objects(gpu, objects, true)
+    }
+
+    /// As [`TerrainRenderer::set_objects`], with the object tables in storage buffers even
+    /// where they would fit uniform buffers: the path of scenes beyond the uniform-binding
+    /// size (see `gpu::objects::FfTables`), for tests and comparisons.
+    pub fn set_objects_in_storage(
+        &mut self,
+        gpu: &Gpu,
+        objects: &[crate::freeform::FreeForm],
+    ) -> Result<()> {
+        self.upload_objects(gpu, objects, false)
+    }
+
+    fn upload_objects(
+        &mut self,
+        gpu: &Gpu,
+        objects: &[crate::freeform::FreeForm],
+        allow_uniform: bool,
+    ) -> Result<()> {
         self.objects = if objects.is_empty() {
             None
         } else {
-            Some(ObjectPasses::new(gpu, objects)?)
+            Some(ObjectPasses::new(gpu, objects, allow_uniform)?)
         };
         self.targets = None;
         Ok(())

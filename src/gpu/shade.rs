@@ -45,7 +45,7 @@ pub type ShadePipelines = SpecialisedPipelines<ShadeFeatures>;
 /// Shade pipelines of `source` (e.g. [`super::shaders::shade`]) with bind-group layout `bgl`.
 pub fn shade_pipelines(
     label: &'static str,
-    source: fn(ShadeFeatures) -> String,
+    source: impl Fn(ShadeFeatures) -> String + Send + Sync + 'static,
     bgl: wgpu::BindGroupLayout,
 ) -> ShadePipelines {
     let targets = vec![

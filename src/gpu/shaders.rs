@@ -1,6 +1,7 @@
 //! WGSL sources. One file per pass; shared code lives in included files that are prepended
 //! here (WGSL has no include directive).
 
+use super::objects::FfTables;
 use super::shade::ShadeFeatures;
 use super::specialise::Switches;
 use super::volumes::VolumeSwitches;
@@ -63,8 +64,8 @@ pub fn shade(f: ShadeFeatures) -> String {
 }
 
 /// Shade pass for scenes with free forms: as [`shade`], plus free-form shading and the
-/// free-form shadow pass's answers.
-pub fn shade_objects(f: ShadeFeatures) -> String {
+/// free-form shadow pass's answers; `tables`: see [`freeform`].
+pub fn shade_objects(f: ShadeFeatures, tables: FfTables) -> String {
     [
         &f.wgsl_constants(),
         FRAME,
@@ -72,7 +73,7 @@ pub fn shade_objects(f: ShadeFeatures) -> String {
         RAY_TABLE,
         TRAVERSE,
         GBUFFER,
-        &freeform(false),
+        &freeform(false, tables),
         HAZE,
         include_str!("shaders/shade.wgsl"),
         include_str!("shaders/shade_objects.wgsl"),
@@ -82,48 +83,61 @@ pub fn shade_objects(f: ShadeFeatures) -> String {
 
 /// The free-form intersection code. `small`: every perturbed object of the scene has at most
 /// [`FF_RAY_NODES`] nodes, so the interval search keeps each node's along-ray quadratic for the
-/// whole ray instead of reloading and recomputing it at every enclosure.
-pub fn freeform(small: bool) -> String {
-    format!("const FF_SMALL: bool = {small};\n{FREEFORM}")
+/// whole ray instead of reloading and recomputing it at every enclosure. `tables`: the buffers
+/// the object records and quadrics are read from.
+pub fn freeform(small: bool, tables: FfTables) -> String {
+    let decl = match tables {
+        FfTables::Uniform { objects, nodes } => format!(
+            "@group(0) @binding(6) var<uniform> ff_objects: array<FfObject, {objects}>;\n\
+             @group(0) @binding(7) var<uniform> ff_nodes: array<FfNode, {nodes}>;\n"
+        ),
+        FfTables::Storage => {
+            "@group(0) @binding(6) var<storage, read> ff_objects: array<FfObject>;\n\
+             @group(0) @binding(7) var<storage, read> ff_nodes: array<FfNode>;\n"
+                .to_string()
+        }
+    };
+    format!("const FF_SMALL: bool = {small};\n{decl}{FREEFORM}")
 }
 
 /// Most nodes (base quadric and perturbations) of a perturbed object for the `small` free-form
 /// code (`FF_RAY_NODES` in `freeform.wgsl`).
 pub const FF_RAY_NODES: usize = 4;
 
-/// Object binning (compute): per 16x16 bin, the free forms primary and shadow rays test.
-pub fn ff_bin() -> String {
+/// Object binning (compute): per 16x16 bin, the free forms primary and shadow rays test;
+/// `tables`: see [`freeform`].
+pub fn ff_bin(tables: FfTables) -> String {
     [
         FRAME,
         RAY_TABLE,
-        &freeform(false),
+        &freeform(false, tables),
         include_str!("shaders/ff_bin.wgsl"),
     ]
     .concat()
 }
 
-/// Free-form shadow pass (fragment): shadow rays against the bins' shadow lists; `small`: see
-/// [`freeform`].
-pub fn ff_shadow(small: bool) -> String {
+/// Free-form shadow pass (fragment): shadow rays against the bins' shadow lists; `small` and
+/// `tables`: see [`freeform`].
+pub fn ff_shadow(small: bool, tables: FfTables) -> String {
     [
         FRAME,
         FULLSCREEN,
         RAY_TABLE,
-        &freeform(small),
+        &freeform(small, tables),
         FF_BINS,
         include_str!("shaders/ff_shadow.wgsl"),
     ]
     .concat()
 }
 
-/// Free-form cast pass (fragment): nearest free form in front of the terrain hit; `small`: see
-/// [`freeform`].
-pub fn objects(small: bool) -> String {
+/// Free-form cast pass (fragment): nearest free form in front of the terrain hit; `small` and
+/// `tables`: see [`freeform`].
+pub fn objects(small: bool, tables: FfTables) -> String {
     [
         FRAME,
         FULLSCREEN,
         RAY_TABLE,
-        &freeform(small),
+        &freeform(small, tables),
         FF_BINS,
         include_str!("shaders/objects.wgsl"),
     ]
@@ -144,9 +158,16 @@ pub fn volume(sw: VolumeSwitches) -> String {
     .concat()
 }
 
-/// Voxel-model passes (fragment): box marks, hierarchical-DDA cast and shadow rays.
-pub fn voxels() -> String {
+/// Voxel-model passes (fragment): box marks, hierarchical-DDA cast and shadow rays, for
+/// `instances` model instances (at most `voxel::desc::MAX_INSTANCES`, so the records always
+/// fit a uniform buffer).
+pub fn voxels(instances: u32) -> String {
+    let n = instances.max(1);
     [
+        &format!(
+            "const VOX_INSTANCES: u32 = {instances}u;\n\
+             @group(0) @binding(10) var<uniform> vox_instances: array<VoxInstance, {n}>;\n"
+        ),
         FRAME,
         FULLSCREEN,
         RAY_TABLE,
@@ -168,26 +189,39 @@ pub fn blend() -> String {
 
 /// Every composed pass source with its name, for validation.
 pub fn all() -> Vec<(&'static str, String)> {
+    const UNIFORM: FfTables = FfTables::Uniform {
+        objects: 56,
+        nodes: 120,
+    };
     vec![
         ("raygen", raygen()),
         ("tile", tile()),
         ("cast", cast()),
         ("shade", shade(ShadeFeatures::ALL)),
         ("shade (no options)", shade(ShadeFeatures::NONE)),
-        ("shade_objects", shade_objects(ShadeFeatures::ALL)),
+        ("shade_objects", shade_objects(ShadeFeatures::ALL, UNIFORM)),
         (
-            "shade_objects (no options)",
-            shade_objects(ShadeFeatures::NONE),
+            "shade_objects (no options, storage tables)",
+            shade_objects(ShadeFeatures::NONE, FfTables::Storage),
         ),
-        ("ff_bin", ff_bin()),
-        ("objects", objects(false)),
-        ("objects (small)", objects(true)),
-        ("ff_shadow", ff_shadow(false)),
-        ("ff_shadow (small)", ff_shadow(true)),
+        ("ff_bin", ff_bin(UNIFORM)),
+        ("ff_bin (storage tables)", ff_bin(FfTables::Storage)),
+        ("objects", objects(false, UNIFORM)),
+        ("objects (small)", objects(true, UNIFORM)),
+        (
+            "objects (storage tables)",
+            objects(false, FfTables::Storage),
+        ),
+        ("ff_shadow", ff_shadow(false, UNIFORM)),
+        ("ff_shadow (small)", ff_shadow(true, UNIFORM)),
+        (
+            "ff_shadow (small, storage tables)",
+            ff_shadow(true, FfTables::Storage),
+        ),
         ("volume", volume(VolumeSwitches::ALL)),
         ("volume (no options)", volume(VolumeSwitches::NONE)),
         ("blend", blend()),
-        ("voxels", voxels()),
+        ("voxels", voxels(2)),
         ("pattern", pattern()),
     ]
 }

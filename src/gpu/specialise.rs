@@ -31,7 +31,7 @@ pub fn wgsl_bools(switches: &[(&str, bool)]) -> String {
 /// The pipelines of one full-screen fragment pass, one per switch combination used so far.
 pub struct SpecialisedPipelines<S: Switches> {
     label: &'static str,
-    source: fn(S) -> String,
+    source: Box<dyn Fn(S) -> String + Send + Sync>,
     entry: &'static str,
     bgl: wgpu::BindGroupLayout,
     targets: Vec<Option<wgpu::ColorTargetState>>,
@@ -43,14 +43,14 @@ impl<S: Switches> SpecialisedPipelines<S> {
     /// stage), bind-group layout `bgl`, colour `targets`; none built yet.
     pub fn new(
         label: &'static str,
-        source: fn(S) -> String,
+        source: impl Fn(S) -> String + Send + Sync + 'static,
         entry: &'static str,
         bgl: wgpu::BindGroupLayout,
         targets: Vec<Option<wgpu::ColorTargetState>>,
     ) -> SpecialisedPipelines<S> {
         SpecialisedPipelines {
             label,
-            source,
+            source: Box::new(source),
             entry,
             bgl,
             targets,

@@ -114,7 +114,7 @@ impl VolumePass {
         let table = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("transfer table"),
             contents: &table_bytes(volume),
-            usage: storage,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
         });
         let bricks = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("volume bricks"),
@@ -136,7 +136,7 @@ impl VolumePass {
                 float_texture_entry(10, fs, wgpu::TextureViewDimension::D2),
                 uint_texture_entry(11, fs),
                 float_texture_entry(12, fs, wgpu::TextureViewDimension::D3),
-                storage_entry(14, fs, true),
+                uniform_entry(14, fs),
                 storage_entry(15, fs, true),
                 uniform_entry(16, fs),
             ],

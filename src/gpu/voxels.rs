@@ -18,6 +18,10 @@ use std::collections::HashMap;
 use std::sync::Arc;
 use wgpu::util::DeviceExt;
 
+// Every scene's instance records fit the smallest uniform binding WebGPU guarantees (16 KiB).
+const _: () =
+    assert!(crate::voxel::desc::MAX_INSTANCES * std::mem::size_of::<VoxInstanceGpu>() <= 16384);
+
 const STENCIL_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth24PlusStencil8;
 
 fn stencil_state(write: bool) -> wgpu::DepthStencilState {
@@ -201,7 +205,7 @@ impl VoxelPasses {
         let instance_buf = dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some("voxel instances"),
             size: (instances.len().max(1) * std::mem::size_of::<VoxInstanceGpu>()) as u64,
-            usage: storage | wgpu::BufferUsages::COPY_DST,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
         let fs = wgpu::ShaderStages::FRAGMENT;
@@ -211,7 +215,7 @@ impl VoxelPasses {
                 uniform_entry(0, fs),
                 uint_texture_entry(3, fs),
                 uint_texture_entry(4, fs),
-                storage_entry(10, fs, true),
+                uniform_entry(10, fs),
                 storage_entry(11, fs, true),
                 storage_entry(12, fs, true),
                 storage_entry(13, fs, true),
@@ -219,7 +223,7 @@ impl VoxelPasses {
         });
         let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("voxels.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(shaders::voxels().into()),
+            source: wgpu::ShaderSource::Wgsl(shaders::voxels(instances.len() as u32).into()),
         });
         let target = Some(wgpu::TextureFormat::Rgba32Uint);
         let p = |label, entry, target| masked_pipeline(dev, label, &module, entry, &bgl, target);

@@ -35,8 +35,9 @@ struct FfNode {
     q2: vec4<f32>,
 }
 
-@group(0) @binding(6) var<storage, read> ff_objects: array<FfObject>;
-@group(0) @binding(7) var<storage, read> ff_nodes: array<FfNode>;
+// `ff_objects` (binding 6, FfObject per object) and `ff_nodes` (binding 7, FfNode per node)
+// are declared ahead of this file by `gpu::shaders::freeform`: uniform buffers where the scene
+// fits (see `gpu::objects::FfTables`), storage buffers otherwise.
 
 const FF_MAX_NODES: u32 = 16u;
 const FF_MAX_DEPTH: u32 = 3u;

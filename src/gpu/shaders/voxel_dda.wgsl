@@ -17,7 +17,9 @@ struct VoxInstance {
     bdims: vec4<u32>,
 }
 
-@group(0) @binding(10) var<storage, read> vox_instances: array<VoxInstance>;
+// `vox_instances` (binding 10, a uniform array of VOX_INSTANCES records: one gather per load
+// on Mesa's CPU adapters, not a loop over the lanes as from a storage buffer) is declared
+// ahead of this file by `gpu::shaders::voxels`.
 // Per brick: its block in `vox_pool` (128 words = 512 palette indices), or VOX_EMPTY.
 @group(0) @binding(11) var<storage, read> vox_bricks: array<u32>;
 @group(0) @binding(12) var<storage, read> vox_pool: array<u32>;

@@ -18,7 +18,7 @@ fn fs_vox_mark(@builtin(position) pos: vec4<f32>) {
     let far = vox_far(g);
     let dw = ray_dir(px);
     var any = false;
-    for (var k = 0u; k < arrayLength(&vox_instances); k++) {
+    for (var k = 0u; k < VOX_INSTANCES; k++) {
         let inst = vox_instances[k];
         let b = vox_box(inst, inst.eye_local.xyz, vox_dir(inst, dw));
         any = any || (b.x <= min(b.y, far) && b.y >= 0.0);
@@ -38,7 +38,7 @@ fn fs_voxels(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
     var best: VoxTrace;
     var best_k = 0u;
     var steps = 0u;
-    for (var k = 0u; k < arrayLength(&vox_instances); k++) {
+    for (var k = 0u; k < VOX_INSTANCES; k++) {
         let inst = vox_instances[k];
         let tr = vox_dda(inst, inst.eye_local.xyz, vox_dir(inst, dw), 0.0, best_t);
         steps += tr.steps;
@@ -81,7 +81,7 @@ fn fs_vox_mark_shadow(@builtin(position) pos: vec4<f32>) {
     }
     let p = vox_shadow_origin(px, g);
     var any = false;
-    for (var k = 0u; k < arrayLength(&vox_instances); k++) {
+    for (var k = 0u; k < VOX_INSTANCES; k++) {
         let inst = vox_instances[k];
         let b = vox_box(inst, inst.eye_local.xyz + vox_dir(inst, p.xyz), vox_dir(inst, frame.sun_world.xyz));
         any = any || (b.x <= b.y && b.y >= 0.0);
@@ -97,7 +97,7 @@ fn fs_vox_shadow(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
     let g = textureLoad(gbuffer_in, vec2<i32>(px), 0);
     let p = vox_shadow_origin(px, g);
     var blocked = false;
-    for (var k = 0u; k < arrayLength(&vox_instances); k++) {
+    for (var k = 0u; k < VOX_INSTANCES; k++) {
         let inst = vox_instances[k];
         let tr = vox_dda(inst, inst.eye_local.xyz + vox_dir(inst, p.xyz), vox_dir(inst, frame.sun_world.xyz), 0.0, BIG);
         if (tr.hit) {
