@@ -24,7 +24,8 @@ ap = argparse.ArgumentParser()
 ap.add_argument("scene", nargs="?", default=os.path.join(root, "terrains", "alps.toml"))
 ap.add_argument("--size", default="1280x720")
 ap.add_argument("--frames", type=int, default=10)
-ap.add_argument("--repeats", type=int, default=9)
+ap.add_argument("--repeats", type=int, default=5)
+ap.add_argument("--rounds", type=int, default=5)
 args = ap.parse_args()
 
 subprocess.run(["cargo", "build", "--release", "--quiet"], cwd=root, check=True)
@@ -53,26 +54,37 @@ scene.add_triangles(o3d.core.Tensor(verts), o3d.core.Tensor(tris))
 scene.cast_rays(o3d.core.Tensor(rays[:16]))  # builds the BVH
 build_s = time.perf_counter() - t0
 rt = o3d.core.Tensor(rays)
-# The median of the repeats, as relief reports the median of its frames: the same statistic
-# on both sides (this machine's speed drifts from run to run).
-times = []
-for _ in range(args.repeats):
-    t0 = time.perf_counter()
-    ans = scene.cast_rays(rt)
-    times.append(time.perf_counter() - t0)
-median = float(np.median(times))
+# Alternate: relief's primary-ray median over --frames, then the median of --repeats Embree casts.
+rounds = []
+for r in range(args.rounds):
+    out = subprocess.run([exe, "bench", args.scene, "--size", args.size, "--frames", str(args.frames),
+                          "--primary-only", "--json"], check=True, capture_output=True, text=True, env=env).stdout
+    relief_rps = json.loads(out)["rays_per_second"]
+    times = []
+    for _ in range(args.repeats):
+        t0 = time.perf_counter()
+        ans = scene.cast_rays(rt)
+        times.append(time.perf_counter() - t0)
+    embree_rps = len(rays) / float(np.median(times))
+    rounds.append((relief_rps, embree_rps))
+    print(f"round {r + 1}: relief {relief_rps / 1e6:.2f} M rays/s, Embree {embree_rps / 1e6:.2f} M rays/s, "
+          f"ratio {relief_rps / embree_rps:.2f}", flush=True)
 embree_t = ans["t_hit"].numpy()
 
 n = len(rays)
 both = np.isfinite(relief_t) & np.isfinite(embree_t)
 rel = np.abs(relief_t[both] - embree_t[both]) / embree_t[both]
 class_diff = int(np.sum(np.isfinite(relief_t) != np.isfinite(embree_t)))
-pt = next(c for c in report["configs"] if c["name"] == "pyramid+tiles")
+relief_med = float(np.median([a for a, _ in rounds]))
+embree_med = float(np.median([b for _, b in rounds]))
+ratios = [a / b for a, b in rounds]
 print(f"rays: {n} ({args.size}), scene {args.scene}")
-print(f"relief  ({report['adapter']}, {report['backend']}): {pt['rays_per_second'] / 1e6:.2f} M rays/s "
-      f"(primary {pt['primary_ms']:.1f} ms, {pt['mean_steps_per_ray']:.1f} steps/ray)")
-print(f"Embree  (Open3D {o3d.__version__}, {os.cpu_count()} threads): {n / median / 1e6:.2f} M rays/s "
-      f"({median * 1e3:.1f} ms median of {args.repeats}; BVH build {build_s:.2f} s not counted)")
-print(f"ratio relief/Embree: {pt['rays_per_second'] / (n / median):.2f}")
+pt = next(c for c in report["configs"] if c["name"] == "pyramid+tiles")
+print(f"relief  ({report['adapter']}, {report['backend']}): {relief_med / 1e6:.2f} M rays/s "
+      f"(median of {args.rounds} rounds; {pt['mean_steps_per_ray']:.1f} steps/ray)")
+print(f"Embree  (Open3D {o3d.__version__}, {os.cpu_count()} threads): {embree_med / 1e6:.2f} M rays/s "
+      f"(median of {args.rounds} rounds of {args.repeats} casts; BVH build {build_s:.2f} s not counted)")
+print(f"ratio relief/Embree: {relief_med / embree_med:.2f} (medians); per round {min(ratios):.2f}-{max(ratios):.2f}, "
+      f"relief ahead in {sum(r > 1 for r in ratios)} of {len(ratios)}")
 print(f"depth agreement: {np.mean(rel < 0.01) * 100:.2f}% of {both.sum()} common hits within 1% "
       f"(median {np.median(rel):.2e}), hit/sky class differs on {class_diff} rays")

@@ -83,6 +83,10 @@ enum Command {
         /// Also write the fixed rays and the pyramid depths (raw little-endian f32) to this directory.
         #[arg(long)]
         dump_rays: Option<PathBuf>,
+        /// Time only the primary rays of the product configuration (pyramid + tile pre-pass):
+        /// for scripts that alternate relief with another renderer.
+        #[arg(long, conflicts_with_all = ["dump_rays", "freeforms", "voxels", "volume", "display"])]
+        primary_only: bool,
         /// Measure free forms instead: the scene's objects vs terrain only, then 10/100/1000
         /// generated objects (default scene: terrains/airfield.toml).
         #[arg(long)]
@@ -483,6 +487,7 @@ fn run(cli: Cli) -> Result<()> {
             frames,
             json,
             dump_rays,
+            primary_only,
             freeforms,
             voxels,
             volume,
@@ -542,6 +547,20 @@ fn run(cli: Cli) -> Result<()> {
                 return Ok(());
             }
             let scene = scene.unwrap_or_else(default_scene);
+            if primary_only {
+                let r = bench::run_primary(&scene, size, frames)
+                    .with_context(|| format!("benchmarking {}", scene.display()))?;
+                if json {
+                    println!("{}", serde_json::to_string_pretty(&r)?);
+                } else {
+                    println!(
+                        "relief bench --primary-only: {} at {}x{}, {} frames, {} ({}): primary {:.2} ms, {:.2} M rays/s",
+                        r.scene, r.width, r.height, r.frames, r.adapter, r.backend, r.primary_ms,
+                        r.rays_per_second / 1e6
+                    );
+                }
+                return Ok(());
+            }
             let report = bench::run(&scene, size, frames, dump_rays.as_deref())
                 .with_context(|| format!("benchmarking {}", scene.display()))?;
             if json {

@@ -274,6 +274,58 @@ pub fn run(
     })
 }
 
+/// Primary-ray timing of the product configuration alone (pyramid + tile pre-pass): what
+/// `relief bench --primary-only` prints, for scripts that alternate relief with another
+/// renderer (`benches/embree_compare.py`) so that this machine's slow spells fall on both.
+#[derive(Clone, Debug, Serialize)]
+pub struct PrimaryTiming {
+    pub adapter: String,
+    pub backend: String,
+    pub scene: String,
+    pub width: u32,
+    pub height: u32,
+    pub frames: u32,
+    /// Median milliseconds of ray table + tile pre-pass + cast (frame pairs, as `run`).
+    pub primary_ms: f64,
+    pub rays_per_second: f64,
+}
+
+/// Times the primary rays of `scene_path` at `size` (`frames` timed frames), nothing else.
+pub fn run_primary(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<PrimaryTiming> {
+    let (scene, terrain) = load_at_size(scene_path, size)?;
+    let gpu = Gpu::new()?;
+    let mut renderer = TerrainRenderer::new(&gpu, &terrain)?;
+    let cam = scene.camera(0, &terrain);
+    let s = RenderSettings {
+        mode: TraceMode::Pyramid,
+        shadows: false,
+        tile_prepass: true,
+        max_steps: scene.desc.render.max_steps,
+    };
+    // Warm-up: shader compilation on first use, target allocation.
+    renderer.capture(&gpu, &terrain, &scene.desc, &cam, &s)?;
+    let primary_ms = median_frame_ms(
+        &mut renderer,
+        &gpu,
+        &terrain,
+        &scene.desc,
+        &cam,
+        &s,
+        Stage::Cast,
+        frames,
+    )?;
+    Ok(PrimaryTiming {
+        adapter: gpu.info.name.clone(),
+        backend: format!("{:?}", gpu.info.backend),
+        scene: scene_path.display().to_string(),
+        width: size.0,
+        height: size.1,
+        frames,
+        primary_ms,
+        rays_per_second: (size.0 * size.1) as f64 / (primary_ms * 1e-3),
+    })
+}
+
 /// Writes, for outside comparisons (benches/embree_compare.py): `rays.f32` (per pixel: origin
 /// xyz, direction xyz, row-major from the top-left), `depth.f32` (relief's ray distance, +inf
 /// for sky), `heights.f32` (the height grid, row 0 south) and `grid.json` (its size and
