@@ -409,6 +409,45 @@ fn oversized_data_is_refused_with_the_limit_in_the_message() {
 }
 
 #[test]
+fn cli_bench_primary_only_prints_its_timing_as_json() {
+    // The figure benches/embree_compare.py alternates with Embree's.
+    let _l = gpu_lock();
+    if gpu().is_none() {
+        return;
+    }
+    let run = |extra: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_relief"))
+            .args(["bench", terrains().join("alps.toml").to_str().unwrap()])
+            .args(["--size", "96x64", "--frames", "2", "--primary-only"])
+            .args(extra)
+            .env("NODEVICE_SELECT", "1")
+            .output()
+            .unwrap()
+    };
+    let out = run(&["--json"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(
+        (v["width"].as_u64(), v["height"].as_u64()),
+        (Some(96), Some(64))
+    );
+    let ms = v["primary_ms"].as_f64().unwrap();
+    let rps = v["rays_per_second"].as_f64().unwrap();
+    assert!(
+        ms > 0.0 && (rps * ms * 1e-3 - 96.0 * 64.0).abs() < 1e-6 * rps,
+        "{v}"
+    );
+    // It times the primary rays only: the other measurements are refused with it.
+    let clash = run(&["--freeforms"]);
+    assert!(!clash.status.success());
+    assert!(String::from_utf8_lossy(&clash.stderr).contains("--freeforms"));
+}
+
+#[test]
 fn cli_render_writes_png_depth_and_metadata_that_recreate_the_rays() {
     let _l = gpu_lock();
     if gpu().is_none() {
