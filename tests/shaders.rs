@@ -127,6 +127,26 @@ fn free_form_constants_match_the_cpu_side() {
 }
 
 #[test]
+fn volume_constants_match_the_cpu_side() {
+    use relief::gpu::shaders;
+    use relief::gpu::volumes::VolumeSwitches;
+    let src = shaders::volume(VolumeSwitches::ALL);
+    // The transfer table is a uniform array of VOL_TABLE entries: the buffer the renderer
+    // uploads (TABLE_SIZE entries) must hold all of it.
+    let table = format!(
+        "const VOL_TABLE: u32 = {}u;",
+        relief::volume::transfer::TABLE_SIZE
+    );
+    assert!(src.contains(&table), "WGSL VOL_TABLE and TABLE_SIZE differ");
+    assert!(src.contains("var<uniform> vol_table: array<vec4<f32>, VOL_TABLE>;"));
+    let brick = format!("const VOL_BRICK: u32 = {}u;", relief::volume::BRICK);
+    assert!(
+        src.contains(&brick),
+        "WGSL VOL_BRICK and volume::BRICK differ"
+    );
+}
+
+#[test]
 fn full_screen_passes_never_discard() {
     // The full-screen passes start from LoadOp::DontCare (renderer `encode_fullscreen`): that is
     // sound only while every pixel is written, i.e. no fragment of theirs discards.

@@ -28,9 +28,9 @@ const STORAGE_BUFFERS: u32 = 4;
 /// most GPUs: 455 objects, 1365 quadrics): Mesa's CPU adapters load a uniform at a per-pixel
 /// index as one gather, but a storage-buffer load as a loop over the SIMD lanes with an
 /// execution-mask and a bounds branch per component (gallivm's `emit_load_mem`), and an object
-/// record is 36 components. Measured on the airfield (GL/llvmpipe, 1280x720, per-pass
-/// minimums): binning, casts and shadow passes 44.9 → 31.7 ms. Larger scenes use storage
-/// buffers, with the same code.
+/// record is 36 components. Measured on the airfield (GL/llvmpipe, 1280x720, A/B of per-pass
+/// minimums): binning, casts and shadow passes 35 → 29 ms. Larger scenes use storage buffers,
+/// with the same code.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FfTables {
     /// Uniform arrays of exactly these many objects and nodes (the WGSL array sizes).

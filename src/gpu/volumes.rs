@@ -9,6 +9,7 @@ use super::renderer::{
 use super::specialise::{wgsl_bools, SpecialisedPipelines, Switches};
 use super::types::VolumeUniforms;
 use super::{shaders, Gpu};
+use crate::volume::transfer::TABLE_SIZE;
 use crate::volume::Volume;
 use crate::{Error, Result};
 use wgpu::util::DeviceExt;
@@ -38,8 +39,14 @@ pub(crate) struct VolumeTargets {
     pub bg: wgpu::BindGroup,
 }
 
+/// The transfer table as the uniform array `vol_table` (`VOL_TABLE` = [`TABLE_SIZE`] vec4s;
+/// a uniform binding must hold the whole declared array). In a uniform buffer, not a storage
+/// buffer: two table entries per sample are loaded at a per-pixel index (see
+/// `gpu::objects::FfTables` for why that matters on Mesa's CPU adapters).
 fn table_bytes(v: &Volume) -> Vec<u8> {
-    bytemuck::cast_slice(&v.table.entries).to_vec()
+    let mut entries = v.table.entries.clone();
+    entries.resize(TABLE_SIZE, [0.0; 4]);
+    bytemuck::cast_slice(&entries).to_vec()
 }
 
 impl VolumePass {

@@ -32,7 +32,7 @@ struct Volume {
 @group(0) @binding(10) var colour_in: texture_2d<f32>;
 @group(0) @binding(11) var data_in: texture_2d<u32>;
 @group(0) @binding(12) var vol_tex: texture_3d<f32>;
-@group(0) @binding(14) var<uniform> vol_table: array<vec4<f32>, 256>;
+@group(0) @binding(14) var<uniform> vol_table: array<vec4<f32>, VOL_TABLE>;
 @group(0) @binding(15) var<storage, read> vol_bricks: array<u32>;
 @group(0) @binding(16) var<uniform> vol: Volume;
 
