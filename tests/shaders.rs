@@ -50,7 +50,7 @@ fn every_specialised_variant_validates_with_naga() {
             );
         }
     }
-    for bits in 0..64 {
+    for bits in 0..128 {
         let sw = VolumeSwitches {
             skip: bit(bits, 0),
             termination: bit(bits, 1),
@@ -58,6 +58,7 @@ fn every_specialised_variant_validates_with_naga() {
             mipmaps: bit(bits, 3),
             shell: bit(bits, 4),
             slices: bit(bits, 5),
+            shadow: bit(bits, 6),
         };
         validate(&format!("volume {sw:?}"), &shaders::volume(sw));
     }

@@ -554,6 +554,112 @@ fn synthetic(w: u32, h: u32, eye: DVec3, heading: f64, pitch: f64) -> (SceneDesc
 }
 
 #[test]
+fn sun_transmittance_of_a_uniform_slab_matches_the_analytic_attenuation() {
+    // A uniform box of extinction sigma: the transmittance at every voxel centre is
+    // exp(-sigma * L), L the distance to the box along the sun, for a sun along an axis and an
+    // oblique one (slice propagation, bilinear in the previous layer).
+    let n = [24u32, 16, 20];
+    let sp = [2.0, 3.0, 2.5];
+    let grid = DensityGrid {
+        dims: n,
+        data: vec![200; (n[0] * n[1] * n[2]) as usize],
+        spacing: sp,
+        value_range: [0.0, 255.0],
+        slices: 0,
+    };
+    let sigma = 0.02;
+    let mut table = relief::volume::TransferTable {
+        entries: vec![[0.0; 4]; 256],
+    };
+    table.entries[200] = [1.0, 1.0, 1.0, sigma as f32];
+    let extent = DVec3::new(
+        n[0] as f64 * sp[0],
+        n[1] as f64 * sp[1],
+        n[2] as f64 * sp[2],
+    );
+    for sun in [
+        DVec3::Z,
+        DVec3::new(0.0, -1.0, 0.0),
+        DVec3::new(0.5, -0.3, 0.8).normalize(),
+        DVec3::new(-0.9, 0.2, 0.35).normalize(),
+    ] {
+        let sh = relief::volume::shadow::sun_transmittance(&grid, &table, sun);
+        assert_eq!(sh.dims, n, "a grid this small keeps one cell per voxel");
+        let t = sh.data;
+        let (mut worst, mut sum) = (0.0f64, 0.0);
+        for z in 0..n[2] {
+            for y in 0..n[1] {
+                for x in 0..n[0] {
+                    let p = DVec3::new(x as f64 + 0.5, y as f64 + 0.5, z as f64 + 0.5)
+                        * DVec3::from(sp);
+                    let mut l = f64::INFINITY;
+                    for k in 0..3 {
+                        if sun[k] > 0.0 {
+                            l = l.min((extent[k] - p[k]) / sun[k]);
+                        } else if sun[k] < 0.0 {
+                            l = l.min(-p[k] / sun[k]);
+                        }
+                    }
+                    let want = (-sigma * l).exp();
+                    let got = t[(x + n[0] * (y + n[1] * z)) as usize] as f64 / 255.0;
+                    worst = worst.max((got - want).abs());
+                    sum += (got - want).abs();
+                }
+            }
+        }
+        let mean = sum / t.len() as f64;
+        eprintln!(
+            "sun {sun:?}: transmittance error mean {:.4}, max {worst:.4}",
+            mean
+        );
+        // Byte rounding (0.5/255) plus the bilinear read across the box's edges, where the
+        // distance to the box has a kink.
+        assert!(
+            mean < 1.0 / 255.0 && worst < 0.03,
+            "sun {sun:?}: mean {mean}, max {worst}"
+        );
+    }
+}
+
+#[test]
+fn self_shadowing_only_darkens_and_visibly_darkens_the_brain() {
+    // The brain lit with and without the sun's transmittance through itself: no pixel gets
+    // brighter (transmittance <= 1 scales only the sun's terms), and the sulci and the side
+    // away from the sun get visibly darker.
+    let _l = gpu_lock();
+    let mut scene = Scene::load(&terrains().join("brain.toml")).unwrap();
+    scene.desc.output.width = 160;
+    scene.desc.output.height = 120;
+    let terrain = scene.load_terrain().unwrap();
+    let vols = scene.volumes(&terrain).unwrap();
+    assert!(
+        vols[0].sun_shadow.is_some(),
+        "the brain is self-shadowed by default"
+    );
+    let mut unlit = vols.clone();
+    unlit[0].sun_shadow = None;
+    let cam = scene.camera(0, &terrain);
+    let Some((_, with, _)) = render_pair(&terrain, &scene.desc, &cam, &vols, &[]) else {
+        return;
+    };
+    let (_, without, _) = render_pair(&terrain, &scene.desc, &cam, &unlit, &[]).unwrap();
+    let (mut brighter, mut darker) = (0, 0);
+    for (a, b) in with.rgba.chunks_exact(4).zip(without.rgba.chunks_exact(4)) {
+        let v = |p: &[u8], c: usize| i32::from(p[c]);
+        let (a, b) = ([v(a, 0), v(a, 1), v(a, 2)], [v(b, 0), v(b, 1), v(b, 2)]);
+        brighter += (0..3).filter(|&c| a[c] > b[c] + 1).count();
+        if (0..3).any(|c| a[c] + 10 < b[c]) {
+            darker += 1;
+        }
+    }
+    eprintln!(
+        "self-shadowing: {darker} pixels darker by > 10 levels, {brighter} channels brighter"
+    );
+    assert_eq!(brighter, 0);
+    assert!(darker > 500, "only {darker} pixels darkened");
+}
+
+#[test]
 fn terrain_cuts_a_uniform_slab_at_the_analytic_depth_whatever_the_step() {
     let _l = gpu_lock();
     // A hill whose top pokes through a 60 m slab of haze lying on the ground.

@@ -260,9 +260,11 @@ pub fn integrate(
             let c = DVec3::new(e[0], e[1], e[2]);
             let ndl = 0.5 + (n.dot(light.sun).max(0.0) - 0.5) * w;
             let ca = c * light.ambient_light(n * w);
-            let cd = clight * c * ndl;
+            // The sun's light left after the volume's own extinction (self-shadowing).
+            let sun_left = v.sun_transmittance(p);
+            let cd = clight * c * (ndl * sun_left);
             let r = 2.0 * n.dot(light.sun) * n - light.sun;
-            let cs = clight * (r.dot(-dir).max(0.0).powf(m.shininess) * w);
+            let cs = clight * (r.dot(-dir).max(0.0).powf(m.shininess) * w * sun_left);
             let i = (m.ambient * ca + m.diffuse * cd + m.specular * cs) / qsum;
             let i = light.haze(i, eye, dir, tm);
             res.colour += i * (omega * res.transmittance);

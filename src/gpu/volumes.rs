@@ -23,6 +23,10 @@ pub(crate) struct VolumePass {
     bgl: wgpu::BindGroupLayout,
     pipelines: SpecialisedPipelines<VolumeSwitches>,
     view: wgpu::TextureView,
+    /// The sun's transmittance per voxel (R8, a 1x1x1 texture without self-shadowing).
+    shadow: wgpu::Texture,
+    shadow_view: wgpu::TextureView,
+    linear: wgpu::Sampler,
     table: wgpu::Buffer,
     bricks: wgpu::Buffer,
     uniforms: wgpu::Buffer,
@@ -117,6 +121,16 @@ impl VolumePass {
             );
         }
         let view = tex.create_view(&Default::default());
+        let shadow = shadow_texture(gpu, volume);
+        let shadow_view = shadow.create_view(&Default::default());
+        // The transmittance is smooth: the sampler's 8-bit filter weights stay within a
+        // fraction of a level of the CPU reference's exact trilinear weights.
+        let linear = dev.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some("volume shadow"),
+            mag_filter: wgpu::FilterMode::Linear,
+            min_filter: wgpu::FilterMode::Linear,
+            ..Default::default()
+        });
         let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
         let table = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("transfer table"),
@@ -146,6 +160,22 @@ impl VolumePass {
                 uniform_entry(14, fs),
                 storage_entry(15, fs, true),
                 uniform_entry(16, fs),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 17,
+                    visibility: fs,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                        view_dimension: wgpu::TextureViewDimension::D3,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 18,
+                    visibility: fs,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                    count: None,
+                },
             ],
         });
         let pipelines = SpecialisedPipelines::new(
@@ -163,15 +193,22 @@ impl VolumePass {
             bgl,
             pipelines,
             view,
+            shadow,
+            shadow_view,
+            linear,
             table,
             bricks,
             uniforms,
         })
     }
 
-    /// Reclassifies the volume with a new transfer function (table and brick occupancy).
+    /// Reclassifies the volume with a new transfer function (table, brick occupancy and
+    /// self-shadowing).
     pub fn set_transfer(&mut self, gpu: &Gpu, tf: crate::volume::TransferFunction) {
         self.volume.set_transfer(tf);
+        if let Some(sh) = &self.volume.sun_shadow {
+            write_shadow(gpu, &self.shadow, sh.dims, &sh.data);
+        }
         gpu.queue
             .write_buffer(&self.table, 0, &table_bytes(&self.volume));
         gpu.queue.write_buffer(
@@ -235,6 +272,11 @@ impl VolumePass {
                 buf(14, &self.table),
                 buf(15, &self.bricks),
                 buf(16, &self.uniforms),
+                view(17, &self.shadow_view),
+                wgpu::BindGroupEntry {
+                    binding: 18,
+                    resource: wgpu::BindingResource::Sampler(&self.linear),
+                },
             ],
         });
         let stats_rb = dev.create_buffer(&wgpu::BufferDescriptor {
@@ -254,6 +296,48 @@ impl VolumePass {
     }
 }
 
+/// The self-shadowing texture of `volume`: its transmittance bytes, or one fully lit texel.
+fn shadow_texture(gpu: &Gpu, volume: &Volume) -> wgpu::Texture {
+    let one = [255u8];
+    let (dims, data): ([u32; 3], &[u8]) = match &volume.sun_shadow {
+        Some(sh) => (sh.dims, &sh.data),
+        None => ([1, 1, 1], &one),
+    };
+    let tex = gpu.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("volume sun transmittance"),
+        size: wgpu::Extent3d {
+            width: dims[0],
+            height: dims[1],
+            depth_or_array_layers: dims[2],
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D3,
+        format: wgpu::TextureFormat::R8Unorm,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    write_shadow(gpu, &tex, dims, data);
+    tex
+}
+
+fn write_shadow(gpu: &Gpu, tex: &wgpu::Texture, dims: [u32; 3], data: &[u8]) {
+    gpu.queue.write_texture(
+        tex.as_image_copy(),
+        data,
+        wgpu::TexelCopyBufferLayout {
+            offset: 0,
+            bytes_per_row: Some(dims[0]),
+            rows_per_image: Some(dims[1]),
+        },
+        wgpu::Extent3d {
+            width: dims[0],
+            height: dims[1],
+            depth_or_array_layers: dims[2],
+        },
+    );
+}
+
 /// The volume pass's compile-time switches (see [`super::specialise`] for why).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct VolumeSwitches {
@@ -269,6 +353,8 @@ pub struct VolumeSwitches {
     pub shell: bool,
     /// 1-bit slice masks (the 4-D function's `w` slices) instead of densities.
     pub slices: bool,
+    /// Self-shadowing: samples lit with the sun's transmittance (`volume::shadow`).
+    pub shadow: bool,
 }
 
 impl VolumeSwitches {
@@ -280,6 +366,7 @@ impl VolumeSwitches {
         mipmaps: true,
         shell: true,
         slices: true,
+        shadow: true,
     };
     /// Every switch off.
     pub const NONE: VolumeSwitches = VolumeSwitches {
@@ -289,6 +376,7 @@ impl VolumeSwitches {
         mipmaps: false,
         shell: false,
         slices: false,
+        shadow: false,
     };
 
     /// The switches volume `v` renders with.
@@ -301,6 +389,7 @@ impl VolumeSwitches {
             mipmaps: s.mipmaps,
             shell: v.shell.is_some(),
             slices: v.grid.slices > 0,
+            shadow: v.sun_shadow.is_some(),
         }
     }
 }
@@ -314,6 +403,7 @@ impl Switches for VolumeSwitches {
             ("MIPMAPS", self.mipmaps),
             ("SHELL", self.shell),
             ("SLICES", self.slices),
+            ("SHADOW", self.shadow),
         ])
     }
 }

@@ -347,9 +347,11 @@ impl Scene {
             .iter()
             .enumerate()
             .map(|(i, v)| {
-                v.build(i, &self.base_dir, |p| {
+                let mut v = v.build(i, &self.base_dir, |p| {
                     crate::cpu::query::terrain_point_below(terrain, p).map(|g| g.z)
-                })
+                })?;
+                v.set_sun(self.desc.sun.direction());
+                Ok(v)
             })
             .collect()
     }

@@ -66,6 +66,9 @@ pub struct VolumeSettings {
     pub epsilon: f64,
     /// Sample coarser mip levels where the pixel footprint covers several voxels.
     pub mipmaps: bool,
+    /// Self-shadowing: light each sample with the sun's transmittance through the volume
+    /// itself (see [`super::shadow`]; computed when the scene's sun is known).
+    pub shadows: bool,
 }
 
 impl Default for VolumeSettings {
@@ -77,6 +80,7 @@ impl Default for VolumeSettings {
             early_termination: true,
             epsilon: 1e-4,
             mipmaps: true,
+            shadows: true,
         }
     }
 }
@@ -131,6 +135,8 @@ pub struct Volume {
     pub material: VolumeMaterial,
     /// Ellipsoid shell in the volume frame (metres from the corner): centre, radii.
     pub shell: Option<(DVec3, DVec3)>,
+    /// Self-shadowing ([`Volume::set_sun`]), or `None` (lit without it).
+    pub sun_shadow: Option<super::shadow::SunShadow>,
 }
 
 impl VolumeDesc {
@@ -314,9 +320,33 @@ impl Volume {
             settings,
             material,
             shell,
+            sun_shadow: None,
         };
         v.set_transfer(transfer);
         v
+    }
+
+    /// Computes the self-shadowing for the unit world direction towards the sun `sun_world`
+    /// (a density volume with `render.shadows`; slice masks are not lit).
+    pub fn set_sun(&mut self, sun_world: DVec3) {
+        self.sun_shadow = (self.settings.shadows && self.grid.slices == 0).then(|| {
+            let s = (self.rotation.transpose() * sun_world).normalize();
+            super::shadow::sun_transmittance(&self.grid, &self.table, s)
+        });
+    }
+
+    /// The sun's transmittance for a sample at `p` (volume frame, metres from the corner),
+    /// read [`super::shadow::OFFSET_VOXELS`] voxels towards the sun so that a surface facing
+    /// the sun does not shadow itself; 1 without self-shadowing.
+    pub fn sun_transmittance(&self, p: DVec3) -> f64 {
+        match &self.sun_shadow {
+            Some(sh) => {
+                let q =
+                    (p + sh.sun * (super::shadow::OFFSET_VOXELS * self.voxel())) / self.extent();
+                super::shadow::sample(&sh.data, sh.dims, [q.x, q.y, q.z])
+            }
+            None => 1.0,
+        }
     }
 
     /// Metres of the smallest voxel side.
@@ -338,6 +368,14 @@ impl Volume {
             g.slices,
         );
         self.transfer = tf;
+        if let Some(sh) = &self.sun_shadow {
+            let sun = sh.sun;
+            self.sun_shadow = Some(super::shadow::sun_transmittance(
+                &self.grid,
+                &self.table,
+                sun,
+            ));
+        }
     }
 
     /// Size of the box in metres (volume frame).

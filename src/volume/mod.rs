@@ -13,12 +13,14 @@
 //!   bit per brick for empty-space skipping.
 //! * [`transfer`]: piecewise-linear colour and opacity per density, presets, the 256-entry
 //!   table both renderers interpolate.
+//! * [`shadow`]: the sun's transmittance through the volume itself, per voxel (self-shadowing).
 //! * [`desc`]: the `[[volumes]]` scene table and the placed [`Volume`].
 
 pub mod desc;
 pub mod nrrd;
 pub mod procedural;
 pub mod raw;
+pub mod shadow;
 pub mod transfer;
 
 pub use desc::{Volume, VolumeDesc, VolumeSettings};

@@ -35,11 +35,18 @@ struct Volume {
 @group(0) @binding(14) var<uniform> vol_table: array<vec4<f32>, VOL_TABLE>;
 @group(0) @binding(15) var<storage, read> vol_bricks: array<u32>;
 @group(0) @binding(16) var<uniform> vol: Volume;
+// The sun's transmittance through the volume per voxel (`volume::shadow`; SHADOW), sampled
+// with a linear filter: the field is smooth, so the sampler's 8-bit weights stay within a
+// fraction of a level of the CPU reference's trilinear weights.
+@group(0) @binding(17) var vol_shadow: texture_3d<f32>;
+@group(0) @binding(18) var vol_linear: sampler;
 
 // Voxels per brick side (`volume::BRICK`), table entries (`volume::transfer::TABLE_SIZE`),
 // samples after which a ray gives up (`cpu::volume::MAX_SAMPLES`).
 const VOL_BRICK: u32 = 8u;
 const VOL_TABLE: u32 = 256u;
+// Voxels towards the sun at which a sample reads its transmittance (`volume::shadow::OFFSET_VOXELS`).
+const VOL_SHADOW_OFFSET: f32 = 1.0;
 const VOL_MAX_SAMPLES: u32 = 65536u;
 // Bits of a slice mask (`volume::procedural` function4d).
 const VOL_SLICES: u32 = 8u;
@@ -272,9 +279,17 @@ fn fs_volume(@builtin(position) pos: vec4<f32>) -> VolOut {
             let c = c4.xyz;
             let ndl = 0.5 + (max(dot(n, sun), 0.0) - 0.5) * w;
             let ca = c * vol_ambient(n * w);
-            let cd = clight * c * ndl;
+            // The sun's light left after the volume's own extinction (self-shadowing).
+            var sun_left = 1.0;
+            if (SHADOW) {
+                // Read VOL_SHADOW_OFFSET voxels towards the sun (`Volume::sun_transmittance`).
+                let sun_l = vec3<f32>(dot(vol.local_from_world_0.xyz, sun), dot(vol.local_from_world_1.xyz, sun), dot(vol.local_from_world_2.xyz, sun));
+                let q = (p + sun_l * (VOL_SHADOW_OFFSET * voxel)) / ext;
+                sun_left = textureSampleLevel(vol_shadow, vol_linear, q, 0.0).x;
+            }
+            let cd = clight * c * (ndl * sun_left);
             let r = 2.0 * dot(n, sun) * n - sun;
-            let cs = clight * (pow(max(dot(r, -dir), 0.0), m.w) * w);
+            let cs = clight * (pow(max(dot(r, -dir), 0.0), m.w) * w * sun_left);
             let i = (m.x * ca + m.y * cd + m.z * cs) / qsum;
             let lit = aerial_perspective(i, tm, frame.eye.z + tm * up_rate, dl);
             acc += lit * (omega * tr);
