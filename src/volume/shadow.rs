@@ -1,9 +1,10 @@
 //! Volume self-shadowing: the sun's transmittance through the volume's own extinction.
 //!
-//! Per voxel centre `p`, `T(p) = exp(−∫ σ(p + λ s) dλ)` from `p` to where the ray towards the
-//! sun `s` leaves the box, `σ` the classified extinction per metre. Both renderers light a
-//! sample's diffuse and specular terms with `T`, sampled trilinearly from the same bytes (one
-//! per voxel, `T · 255` rounded), as they do the density.
+//! Per cell centre `p` (a cell is a voxel, or a block of voxels in large volumes, see
+//! [`MAX_CELLS`]), `T(p) = exp(−∫ σ(p + λ s) dλ)` from `p` to where the ray towards the sun `s`
+//! leaves the box, `σ` the classified extinction per metre. Both renderers light a sample's
+//! diffuse and specular terms with `T`, read trilinearly from the same bytes (one per cell,
+//! `T · 255` rounded; the GPU through a linear sampler).
 //!
 //! Computed by slice propagation (one pass over the grid, not one march to the box per voxel):
 //! layers of voxels are taken across the axis along which the sun ray crosses layers fastest,
@@ -47,7 +48,8 @@ pub struct SunShadow {
 /// The sun's transmittance through `grid` classified by `table` (extinction per metre in each
 /// entry's alpha), for the unit direction towards the sun `sun` in the volume frame: per voxel,
 /// or per block of 2³, 4³… voxels where the grid has more than [`MAX_CELLS`] (extinction
-/// averaged over the block).
+/// averaged over the block; the cells divide the box evenly, so where a side is not a multiple
+/// of the block the blocks and the cells differ by less than a voxel).
 pub fn sun_transmittance(grid: &DensityGrid, table: &TransferTable, sun: DVec3) -> SunShadow {
     let n = grid.dims.map(|d| d as usize);
     let sigma_of: Vec<f64> = table.entries.iter().map(|e| e[3] as f64).collect();
