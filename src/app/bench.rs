@@ -176,12 +176,7 @@ pub fn run(
         })
         .collect();
 
-    let base = RenderSettings {
-        mode: TraceMode::Pyramid,
-        shadows: false,
-        tile_prepass: true,
-        max_steps: scene.desc.render.max_steps,
-    };
+    let base = product_settings(&scene);
     let march = TraceMode::March {
         step_cells: 0.5,
         bisections: 10,
@@ -274,6 +269,17 @@ pub fn run(
     })
 }
 
+/// The product configuration the primary rays are timed in: pyramid traversal with the tile
+/// pre-pass, no shadows (`pyramid+tiles`).
+fn product_settings(scene: &Scene) -> RenderSettings {
+    RenderSettings {
+        mode: TraceMode::Pyramid,
+        shadows: false,
+        tile_prepass: true,
+        max_steps: scene.desc.render.max_steps,
+    }
+}
+
 /// Primary-ray timing of the product configuration alone (pyramid + tile pre-pass): what
 /// `relief bench --primary-only` prints, for scripts that alternate relief with another
 /// renderer (`benches/embree_compare.py`) so that this machine's slow spells fall on both.
@@ -296,12 +302,7 @@ pub fn run_primary(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<P
     let gpu = Gpu::new()?;
     let mut renderer = TerrainRenderer::new(&gpu, &terrain)?;
     let cam = scene.camera(0, &terrain);
-    let s = RenderSettings {
-        mode: TraceMode::Pyramid,
-        shadows: false,
-        tile_prepass: true,
-        max_steps: scene.desc.render.max_steps,
-    };
+    let s = product_settings(&scene);
     // Warm-up: shader compilation on first use, target allocation.
     renderer.capture(&gpu, &terrain, &scene.desc, &cam, &s)?;
     let primary_ms = median_frame_ms(

@@ -18,9 +18,6 @@ use wgpu::util::DeviceExt;
 pub const BIN: u32 = 16;
 /// Object indices stored per bin and list; a fuller bin falls back to testing every object.
 pub const BIN_CAPACITY: u32 = 255;
-/// Storage buffers the shade pass with free forms binds (heights, pyramid, drape, and the
-/// objects where they are not in a uniform buffer).
-const STORAGE_BUFFERS: u32 = 4;
 
 /// Where the free-form records ([`FfObjectGpu`]) and quadrics ([`FfNodeGpu`]) live on the GPU.
 ///
@@ -58,6 +55,16 @@ impl FfTables {
 
     fn uniform(&self) -> bool {
         matches!(self, FfTables::Uniform { .. })
+    }
+
+    /// Storage buffers the most demanding free-form stage binds: the shade pass (heights,
+    /// pyramid, drape), plus the object records where they are not in a uniform buffer.
+    fn storage_buffers(&self) -> u32 {
+        if self.uniform() {
+            3
+        } else {
+            4
+        }
     }
 
     /// Bind-group-layout entry of table `binding` (6: objects, 7: nodes).
@@ -178,16 +185,6 @@ impl ObjectPasses {
                 ),
             });
         }
-        let have = gpu.limits.max_storage_buffers_per_shader_stage;
-        if have < STORAGE_BUFFERS {
-            return Err(Error::Limit {
-                what: "storage buffers per shader stage".into(),
-                msg: format!(
-                    "free forms need {STORAGE_BUFFERS}, the adapter {} allows {have}; render the scene without [[objects]]",
-                    gpu.info.name
-                ),
-            });
-        }
         if !gpu.downlevel.contains(wgpu::DownlevelFlags::VERTEX_STORAGE) {
             return Err(Error::Limit {
                 what: "storage buffers in vertex shaders".into(),
@@ -212,6 +209,17 @@ impl ObjectPasses {
             },
         );
         log::debug!("free-form tables: {tables:?}");
+        let need = tables.storage_buffers();
+        let have = gpu.limits.max_storage_buffers_per_shader_stage;
+        if have < need {
+            return Err(Error::Limit {
+                what: "storage buffers per shader stage".into(),
+                msg: format!(
+                    "free forms need {need}, the adapter {} allows {have}; render the scene without [[objects]]",
+                    gpu.info.name
+                ),
+            });
+        }
         let usage = if tables.uniform() {
             wgpu::BufferUsages::UNIFORM
         } else {

@@ -100,11 +100,16 @@ fn propagate(sigma_cells: &[f64], n: [usize; 3], sp: DVec3, sun: DVec3) -> Vec<u
     // One layer spacing along the ray, and the layer step towards the sun.
     let dl = 1.0 / per_metre[a];
     let towards: isize = if sun[a] > 0.0 { 1 } else { -1 };
-    let index = |ia: usize, ib: usize, ic: usize| -> usize {
+    // Grid coordinates of cell (ia, ib, ic) in layer order, and its index.
+    let cell = |ia: usize, ib: usize, ic: usize| -> [usize; 3] {
         let mut v = [0; 3];
         v[a] = ia;
         v[b] = ib;
         v[c] = ic;
+        v
+    };
+    let index = |ia: usize, ib: usize, ic: usize| -> usize {
+        let v = cell(ia, ib, ic);
         v[0] + n[0] * (v[1] + n[1] * v[2])
     };
     let sigma_at = |ia: usize, ib: usize, ic: usize| sigma_cells[index(ia, ib, ic)];
@@ -138,10 +143,7 @@ fn propagate(sigma_cells: &[f64], n: [usize; 3], sp: DVec3, sun: DVec3) -> Vec<u
             .map(|ic| {
                 (0..nb)
                     .map(|ib| {
-                        let mut v = [0usize; 3];
-                        v[a] = ia;
-                        v[b] = ib;
-                        v[c] = ic;
+                        let v = cell(ia, ib, ic);
                         let p = DVec3::new(v[0] as f64 + 0.5, v[1] as f64 + 0.5, v[2] as f64 + 0.5)
                             * sp;
                         let mut sigma_prev = sigma_at(ia, ib, ic);

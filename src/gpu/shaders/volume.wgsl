@@ -190,6 +190,8 @@ fn fs_volume(@builtin(position) pos: vec4<f32>) -> VolOut {
     let m = vol.material;
     let qsum = m.x + m.y + m.z;
     let sun = frame.sun_world.xyz;
+    // The sun in the volume frame (self-shadowing reads).
+    let sun_l = vec3<f32>(dot(vol.local_from_world_0.xyz, sun), dot(vol.local_from_world_1.xyz, sun), dot(vol.local_from_world_2.xyz, sun));
     let clight = frame.sun_colour.xyz * frame.sun_local.w;
     let dl = to_local(dir);
     let up_rate = dot(frame.local_from_world_2.xyz, dir);
@@ -283,7 +285,6 @@ fn fs_volume(@builtin(position) pos: vec4<f32>) -> VolOut {
             var sun_left = 1.0;
             if (SHADOW) {
                 // Read VOL_SHADOW_OFFSET voxels towards the sun (`Volume::sun_transmittance`).
-                let sun_l = vec3<f32>(dot(vol.local_from_world_0.xyz, sun), dot(vol.local_from_world_1.xyz, sun), dot(vol.local_from_world_2.xyz, sun));
                 let q = (p + sun_l * (VOL_SHADOW_OFFSET * voxel)) / ext;
                 sun_left = textureSampleLevel(vol_shadow, vol_linear, q, 0.0).x;
             }
