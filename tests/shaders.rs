@@ -30,11 +30,12 @@ fn every_specialised_variant_validates_with_naga() {
     use relief::gpu::shaders;
     use relief::gpu::volumes::VolumeSwitches;
     let bit = |bits: u32, k: u32| bits & (1 << k) != 0;
-    for bits in 0..8 {
+    for bits in 0..16 {
         let f = ShadeFeatures {
             shadows: bit(bits, 0),
             drape: bit(bits, 1),
             voxels: bit(bits, 2),
+            volume_shadows: bit(bits, 3),
         };
         validate(&format!("shade {f:?}"), &shaders::shade(f));
         for tables in [

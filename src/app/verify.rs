@@ -947,6 +947,7 @@ pub fn render_two_pass(
         times.objects_ms += t.objects_ms;
         times.voxels_ms += t.voxels_ms;
         times.shade_ms += t.shade_ms;
+        times.volume_shadow_ms += t.volume_shadow_ms;
         times.volume_ms += t.volume_ms;
         times.readback_ms += t.readback_ms;
         rendered.push((*f, out.rgba));
@@ -986,6 +987,7 @@ pub fn render_two_pass(
         objects: vec![0; n],
         volume_samples: Vec::new(),
         volume_segments: Vec::new(),
+        volume_sun: Vec::new(),
         times,
     })
 }

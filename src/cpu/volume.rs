@@ -115,6 +115,14 @@ impl VolumeResult {
     }
 }
 
+/// The sun's light left at an opaque surface point `p` (world) after every volume between it
+/// and the sun: the product of the volumes' [`Volume::transmittance_to_sun`], which is exact
+/// where boxes overlap too (optical depths add). The shade pass scales the sun's terms of
+/// terrain, free forms and voxel models by it (`gpu/shaders/volume_sun.wgsl`).
+pub fn sun_through_volumes(volumes: &[Volume], p: DVec3) -> f64 {
+    volumes.iter().map(|v| v.transmittance_to_sun(p)).product()
+}
+
 /// Per-pixel jitter in 0..1 (WGSL `vol_jitter`).
 pub fn jitter(px: [u32; 2]) -> f64 {
     let mut h = px[0].wrapping_mul(73_856_093) ^ px[1].wrapping_mul(19_349_663);

@@ -4,8 +4,8 @@
 //! objects of that kind) and the shade pipeline that knows free forms.
 
 use super::renderer::{
-    buf, pipeline_layout, render_pipeline, screen_texture, storage_entry, target_state,
-    uint_texture_entry, uniform_entry, view,
+    buf, float_texture_entry, pipeline_layout, render_pipeline, screen_texture, storage_entry,
+    target_state, uint_texture_entry, uniform_entry, view,
 };
 use super::shade::{shade_pipelines, ShadePipelines};
 use super::types::{FfNodeGpu, FfObjectGpu};
@@ -270,6 +270,7 @@ impl ObjectPasses {
                 storage_entry(5, fs, true),
                 tables.entry(6, fs),
                 uint_texture_entry(9, fs),
+                float_texture_entry(19, fs, wgpu::TextureViewDimension::D2),
             ],
         });
         let module = |label: &str, src: String| {
@@ -464,10 +465,12 @@ impl ObjectPasses {
         &self,
         gpu: &Gpu,
         terrain: [&wgpu::Buffer; 4],
-        ray_table: &wgpu::TextureView,
+        views: [&wgpu::TextureView; 2],
         t: &ObjectTargets,
     ) -> wgpu::BindGroup {
         let [frame_ub, heights, pyramid, drape] = terrain;
+        // The ray table and the volume-sun target.
+        let [ray_table, volume_sun] = views;
         gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("shade (free forms)"),
             layout: &self.shade_bgl,
@@ -480,6 +483,7 @@ impl ObjectPasses {
                 buf(5, drape),
                 buf(6, &self.objects),
                 view(9, &t.shadow_view),
+                view(19, volume_sun),
             ],
         })
     }

@@ -59,6 +59,9 @@ pub struct PassTimes {
     /// Voxel-model marks and cast (0 without voxel models).
     pub voxels_ms: f64,
     pub shade_ms: f64,
+    /// The sun's transmittance through the volumes at the surfaces (0 without a volume that
+    /// casts a shadow).
+    pub volume_shadow_ms: f64,
     /// Volume integration and compositing (0 without a volume).
     pub volume_ms: f64,
     /// Edge blend (0 without one).
@@ -106,6 +109,9 @@ pub struct FrameOutput {
     pub volume_samples: Vec<u32>,
     /// Volume lattice segments passed per pixel, sampled or skipped (empty without a volume).
     pub volume_segments: Vec<u32>,
+    /// The sun's transmittance through the density volumes per pixel, 0..=255, for the opaque
+    /// surface there (255 for sky; empty when no volume casts a shadow or shadows are off).
+    pub volume_sun: Vec<u8>,
     pub times: PassTimes,
 }
 
@@ -132,6 +138,10 @@ struct Targets {
     objects: Option<(ObjectTargets, wgpu::BindGroup)>,
     /// Per volume: the image under it (its pass's input) and its pass's statistics.
     volumes: Vec<super::volumes::VolumeTargets>,
+    /// The volume-sun target (the shade pass reads it) and its readback buffer.
+    volume_sun: wgpu::Texture,
+    volume_sun_view: wgpu::TextureView,
+    volume_sun_rb: wgpu::Buffer,
     /// The finished image before the edge blend.
     blend: Option<super::blend::BlendTargets>,
     voxels: Option<VoxelTargets>,
@@ -191,6 +201,10 @@ pub struct TerrainRenderer {
     table: Option<TableMode>,
     objects: Option<ObjectPasses>,
     volumes: Vec<super::volumes::VolumePass>,
+    /// The volume-sun pass (built with the first volume).
+    volume_sun: Option<super::volumes::VolumeSunPass>,
+    /// The volumes shadow the surfaces but are not composited (see [`Self::set_volumes_hidden`]).
+    volumes_hidden: bool,
     /// Edge blend of a display channel (see [`Self::set_blend`]).
     blend: Option<super::blend::BlendPass>,
     voxels: Option<VoxelPasses>,
@@ -419,6 +433,7 @@ impl TerrainRenderer {
         });
         let mut shade_entries = cast_entries.clone();
         shade_entries.push(storage_entry(5, fs, true));
+        shade_entries.push(float_texture_entry(19, fs, wgpu::TextureViewDimension::D2));
         let shade_bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("shade"),
             entries: &shade_entries,
@@ -508,6 +523,8 @@ impl TerrainRenderer {
             table: None,
             objects: None,
             volumes: Vec::new(),
+            volume_sun: None,
+            volumes_hidden: false,
             blend: None,
             voxels: None,
             pattern: None,
@@ -674,12 +691,26 @@ impl TerrainRenderer {
             .iter()
             .map(|v| super::volumes::VolumePass::new(gpu, v))
             .collect::<Result<_>>()?;
+        if !self.volumes.is_empty() && self.volume_sun.is_none() {
+            self.volume_sun = Some(super::volumes::VolumeSunPass::new(gpu));
+        }
         self.targets = None;
         Ok(())
     }
 
-    /// Indices of the volumes, farthest box centre from `eye` first (compositing order).
+    /// With `true`, the volumes still shadow the surfaces below them but are not integrated:
+    /// the frame is the image the volume passes would composite over (for tests that check
+    /// the volume pass against the CPU integral over that image, and for diagnostics).
+    pub fn set_volumes_hidden(&mut self, hidden: bool) {
+        self.volumes_hidden = hidden;
+    }
+
+    /// Indices of the volumes, farthest box centre from `eye` first (compositing order; none
+    /// while hidden).
     fn volume_order(&self, eye: glam::DVec3) -> Vec<usize> {
+        if self.volumes_hidden {
+            return Vec::new();
+        }
         let dist = |i: usize| self.volumes[i].volume.world_centre().distance(eye);
         let mut order: Vec<usize> = (0..self.volumes.len()).collect();
         order.sort_by(|&a, &b| dist(b).total_cmp(&dist(a)));
@@ -816,6 +847,8 @@ impl TerrainRenderer {
         let tile_view = tile_tex.create_view(&Default::default());
         let gbuffer = tex("g-buffer", width, height, wgpu::TextureFormat::Rgba32Uint);
         let gbuffer_view = gbuffer.create_view(&Default::default());
+        let volume_sun = tex("volume sun", width, height, super::volumes::SUN_FORMAT);
+        let volume_sun_view = volume_sun.create_view(&Default::default());
         let rb = |label, bpp: u32| {
             dev.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
@@ -879,6 +912,7 @@ impl TerrainRenderer {
             resource: wgpu::BindingResource::TextureView(&gbuffer_view),
         });
         entries.push(buf(5, &self.drape));
+        entries.push(view(19, &volume_sun_view));
         let shade_bg = dev.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("shade"),
             layout: &self.shade_bgl,
@@ -897,32 +931,45 @@ impl TerrainRenderer {
                 let bg = o.shade_bind_group(
                     gpu,
                     [&self.frame_ub, &self.heights, &self.pyramid, &self.drape],
-                    &ray_table_view,
+                    [&ray_table_view, &volume_sun_view],
                     &ot,
                 );
                 Some((ot, bg))
             }
             None => None,
         };
-        let volumes = self
-            .volumes
-            .iter()
-            .map(|v| {
-                v.targets(
-                    gpu,
-                    width,
-                    height,
-                    &self.frame_ub,
-                    &ray_table_view,
-                    &data.create_view(&Default::default()),
-                )
-            })
-            .collect();
+        // The G-buffer the casts end in (see `run_passes`).
+        let final_gbuffer_view = objects
+            .as_ref()
+            .map_or(&gbuffer_view, |(ot, _)| &ot.final_view);
+        let volumes = match &self.volume_sun {
+            Some(sun_pass) => self
+                .volumes
+                .iter()
+                .map(|v| {
+                    v.targets(
+                        gpu,
+                        width,
+                        height,
+                        &self.frame_ub,
+                        &ray_table_view,
+                        &data.create_view(&Default::default()),
+                        sun_pass,
+                        final_gbuffer_view,
+                    )
+                })
+                .collect(),
+            None => Vec::new(),
+        };
         let voxels = self.voxels.as_ref().map(|v| {
-            let g = objects
-                .as_ref()
-                .map_or(&gbuffer_view, |(ot, _)| &ot.final_view);
-            v.targets(gpu, width, height, &self.frame_ub, &ray_table_view, g)
+            v.targets(
+                gpu,
+                width,
+                height,
+                &self.frame_ub,
+                &ray_table_view,
+                final_gbuffer_view,
+            )
         });
         let blend = self
             .blend
@@ -951,6 +998,9 @@ impl TerrainRenderer {
             colour,
             data,
             colour_rb: rb("colour readback", 4),
+            volume_sun_rb: rb("volume sun readback", 1),
+            volume_sun,
+            volume_sun_view,
             data_rb: rb("data readback", 16),
         });
         Ok(())
@@ -1048,6 +1098,7 @@ impl TerrainRenderer {
             shadows: s.shadows,
             drape: self.has_drape,
             voxels: self.voxels.is_some(),
+            volume_shadows: s.shadows && self.volumes.iter().any(|v| v.casts_shadow()),
         };
         let shade_index = match &mut self.objects {
             Some(o) => o.shade.prepare(&gpu.device, features),
@@ -1148,6 +1199,17 @@ impl TerrainRenderer {
                 }
                 None => (self.shade.get(shade_index), &t.shade_bg),
             };
+            for v in &self.volumes {
+                v.write_uniforms(gpu, cam.pose.position);
+            }
+            if let (Some(sun_pass), true) = (&self.volume_sun, features.volume_shadows) {
+                let casting: Vec<_> = (self.volumes.iter().zip(&t.volumes))
+                    .filter(|(v, _)| v.casts_shadow())
+                    .map(|(_, vt)| &vt.sun_bg)
+                    .collect();
+                sun_pass.encode(&mut enc, &casting, &t.volume_sun_view);
+                lap(&mut enc, &mut times.volume_shadow_ms)?;
+            }
             // Shade into the first volume's input; each volume pass composites over its own
             // input and writes the next one's (the last writes the colour target).
             let order = self.volume_order(cam.pose.position);
@@ -1157,7 +1219,6 @@ impl TerrainRenderer {
             lap(&mut enc, &mut times.shade_ms)?;
             for (k, &i) in order.iter().enumerate() {
                 let (v, vt) = (&mut self.volumes[i], &t.volumes[i]);
-                v.write_uniforms(gpu, cam.pose.position);
                 let out = input(k + 1).unwrap_or(&t.colour_view);
                 Self::encode_fullscreen(
                     &mut enc,
@@ -1222,10 +1283,15 @@ impl TerrainRenderer {
         let t = self.targets.as_ref().expect("targets exist after a render");
         let (w, h) = (t.width, t.height);
         let mut enc = gpu.device.create_command_encoder(&Default::default());
-        for (tex, buf, bpp) in [
+        let volume_shadows = s.shadows && self.volumes.iter().any(|v| v.casts_shadow());
+        let mut copies = vec![
             (&t.colour, &t.colour_rb, 4u32),
             (&t.data, &t.data_rb, 16u32),
-        ] {
+        ];
+        if volume_shadows {
+            copies.push((&t.volume_sun, &t.volume_sun_rb, 1));
+        }
+        for (tex, buf, bpp) in copies {
             enc.copy_texture_to_buffer(
                 tex.as_image_copy(),
                 wgpu::TexelCopyBufferInfo {
@@ -1264,6 +1330,11 @@ impl TerrainRenderer {
         gpu.queue.submit([enc.finish()]);
         let rgba = read_buffer(gpu, &t.colour_rb, w * 4, h)?;
         let data = read_buffer(gpu, &t.data_rb, w * 16, h)?;
+        let volume_sun = if volume_shadows {
+            read_buffer(gpu, &t.volume_sun_rb, w, h)?
+        } else {
+            Vec::new()
+        };
         // Volume statistics, summed over the volumes.
         let mut stats: Vec<[u32; 2]> = Vec::new();
         for vt in &t.volumes {
@@ -1290,6 +1361,7 @@ impl TerrainRenderer {
             objects: Vec::with_capacity(n),
             volume_samples: Vec::new(),
             volume_segments: Vec::new(),
+            volume_sun,
             times,
         };
         for [samples, segments] in stats {

@@ -12,6 +12,8 @@ pub struct ShadeFeatures {
     pub drape: bool,
     /// Voxel models in the G-buffer.
     pub voxels: bool,
+    /// Density volumes shadow the surfaces (the volume-sun pass's answer).
+    pub volume_shadows: bool,
 }
 
 impl ShadeFeatures {
@@ -20,12 +22,14 @@ impl ShadeFeatures {
         shadows: true,
         drape: true,
         voxels: true,
+        volume_shadows: true,
     };
     /// None compiled in.
     pub const NONE: ShadeFeatures = ShadeFeatures {
         shadows: false,
         drape: false,
         voxels: false,
+        volume_shadows: false,
     };
 }
 
@@ -35,6 +39,7 @@ impl Switches for ShadeFeatures {
             ("SHADOWS", self.shadows),
             ("DRAPE", self.drape),
             ("VOXELS", self.voxels),
+            ("VOLUME_SHADOWS", self.volume_shadows),
         ])
     }
 }

@@ -15,6 +15,7 @@ const FREEFORM: &str = include_str!("shaders/freeform.wgsl");
 const FF_BINS: &str = include_str!("shaders/ff_bins.wgsl");
 const HAZE: &str = include_str!("shaders/haze.wgsl");
 const VOXEL_DDA: &str = include_str!("shaders/voxel_dda.wgsl");
+const VOLUME_TYPES: &str = include_str!("shaders/volume_types.wgsl");
 
 /// Ray generation (compute): pinhole ray table.
 pub fn raygen() -> String {
@@ -153,7 +154,21 @@ pub fn volume(sw: VolumeSwitches) -> String {
         FULLSCREEN,
         RAY_TABLE,
         HAZE,
+        VOLUME_TYPES,
         include_str!("shaders/volume.wgsl"),
+    ]
+    .concat()
+}
+
+/// Volume-sun pass (fragment): per pixel, the sun's transmittance through one volume for the
+/// opaque surface in the G-buffer.
+pub fn volume_sun() -> String {
+    [
+        FRAME,
+        FULLSCREEN,
+        RAY_TABLE,
+        VOLUME_TYPES,
+        include_str!("shaders/volume_sun.wgsl"),
     ]
     .concat()
 }
@@ -220,6 +235,7 @@ pub fn all() -> Vec<(&'static str, String)> {
         ),
         ("volume", volume(VolumeSwitches::ALL)),
         ("volume (no options)", volume(VolumeSwitches::NONE)),
+        ("volume_sun", volume_sun()),
         ("blend", blend()),
         ("voxels", voxels(2)),
         ("pattern", pattern()),

@@ -85,7 +85,7 @@ pub struct FfNodeGpu {
 const _: () = assert!(std::mem::size_of::<FfObjectGpu>() == 144);
 const _: () = assert!(std::mem::size_of::<FfNodeGpu>() == 48);
 
-/// Mirrors WGSL `Volume` in `shaders/volume.wgsl`: one density volume's placement, grid and
+/// Mirrors WGSL `Volume` in `shaders/volume_types.wgsl`: one density volume's placement, grid and
 /// switches for the volume pass.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]

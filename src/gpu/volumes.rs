@@ -3,8 +3,8 @@
 //! the shaded image in front of the opaque depth.
 
 use super::renderer::{
-    buf, float_texture_entry, screen_texture, storage_entry, target_state, uint_texture_entry,
-    uniform_entry, view,
+    buf, float_texture_entry, fullscreen_pipeline, screen_texture, storage_entry, target_state,
+    uint_texture_entry, uniform_entry, view,
 };
 use super::specialise::{wgsl_bools, SpecialisedPipelines, Switches};
 use super::types::VolumeUniforms;
@@ -16,6 +16,130 @@ use wgpu::util::DeviceExt;
 
 /// Format of the per-pixel statistics target (samples taken, segments passed).
 pub const STATS_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rg32Uint;
+
+/// Format of the volume-sun target: per pixel, the sun's transmittance through the volumes
+/// for the opaque surface there (the shade pass reads it).
+pub const SUN_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
+
+/// The volume-sun pass (`volume_sun.wgsl`), one draw per shadow-casting volume: the first
+/// writes the target, each further one multiplies into it (optical depths add, so the product
+/// is exact where boxes overlap too).
+pub(crate) struct VolumeSunPass {
+    bgl: wgpu::BindGroupLayout,
+    write: wgpu::RenderPipeline,
+    multiply: wgpu::RenderPipeline,
+}
+
+impl VolumeSunPass {
+    pub fn new(gpu: &Gpu) -> VolumeSunPass {
+        let dev = &gpu.device;
+        let fs = wgpu::ShaderStages::FRAGMENT;
+        let bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("volume sun"),
+            entries: &[
+                uniform_entry(0, fs),
+                uint_texture_entry(3, fs),
+                uint_texture_entry(4, fs),
+                uniform_entry(16, fs),
+                filterable_3d_entry(17),
+                sampler_entry(18),
+            ],
+        });
+        let m = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("volume_sun.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(shaders::volume_sun().into()),
+        });
+        let pipeline = |label, blend| {
+            fullscreen_pipeline(
+                dev,
+                label,
+                &m,
+                "fs_volume_sun",
+                &bgl,
+                &[Some(wgpu::ColorTargetState {
+                    format: SUN_FORMAT,
+                    blend,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            )
+        };
+        let times_target = wgpu::BlendComponent {
+            src_factor: wgpu::BlendFactor::Dst,
+            dst_factor: wgpu::BlendFactor::Zero,
+            operation: wgpu::BlendOperation::Add,
+        };
+        VolumeSunPass {
+            write: pipeline("volume sun", None),
+            multiply: pipeline(
+                "volume sun (multiply)",
+                Some(wgpu::BlendState {
+                    color: times_target,
+                    alpha: times_target,
+                }),
+            ),
+            bgl,
+        }
+    }
+
+    /// Records the draws of `bind_groups` (one per shadow-casting volume) into `target`.
+    pub fn encode(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        bind_groups: &[&wgpu::BindGroup],
+        target: &wgpu::TextureView,
+    ) {
+        for (k, bg) in bind_groups.iter().enumerate() {
+            let load = if k == 0 {
+                // SAFETY: the first draw covers every pixel (full-screen triangle, no discard)
+                // and writes without blending, so nothing stale is read or stored.
+                wgpu::LoadOp::DontCare(unsafe { wgpu::LoadOpDontCare::enabled() })
+            } else {
+                wgpu::LoadOp::Load
+            };
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("volume sun"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: target,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load,
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: None,
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(if k == 0 { &self.write } else { &self.multiply });
+            pass.set_bind_group(0, *bg, &[]);
+            pass.draw(0..3, 0..1);
+        }
+    }
+}
+
+fn filterable_3d_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::FRAGMENT,
+        ty: wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Float { filterable: true },
+            view_dimension: wgpu::TextureViewDimension::D3,
+            multisampled: false,
+        },
+        count: None,
+    }
+}
+
+fn sampler_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::FRAGMENT,
+        ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+        count: None,
+    }
+}
 
 /// GPU resources of one volume and the pass that integrates it.
 pub(crate) struct VolumePass {
@@ -41,6 +165,8 @@ pub(crate) struct VolumeTargets {
     pub stats_view: wgpu::TextureView,
     pub stats_rb: wgpu::Buffer,
     pub bg: wgpu::BindGroup,
+    /// The volume-sun pass's bind group for this volume.
+    pub sun_bg: wgpu::BindGroup,
 }
 
 /// The transfer table as the uniform array `vol_table` (`VOL_TABLE` = [`TABLE_SIZE`] vec4s;
@@ -160,22 +286,8 @@ impl VolumePass {
                 uniform_entry(14, fs),
                 storage_entry(15, fs, true),
                 uniform_entry(16, fs),
-                wgpu::BindGroupLayoutEntry {
-                    binding: 17,
-                    visibility: fs,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
-                        view_dimension: wgpu::TextureViewDimension::D3,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 18,
-                    visibility: fs,
-                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
-                    count: None,
-                },
+                filterable_3d_entry(17),
+                sampler_entry(18),
             ],
         });
         let pipelines = SpecialisedPipelines::new(
@@ -235,6 +347,14 @@ impl VolumePass {
         );
     }
 
+    /// Whether the volume shadows what lies below it (it has a self-shadowing grid).
+    pub fn casts_shadow(&self) -> bool {
+        self.volume.sun_shadow.is_some()
+    }
+
+    /// Size-dependent resources: `data` is the capture data the volume pass reads (opaque
+    /// depth), `gbuffer` the final G-buffer the volume-sun pass reads.
+    #[allow(clippy::too_many_arguments)]
     pub fn targets(
         &self,
         gpu: &Gpu,
@@ -243,6 +363,8 @@ impl VolumePass {
         frame_ub: &wgpu::Buffer,
         ray_table: &wgpu::TextureView,
         data: &wgpu::TextureView,
+        sun_pass: &VolumeSunPass,
+        gbuffer: &wgpu::TextureView,
     ) -> VolumeTargets {
         let dev = &gpu.device;
         let tex = |label, format| {
@@ -279,6 +401,22 @@ impl VolumePass {
                 },
             ],
         });
+        let sampler = wgpu::BindingResource::Sampler(&self.linear);
+        let sun_bg = dev.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("volume sun"),
+            layout: &sun_pass.bgl,
+            entries: &[
+                buf(0, frame_ub),
+                view(3, ray_table),
+                view(4, gbuffer),
+                buf(16, &self.uniforms),
+                view(17, &self.shadow_view),
+                wgpu::BindGroupEntry {
+                    binding: 18,
+                    resource: sampler,
+                },
+            ],
+        });
         let stats_rb = dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some("volume statistics readback"),
             size: super::renderer::padded_row(width * 8) as u64 * height as u64,
@@ -292,6 +430,7 @@ impl VolumePass {
             stats_view,
             stats_rb,
             bg,
+            sun_bg,
         }
     }
 }

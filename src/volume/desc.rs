@@ -349,6 +349,34 @@ impl Volume {
         }
     }
 
+    /// The sun's transmittance through this volume for an opaque surface point `p` (world):
+    /// read from the self-shadowing grid where the ray from `p` towards the sun enters the
+    /// box (at `p` itself when `p` lies inside), without the sample offset (the surface is not
+    /// part of the volume); 1 when the ray misses the box or the volume casts no shadow
+    /// (`render.shadows = false`, slice masks). WGSL `volume_sun.wgsl` does the same per pixel.
+    pub fn transmittance_to_sun(&self, p: DVec3) -> f64 {
+        let Some(sh) = &self.sun_shadow else {
+            return 1.0;
+        };
+        let q = self.to_local(p);
+        let ext = self.extent();
+        let (mut lo, mut hi) = (0.0f64, f64::INFINITY);
+        for k in 0..3 {
+            if sh.sun[k].abs() > 1e-30 {
+                let (a, b) = ((0.0 - q[k]) / sh.sun[k], (ext[k] - q[k]) / sh.sun[k]);
+                lo = lo.max(a.min(b));
+                hi = hi.min(a.max(b));
+            } else if q[k] < 0.0 || q[k] > ext[k] {
+                return 1.0;
+            }
+        }
+        if hi <= lo {
+            return 1.0;
+        }
+        let u = (q + sh.sun * lo) / ext;
+        super::shadow::sample(&sh.data, sh.dims, [u.x, u.y, u.z])
+    }
+
     /// Metres of the smallest voxel side.
     pub fn voxel(&self) -> f64 {
         self.grid

@@ -8,6 +8,9 @@
 @group(0) @binding(2) var<storage, read> pyramid: array<f32>;
 @group(0) @binding(4) var gbuffer: texture_2d<u32>;
 @group(0) @binding(5) var<storage, read> drape: array<u32>;
+// The sun's transmittance through the density volumes per pixel (volume-sun pass; read with
+// VOLUME_SHADOWS).
+@group(0) @binding(19) var volume_sun: texture_2d<f32>;
 
 // Feature constants SHADOWS, DRAPE and VOXELS (bool) are prepended per pipeline
 // (`gpu::shade::ShadeFeatures`): Mesa's CPU rasterisers run both sides of every branch for the
@@ -17,6 +20,7 @@
 // SHADOWS: sun shadow rays (terrain, and the free-form and voxel passes' answers).
 // DRAPE: colour from the draped RGB image instead of the elevation/slope ramp.
 // VOXELS: the scene has voxel models (G-buffer flag 32, voxel shadow flag 64).
+// VOLUME_SHADOWS: density volumes shadow the surfaces (the volume-sun pass's target).
 
 struct Out {
     @location(0) colour: vec4<f32>,
@@ -195,6 +199,9 @@ fn shade_surface(px: vec2<u32>, g: vec4<u32>, dir_w: vec3<f32>, dl: vec3<f32>) -
             lit = 0.0;
             flags |= 2u;
         }
+    }
+    if (VOLUME_SHADOWS) {
+        lit *= textureLoad(volume_sun, vec2<i32>(px), 0).x;
     }
     // Flag 64 (blocked by a voxel model, set by the voxel shadow pass) is folded into 2.
     flags &= 0xbfu;
