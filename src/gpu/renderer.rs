@@ -687,6 +687,8 @@ impl TerrainRenderer {
                 ),
             ));
         }
+        let mut volumes = volumes.to_vec();
+        crate::volume::shadow::shadow_each_other(&mut volumes.iter_mut().collect::<Vec<_>>());
         self.volumes = volumes
             .iter()
             .map(|v| super::volumes::VolumePass::new(gpu, v))
@@ -735,6 +737,16 @@ impl TerrainRenderer {
         for v in &mut self.volumes {
             v.set_transfer(gpu, tf.clone());
         }
+        self.shadow_volumes_each_other(gpu);
+    }
+
+    /// Bakes the volumes' shadows on each other into their grids again and uploads them.
+    fn shadow_volumes_each_other(&mut self, gpu: &Gpu) {
+        let mut vols: Vec<_> = self.volumes.iter_mut().map(|v| &mut v.volume).collect();
+        crate::volume::shadow::shadow_each_other(&mut vols);
+        for v in &self.volumes {
+            v.upload_shadows(gpu);
+        }
     }
 
     /// Changes the volumes' sampling switches (step, skipping, termination, jitter, mip-maps),
@@ -748,6 +760,7 @@ impl TerrainRenderer {
             }
             v.volume.settings = settings;
         }
+        self.shadow_volumes_each_other(gpu);
     }
 
     /// Renders the warp test pattern ([`crate::display::pattern`]) from the ray table instead

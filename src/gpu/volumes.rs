@@ -147,9 +147,13 @@ pub(crate) struct VolumePass {
     bgl: wgpu::BindGroupLayout,
     pipelines: SpecialisedPipelines<VolumeSwitches>,
     view: wgpu::TextureView,
-    /// The sun's transmittance per voxel (R8, a 1x1x1 texture without self-shadowing).
+    /// The sun's transmittance per cell that the samples are lit with, through this volume and
+    /// the others (`SunShadow::lit_data`; R8, a 1x1x1 texture without self-shadowing).
     shadow: wgpu::Texture,
     shadow_view: wgpu::TextureView,
+    /// Through this volume alone (`SunShadow::data`): what the volume-sun pass reads.
+    surface_shadow: wgpu::Texture,
+    surface_shadow_view: wgpu::TextureView,
     linear: wgpu::Sampler,
     table: wgpu::Buffer,
     bricks: wgpu::Buffer,
@@ -247,8 +251,10 @@ impl VolumePass {
             );
         }
         let view = tex.create_view(&Default::default());
-        let shadow = shadow_texture(gpu, volume);
+        let shadow = shadow_texture(gpu, volume, |sh| sh.lit_data());
         let shadow_view = shadow.create_view(&Default::default());
+        let surface_shadow = shadow_texture(gpu, volume, |sh| &sh.data);
+        let surface_shadow_view = surface_shadow.create_view(&Default::default());
         // The transmittance is smooth: the sampler's 8-bit filter weights stay within a
         // fraction of a level of the CPU reference's exact trilinear weights.
         let linear = dev.create_sampler(&wgpu::SamplerDescriptor {
@@ -307,6 +313,8 @@ impl VolumePass {
             view,
             shadow,
             shadow_view,
+            surface_shadow,
+            surface_shadow_view,
             linear,
             table,
             bricks,
@@ -318,9 +326,7 @@ impl VolumePass {
     /// self-shadowing).
     pub fn set_transfer(&mut self, gpu: &Gpu, tf: crate::volume::TransferFunction) {
         self.volume.set_transfer(tf);
-        if let Some(sh) = &self.volume.sun_shadow {
-            write_shadow(gpu, &self.shadow, sh.dims, &sh.data);
-        }
+        self.upload_shadows(gpu);
         gpu.queue
             .write_buffer(&self.table, 0, &table_bytes(&self.volume));
         gpu.queue.write_buffer(
@@ -345,6 +351,15 @@ impl VolumePass {
             0,
             bytemuck::bytes_of(&uniforms(&self.volume, eye)),
         );
+    }
+
+    /// Uploads the shadow grids again (after reclassification, or after
+    /// [`crate::volume::shadow::shadow_each_other`] changed what the samples are lit with).
+    pub fn upload_shadows(&self, gpu: &Gpu) {
+        if let Some(sh) = &self.volume.sun_shadow {
+            write_shadow(gpu, &self.shadow, sh.dims, sh.lit_data());
+            write_shadow(gpu, &self.surface_shadow, sh.dims, &sh.data);
+        }
     }
 
     /// Whether the volume shadows what lies below it (it has a self-shadowing grid).
@@ -410,7 +425,7 @@ impl VolumePass {
                 view(3, ray_table),
                 view(4, gbuffer),
                 buf(16, &self.uniforms),
-                view(17, &self.shadow_view),
+                view(17, &self.surface_shadow_view),
                 wgpu::BindGroupEntry {
                     binding: 18,
                     resource: sampler,
@@ -435,11 +450,15 @@ impl VolumePass {
     }
 }
 
-/// The self-shadowing texture of `volume`: its transmittance bytes, or one fully lit texel.
-fn shadow_texture(gpu: &Gpu, volume: &Volume) -> wgpu::Texture {
+/// A shadow texture of `volume`: the transmittance bytes `grid` picks, or one fully lit texel.
+fn shadow_texture(
+    gpu: &Gpu,
+    volume: &Volume,
+    grid: impl Fn(&crate::volume::shadow::SunShadow) -> &[u8],
+) -> wgpu::Texture {
     let one = [255u8];
     let (dims, data): ([u32; 3], &[u8]) = match &volume.sun_shadow {
-        Some(sh) => (sh.dims, &sh.data),
+        Some(sh) => (sh.dims, grid(sh)),
         None => ([1, 1, 1], &one),
     };
     let tex = gpu.device.create_texture(&wgpu::TextureDescriptor {
@@ -461,6 +480,11 @@ fn shadow_texture(gpu: &Gpu, volume: &Volume) -> wgpu::Texture {
 }
 
 fn write_shadow(gpu: &Gpu, tex: &wgpu::Texture, dims: [u32; 3], data: &[u8]) {
+    let size = tex.size();
+    if [size.width, size.height, size.depth_or_array_layers] != dims {
+        // A volume built without a grid keeps its 1x1x1 texture (fully lit).
+        return;
+    }
     gpu.queue.write_texture(
         tex.as_image_copy(),
         data,

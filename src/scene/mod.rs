@@ -342,7 +342,8 @@ impl Scene {
 
     /// Loads and places the scene's density volumes (`above_terrain` needs the terrain).
     pub fn volumes(&self, terrain: &Terrain) -> Result<Vec<crate::volume::Volume>> {
-        self.desc
+        let mut volumes = self
+            .desc
             .volumes
             .iter()
             .enumerate()
@@ -353,7 +354,9 @@ impl Scene {
                 v.set_sun(self.desc.sun.direction());
                 Ok(v)
             })
-            .collect()
+            .collect::<Result<Vec<_>>>()?;
+        crate::volume::shadow::shadow_each_other(&mut volumes.iter_mut().collect::<Vec<_>>());
+        Ok(volumes)
     }
 
     /// Loads and places the scene's voxel models (`above_terrain` needs the terrain).

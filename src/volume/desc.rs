@@ -337,13 +337,14 @@ impl Volume {
 
     /// The sun's transmittance for a sample at `p` (volume frame, metres from the corner),
     /// read [`super::shadow::OFFSET_VOXELS`] voxels towards the sun so that a surface facing
-    /// the sun does not shadow itself; 1 without self-shadowing.
+    /// the sun does not shadow itself; 1 without self-shadowing. Includes the other volumes'
+    /// shadows once [`super::shadow::shadow_each_other`] has run.
     pub fn sun_transmittance(&self, p: DVec3) -> f64 {
         match &self.sun_shadow {
             Some(sh) => {
                 let q =
                     (p + sh.sun * (super::shadow::OFFSET_VOXELS * self.voxel())) / self.extent();
-                super::shadow::sample(&sh.data, sh.dims, [q.x, q.y, q.z])
+                super::shadow::sample(sh.lit_data(), sh.dims, [q.x, q.y, q.z])
             }
             None => 1.0,
         }

@@ -13,6 +13,10 @@
 //! optical depth summed by trapezoids; there it adds the depth already computed for that layer,
 //! bilinear at the point reached (falling to zero at a face the ray leaves by). A ray that
 //! leaves the box before then ends with its last extinction over the rest of the way.
+//!
+//! Two reads of the grid: the volume's own samples (self-shadowing, and the other volumes'
+//! shadows baked in by [`shadow_each_other`]) and opaque surfaces below it
+//! (`Volume::transmittance_to_sun`: this volume alone, multiplied over the volumes).
 
 /// How far towards the sun (in voxels of the smallest spacing) a sample reads its
 /// transmittance (WGSL `VOL_SHADOW_OFFSET`): a sample inside a surface's dense layer would
@@ -42,7 +46,70 @@ pub const MAX_CELLS: usize = 1 << 21;
 pub struct SunShadow {
     pub sun: DVec3,
     pub dims: [u32; 3],
+    /// Through this volume alone: what surfaces below it read (`Volume::transmittance_to_sun`).
     pub data: Vec<u8>,
+    /// Through this volume and the scene's other volumes (see [`shadow_each_other`]): what the
+    /// volume's own samples read; `None` where no other volume shadows it (`data` serves).
+    pub lit: Option<Vec<u8>>,
+}
+
+impl SunShadow {
+    /// The grid the volume's samples are lit with.
+    pub fn lit_data(&self) -> &[u8] {
+        self.lit.as_deref().unwrap_or(&self.data)
+    }
+}
+
+/// Lets the volumes shadow each other: per shadow-casting volume, its grid times, at each cell
+/// centre, the sun's transmittance through every other volume
+/// ([`super::Volume::transmittance_to_sun`]; optical depths add, so the product is exact),
+/// rounded to bytes into [`SunShadow::lit`]. Baked on the CPU when the volumes are loaded or
+/// reclassified (the sun and the boxes do not move within a scene), so the volume pass pays
+/// nothing for it. Returns per volume whether another one shadows it.
+pub fn shadow_each_other(volumes: &mut [&mut super::Volume]) -> Vec<bool> {
+    let lits: Vec<Option<Vec<u8>>> = (0..volumes.len())
+        .map(|i| {
+            let v = &*volumes[i];
+            let sh = v.sun_shadow.as_ref()?;
+            let others: Vec<&super::Volume> = volumes
+                .iter()
+                .enumerate()
+                .filter(|&(j, o)| j != i && o.sun_shadow.is_some())
+                .map(|(_, o)| &**o)
+                .collect();
+            if others.is_empty() {
+                return None;
+            }
+            let n = sh.dims.map(|d| d as usize);
+            let cell = v.extent() / DVec3::new(n[0] as f64, n[1] as f64, n[2] as f64);
+            let lit: Vec<u8> = sh
+                .data
+                .par_iter()
+                .enumerate()
+                .map(|(k, &b)| {
+                    let idx = DVec3::new(
+                        (k % n[0]) as f64,
+                        (k / n[0] % n[1]) as f64,
+                        (k / (n[0] * n[1])) as f64,
+                    );
+                    let p = v.corner + v.rotation * ((idx + 0.5) * cell);
+                    let t: f64 = others.iter().map(|o| o.transmittance_to_sun(p)).product();
+                    (b as f64 * t).round() as u8
+                })
+                .collect();
+            (lit != sh.data).then_some(lit)
+        })
+        .collect();
+    lits.into_iter()
+        .zip(volumes.iter_mut())
+        .map(|(lit, v)| {
+            let some = lit.is_some();
+            if let Some(sh) = &mut v.sun_shadow {
+                sh.lit = lit;
+            }
+            some
+        })
+        .collect()
 }
 
 /// The sun's transmittance through `grid` classified by `table` (extinction per metre in each
@@ -80,6 +147,7 @@ pub fn sun_transmittance(grid: &DensityGrid, table: &TransferTable, sun: DVec3) 
         sun,
         dims: m.map(|d| d as u32),
         data: propagate(&sigma, m, sp, sun),
+        lit: None,
     }
 }
 
