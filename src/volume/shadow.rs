@@ -67,6 +67,7 @@ impl SunShadow {
 /// reclassified (the sun and the boxes do not move within a scene), so the volume pass pays
 /// nothing for it. Returns per volume whether another one shadows it.
 pub fn shadow_each_other(volumes: &mut [&mut super::Volume]) -> Vec<bool> {
+    let start = std::time::Instant::now();
     let lits: Vec<Option<Vec<u8>>> = (0..volumes.len())
         .map(|i| {
             let v = &*volumes[i];
@@ -100,7 +101,8 @@ pub fn shadow_each_other(volumes: &mut [&mut super::Volume]) -> Vec<bool> {
             (lit != sh.data).then_some(lit)
         })
         .collect();
-    lits.into_iter()
+    let shadowed = lits
+        .into_iter()
         .zip(volumes.iter_mut())
         .map(|(lit, v)| {
             let some = lit.is_some();
@@ -109,7 +111,12 @@ pub fn shadow_each_other(volumes: &mut [&mut super::Volume]) -> Vec<bool> {
             }
             some
         })
-        .collect()
+        .collect();
+    log::debug!(
+        "volumes shadowing each other: {shadowed:?} in {:.1} ms",
+        start.elapsed().as_secs_f64() * 1e3
+    );
+    shadowed
 }
 
 /// The sun's transmittance through `grid` classified by `table` (extinction per metre in each
