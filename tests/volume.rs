@@ -6,7 +6,7 @@ mod common;
 use common::{gpu, gpu_lock, save_failure_image, terrain_from_fn, terrains};
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
-use relief::cpu::volume::{composite, integrate, VolumeLight};
+use relief::cpu::volume::{composite_sorted, integrate, VolumeLight};
 use relief::gpu::{FrameOutput, RenderSettings, TerrainRenderer, TraceMode};
 use relief::scene::{Camera, Scene, SceneDesc};
 use relief::terrain::Terrain;
@@ -354,8 +354,8 @@ fn render_pair(
 }
 
 /// The CPU reference image: the volume integrals per pixel along the GPU's own rays, cut at
-/// the GPU's opaque depth, over the GPU's image without the volumes; `volumes` in compositing
-/// order (farthest first), each over the 8-bit result of the ones before, as on the GPU.
+/// the GPU's opaque depth, composited over the GPU's image under the volumes by
+/// `composite_sorted` (per pixel, farthest medium first); `volumes` in scene order.
 fn cpu_image(
     volumes: &[&Volume],
     light: &VolumeLight,
@@ -380,10 +380,11 @@ fn cpu_image(
                 f64::INFINITY
             };
             let px = [k as u32 % w, k as u32 / w];
-            volumes.iter().fold([u[0], u[1], u[2]], |c, v| {
-                let res = integrate(v, light, cam.pose.position, dir, e[3] as f64, t_max, px);
-                composite(&res, c)
-            })
+            let results: Vec<_> = volumes
+                .iter()
+                .map(|v| integrate(v, light, cam.pose.position, dir, e[3] as f64, t_max, px))
+                .collect();
+            composite_sorted(&results, [u[0], u[1], u[2]])
         })
         .collect()
 }
@@ -745,10 +746,9 @@ fn terrain_cuts_a_uniform_slab_at_the_analytic_depth_whatever_the_step() {
 #[test]
 fn several_volumes_composite_back_to_front_like_the_cpu_reference() {
     // Three disjoint boxes of haze in different colours over flat ground: a far one, a near
-    // one that covers part of it on screen, and one off to the side. Whatever their order in
-    // the scene, the GPU composites them farthest first, each over the image so far; the CPU
-    // reference does the same per pixel along the GPU's rays (8-bit image between volumes,
-    // as on the GPU).
+    // one that covers part of it on screen, and one off to the side, listed near first. The
+    // GPU composites them per pixel farthest first; so does the CPU reference, along the GPU's
+    // rays.
     let _l = gpu_lock();
     let terrain = terrain_from_fn(65, 10.0, |_, _| 0.0);
     let (desc, cam) = synthetic(160, 120, DVec3::new(320.0, 20.0, 60.0), 0.0, -8.0);
@@ -767,12 +767,13 @@ fn several_volumes_composite_back_to_front_like_the_cpu_reference() {
         return;
     };
     let light = VolumeLight::new(&desc, &terrain);
-    let mut order: Vec<&Volume> = vols.iter().collect();
-    order.sort_by(|a, b| {
-        let d = |v: &Volume| v.world_centre().distance(cam.pose.position);
-        d(b).total_cmp(&d(a))
-    });
-    let cpu = cpu_image(&order, &light, &cam, &under, &rays);
+    let cpu = cpu_image(
+        &vols.iter().collect::<Vec<_>>(),
+        &light,
+        &cam,
+        &under,
+        &rays,
+    );
     let (mean, max, touched) = compare(&out.rgba, &cpu, &under.rgba);
     // Pixels where two volumes overlap on screen: both changed the colour.
     let overlap = (0..rays.len())
@@ -1645,28 +1646,11 @@ fn gpu_lights_a_volume_through_another_like_the_cpu_reference() {
         return;
     };
     let light = VolumeLight::new(&desc, &terrain);
-    let eye = cam.pose.position;
-    let mut order: Vec<&Volume> = vols.iter().collect();
-    order.sort_by(|a, b| {
-        b.world_centre()
-            .distance(eye)
-            .total_cmp(&a.world_centre().distance(eye))
-    });
-    let cpu = cpu_image(&order, &light, &cam, &under, &rays);
+    let cpu = cpu_image(&[&vols[0], &vols[1]], &light, &cam, &under, &rays);
     let (mean, max, touched) = compare(&out.rgba, &cpu, &under.rgba);
     let mut unshadowed = vols[1].clone();
     unshadowed.sun_shadow.as_mut().unwrap().lit = None;
-    let order2: Vec<&Volume> = order
-        .iter()
-        .map(|v| {
-            if v.name == vols[1].name && v.corner == vols[1].corner {
-                &unshadowed
-            } else {
-                *v
-            }
-        })
-        .collect();
-    let cpu_unshadowed = cpu_image(&order2, &light, &cam, &under, &rays);
+    let cpu_unshadowed = cpu_image(&[&vols[0], &unshadowed], &light, &cam, &under, &rays);
     let differs = cpu
         .iter()
         .zip(&cpu_unshadowed)
@@ -1685,6 +1669,106 @@ fn gpu_lights_a_volume_through_another_like_the_cpu_reference() {
         let p = save_failure_image("slab-over-haze", 160, 120, &out.rgba);
         let exp: Vec<u8> = cpu.iter().flat_map(|c| [c[0], c[1], c[2], 255]).collect();
         save_failure_image("slab-over-haze-expected", 160, 120, &exp);
+        panic!("mean {mean:.3}/255, max {max}/255; {}", p.display());
+    }
+}
+
+#[test]
+fn volumes_are_ordered_per_pixel_by_where_their_media_lie() {
+    // A long thin layer of blue haze starting close to the camera, and a red box below its
+    // near end: the layer's box centre is farther than the box's, yet along every ray that
+    // crosses both the layer comes first. The GPU must composite per pixel in the order the
+    // media lie along the ray; the oracle orders by each box's entry along the ray (exact for
+    // disjoint boxes, and independent of the weighted depth the renderer sorts by). Ordering
+    // by box centre instead would be visibly wrong there, so the test can tell.
+    let _l = gpu_lock();
+    let terrain = terrain_from_fn(65, 10.0, |_, _| 0.0);
+    let (desc, cam) = synthetic(160, 120, DVec3::new(320.0, 20.0, 60.0), 0.0, -8.0);
+    let sun = desc.sun.direction();
+    let layer = lit_block(
+        [30, 64, 1],
+        8.0,
+        DVec3::new(200.0, 100.0, 34.0),
+        0.0,
+        0.3,
+        [0.2, 0.4, 0.9],
+        sun,
+    );
+    let small = lit_block(
+        [8, 8, 4],
+        8.0,
+        DVec3::new(290.0, 150.0, 0.0),
+        0.0,
+        0.5,
+        [0.9, 0.2, 0.1],
+        sun,
+    );
+    let mut vols = vec![layer, small];
+    // As the renderer does: the layer shadows the box below it.
+    relief::volume::shadow::shadow_each_other(&mut vols.iter_mut().collect::<Vec<_>>());
+    let Some((under, out, rays)) = render_pair(&terrain, &desc, &cam, &vols, &[]) else {
+        return;
+    };
+    let light = VolumeLight::new(&desc, &terrain);
+    let eye = cam.pose.position;
+    let w = cam.width;
+    let (mut both, mut sum, mut max, mut wrong_by_centre) = (0, 0u64, 0u8, 0);
+    for (k, e) in rays.iter().enumerate() {
+        let dir = DVec3::new(e[0] as f64, e[1] as f64, e[2] as f64);
+        let t_max = if under.depth[k].is_finite() {
+            under.depth[k] as f64
+        } else {
+            f64::INFINITY
+        };
+        let px = [k as u32 % w, k as u32 / w];
+        let mut parts: Vec<(f64, relief::cpu::volume::VolumeResult)> = vols
+            .iter()
+            .filter_map(|v| {
+                let (o, d) = (v.to_local(eye), v.rotation.transpose() * dir);
+                let (t0, _, _) = relief::cpu::volume::ray_interval(v, o, d, t_max)?;
+                Some((t0, integrate(v, &light, eye, dir, e[3] as f64, t_max, px)))
+            })
+            .collect();
+        let u = &under.rgba[4 * k..4 * k + 3];
+        let bg = DVec3::from(
+            [u[0], u[1], u[2]].map(|c| relief::cpu::volume::srgb_decode(c as f64 / 255.0)),
+        );
+        let encode = |c: DVec3| {
+            [c.x, c.y, c.z].map(|v| (relief::cpu::volume::srgb_encode(v) * 255.0).round() as u8)
+        };
+        // Farthest box entry first.
+        parts.sort_by(|a, b| b.0.total_cmp(&a.0));
+        let want = encode(parts.iter().fold(bg, |c, (_, r)| r.over(c)));
+        for ch in 0..3 {
+            let d = out.rgba[4 * k + ch].abs_diff(want[ch]);
+            sum += d as u64;
+            max = max.max(d);
+        }
+        if parts.len() == 2 {
+            both += 1;
+            // Box centres: the layer (listed first) is farther, so it would go first.
+            let by_centre = encode(vols.iter().fold(bg, |c, v| {
+                integrate(v, &light, eye, dir, e[3] as f64, t_max, px).over(c)
+            }));
+            wrong_by_centre += (0..3).any(|ch| by_centre[ch].abs_diff(want[ch]) > 10) as usize;
+        }
+    }
+    assert!(
+        vols[0].world_centre().distance(eye) > vols[1].world_centre().distance(eye),
+        "the layer's centre must be the farther one"
+    );
+    let mean = sum as f64 / (3 * rays.len()) as f64;
+    eprintln!(
+        "layer over a box: {both} pixels see both; |GPU − oracle| mean {mean:.3}/255, max \
+         {max}/255; ordering by box centre would be off by > 10 levels in {wrong_by_centre}"
+    );
+    assert!(both > 500, "only {both} pixels see both volumes");
+    assert!(
+        wrong_by_centre > 200,
+        "box-centre order would hardly differ ({wrong_by_centre}): the test cannot tell"
+    );
+    if mean >= 1.0 || max >= 4 {
+        let p = save_failure_image("volumes-per-pixel-order", 160, 120, &out.rgba);
         panic!("mean {mean:.3}/255, max {max}/255; {}", p.display());
     }
 }

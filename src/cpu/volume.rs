@@ -106,6 +106,10 @@ pub struct VolumeResult {
     pub samples: u32,
     /// Lattice segments passed (sampled or skipped).
     pub segments: u32,
+    /// Where the medium lies along the ray: the samples' distances (metres) weighted by their
+    /// contributions `Ω·T`; `+inf` where nothing contributed. [`composite_sorted`] orders
+    /// volumes by it.
+    pub depth: f64,
 }
 
 impl VolumeResult {
@@ -171,7 +175,10 @@ pub fn integrate(
         transmittance: 1.0,
         samples: 0,
         segments: 0,
+        depth: f64::INFINITY,
     };
+    // Sums of the contributions and of contribution times distance.
+    let (mut weight, mut weighted_t) = (0.0, 0.0);
     let o = v.to_local(eye);
     let d = v.rotation.transpose() * dir;
     let Some((t0, ts, te)) = ray_interval(v, o, d, t_max) else {
@@ -245,6 +252,8 @@ pub fn integrate(
                     let omega = 1.0 - (-e[3] * (b - a)).exp();
                     let c = light.haze(DVec3::new(e[0], e[1], e[2]), eye, dir, tm);
                     res.colour += c * (omega * res.transmittance);
+                    weight += omega * res.transmittance;
+                    weighted_t += tm * (omega * res.transmittance);
                     res.transmittance *= 1.0 - omega;
                 }
             }
@@ -276,12 +285,17 @@ pub fn integrate(
             let i = (m.ambient * ca + m.diffuse * cd + m.specular * cs) / qsum;
             let i = light.haze(i, eye, dir, tm);
             res.colour += i * (omega * res.transmittance);
+            weight += omega * res.transmittance;
+            weighted_t += tm * (omega * res.transmittance);
             res.transmittance *= 1.0 - omega;
             if s.early_termination && res.transmittance < s.epsilon {
                 break;
             }
         }
         k += 1.0;
+    }
+    if weight > 0.0 {
+        res.depth = weighted_t / weight;
     }
     res
 }
@@ -305,9 +319,20 @@ pub fn srgb_decode(c: f64) -> f64 {
     }
 }
 
-/// The 8-bit sRGB pixel the volume pass writes for `res` over the 8-bit sRGB pixel `under`.
+/// The 8-bit sRGB pixel for one volume's `res` over the 8-bit sRGB pixel `under`.
 pub fn composite(res: &VolumeResult, under: [u8; 3]) -> [u8; 3] {
+    composite_sorted(std::slice::from_ref(res), under)
+}
+
+/// The 8-bit sRGB pixel the composite pass writes for the scene's volumes (`results` in scene
+/// order) over the 8-bit sRGB pixel `under`: sorted by [`VolumeResult::depth`], farthest first
+/// (ties in scene order), each `P + T·c` over the result so far, in linear light. Exact for
+/// media that do not interleave along the ray, whether or not their boxes overlap.
+pub fn composite_sorted(results: &[VolumeResult], under: [u8; 3]) -> [u8; 3] {
+    let mut order: Vec<&VolumeResult> = results.iter().collect();
+    // Stable: equal depths keep scene order, as the shader's insertion sort does.
+    order.sort_by(|a, b| b.depth.total_cmp(&a.depth));
     let bg = DVec3::from(under.map(|c| srgb_decode(c as f64 / 255.0)));
-    let c = res.over(bg);
+    let c = order.iter().fold(bg, |c, r| r.over(c));
     [c.x, c.y, c.z].map(|v| (srgb_encode(v) * 255.0).round() as u8)
 }

@@ -136,8 +136,10 @@ struct Targets {
     data_rb: wgpu::Buffer,
     /// Free-form bins, G-buffer and the shade bind group that reads them.
     objects: Option<(ObjectTargets, wgpu::BindGroup)>,
-    /// Per volume: the image under it (its pass's input) and its pass's statistics.
+    /// Per volume: its passes' bind groups.
     volumes: Vec<super::volumes::VolumeTargets>,
+    /// The image under the volumes, their results and statistics (with volumes).
+    composite: Option<super::volumes::CompositeTargets>,
     /// The volume-sun target (the shade pass reads it) and its readback buffer.
     volume_sun: wgpu::Texture,
     volume_sun_view: wgpu::TextureView,
@@ -203,6 +205,8 @@ pub struct TerrainRenderer {
     volumes: Vec<super::volumes::VolumePass>,
     /// The volume-sun pass (built with the first volume).
     volume_sun: Option<super::volumes::VolumeSunPass>,
+    /// The composite pass for the scene's volumes (with volumes).
+    volume_composite: Option<super::volumes::CompositePass>,
     /// The volumes shadow the surfaces but are not composited (see [`Self::set_volumes_hidden`]).
     volumes_hidden: bool,
     /// Edge blend of a display channel (see [`Self::set_blend`]).
@@ -524,6 +528,7 @@ impl TerrainRenderer {
             objects: None,
             volumes: Vec::new(),
             volume_sun: None,
+            volume_composite: None,
             volumes_hidden: false,
             blend: None,
             voxels: None,
@@ -674,9 +679,12 @@ impl TerrainRenderer {
         Ok(())
     }
 
-    /// Uploads the scene's density volumes (none: no volume pass). Each frame composites them
-    /// one after the other, farthest box centre first, each over the image so far and each cut
-    /// at the opaque depth: exact for volumes whose boxes do not interleave along a ray.
+    /// Uploads the scene's density volumes (none: no volume pass). Each frame integrates each
+    /// one cut at the opaque depth, then composites them per pixel farthest medium first (by
+    /// each one's contribution-weighted depth): exact for media that do not interleave along a
+    /// ray, whether or not their boxes overlap. The renderer's copies get the volumes' shadows
+    /// on each other baked in (`volume::shadow::shadow_each_other`, as `Scene::volumes` does
+    /// for the CPU model).
     pub fn set_volumes(&mut self, gpu: &Gpu, volumes: &[crate::volume::Volume]) -> Result<()> {
         if volumes.len() > MAX_VOLUMES {
             return Err(Error::invalid(
@@ -696,6 +704,8 @@ impl TerrainRenderer {
         if !self.volumes.is_empty() && self.volume_sun.is_none() {
             self.volume_sun = Some(super::volumes::VolumeSunPass::new(gpu));
         }
+        self.volume_composite = (!self.volumes.is_empty())
+            .then(|| super::volumes::CompositePass::new(gpu, self.volumes.len() as u32));
         self.targets = None;
         Ok(())
     }
@@ -705,18 +715,6 @@ impl TerrainRenderer {
     /// the volume pass against the CPU integral over that image, and for diagnostics).
     pub fn set_volumes_hidden(&mut self, hidden: bool) {
         self.volumes_hidden = hidden;
-    }
-
-    /// Indices of the volumes, farthest box centre from `eye` first (compositing order; none
-    /// while hidden).
-    fn volume_order(&self, eye: glam::DVec3) -> Vec<usize> {
-        if self.volumes_hidden {
-            return Vec::new();
-        }
-        let dist = |i: usize| self.volumes[i].volume.world_centre().distance(eye);
-        let mut order: Vec<usize> = (0..self.volumes.len()).collect();
-        order.sort_by(|&a, &b| dist(b).total_cmp(&dist(a)));
-        order
     }
 
     /// Uploads the scene's voxel models (none: no voxel passes). Refuses models over the
@@ -962,8 +960,6 @@ impl TerrainRenderer {
                 .map(|v| {
                     v.targets(
                         gpu,
-                        width,
-                        height,
                         &self.frame_ub,
                         &ray_table_view,
                         &data.create_view(&Default::default()),
@@ -974,6 +970,10 @@ impl TerrainRenderer {
                 .collect(),
             None => Vec::new(),
         };
+        let composite = self
+            .volume_composite
+            .as_ref()
+            .map(|c| c.targets(gpu, width, height, &self.frame_ub));
         let voxels = self.voxels.as_ref().map(|v| {
             v.targets(
                 gpu,
@@ -992,6 +992,7 @@ impl TerrainRenderer {
         self.targets = Some(Targets {
             blend,
             volumes,
+            composite,
             objects,
             voxels,
             width,
@@ -1223,25 +1224,34 @@ impl TerrainRenderer {
                 sun_pass.encode(&mut enc, &casting, &t.volume_sun_view);
                 lap(&mut enc, &mut times.volume_shadow_ms)?;
             }
-            // Shade into the first volume's input; each volume pass composites over its own
-            // input and writes the next one's (the last writes the colour target).
-            let order = self.volume_order(cam.pose.position);
-            let input = |k: usize| order.get(k).map(|&i| &t.volumes[i].under_view);
-            let shaded = input(0).unwrap_or(&t.colour_view);
+            // With volumes, shade into the image under them; each volume pass writes its own
+            // result layer, and the composite pass sorts them per pixel over that image into
+            // the colour target.
+            let volumes = self
+                .volume_composite
+                .as_ref()
+                .zip(t.composite.as_ref())
+                .filter(|_| !self.volumes_hidden);
+            let shaded = volumes.map_or(&t.colour_view, |(_, ct)| &ct.under_view);
             Self::encode_fullscreen(&mut enc, "shade", pipeline, bg, &[shaded, &t.data_view]);
             lap(&mut enc, &mut times.shade_ms)?;
-            for (k, &i) in order.iter().enumerate() {
-                let (v, vt) = (&mut self.volumes[i], &t.volumes[i]);
-                let out = input(k + 1).unwrap_or(&t.colour_view);
+            if let Some((cp, ct)) = volumes {
+                for (i, vt) in t.volumes.iter().enumerate() {
+                    Self::encode_fullscreen(
+                        &mut enc,
+                        "volume",
+                        self.volumes[i].pipeline(&gpu.device),
+                        &vt.bg,
+                        &[&ct.result_views[i], &ct.stats_views[i]],
+                    );
+                }
                 Self::encode_fullscreen(
                     &mut enc,
-                    "volume",
-                    v.pipeline(&gpu.device),
-                    &vt.bg,
-                    &[out, &vt.stats_view],
+                    "volume composite",
+                    &cp.pipeline,
+                    &ct.bg,
+                    &[&t.colour_view],
                 );
-            }
-            if !order.is_empty() {
                 lap(&mut enc, &mut times.volume_ms)?;
             }
             self.encode_blend(&mut enc, t);
@@ -1322,21 +1332,22 @@ impl TerrainRenderer {
                 },
             );
         }
-        for vt in &t.volumes {
+        let volume_stats = t.composite.as_ref().filter(|_| !self.volumes_hidden);
+        if let Some(ct) = volume_stats {
             enc.copy_texture_to_buffer(
-                vt.stats.as_image_copy(),
+                ct.stats.as_image_copy(),
                 wgpu::TexelCopyBufferInfo {
-                    buffer: &vt.stats_rb,
+                    buffer: &ct.stats_rb,
                     layout: wgpu::TexelCopyBufferLayout {
                         offset: 0,
-                        bytes_per_row: Some(padded_row(w * 8)),
+                        bytes_per_row: Some(padded_row(w * 16)),
                         rows_per_image: Some(h),
                     },
                 },
                 wgpu::Extent3d {
                     width: w,
                     height: h,
-                    depth_or_array_layers: 1,
+                    depth_or_array_layers: t.volumes.len() as u32,
                 },
             );
         }
@@ -1348,15 +1359,19 @@ impl TerrainRenderer {
         } else {
             Vec::new()
         };
-        // Volume statistics, summed over the volumes.
+        // Volume statistics, summed over the volumes (one image per layer).
         let mut stats: Vec<[u32; 2]> = Vec::new();
-        for vt in &t.volumes {
-            let bytes = read_buffer(gpu, &vt.stats_rb, w * 8, h)?;
-            stats.resize(bytes.len() / 8, [0, 0]);
-            for (s, px) in stats.iter_mut().zip(bytes.chunks_exact(8)) {
-                let word = |i: usize| u32::from_le_bytes([px[i], px[i + 1], px[i + 2], px[i + 3]]);
-                s[0] += word(0);
-                s[1] += word(4);
+        if let Some(ct) = volume_stats {
+            let layers = t.volumes.len() as u32;
+            let bytes = read_buffer(gpu, &ct.stats_rb, w * 16, h * layers)?;
+            stats.resize((w * h) as usize, [0, 0]);
+            for layer in bytes.chunks_exact((w * h * 16) as usize) {
+                for (s, px) in stats.iter_mut().zip(layer.chunks_exact(16)) {
+                    let word =
+                        |i: usize| u32::from_le_bytes([px[i], px[i + 1], px[i + 2], px[i + 3]]);
+                    s[0] += word(0);
+                    s[1] += word(4);
+                }
             }
         }
         times.readback_ms = start.elapsed().as_secs_f64() * 1e3;

@@ -160,6 +160,19 @@ pub fn volume(sw: VolumeSwitches) -> String {
     .concat()
 }
 
+/// Volume composite pass (fragment): the `count` volumes' results sorted per pixel by the
+/// medium's depth and composited over the shaded image.
+pub fn volume_composite(count: u32) -> String {
+    [
+        &format!("const VOL_COUNT: u32 = {count}u;\n"),
+        FRAME,
+        FULLSCREEN,
+        HAZE,
+        include_str!("shaders/volume_composite.wgsl"),
+    ]
+    .concat()
+}
+
 /// Volume-sun pass (fragment): per pixel, the sun's transmittance through one volume for the
 /// opaque surface in the G-buffer.
 pub fn volume_sun() -> String {
@@ -236,6 +249,8 @@ pub fn all() -> Vec<(&'static str, String)> {
         ("volume", volume(VolumeSwitches::ALL)),
         ("volume (no options)", volume(VolumeSwitches::NONE)),
         ("volume_sun", volume_sun()),
+        ("volume_composite (1 volume)", volume_composite(1)),
+        ("volume_composite (8 volumes)", volume_composite(8)),
         ("blend", blend()),
         ("voxels", voxels(2)),
         ("pattern", pattern()),

@@ -14,8 +14,12 @@ use crate::volume::Volume;
 use crate::{Error, Result};
 use wgpu::util::DeviceExt;
 
-/// Format of the per-pixel statistics target (samples taken, segments passed).
-pub const STATS_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rg32Uint;
+/// Format of the per-pixel statistics target (samples taken, segments passed, f32 bits of the
+/// medium's depth).
+pub const STATS_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Uint;
+
+/// Format of the per-pixel result target (f32 bits of `P` and `T`).
+pub const RESULT_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Uint;
 
 /// Format of the volume-sun target: per pixel, the sun's transmittance through the volumes
 /// for the opaque surface there (the shade pass reads it).
@@ -160,17 +164,161 @@ pub(crate) struct VolumePass {
     uniforms: wgpu::Buffer,
 }
 
-/// Size-dependent resources: the shaded image the pass reads, its statistics target.
+/// Size-dependent bind groups of one volume's passes.
 pub(crate) struct VolumeTargets {
-    /// Kept with its view for the targets' lifetime.
-    pub _under: wgpu::Texture,
-    pub under_view: wgpu::TextureView,
-    pub stats: wgpu::Texture,
-    pub stats_view: wgpu::TextureView,
-    pub stats_rb: wgpu::Buffer,
     pub bg: wgpu::BindGroup,
     /// The volume-sun pass's bind group for this volume.
     pub sun_bg: wgpu::BindGroup,
+}
+
+/// The composite pass (`volume_composite.wgsl`) for a scene's volumes: per pixel, their
+/// results sorted by the medium's depth and composited over the shaded image.
+pub(crate) struct CompositePass {
+    count: u32,
+    bgl: wgpu::BindGroupLayout,
+    pub pipeline: wgpu::RenderPipeline,
+}
+
+/// Size-dependent resources shared by the volume passes: the shaded image under the volumes,
+/// and per volume (array layer) its result and statistics.
+pub(crate) struct CompositeTargets {
+    /// Kept with its view for the targets' lifetime.
+    _under: wgpu::Texture,
+    pub under_view: wgpu::TextureView,
+    _results: wgpu::Texture,
+    /// One render view per volume.
+    pub result_views: Vec<wgpu::TextureView>,
+    pub stats: wgpu::Texture,
+    pub stats_views: Vec<wgpu::TextureView>,
+    /// Every layer's statistics, one image after the other.
+    pub stats_rb: wgpu::Buffer,
+    pub bg: wgpu::BindGroup,
+}
+
+impl CompositePass {
+    /// The pass for `count` volumes (1 ..= `MAX_VOLUMES`).
+    pub fn new(gpu: &Gpu, count: u32) -> CompositePass {
+        let dev = &gpu.device;
+        let fs = wgpu::ShaderStages::FRAGMENT;
+        let array = |binding| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: fs,
+            ty: wgpu::BindingType::Texture {
+                sample_type: wgpu::TextureSampleType::Uint,
+                view_dimension: wgpu::TextureViewDimension::D2Array,
+                multisampled: false,
+            },
+            count: None,
+        };
+        let bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("volume composite"),
+            entries: &[
+                uniform_entry(0, fs),
+                float_texture_entry(1, fs, wgpu::TextureViewDimension::D2),
+                array(2),
+                array(3),
+            ],
+        });
+        let m = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("volume_composite.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(shaders::volume_composite(count).into()),
+        });
+        let pipeline = fullscreen_pipeline(
+            dev,
+            "volume composite",
+            &m,
+            "fs_composite",
+            &bgl,
+            &[Some(target_state(wgpu::TextureFormat::Rgba8Unorm))],
+        );
+        CompositePass {
+            count,
+            bgl,
+            pipeline,
+        }
+    }
+
+    pub fn targets(
+        &self,
+        gpu: &Gpu,
+        width: u32,
+        height: u32,
+        frame_ub: &wgpu::Buffer,
+    ) -> CompositeTargets {
+        let dev = &gpu.device;
+        let usage = wgpu::TextureUsages::RENDER_ATTACHMENT
+            | wgpu::TextureUsages::TEXTURE_BINDING
+            | wgpu::TextureUsages::COPY_SRC;
+        let under = screen_texture(
+            dev,
+            "colour under the volumes",
+            [width, height],
+            wgpu::TextureFormat::Rgba8Unorm,
+            usage,
+        );
+        let under_view = under.create_view(&Default::default());
+        let layers = |label, format| {
+            let tex = dev.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size: wgpu::Extent3d {
+                    width,
+                    height,
+                    depth_or_array_layers: self.count,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            });
+            let per_layer: Vec<_> = (0..self.count)
+                .map(|m| {
+                    tex.create_view(&wgpu::TextureViewDescriptor {
+                        dimension: Some(wgpu::TextureViewDimension::D2),
+                        base_array_layer: m,
+                        array_layer_count: Some(1),
+                        ..Default::default()
+                    })
+                })
+                .collect();
+            let all = tex.create_view(&wgpu::TextureViewDescriptor {
+                dimension: Some(wgpu::TextureViewDimension::D2Array),
+                ..Default::default()
+            });
+            (tex, per_layer, all)
+        };
+        let (results, result_views, results_all) = layers("volume results", RESULT_FORMAT);
+        let (stats, stats_views, stats_all) = layers("volume statistics", STATS_FORMAT);
+        let bg = dev.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("volume composite"),
+            layout: &self.bgl,
+            entries: &[
+                buf(0, frame_ub),
+                view(1, &under_view),
+                view(2, &results_all),
+                view(3, &stats_all),
+            ],
+        });
+        let stats_rb = dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("volume statistics readback"),
+            size: super::renderer::padded_row(width * 16) as u64
+                * height as u64
+                * self.count as u64,
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        CompositeTargets {
+            _under: under,
+            under_view,
+            _results: results,
+            result_views,
+            stats,
+            stats_views,
+            stats_rb,
+            bg,
+        }
+    }
 }
 
 /// The transfer table as the uniform array `vol_table` (`VOL_TABLE` = [`TABLE_SIZE`] vec4s;
@@ -286,7 +434,6 @@ impl VolumePass {
             entries: &[
                 uniform_entry(0, fs),
                 uint_texture_entry(3, fs),
-                float_texture_entry(10, fs, wgpu::TextureViewDimension::D2),
                 uint_texture_entry(11, fs),
                 float_texture_entry(12, fs, wgpu::TextureViewDimension::D3),
                 uniform_entry(14, fs),
@@ -302,7 +449,7 @@ impl VolumePass {
             "fs_volume",
             bgl.clone(),
             vec![
-                Some(target_state(wgpu::TextureFormat::Rgba8Unorm)),
+                Some(target_state(RESULT_FORMAT)),
                 Some(target_state(STATS_FORMAT)),
             ],
         );
@@ -367,14 +514,11 @@ impl VolumePass {
         self.volume.sun_shadow.is_some()
     }
 
-    /// Size-dependent resources: `data` is the capture data the volume pass reads (opaque
-    /// depth), `gbuffer` the final G-buffer the volume-sun pass reads.
-    #[allow(clippy::too_many_arguments)]
+    /// Bind groups for a frame's targets: `data` is the capture data the volume pass reads
+    /// (opaque depth), `gbuffer` the final G-buffer the volume-sun pass reads.
     pub fn targets(
         &self,
         gpu: &Gpu,
-        width: u32,
-        height: u32,
         frame_ub: &wgpu::Buffer,
         ray_table: &wgpu::TextureView,
         data: &wgpu::TextureView,
@@ -382,28 +526,12 @@ impl VolumePass {
         gbuffer: &wgpu::TextureView,
     ) -> VolumeTargets {
         let dev = &gpu.device;
-        let tex = |label, format| {
-            screen_texture(
-                dev,
-                label,
-                [width, height],
-                format,
-                wgpu::TextureUsages::RENDER_ATTACHMENT
-                    | wgpu::TextureUsages::TEXTURE_BINDING
-                    | wgpu::TextureUsages::COPY_SRC,
-            )
-        };
-        let under = tex("colour under the volume", wgpu::TextureFormat::Rgba8Unorm);
-        let stats = tex("volume statistics", STATS_FORMAT);
-        let under_view = under.create_view(&Default::default());
-        let stats_view = stats.create_view(&Default::default());
         let bg = dev.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("volume"),
             layout: &self.bgl,
             entries: &[
                 buf(0, frame_ub),
                 view(3, ray_table),
-                view(10, &under_view),
                 view(11, data),
                 view(12, &self.view),
                 buf(14, &self.table),
@@ -432,21 +560,7 @@ impl VolumePass {
                 },
             ],
         });
-        let stats_rb = dev.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("volume statistics readback"),
-            size: super::renderer::padded_row(width * 8) as u64 * height as u64,
-            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-            mapped_at_creation: false,
-        });
-        VolumeTargets {
-            _under: under,
-            under_view,
-            stats,
-            stats_view,
-            stats_rb,
-            bg,
-            sun_bg,
-        }
+        VolumeTargets { bg, sun_bg }
     }
 }
 

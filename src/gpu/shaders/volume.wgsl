@@ -1,12 +1,13 @@
 // Volume pass: per pixel, front-to-back emission-absorption through one density volume,
 // P = sum I_n Omega_n prod_{m<n} (1 - Omega_m), cut at the opaque depth of terrain and free
-// forms and composited over the shaded image: P + T * background. Step for step the same as
-// `cpu::volume::integrate` (see there for the segment lattice, skipping and lighting).
+// forms. Writes P, the transmittance T left and the contribution-weighted depth of the medium;
+// the composite pass (volume_composite.wgsl) sorts the volumes by that depth per pixel and
+// composites them over the shaded image. Step for step the same as `cpu::volume::integrate`
+// (see there for the segment lattice, skipping and lighting).
 
 // `struct Volume` (the uniforms) is in volume_types.wgsl, shared with the volume-sun pass.
 
 @group(0) @binding(0) var<uniform> frame: Frame;
-@group(0) @binding(10) var colour_in: texture_2d<f32>;
 @group(0) @binding(11) var data_in: texture_2d<u32>;
 @group(0) @binding(12) var vol_tex: texture_3d<f32>;
 @group(0) @binding(14) var<uniform> vol_table: array<vec4<f32>, VOL_TABLE>;
@@ -29,9 +30,11 @@ const VOL_MAX_SAMPLES: u32 = 65536u;
 const VOL_SLICES: u32 = 8u;
 
 struct VolOut {
-    @location(0) colour: vec4<f32>,
-    // x: texture samples taken, y: lattice segments passed.
-    @location(1) stats: vec2<u32>,
+    // f32 bits of P (linear, premultiplied) and T.
+    @location(0) result: vec4<u32>,
+    // x: texture samples taken, y: lattice segments passed, z: f32 bits of the medium's depth
+    // (metres along the ray, weighted by each sample's contribution; +inf without one).
+    @location(1) stats: vec4<u32>,
 }
 
 fn vol_jitter(px: vec2<u32>) -> f32 {
@@ -135,10 +138,9 @@ fn vol_ambient(n: vec3<f32>) -> vec3<f32> {
 @fragment
 fn fs_volume(@builtin(position) pos: vec4<f32>) -> VolOut {
     let px = vec2<u32>(pos.xy);
-    let under = textureLoad(colour_in, vec2<i32>(px), 0);
     var out: VolOut;
-    out.colour = under;
-    out.stats = vec2<u32>(0u);
+    out.result = bitcast<vec4<u32>>(vec4<f32>(0.0, 0.0, 0.0, 1.0));
+    out.stats = vec4<u32>(0u, 0u, 0x7f800000u, 0u);
     let e = ray_entry(px);
     if (e.w < 0.0) {
         return out;
@@ -174,6 +176,9 @@ fn fs_volume(@builtin(position) pos: vec4<f32>) -> VolOut {
     let up_rate = dot(frame.local_from_world_2.xyz, dir);
     var acc = vec3<f32>(0.0);
     var tr = 1.0;
+    // Sums of contribution (Omega T) and contribution times depth.
+    var weight = 0.0;
+    var weighted_t = 0.0;
     var samples = 0u;
     var segments = 0u;
     var k = floor((ts - t0) / step - j);
@@ -236,6 +241,8 @@ fn fs_volume(@builtin(position) pos: vec4<f32>) -> VolOut {
                     let e = vol_table[i];
                     let omega = 1.0 - exp(-e.w * (b - a));
                     acc += aerial_perspective(e.xyz, tm, frame.eye.z + tm * up_rate, dl) * (omega * tr);
+                    weight += omega * tr;
+                    weighted_t += tm * (omega * tr);
                     tr *= 1.0 - omega;
                 }
             }
@@ -271,6 +278,8 @@ fn fs_volume(@builtin(position) pos: vec4<f32>) -> VolOut {
             let i = (m.x * ca + m.y * cd + m.z * cs) / qsum;
             let lit = aerial_perspective(i, tm, frame.eye.z + tm * up_rate, dl);
             acc += lit * (omega * tr);
+            weight += omega * tr;
+            weighted_t += tm * (omega * tr);
             tr *= 1.0 - omega;
             if (TERMINATION && tr < vol.spacing.w) {
                 break;
@@ -278,7 +287,8 @@ fn fs_volume(@builtin(position) pos: vec4<f32>) -> VolOut {
         }
         k += 1.0;
     }
-    out.stats = vec2<u32>(samples, segments);
-    out.colour = vec4<f32>(srgb_encode(acc + tr * srgb_decode(under.xyz)), 1.0);
+    let depth_bits = select(0x7f800000u, bitcast<u32>(weighted_t / weight), weight > 0.0);
+    out.stats = vec4<u32>(samples, segments, depth_bits, 0u);
+    out.result = bitcast<vec4<u32>>(vec4<f32>(acc, tr));
     return out;
 }
