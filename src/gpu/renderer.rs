@@ -695,12 +695,11 @@ impl TerrainRenderer {
                 ),
             ));
         }
-        let mut volumes = volumes.to_vec();
-        crate::volume::shadow::shadow_each_other(&mut volumes.iter_mut().collect::<Vec<_>>());
         self.volumes = volumes
             .iter()
             .map(|v| super::volumes::VolumePass::new(gpu, v))
             .collect::<Result<_>>()?;
+        self.shadow_volumes_each_other(gpu);
         if !self.volumes.is_empty() && self.volume_sun.is_none() {
             self.volume_sun = Some(super::volumes::VolumeSunPass::new(gpu));
         }

@@ -1,6 +1,11 @@
-//! The volume pass: one density volume uploaded once (RGBA8 3-D texture with mip levels,
-//! transfer table, brick occupancy), integrated per pixel after shading and composited over
-//! the shaded image in front of the opaque depth.
+//! Density volumes on the GPU, three passes:
+//! * volume-sun ([`VolumeSunPass`], before shading): per pixel, the sun's transmittance through
+//!   the volumes at the opaque surface, which the shade pass scales the sun's terms by;
+//! * volume ([`VolumePass`], one per volume, after shading): one density volume uploaded once
+//!   (RGBA8 3-D texture with mip levels, transfer table, brick occupancy, shadow grids),
+//!   integrated per pixel in front of the opaque depth into its own result layer;
+//! * composite ([`CompositePass`]): the layers sorted per pixel by the medium's depth and
+//!   composited over the shaded image.
 
 use super::renderer::{
     buf, float_texture_entry, fullscreen_pipeline, screen_texture, storage_entry, target_state,
