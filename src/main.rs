@@ -36,7 +36,7 @@ enum Command {
         /// Output directory.
         #[arg(long, default_value = "out")]
         out: PathBuf,
-        /// Turn terrain self-shadowing off.
+        /// Turn sun shadows on surfaces off (terrain, free forms, voxel models, volumes casting onto them).
         #[arg(long)]
         no_shadows: bool,
         /// Turn the screen-tile pre-pass off.
@@ -205,7 +205,7 @@ struct ViewArgs {
     /// Start with the text overlay hidden (H toggles it).
     #[arg(long)]
     no_overlay: bool,
-    /// Turn terrain self-shadowing off.
+    /// Turn sun shadows on surfaces off (terrain, free forms, voxel models, volumes casting onto them).
     #[arg(long)]
     no_shadows: bool,
     /// Turn the screen-tile pre-pass off.
