@@ -30,6 +30,27 @@ fn tmp_dir(name: &str) -> PathBuf {
     d
 }
 
+/// A demo scene of `terrains/` at `w x h`: the scene, its terrain and its volumes.
+fn demo_scene(name: &str, w: u32, h: u32) -> (Scene, Terrain, Vec<Volume>) {
+    let mut scene = Scene::load(&terrains().join(name)).unwrap();
+    scene.desc.output.width = w;
+    scene.desc.output.height = h;
+    let terrain = scene.load_terrain().unwrap();
+    let vols = scene.volumes(&terrain).unwrap();
+    (scene, terrain, vols)
+}
+
+/// Whether `path` (metres through a box along the sun) is the same at `p` and at eight points
+/// `radius` metres around it in the horizontal plane (not near a shadow edge, which a grid's
+/// trilinear read smears over a cell).
+fn steady_around(p: DVec3, radius: f64, path: impl Fn(DVec3) -> f64) -> bool {
+    let at = path(p);
+    (0..8).all(|k| {
+        let a = k as f64 * std::f64::consts::FRAC_PI_4;
+        (path(p + DVec3::new(a.cos(), a.sin(), 0.0) * radius) - at).abs() < 1e-6
+    })
+}
+
 fn settings() -> RenderSettings {
     RenderSettings {
         mode: TraceMode::Pyramid,
@@ -407,11 +428,7 @@ fn compare(gpu_rgba: &[u8], cpu: &[[u8; 3]], under: &[u8]) -> (f64, u8, usize) {
 #[test]
 fn gpu_volume_matches_the_cpu_reference_on_the_brain_with_two_transfer_functions() {
     let _l = gpu_lock();
-    let mut scene = Scene::load(&terrains().join("brain.toml")).unwrap();
-    scene.desc.output.width = 160;
-    scene.desc.output.height = 120;
-    let terrain = scene.load_terrain().unwrap();
-    let mut vols = scene.volumes(&terrain).unwrap();
+    let (scene, terrain, mut vols) = demo_scene("brain.toml", 160, 120);
     let cam = scene.camera(0, &terrain);
     let light = VolumeLight::new(&scene.desc, &terrain);
     // The second run also jitters the sample lattice per pixel (the same hash on both sides).
@@ -477,11 +494,7 @@ fn max_diff(a: &[u8], b: &[u8]) -> u8 {
 #[test]
 fn skipping_and_early_termination_change_nothing_visible() {
     let _l = gpu_lock();
-    let mut scene = Scene::load(&terrains().join("brain.toml")).unwrap();
-    scene.desc.output.width = 160;
-    scene.desc.output.height = 120;
-    let terrain = scene.load_terrain().unwrap();
-    let mut vols = scene.volumes(&terrain).unwrap();
+    let (scene, terrain, mut vols) = demo_scene("brain.toml", 160, 120);
     let cam = scene.camera(0, &terrain);
     for tf in ["brain", "brain-white"] {
         vols[0].set_transfer(TransferFunction::preset(tf).unwrap());
@@ -630,11 +643,7 @@ fn self_shadowing_only_darkens_and_visibly_darkens_the_brain() {
     // brighter (transmittance <= 1 scales only the sun's terms), and the sulci and the side
     // away from the sun get visibly darker.
     let _l = gpu_lock();
-    let mut scene = Scene::load(&terrains().join("brain.toml")).unwrap();
-    scene.desc.output.width = 160;
-    scene.desc.output.height = 120;
-    let terrain = scene.load_terrain().unwrap();
-    let vols = scene.volumes(&terrain).unwrap();
+    let (scene, terrain, vols) = demo_scene("brain.toml", 160, 120);
     assert!(
         vols[0].sun_shadow.is_some(),
         "the brain is self-shadowed by default"
@@ -954,11 +963,7 @@ fn cli_renders_the_brain_and_refuses_a_bad_volume_before_writing() {
 #[test]
 fn a_tight_shell_changes_nothing_and_saves_segments() {
     let _l = gpu_lock();
-    let mut scene = Scene::load(&terrains().join("brain.toml")).unwrap();
-    scene.desc.output.width = 128;
-    scene.desc.output.height = 96;
-    let terrain = scene.load_terrain().unwrap();
-    let vols = scene.volumes(&terrain).unwrap();
+    let (scene, terrain, vols) = demo_scene("brain.toml", 128, 96);
     let cam = scene.camera(0, &terrain);
     // The smallest axis-aligned ellipsoid around the box centre that holds every voxel the
     // transfer function makes visible (with a voxel of margin for the trilinear support).
@@ -1188,11 +1193,7 @@ fn function4d_slices_mark_the_zero_crossings_of_each_w() {
 #[test]
 fn gpu_matches_the_cpu_reference_on_the_4d_function_slices() {
     let _l = gpu_lock();
-    let mut scene = Scene::load(&terrains().join("function4d.toml")).unwrap();
-    scene.desc.output.width = 128;
-    scene.desc.output.height = 96;
-    let terrain = scene.load_terrain().unwrap();
-    let vols = scene.volumes(&terrain).unwrap();
+    let (scene, terrain, vols) = demo_scene("function4d.toml", 128, 96);
     assert_eq!(vols[0].grid.slices, 8);
     let cam = scene.camera(0, &terrain);
     let light = VolumeLight::new(&scene.desc, &terrain);
@@ -1348,11 +1349,8 @@ fn volume_shadow_on_the_ground_matches_the_analytic_attenuation_of_a_dense_block
                 sum += err;
                 count += 1;
                 shadowed += (want < 0.9) as usize;
-                let d = 1.5 * vox;
-                let steady = (0..8).all(|k| {
-                    let a = k as f64 * std::f64::consts::FRAC_PI_4;
-                    let o = DVec3::new(a.cos(), a.sin(), 0.0) * d * std::f64::consts::SQRT_2;
-                    (path_in_box(q + o, s_local, lo, hi) - len).abs() < 1e-6
+                let steady = steady_around(q, 1.5 * vox * std::f64::consts::SQRT_2, |x| {
+                    path_in_box(x, s_local, lo, hi)
                 });
                 if steady {
                     strict += 1;
@@ -1385,12 +1383,8 @@ fn clouds_shadow_the_ground_like_the_cpu_reference_and_only_darken_it() {
     // without their shadows: identical where nothing shadows, never brighter, visibly darker
     // under the clouds.
     let _l = gpu_lock();
-    let mut scene = Scene::load(&terrains().join("clouds.toml")).unwrap();
     let (w, h) = (200, 112);
-    scene.desc.output.width = w;
-    scene.desc.output.height = h;
-    let terrain = scene.load_terrain().unwrap();
-    let vols = scene.volumes(&terrain).unwrap();
+    let (scene, terrain, vols) = demo_scene("clouds.toml", w, h);
     assert!(vols.iter().all(|v| v.sun_shadow.is_some()));
     let cam = scene.camera(0, &terrain);
     let Some(g) = gpu() else {
@@ -1577,11 +1571,7 @@ fn a_volume_shadows_another_by_the_analytic_attenuation() {
                 let ls = path(&slab, p);
                 let want = (-sigma(&haze) * path(&haze, p) - sigma(&slab) * ls).exp();
                 darkened += (lit[k] < sh.data[k]) as usize;
-                let steady = (0..8).all(|i| {
-                    let a = i as f64 * std::f64::consts::FRAC_PI_4;
-                    let o = DVec3::new(a.cos(), a.sin(), 0.0) * 12.0 * std::f64::consts::SQRT_2;
-                    (path(&slab, p + o) - ls).abs() < 1e-6
-                });
+                let steady = steady_around(p, 12.0 * std::f64::consts::SQRT_2, |x| path(&slab, x));
                 if steady {
                     strict += 1;
                     in_shadow += (ls > 0.0) as usize;
@@ -1610,11 +1600,7 @@ fn a_volume_shadows_another_by_the_analytic_attenuation() {
         for j in 0..60 {
             let g = DVec3::new(100.0 + 6.0 * i as f64, 250.0 + 6.0 * j as f64, 0.0);
             let (ls, lh) = (path(&slab, g), path(&haze, g));
-            let steady = (0..8).all(|k| {
-                let a = k as f64 * std::f64::consts::FRAC_PI_4;
-                let o = DVec3::new(a.cos(), a.sin(), 0.0) * 12.0 * std::f64::consts::SQRT_2;
-                (path(&slab, g + o) - ls).abs() < 1e-6
-            });
+            let steady = steady_around(g, 12.0 * std::f64::consts::SQRT_2, |x| path(&slab, x));
             if ls > 0.0 && lh > 0.0 && steady {
                 under_both += 1;
                 let t = relief::cpu::volume::sun_through_volumes(&both, g);

@@ -749,15 +749,20 @@ impl TerrainRenderer {
     /// Changes the volumes' sampling switches (step, skipping, termination, jitter, mip-maps),
     /// all of them.
     pub fn set_volume_settings(&mut self, gpu: &Gpu, settings: crate::volume::VolumeSettings) {
+        let mut reclassified = false;
         for v in &mut self.volumes {
             if v.volume.settings.mipmaps != settings.mipmaps {
                 v.volume.settings = settings;
                 let tf = v.volume.transfer.clone();
                 v.set_transfer(gpu, tf);
+                reclassified = true;
             }
             v.volume.settings = settings;
         }
-        self.shadow_volumes_each_other(gpu);
+        // Reclassifying recomputed the self-shadowing grids without the other volumes.
+        if reclassified {
+            self.shadow_volumes_each_other(gpu);
+        }
     }
 
     /// Renders the warp test pattern ([`crate::display::pattern`]) from the ray table instead

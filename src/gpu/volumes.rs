@@ -90,38 +90,40 @@ impl VolumeSunPass {
         }
     }
 
-    /// Records the draws of `bind_groups` (one per shadow-casting volume) into `target`.
+    /// Records one render pass into `target` with a draw per bind group in `bind_groups` (one
+    /// per shadow-casting volume; none records nothing).
     pub fn encode(
         &self,
         enc: &mut wgpu::CommandEncoder,
         bind_groups: &[&wgpu::BindGroup],
         target: &wgpu::TextureView,
     ) {
-        for (k, bg) in bind_groups.iter().enumerate() {
-            let load = if k == 0 {
-                // SAFETY: the first draw covers every pixel (full-screen triangle, no discard)
-                // and writes without blending, so nothing stale is read or stored.
-                wgpu::LoadOp::DontCare(unsafe { wgpu::LoadOpDontCare::enabled() })
-            } else {
-                wgpu::LoadOp::Load
-            };
-            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("volume sun"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: target,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load,
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
-                depth_stencil_attachment: None,
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            pass.set_pipeline(if k == 0 { &self.write } else { &self.multiply });
+        let Some((first, rest)) = bind_groups.split_first() else {
+            return;
+        };
+        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("volume sun"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: target,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    // SAFETY: the first draw covers every pixel (full-screen triangle, no
+                    // discard) and writes without blending, so nothing stale is read or stored.
+                    load: wgpu::LoadOp::DontCare(unsafe { wgpu::LoadOpDontCare::enabled() }),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: None,
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(&self.write);
+        pass.set_bind_group(0, *first, &[]);
+        pass.draw(0..3, 0..1);
+        pass.set_pipeline(&self.multiply);
+        for bg in rest {
             pass.set_bind_group(0, *bg, &[]);
             pass.draw(0..3, 0..1);
         }
