@@ -638,3 +638,247 @@ fn animated_models_show_the_frame_of_the_scene_time_on_gpu_and_cpu() {
         "t = 0.25 s (frame 0 again at 10 fps) differs from t = 0"
     );
 }
+
+#[test]
+fn chebyshev_distances_match_brute_force_and_bound_empty_cubes() {
+    use relief::voxel::skip::chebyshev;
+    let mut rng = Rng::new(11);
+    for (dims, fill, cap) in [
+        ([13, 7, 9], 0.02, 8u8),
+        ([20, 3, 17], 0.005, 5),
+        ([6, 6, 6], 0.0, 4),
+    ] {
+        let n = dims[0] * dims[1] * dims[2];
+        let occ: Vec<bool> = (0..n).map(|_| rng.range(0.0, 1.0) < fill).collect();
+        let got = chebyshev(dims, &occ, cap);
+        for z in 0..dims[2] {
+            for y in 0..dims[1] {
+                for x in 0..dims[0] {
+                    let mut want = cap as usize;
+                    for (i, _) in occ.iter().enumerate().filter(|(_, &o)| o) {
+                        let q = [
+                            i % dims[0],
+                            (i / dims[0]) % dims[1],
+                            i / (dims[0] * dims[1]),
+                        ];
+                        let d = q[0].abs_diff(x).max(q[1].abs_diff(y)).max(q[2].abs_diff(z));
+                        want = want.min(d);
+                    }
+                    let k = x + dims[0] * (y + dims[1] * z);
+                    assert_eq!(got[k] as usize, want, "cell {x},{y},{z} of {dims:?}");
+                }
+            }
+        }
+    }
+}
+
+/// A sparse model of a few solid blobs in a large box, so that the DDA jumps at both levels.
+fn blob_model(rng: &mut Rng, dims: [u32; 3], blobs: usize) -> VoxelModel {
+    let palette = vec![[90u8, 160, 60, 255]; 256];
+    let mut voxels = Vec::new();
+    for _ in 0..blobs {
+        let c: [u32; 3] = std::array::from_fn(|a| rng.range(0.0, dims[a] as f64 - 1.0) as u32);
+        let r = 1 + rng.range(0.0, 4.0) as u32;
+        for z in c[2].saturating_sub(r)..(c[2] + r).min(dims[2]) {
+            for y in c[1].saturating_sub(r)..(c[1] + r).min(dims[1]) {
+                for x in c[0].saturating_sub(r)..(c[0] + r).min(dims[0]) {
+                    if rng.range(0.0, 1.0) < 0.7 {
+                        voxels.push(Voxel {
+                            pos: [x, y, z],
+                            index: 1 + (x % 200) as u8,
+                        });
+                    }
+                }
+            }
+        }
+    }
+    VoxelModel::new("blobs", dims, palette, voxels).unwrap()
+}
+
+#[test]
+fn cpu_dda_with_empty_space_jumps_matches_brute_force() {
+    let mut rng = Rng::new(5);
+    let mut hits = 0;
+    let (mut brick_jumps, mut voxel_jumps) = (0, 0);
+    for dims in [[97u32, 64, 80], [40, 130, 33]] {
+        let m = blob_model(&mut rng, dims, 12);
+        let b = m.bricks();
+        brick_jumps += b.brick_skip.iter().filter(|&&s| s > 1).count();
+        voxel_jumps += b.pool_skip.iter().filter(|&&s| s > 1).count();
+        let size = DVec3::new(dims[0] as f64, dims[1] as f64, dims[2] as f64);
+        for k in 0..3000 {
+            let o = DVec3::new(
+                rng.range(-0.3, 1.3),
+                rng.range(-0.3, 1.3),
+                rng.range(-0.3, 1.3),
+            ) * size;
+            let mut d = DVec3::new(
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+            );
+            if k % 2 == 0 {
+                // Towards a voxel, so that many rays hit after jumps.
+                let v = m.voxels
+                    [(rng.range(0.0, 1.0) * m.voxels.len() as f64) as usize % m.voxels.len()];
+                let c = DVec3::new(v.pos[0] as f64, v.pos[1] as f64, v.pos[2] as f64) + 0.5;
+                d = c + DVec3::new(
+                    rng.range(-2.0, 2.0),
+                    rng.range(-2.0, 2.0),
+                    rng.range(-2.0, 2.0),
+                ) - o;
+            }
+            if k % 9 == 0 {
+                d[k / 9 % 3] = 0.0;
+            }
+            if d.length() < 1e-3 {
+                continue;
+            }
+            let d = d.normalize() * rng.range(0.3, 2.0);
+            let got = dda(&b, o, d, 0.0, 1e9);
+            let want = brute_force(&m, o, d, 0.0, 1e9);
+            match (got, want) {
+                (None, None) => {}
+                (Some(h), Some(w)) => {
+                    hits += 1;
+                    assert!(
+                        (h.t - w).abs() <= 1e-9 * (1.0 + w.abs()),
+                        "dda t {} vs brute force {w}: o {o} d {d}",
+                        h.t
+                    );
+                    assert_ne!(b.get(h.voxel), 0);
+                }
+                (g, w) => panic!("dda {g:?} vs brute force {w:?}: o {o} d {d}"),
+            }
+        }
+    }
+    eprintln!(
+        "{hits} hits; {brick_jumps} bricks and {voxel_jumps} pool voxels jump more than one cell"
+    );
+    assert!(hits > 1500, "only {hits} rays hit");
+    assert!(
+        brick_jumps > 100 && voxel_jumps > 1000,
+        "too few jumps to test them"
+    );
+}
+
+#[test]
+fn screen_rectangles_hold_every_pixel_a_model_or_its_shadow_can_reach() {
+    use relief::cpu::voxel::{primary_rects, shadow_rects, PixelRect};
+    let terrain = terrain_from_fn(65, 10.0, |x, y| 0.02 * x + 0.01 * y);
+    let models = vec![
+        instance("deer.vox", DVec3::new(300.0, 330.0, 8.0), 30.0, 0.6),
+        instance("axes.vox", DVec3::new(345.0, 360.0, 9.0), -20.0, 0.12),
+    ];
+    let scene = VoxelScene::new(models.clone());
+    let sun = DVec3::new(0.4, -0.5, 0.6).normalize();
+    let floor = terrain.lowest_z() - 1.0;
+    let (w, h) = (200u32, 130u32);
+    let mut tested = 0;
+    for (pos, heading, pitch) in [
+        (DVec3::new(310.0, 290.0, 16.0), 0.0, -12.0),
+        (DVec3::new(250.0, 300.0, 30.0), 60.0, -25.0),
+        // The eye inside the deer's box: the whole image.
+        (DVec3::new(300.0, 330.0, 12.0), 10.0, 0.0),
+    ] {
+        let cam = camera(pos, heading, pitch, w, h);
+        let prim = primary_rects(&models, &cam);
+        let shad = shadow_rects(&models, &cam, sun, floor);
+        let inside = |rs: &[PixelRect], x, y| rs.iter().any(|r| r.contains(x, y));
+        for (i, a) in prim.iter().enumerate() {
+            assert!(
+                prim[i + 1..]
+                    .iter()
+                    .all(|b| !(a.x0 < b.x1 && b.x0 < a.x1 && a.y0 < b.y1 && b.y0 < a.y1)),
+                "{prim:?} overlap"
+            );
+        }
+        for y in 0..h {
+            for x in 0..w {
+                let d = cam.pixel_ray(x, y);
+                let o = cam.pose.position;
+                if scene.cast(o, d, 0.0, f64::INFINITY, 0.0).is_some() {
+                    tested += 1;
+                    assert!(inside(&prim, x, y), "voxel pixel {x},{y} outside {prim:?}");
+                }
+                let t =
+                    relief::cpu::query::cast_ray(&terrain, o, d, 0.0, f64::INFINITY).map(|h| h.t);
+                if let Some(t) = t {
+                    if !scene.clear(o + d * t, sun, 0.0) {
+                        tested += 1;
+                        assert!(
+                            inside(&shad, x, y),
+                            "shadowed pixel {x},{y} outside {shad:?}"
+                        );
+                    }
+                }
+            }
+        }
+        let area: u64 = prim.iter().map(|r| r.area()).sum();
+        eprintln!("camera at {pos}: primary rects {prim:?} ({area} px), shadow rects {shad:?}");
+    }
+    assert!(tested > 2000, "only {tested} pixels reached");
+}
+
+#[test]
+fn gpu_voxel_depth_through_a_distortion_table_matches_the_cpu_dda() {
+    use relief::cpu::distortion::screen_points;
+    use relief::display::DisplayConfig;
+    let _l = gpu_lock();
+    let cfg =
+        DisplayConfig::load(&common::project_dir().join("distortion/dome-fisheye.toml")).unwrap();
+    let mut p = cfg.channels[0].projector;
+    p.width = 160;
+    p.height = 160;
+    let points = screen_points(&cfg.screen, &p);
+    let terrain = terrain_from_fn(65, 10.0, |_, _| 0.0);
+    let models = vec![
+        instance("deer.vox", DVec3::new(318.0, 322.0, 0.0), 200.0, 0.15),
+        instance("tree.vox", DVec3::new(326.0, 330.0, 0.0), 0.0, 0.05),
+    ];
+    let scene = VoxelScene::new(models.clone());
+    let Some(g) = gpu() else {
+        return;
+    };
+    let cam = camera(DVec3::new(320.0, 320.0, 1.5), 40.0, 0.0, p.width, p.height);
+    let desc = common::synthetic_scene(p.width, p.height, "position = [0.0, 0.0, 100.0]");
+    let mut r = TerrainRenderer::new(g, &terrain).unwrap();
+    r.set_display(g, &points, DVec3::from(cfg.eye.position))
+        .unwrap();
+    r.set_voxels(g, &models).unwrap();
+    let out = r
+        .capture(g, &terrain, &desc, &cam, &settings(false))
+        .unwrap();
+    let table = r.read_ray_table(g).unwrap();
+    let (mut agree, mut n, mut voxel_pixels) = (0, 0, 0);
+    for (k, e) in table.iter().enumerate() {
+        if e[3] < 0.0 {
+            continue; // no screen here
+        }
+        n += 1;
+        let d = DVec3::new(e[0] as f64, e[1] as f64, e[2] as f64).normalize();
+        let o = cam.pose.position;
+        let ter = relief::cpu::query::cast_ray(&terrain, o, d, 0.0, f64::INFINITY).map(|h| h.t);
+        let vx = scene.cast(o, d, 0.0, ter.unwrap_or(f64::INFINITY), 0.0);
+        let is_vox = out.flags[k] & 32 != 0;
+        agree += match vx {
+            Some(v) => {
+                voxel_pixels += 1;
+                is_vox && ((out.depth[k] as f64 - v.t) / v.t).abs() <= 1e-3
+            }
+            None => !is_vox,
+        } as usize;
+    }
+    eprintln!("{agree}/{n} dome pixels agree, {voxel_pixels} CPU voxel pixels");
+    assert!(
+        voxel_pixels > 1000,
+        "only {voxel_pixels} voxel pixels on the dome"
+    );
+    if (agree as f64) < 0.995 * n as f64 {
+        let p = save_failure_image("voxels-dome", p.width, p.height, &out.rgba);
+        panic!(
+            "only {agree}/{n} pixels agree with the CPU DDA; image {}",
+            p.display()
+        );
+    }
+}

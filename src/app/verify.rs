@@ -946,6 +946,7 @@ pub fn render_two_pass(
         times.cast_ms += t.cast_ms;
         times.objects_ms += t.objects_ms;
         times.voxels_ms += t.voxels_ms;
+        times.voxel_shadow_ms += t.voxel_shadow_ms;
         times.shade_ms += t.shade_ms;
         times.volume_shadow_ms += t.volume_shadow_ms;
         times.volume_ms += t.volume_ms;

@@ -1,12 +1,16 @@
 //! Voxel models on the CPU (f64): the hierarchical DDA the GPU pass runs step for step — a
 //! ray clipped to the model box walks the brick grid (8³ voxels per brick) by Amanatides–Woo,
-//! and inside each occupied brick walks its voxels the same way — plus a brute-force oracle
+//! and inside each occupied brick walks its voxels the same way, jumping over empty space by
+//! the distances of `voxel::skip` (out of the cube of empty cells around the current one) —
+//! plus a brute-force oracle
 //! (a slab test against every voxel) and scene helpers (nearest hit over instances, shadow
 //! query). Ray distances are in metres throughout: the ray is moved into voxel units rigidly
 //! scaled, so `t` is unchanged.
 //!
-//! Cells are stepped by integer index and exit axis, never by flooring positions, except where
-//! a ray enters a brick (its first voxel is the entry point's, clamped into the brick).
+//! Cells are stepped by integer index and exit axis: the cell beyond the exit face is exact
+//! along the exit axis; along the others a jump takes the exit point's cell clamped into the
+//! cube it leaves (a plain step's cube is the cell itself, so nothing is floored there), and a
+//! ray entering a brick starts at the entry point's voxel clamped into the brick.
 
 use crate::voxel::{Bricks, VoxelInstance, VoxelModel, BRICK, EMPTY_BRICK};
 use glam::DVec3;
@@ -92,6 +96,7 @@ pub fn dda(b: &Bricks, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<Vox
     let mut level = 1u32;
     let mut cell = [0, 1, 2].map(|a| ((p[a] / s as f64).floor() as i64).clamp(0, bd[a] - 1));
     let mut brick = cell;
+    let mut block = 0u32;
     let mut t = t0;
     let mut steps = 0u32;
     loop {
@@ -99,32 +104,20 @@ pub fn dda(b: &Bricks, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<Vox
         if steps > 1_000_000 {
             return None;
         }
-        let size = if level == 1 { s } else { 1 };
-        // Exit distance of the current cell and its exit axis (x before y before z on ties).
-        let mut t_exit = BIG;
-        let mut exit_axis = 0;
-        for a in 0..3 {
-            let edge = (cell[a] + (step[a] > 0) as i64) * size;
-            let te = if iv[a] == BIG {
-                BIG
-            } else {
-                (edge as f64 - o[a]) * iv[a]
-            };
-            if te < t_exit {
-                t_exit = te;
-                exit_axis = a;
-            }
-        }
-        if level == 1 {
+        // Empty-space distance of the current cell (`voxel::skip`).
+        let jump = if level == 1 {
             let bi = cell.map(|c| c as u32);
-            if b.brick(bi) != EMPTY_BRICK {
+            let entry = b.brick(bi);
+            if entry != EMPTY_BRICK {
                 level = 0;
                 brick = cell;
+                block = entry;
                 let q = o + d * t;
                 cell = [0, 1, 2]
                     .map(|a| (q[a].floor() as i64).clamp(brick[a] * s, brick[a] * s + s - 1));
                 continue;
             }
+            b.brick_skip(bi) as i64
         } else {
             let idx = b.get(cell);
             if idx != 0 {
@@ -136,18 +129,51 @@ pub fn dda(b: &Bricks, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<Vox
                     steps,
                 });
             }
+            b.voxel_skip(block, cell) as i64
+        };
+        // Leave the cube of cells within `jump - 1` of this one (jump 1: this cell), through
+        // the face of exit (x before y before z on ties).
+        let size = if level == 1 { s } else { 1 };
+        let lo = cell.map(|c| c - (jump - 1));
+        let hi = cell.map(|c| c + jump);
+        let mut t_exit = BIG;
+        let mut exit_axis = 0;
+        for a in 0..3 {
+            let edge = if step[a] > 0 { hi[a] } else { lo[a] } * size;
+            let te = if iv[a] == BIG {
+                BIG
+            } else {
+                (edge as f64 - o[a]) * iv[a]
+            };
+            if te < t_exit {
+                t_exit = te;
+                exit_axis = a;
+            }
         }
         t = t_exit;
         axis = exit_axis;
         if t > t1 {
             return None;
         }
-        cell[exit_axis] += step[exit_axis];
-        if level == 0 && cell[exit_axis].div_euclid(s) != brick[exit_axis] {
+        // The cell beyond the exit face; along the other axes, the one the exit point lies in
+        // (clamped into the cube).
+        let q = o + d * t;
+        cell = [0, 1, 2].map(|a| {
+            if a == exit_axis {
+                if step[a] > 0 {
+                    hi[a]
+                } else {
+                    lo[a] - 1
+                }
+            } else {
+                ((q[a] / size as f64).floor() as i64).clamp(lo[a], hi[a] - 1)
+            }
+        });
+        if level == 0 && (0..3).any(|a| cell[a].div_euclid(s) != brick[a]) {
             level = 1;
             cell = cell.map(|c| c.div_euclid(s));
         }
-        if level == 1 && (cell[exit_axis] < 0 || cell[exit_axis] >= bd[exit_axis]) {
+        if level == 1 && (0..3).any(|a| cell[a] < 0 || cell[a] >= bd[a]) {
             return None;
         }
     }
@@ -235,3 +261,149 @@ impl VoxelScene {
 
 /// Offset (in voxels) a shadow ray leaves a voxel face by.
 pub const SHADOW_OFFSET_VOXELS: f64 = 0.01;
+
+/// A rectangle of pixels, `[x0, x1) × [y0, y1)`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PixelRect {
+    pub x0: u32,
+    pub y0: u32,
+    pub x1: u32,
+    pub y1: u32,
+}
+
+impl PixelRect {
+    /// The whole `width` x `height` image.
+    pub fn full(width: u32, height: u32) -> PixelRect {
+        PixelRect {
+            x0: 0,
+            y0: 0,
+            x1: width,
+            y1: height,
+        }
+    }
+
+    pub fn width(&self) -> u32 {
+        self.x1 - self.x0
+    }
+
+    pub fn height(&self) -> u32 {
+        self.y1 - self.y0
+    }
+
+    pub fn area(&self) -> u64 {
+        self.width() as u64 * self.height() as u64
+    }
+
+    pub fn contains(&self, x: u32, y: u32) -> bool {
+        (self.x0..self.x1).contains(&x) && (self.y0..self.y1).contains(&y)
+    }
+
+    fn overlaps(&self, o: &PixelRect) -> bool {
+        self.x0 < o.x1 && o.x0 < self.x1 && self.y0 < o.y1 && o.y0 < self.y1
+    }
+
+    fn union(&self, o: &PixelRect) -> PixelRect {
+        PixelRect {
+            x0: self.x0.min(o.x0),
+            y0: self.y0.min(o.y0),
+            x1: self.x1.max(o.x1),
+            y1: self.y1.max(o.y1),
+        }
+    }
+}
+
+/// Pixels of the pinhole camera `cam` whose centre rays can meet the convex hull of `points`
+/// (world): the bounding rectangle of their projections, widened by one pixel each way for
+/// the f32 ray directions of the GPU; the whole image when a point lies behind the eye or
+/// within a millimetre of its plane (the projection of the hull is unbounded there). `None`
+/// when the rectangle misses the image.
+///
+/// A convex body entirely in front of the eye projects to the convex hull of its vertices'
+/// projections, so a ray through a pixel centre outside the rectangle misses it.
+pub fn covering_rect(cam: &crate::scene::Camera, points: &[DVec3]) -> Option<PixelRect> {
+    let full = PixelRect::full(cam.width, cam.height);
+    let rot_t = cam.rotation().transpose();
+    let (mut u0, mut v0, mut u1, mut v1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+    for &p in points {
+        if !p.is_finite() || (rot_t * (p - cam.pose.position)).z <= 1e-3 {
+            return Some(full);
+        }
+        let Some((u, v)) = cam.project(p) else {
+            return Some(full);
+        };
+        (u0, v0, u1, v1) = (u0.min(u), v0.min(v), u1.max(u), v1.max(v));
+    }
+    if points.is_empty() {
+        return None;
+    }
+    // Pixel px's centre is at px + 0.5: the centres within [u0, u1] are
+    // ceil(u0 - 0.5) ..= floor(u1 - 0.5); one pixel more each way.
+    let lo = |c: f64| (c - 0.5).ceil() - 1.0;
+    let hi = |c: f64| (c - 0.5).floor() + 2.0;
+    let clamp = |c: f64, max: u32| c.clamp(0.0, max as f64) as u32;
+    let r = PixelRect {
+        x0: clamp(lo(u0), cam.width),
+        y0: clamp(lo(v0), cam.height),
+        x1: clamp(hi(u1), cam.width),
+        y1: clamp(hi(v1), cam.height),
+    };
+    (r.x0 < r.x1 && r.y0 < r.y1).then_some(r)
+}
+
+/// Rectangles covering every pixel in a set of rectangles, none overlapping another (each
+/// overlapping group replaced by its bounding rectangle), so no pixel is drawn twice.
+pub fn merge_rects(mut rects: Vec<PixelRect>) -> Vec<PixelRect> {
+    'again: loop {
+        for i in 0..rects.len() {
+            for j in i + 1..rects.len() {
+                if rects[i].overlaps(&rects[j]) {
+                    let u = rects[i].union(&rects[j]);
+                    rects.swap_remove(j);
+                    rects[i] = u;
+                    continue 'again;
+                }
+            }
+        }
+        return rects;
+    }
+}
+
+/// Pixels the voxel models' primary rays can hit, for a pinhole camera: the covering
+/// rectangles of the models' boxes, merged.
+pub fn primary_rects(instances: &[VoxelInstance], cam: &crate::scene::Camera) -> Vec<PixelRect> {
+    merge_rects(
+        instances
+            .iter()
+            .filter_map(|i| covering_rect(cam, &i.box_corners()))
+            .collect(),
+    )
+}
+
+/// Pixels whose visible surface can lie in a voxel model's shadow, for a pinhole camera: the
+/// covering rectangles of each model's box swept away from the sun down to `z_floor` (no
+/// surface lies lower), merged. The whole image when the sun is within 0.5° of the horizon
+/// (the sweep would be unbounded).
+pub fn shadow_rects(
+    instances: &[VoxelInstance],
+    cam: &crate::scene::Camera,
+    to_sun: DVec3,
+    z_floor: f64,
+) -> Vec<PixelRect> {
+    if to_sun.z < 0.5f64.to_radians().sin() {
+        return vec![PixelRect::full(cam.width, cam.height)];
+    }
+    merge_rects(
+        instances
+            .iter()
+            .filter_map(|i| {
+                let c = i.box_corners();
+                let mut pts = c.to_vec();
+                pts.extend(
+                    c.iter()
+                        .map(|&p| p - to_sun * ((p.z - z_floor).max(0.0) / to_sun.z)),
+                );
+                covering_rect(cam, &pts)
+            })
+            .collect(),
+    )
+}

@@ -6,6 +6,7 @@ use super::shade::{shade_pipelines, ShadeFeatures, ShadePipelines};
 use super::types::{FrameUniforms, RayGenUniforms, MAX_LEVELS};
 use super::voxels::{VoxelPasses, VoxelTargets};
 use super::{shaders, Gpu};
+use crate::cpu::voxel::PixelRect;
 use crate::scene::{Camera, SceneDesc};
 use crate::terrain::Terrain;
 use crate::{Error, Result};
@@ -56,8 +57,10 @@ pub struct PassTimes {
     pub cast_ms: f64,
     /// Free-form binning and cast (0 without free forms).
     pub objects_ms: f64,
-    /// Voxel-model marks and cast (0 without voxel models).
+    /// Voxel-model cast (0 without voxel models).
     pub voxels_ms: f64,
+    /// Voxel-model shadow rays (0 without voxel models or shadows).
+    pub voxel_shadow_ms: f64,
     pub shade_ms: f64,
     /// The sun's transmittance through the volumes at the surfaces (0 without a volume that
     /// casts a shadow).
@@ -202,6 +205,8 @@ pub struct TerrainRenderer {
     tile_mod: wgpu::ShaderModule,
     table: Option<TableMode>,
     objects: Option<ObjectPasses>,
+    /// Lowest world z of the free forms' bounding spheres (+inf without free forms).
+    objects_floor: f64,
     volumes: Vec<super::volumes::VolumePass>,
     /// The volume-sun pass (built with the first volume).
     volume_sun: Option<super::volumes::VolumeSunPass>,
@@ -526,6 +531,7 @@ impl TerrainRenderer {
             tile_mod,
             table: None,
             objects: None,
+            objects_floor: f64::INFINITY,
             volumes: Vec::new(),
             volume_sun: None,
             volume_composite: None,
@@ -675,6 +681,13 @@ impl TerrainRenderer {
         } else {
             Some(ObjectPasses::new(gpu, objects, allow_uniform)?)
         };
+        self.objects_floor = objects
+            .iter()
+            .map(|o| {
+                let (c, r) = o.bounding_sphere();
+                c.z - r
+            })
+            .fold(f64::INFINITY, f64::min);
         self.targets = None;
         Ok(())
     }
@@ -978,16 +991,10 @@ impl TerrainRenderer {
             .volume_composite
             .as_ref()
             .map(|c| c.targets(gpu, width, height, &self.frame_ub));
-        let voxels = self.voxels.as_ref().map(|v| {
-            v.targets(
-                gpu,
-                width,
-                height,
-                &self.frame_ub,
-                &ray_table_view,
-                final_gbuffer_view,
-            )
-        });
+        let voxels = self
+            .voxels
+            .as_ref()
+            .map(|v| v.targets(gpu, width, height, &self.frame_ub, &ray_table_view));
         let blend = self
             .blend
             .as_ref()
@@ -1196,17 +1203,39 @@ impl TerrainRenderer {
         // The G-buffer the shade pass reads (the free-form one when there are free forms of
         // one kind only; with both kinds the casts end in the terrain's).
         let final_gbuffer = match &t.objects {
-            Some((ot, _)) if !ot.final_in_terrain => &ot.gbuffer,
-            _ => &t.gbuffer,
+            Some((ot, _)) if !ot.final_in_terrain => (&ot.gbuffer, &ot.gbuffer_view),
+            _ => (&t.gbuffer, &t.gbuffer_view),
         };
+        // Pixels the voxel passes run on: rectangles from the models' boxes for a pinhole
+        // camera, every pixel through a distortion table.
+        let pinhole = self.table.is_none();
+        let full = || vec![PixelRect::full(cam.width, cam.height)];
         if let Some((v, vt)) = voxels {
             v.update(gpu, cam.pose.position, self.time);
-            v.encode_cast(&mut enc, vt, final_gbuffer);
+            let rects = if pinhole {
+                crate::cpu::voxel::primary_rects(v.instances(), cam)
+            } else {
+                full()
+            };
+            v.encode_cast(&mut enc, vt, final_gbuffer, &rects);
             lap(&mut enc, &mut times.voxels_ms)?;
         }
         if stage == Stage::Shade {
             if let Some((v, vt)) = voxels.filter(|_| s.shadows) {
-                v.encode_shadows(&mut enc, vt, final_gbuffer);
+                let rects = if pinhole {
+                    crate::cpu::voxel::shadow_rects(
+                        v.instances(),
+                        cam,
+                        scene.sun.direction(),
+                        // No surface lies lower: the terrain's lowest point, the free
+                        // forms' and the models' own (their boxes start the sweep).
+                        terrain.lowest_z().min(self.objects_floor) - 1.0,
+                    )
+                } else {
+                    full()
+                };
+                v.encode_shadows(&mut enc, vt, final_gbuffer, &rects);
+                lap(&mut enc, &mut times.voxel_shadow_ms)?;
             }
             let (pipeline, bg) = match objects {
                 Some((o, (ot, bg))) => {

@@ -1,10 +1,11 @@
 //! Voxel-model passes: brick tables, brick pool and palettes uploaded once, instance records
-//! rewritten per frame (eye in voxel units computed in f64, animation frame), and four
-//! full-screen fragment passes behind a stencil mask: mark the pixels whose ray enters a model
-//! box before the current hit, cast the hierarchical DDA there (nearest voxel replaces the
-//! G-buffer hit), and for shadows mark the pixels whose sun ray enters a model box and set
-//! flag 64 where a voxel blocks the sun. The G-buffer is copied in and back around each masked
-//! pass, so the rest of the renderer sees one G-buffer.
+//! rewritten per frame (eye in voxel units computed in f64, animation frame), and two fragment
+//! passes drawn only over the pixel rectangles the models can cover (`cpu::voxel::primary_rects`
+//! and `shadow_rects` for a pinhole camera, the whole image through a distortion table): the
+//! cast runs the hierarchical DDA and writes the nearer voxel hit into the G-buffer, the shadow
+//! pass sets flag 64 where a voxel blocks the sun. Each pass reads a copy of its rectangles of
+//! the G-buffer and draws into the G-buffer itself, discarding the pixels it leaves as they
+//! are, so nothing outside the rectangles is read, written or copied.
 
 use super::renderer::{
     buf, fullscreen_pipeline_with, screen_texture, storage_entry, target_state, uint_texture_entry,
@@ -12,6 +13,7 @@ use super::renderer::{
 };
 use super::types::VoxInstanceGpu;
 use super::{shaders, Gpu};
+use crate::cpu::voxel::PixelRect;
 use crate::voxel::{VoxelInstance, VoxelModel, BRICK_VOXELS, EMPTY_BRICK};
 use crate::{Error, Result};
 use std::collections::HashMap;
@@ -19,61 +21,12 @@ use std::sync::Arc;
 use wgpu::util::DeviceExt;
 
 // Every scene's instance records fit the smallest uniform binding WebGPU guarantees (16 KiB).
+/// Marks an empty brick's entry in `vox_data` (WGSL `VOX_EMPTY_BIT`); the low bits hold its
+/// empty-space distance.
+pub const EMPTY_BIT: u32 = 0x8000_0000;
+
 const _: () =
     assert!(crate::voxel::desc::MAX_INSTANCES * std::mem::size_of::<VoxInstanceGpu>() <= 16384);
-
-const STENCIL_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth24PlusStencil8;
-
-fn stencil_state(write: bool) -> wgpu::DepthStencilState {
-    let face = wgpu::StencilFaceState {
-        compare: if write {
-            wgpu::CompareFunction::Always
-        } else {
-            wgpu::CompareFunction::Equal
-        },
-        fail_op: wgpu::StencilOperation::Keep,
-        depth_fail_op: wgpu::StencilOperation::Keep,
-        pass_op: if write {
-            wgpu::StencilOperation::Replace
-        } else {
-            wgpu::StencilOperation::Keep
-        },
-    };
-    wgpu::DepthStencilState {
-        format: STENCIL_FORMAT,
-        depth_write_enabled: Some(false),
-        depth_compare: Some(wgpu::CompareFunction::Always),
-        stencil: wgpu::StencilState {
-            front: face,
-            back: face,
-            read_mask: 0xff,
-            write_mask: 0xff,
-        },
-        bias: Default::default(),
-    }
-}
-
-/// A full-screen pipeline behind (or, without a colour target, writing) the stencil mask.
-fn masked_pipeline(
-    dev: &wgpu::Device,
-    label: &str,
-    m: &wgpu::ShaderModule,
-    entry: &str,
-    bgl: &wgpu::BindGroupLayout,
-    target: Option<wgpu::TextureFormat>,
-) -> wgpu::RenderPipeline {
-    let targets: Vec<Option<wgpu::ColorTargetState>> =
-        target.map(|f| Some(target_state(f))).into_iter().collect();
-    fullscreen_pipeline_with(
-        dev,
-        label,
-        m,
-        entry,
-        bgl,
-        &targets,
-        Some(stencil_state(target.is_none())),
-    )
-}
 
 /// Where one frame's data lies in the shared buffers.
 #[derive(Clone, Copy, Debug)]
@@ -87,21 +40,18 @@ pub(crate) struct VoxelPasses {
     instances: Vec<VoxelInstance>,
     frames: Vec<Vec<FrameRef>>,
     instance_buf: wgpu::Buffer,
-    bricks: wgpu::Buffer,
-    pool: wgpu::Buffer,
+    /// Brick tables, then the brick pool (`vox_data`).
+    data: wgpu::Buffer,
     palette: wgpu::Buffer,
     bgl: wgpu::BindGroupLayout,
-    mark: wgpu::RenderPipeline,
     cast: wgpu::RenderPipeline,
-    mark_shadow: wgpu::RenderPipeline,
     shadow: wgpu::RenderPipeline,
 }
 
 /// Size-dependent resources.
 pub(crate) struct VoxelTargets {
-    gbuffer: wgpu::Texture,
-    gbuffer_view: wgpu::TextureView,
-    stencil_view: wgpu::TextureView,
+    /// The copy of the G-buffer's rectangles the passes read.
+    gbuffer_copy: wgpu::Texture,
     bg: wgpu::BindGroup,
 }
 
@@ -119,11 +69,11 @@ impl VoxelPasses {
             });
         }
         let have = gpu.limits.max_storage_buffers_per_shader_stage;
-        if have < 4 {
+        if have < 2 {
             return Err(Error::Limit {
                 what: "storage buffers per shader stage".into(),
                 msg: format!(
-                    "voxel models need 4, the adapter {} allows {have}; render the scene without [[voxels]]",
+                    "voxel models need 2, the adapter {} allows {have}; render the scene without [[voxels]]",
                     gpu.info.name
                 ),
             });
@@ -159,8 +109,11 @@ impl VoxelPasses {
             })
             .sum();
         check("voxel brick tables", table_bytes)?;
+        // Brick tables first, then the pool (`vox_data` in voxel_dda.wgsl). A table entry is
+        // its block's word address in the same buffer, or VOX_EMPTY_BIT | the brick's
+        // empty-space distance; a pool voxel is 16 bits, palette index | distance << 8.
         let mut table: Vec<u32> = Vec::new();
-        let mut pool: Vec<u8> = Vec::new();
+        let mut pool: Vec<u16> = Vec::new();
         let mut palette: Vec<u32> = Vec::new();
         let mut seen: HashMap<*const VoxelModel, FrameRef> = HashMap::new();
         let mut frames = Vec::new();
@@ -177,20 +130,38 @@ impl VoxelPasses {
                     table: table.len() as u32,
                     palette: palette.len() as u32,
                 };
-                table.extend(
-                    b.table
+                table.extend(b.table.iter().zip(&b.brick_skip).map(|(&i, &s)| {
+                    if i == EMPTY_BRICK {
+                        EMPTY_BIT | s as u32
+                    } else {
+                        base + i
+                    }
+                }));
+                pool.extend(
+                    b.pool
                         .iter()
-                        .map(|&i| if i == EMPTY_BRICK { i } else { base + i }),
+                        .zip(&b.pool_skip)
+                        .map(|(&i, &s)| i as u16 | (s as u16) << 8),
                 );
-                pool.extend_from_slice(&b.pool);
                 palette.extend(f.palette.iter().map(|c| u32::from_le_bytes(*c)));
                 seen.insert(Arc::as_ptr(f), r);
                 refs.push(r);
             }
             frames.push(refs);
         }
-        check("voxel brick pool", pool.len() as u64)?;
-        let bytes = table.len() as u64 * 4 + pool.len() as u64 + palette.len() as u64 * 4;
+        let data_bytes = table.len() as u64 * 4 + pool.len() as u64 * 2;
+        check("voxel brick tables and pool", data_bytes)?;
+        let pool_base = table.len() as u32;
+        let words_per_block = (BRICK_VOXELS / 2) as u32;
+        let mut data = table;
+        for e in data.iter_mut().filter(|e| **e & EMPTY_BIT == 0) {
+            *e = pool_base + *e * words_per_block;
+        }
+        data.extend(
+            pool.chunks_exact(2)
+                .map(|c| c[0] as u32 | (c[1] as u32) << 16),
+        );
+        let bytes = data_bytes + palette.len() as u64 * 4;
         let storage = wgpu::BufferUsages::STORAGE;
         let init = |label: &str, contents: &[u8], usage| {
             dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -199,8 +170,7 @@ impl VoxelPasses {
                 usage,
             })
         };
-        let bricks = init("voxel brick tables", bytemuck::cast_slice(&table), storage);
-        let pool = init("voxel brick pool", &pool, storage);
+        let data = init("voxel bricks", bytemuck::cast_slice(&data), storage);
         let palette = init("voxel palettes", bytemuck::cast_slice(&palette), storage);
         let instance_buf = dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some("voxel instances"),
@@ -217,7 +187,6 @@ impl VoxelPasses {
                 uint_texture_entry(4, fs),
                 uniform_entry(10, fs),
                 storage_entry(11, fs, true),
-                storage_entry(12, fs, true),
                 storage_entry(13, fs, true),
             ],
         });
@@ -225,8 +194,10 @@ impl VoxelPasses {
             label: Some("voxels.wgsl"),
             source: wgpu::ShaderSource::Wgsl(shaders::voxels(instances.len() as u32).into()),
         });
-        let target = Some(wgpu::TextureFormat::Rgba32Uint);
-        let p = |label, entry, target| masked_pipeline(dev, label, &module, entry, &bgl, target);
+        let target = [Some(target_state(wgpu::TextureFormat::Rgba32Uint))];
+        let p = |label, entry| {
+            fullscreen_pipeline_with(dev, label, &module, entry, &bgl, &target, None)
+        };
         log::info!(
             "voxel models: {} instance(s), {bytes} bytes of brick tables, pool and palettes",
             instances.len()
@@ -235,13 +206,10 @@ impl VoxelPasses {
             instances: instances.to_vec(),
             frames,
             instance_buf,
-            bricks,
-            pool,
+            data,
             palette,
-            mark: p("mark voxel boxes", "fs_vox_mark", None),
-            cast: p("voxel cast", "fs_voxels", target),
-            mark_shadow: p("mark voxel shadow boxes", "fs_vox_mark_shadow", None),
-            shadow: p("voxel shadows", "fs_vox_shadow", target),
+            cast: p("voxel cast", "fs_voxels"),
+            shadow: p("voxel shadows", "fs_vox_shadow"),
             bgl,
         })
     }
@@ -275,7 +243,12 @@ impl VoxelPasses {
             .write_buffer(&self.instance_buf, 0, bytemuck::cast_slice(&recs));
     }
 
-    /// Targets for a frame size; `gbuffer` is the G-buffer the passes read and update.
+    /// The placed models (as uploaded).
+    pub fn instances(&self) -> &[VoxelInstance] {
+        &self.instances
+    }
+
+    /// Targets for a frame size; the passes update the G-buffer the shade pass reads.
     pub fn targets(
         &self,
         gpu: &Gpu,
@@ -283,125 +256,108 @@ impl VoxelPasses {
         height: u32,
         frame_ub: &wgpu::Buffer,
         ray_table: &wgpu::TextureView,
-        gbuffer: &wgpu::TextureView,
     ) -> VoxelTargets {
         let dev = &gpu.device;
-        let tex = |label, format, extra| {
-            screen_texture(
-                dev,
-                label,
-                [width, height],
-                format,
-                wgpu::TextureUsages::RENDER_ATTACHMENT | extra,
-            )
-        };
-        let copy = wgpu::TextureUsages::COPY_SRC | wgpu::TextureUsages::COPY_DST;
-        let g = tex("voxel g-buffer", wgpu::TextureFormat::Rgba32Uint, copy);
-        let s = tex("voxel mask", STENCIL_FORMAT, wgpu::TextureUsages::empty());
+        let copy = screen_texture(
+            dev,
+            "voxel g-buffer copy",
+            [width, height],
+            wgpu::TextureFormat::Rgba32Uint,
+            wgpu::TextureUsages::COPY_DST | wgpu::TextureUsages::TEXTURE_BINDING,
+        );
         let bg = dev.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("voxels"),
             layout: &self.bgl,
             entries: &[
                 buf(0, frame_ub),
                 view(3, ray_table),
-                view(4, gbuffer),
+                view(4, &copy.create_view(&Default::default())),
                 buf(10, &self.instance_buf),
-                buf(11, &self.bricks),
-                buf(12, &self.pool),
+                buf(11, &self.data),
                 buf(13, &self.palette),
             ],
         });
         VoxelTargets {
-            gbuffer_view: g.create_view(&Default::default()),
-            gbuffer: g,
-            stencil_view: s.create_view(&Default::default()),
+            gbuffer_copy: copy,
             bg,
         }
     }
 
-    fn masked(
+    /// Records `pipeline` over `rects` of `gbuffer`: copy the rectangles aside, then draw them
+    /// into the G-buffer, each pixel reading its copy (pixels a pass leaves as they are
+    /// discard).
+    fn over_rects(
         enc: &mut wgpu::CommandEncoder,
         t: &VoxelTargets,
+        gbuffer: (&wgpu::Texture, &wgpu::TextureView),
         pipeline: &wgpu::RenderPipeline,
-        colour: bool,
+        rects: &[PixelRect],
     ) {
-        let attachments: Vec<_> = colour
-            .then_some(Some(wgpu::RenderPassColorAttachment {
-                view: &t.gbuffer_view,
+        for r in rects.iter().filter(|r| r.area() > 0) {
+            let origin = wgpu::Origin3d {
+                x: r.x0,
+                y: r.y0,
+                z: 0,
+            };
+            enc.copy_texture_to_texture(
+                wgpu::TexelCopyTextureInfo {
+                    origin,
+                    ..gbuffer.0.as_image_copy()
+                },
+                wgpu::TexelCopyTextureInfo {
+                    origin,
+                    ..t.gbuffer_copy.as_image_copy()
+                },
+                wgpu::Extent3d {
+                    width: r.width(),
+                    height: r.height(),
+                    depth_or_array_layers: 1,
+                },
+            );
+        }
+        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("voxels"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: gbuffer.1,
                 depth_slice: None,
                 resolve_target: None,
                 ops: wgpu::Operations {
                     load: wgpu::LoadOp::Load,
                     store: wgpu::StoreOp::Store,
                 },
-            }))
-            .into_iter()
-            .collect();
-        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("voxels (masked)"),
-            color_attachments: &attachments,
-            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view: &t.stencil_view,
-                depth_ops: None,
-                stencil_ops: Some(wgpu::Operations {
-                    load: if colour {
-                        wgpu::LoadOp::Load
-                    } else {
-                        wgpu::LoadOp::Clear(0)
-                    },
-                    store: wgpu::StoreOp::Store,
-                }),
-            }),
+            })],
+            depth_stencil_attachment: None,
             timestamp_writes: None,
             occlusion_query_set: None,
             multiview_mask: None,
         });
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &t.bg, &[]);
-        pass.set_stencil_reference(1);
-        pass.draw(0..3, 0..1);
+        for r in rects.iter().filter(|r| r.area() > 0) {
+            pass.set_scissor_rect(r.x0, r.y0, r.width(), r.height());
+            pass.draw(0..3, 0..1);
+        }
     }
 
-    /// Records mark + masked pass against `gbuffer` (the texture behind the targets' view).
-    fn round(
-        &self,
-        enc: &mut wgpu::CommandEncoder,
-        t: &VoxelTargets,
-        gbuffer: &wgpu::Texture,
-        mark: &wgpu::RenderPipeline,
-        pass: &wgpu::RenderPipeline,
-    ) {
-        enc.copy_texture_to_texture(
-            gbuffer.as_image_copy(),
-            t.gbuffer.as_image_copy(),
-            gbuffer.size(),
-        );
-        Self::masked(enc, t, mark, false);
-        Self::masked(enc, t, pass, true);
-        enc.copy_texture_to_texture(
-            t.gbuffer.as_image_copy(),
-            gbuffer.as_image_copy(),
-            gbuffer.size(),
-        );
-    }
-
-    /// Records the voxel cast (after the terrain and free-form casts).
+    /// Records the voxel cast over `rects` (after the terrain and free-form casts).
     pub fn encode_cast(
         &self,
         enc: &mut wgpu::CommandEncoder,
         t: &VoxelTargets,
-        gbuffer: &wgpu::Texture,
+        gbuffer: (&wgpu::Texture, &wgpu::TextureView),
+        rects: &[PixelRect],
     ) {
-        self.round(enc, t, gbuffer, &self.mark, &self.cast);
+        Self::over_rects(enc, t, gbuffer, &self.cast, rects);
     }
 
-    /// Records the voxel shadow rays (before shading).
+    /// Records the voxel shadow rays over `rects` (before shading).
     pub fn encode_shadows(
         &self,
         enc: &mut wgpu::CommandEncoder,
         t: &VoxelTargets,
-        gbuffer: &wgpu::Texture,
+        gbuffer: (&wgpu::Texture, &wgpu::TextureView),
+        rects: &[PixelRect],
     ) {
-        self.round(enc, t, gbuffer, &self.mark_shadow, &self.shadow);
+        Self::over_rects(enc, t, gbuffer, &self.shadow, rects);
     }
 }

@@ -193,6 +193,20 @@ impl Terrain {
         [self.field.width - 1, self.field.height - 1]
     }
 
+    /// Lowest world z of the terrain surface (over the grid and its height range).
+    pub fn lowest_z(&self) -> f64 {
+        let [cw, ch] = self.cells();
+        let mut z = f64::INFINITY;
+        for gx in [0.0, cw as f64] {
+            for gy in [0.0, ch as f64] {
+                for h in [self.min_height as f64, self.max_height as f64] {
+                    z = z.min(self.frame.grid_to_world(DVec3::new(gx, gy, h)).z);
+                }
+            }
+        }
+        z
+    }
+
     /// Height of the bilinear surface at grid position `(x, y)`, or `None` outside the grid.
     pub fn height_at_grid(&self, x: f64, y: f64) -> Option<f64> {
         let [cw, ch] = self.cells();

@@ -124,6 +124,19 @@ impl VoxelInstance {
         }
     }
 
+    /// World corners of the model box (all frames share its size).
+    pub fn box_corners(&self) -> [DVec3; 8] {
+        let d = self.dims();
+        std::array::from_fn(|k| {
+            let c = DVec3::new(
+                if k & 1 != 0 { d[0] as f64 } else { 0.0 },
+                if k & 2 != 0 { d[1] as f64 } else { 0.0 },
+                if k & 4 != 0 { d[2] as f64 } else { 0.0 },
+            );
+            self.position + self.rotation * (c - self.anchor()) * self.voxel_size
+        })
+    }
+
     /// World-space bounding sphere (centre, radius).
     pub fn bounding_sphere(&self) -> (DVec3, f64) {
         let d = self.dims();

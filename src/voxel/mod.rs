@@ -8,6 +8,7 @@
 
 pub mod desc;
 pub mod segment;
+pub mod skip;
 pub mod vox;
 
 pub use desc::{VoxelDesc, VoxelInstance};
@@ -102,6 +103,28 @@ impl VoxelModel {
         n * (1 + self.extra_stride() as u64)
     }
 
+    /// The model with every voxel replaced by a `k`³ block of its colour (`k` >= 1), for
+    /// benchmarks at a given voxel count. Extra attributes are dropped.
+    pub fn upsampled(&self, k: u32) -> Result<VoxelModel> {
+        let k = k.max(1);
+        let dims = self.dims.map(|d| d.saturating_mul(k));
+        check_dims("upsampled model", dims)?;
+        let mut voxels = Vec::with_capacity(self.voxels.len() * (k * k * k) as usize);
+        for v in &self.voxels {
+            for z in 0..k {
+                for y in 0..k {
+                    for x in 0..k {
+                        voxels.push(Voxel {
+                            pos: [v.pos[0] * k + x, v.pos[1] * k + y, v.pos[2] * k + z],
+                            index: v.index,
+                        });
+                    }
+                }
+            }
+        }
+        VoxelModel::new("upsampled model", dims, self.palette.clone(), voxels)
+    }
+
     /// Dense palette-index grid, index `x + dx (y + dy z)`.
     pub fn dense(&self) -> Vec<u8> {
         let [dx, dy, dz] = self.dims.map(|d| d as usize);
@@ -113,7 +136,8 @@ impl VoxelModel {
         g
     }
 
-    /// The brick occupancy grid and brick pool the DDA traverses.
+    /// The brick occupancy grid and brick pool the DDA traverses, with the empty-space
+    /// distances of its jumps (`skip`).
     pub fn bricks(&self) -> Bricks {
         let bd = self.dims.map(|d| d.div_ceil(BRICK));
         let mut table = vec![EMPTY_BRICK; bd.iter().map(|&d| d as usize).product()];
@@ -129,24 +153,64 @@ impl VoxelModel {
             pool[table[bi] as usize * BRICK_VOXELS
                 + (l[0] + BRICK * (l[1] + BRICK * l[2])) as usize] = v.index;
         }
+        let occupied: Vec<bool> = table.iter().map(|&b| b != EMPTY_BRICK).collect();
+        let brick_skip = skip::chebyshev(bd.map(|d| d as usize), &occupied, skip::BRICK_SKIP_CAP);
+        // Voxel-level distances on a dense grid where it is small enough, else 1 (plain steps).
+        let mut pool_skip: Vec<u8> = pool.iter().map(|&i| (i == 0) as u8).collect();
+        let cells: u64 = self.dims.iter().map(|&d| d as u64).product();
+        if cells <= skip::DENSE_LIMIT {
+            let [dx, dy, _] = self.dims.map(|d| d as usize);
+            let dense = self.dense();
+            let occupied: Vec<bool> = dense.iter().map(|&i| i != 0).collect();
+            drop(dense);
+            let dist = skip::chebyshev(
+                self.dims.map(|d| d as usize),
+                &occupied,
+                skip::VOXEL_SKIP_CAP,
+            );
+            for (bi, &block) in table.iter().enumerate() {
+                if block == EMPTY_BRICK {
+                    continue;
+                }
+                let b = [
+                    bi % bd[0] as usize,
+                    (bi / bd[0] as usize) % bd[1] as usize,
+                    bi / (bd[0] * bd[1]) as usize,
+                ];
+                for li in 0..BRICK_VOXELS {
+                    let l = [li % 8, (li / 8) % 8, li / 64];
+                    let p: [usize; 3] = std::array::from_fn(|a| b[a] * BRICK as usize + l[a]);
+                    if (0..3).all(|a| p[a] < self.dims[a] as usize) {
+                        pool_skip[block as usize * BRICK_VOXELS + li] =
+                            dist[p[0] + dx * (p[1] + dy * p[2])];
+                    }
+                }
+            }
+        }
         Bricks {
             dims: self.dims,
             brick_dims: bd,
             table,
             pool,
+            pool_skip,
+            brick_skip,
         }
     }
 }
 
 /// Two-level occupancy: per brick of [`BRICK`]³ voxels, the index of its block in `pool`
 /// ([`EMPTY_BRICK`] if it holds no voxel); each block holds the palette indices of its voxels,
-/// local index `x + 8 (y + 8 z)`.
+/// local index `x + 8 (y + 8 z)`. With each, the empty-space distance the DDA jumps by
+/// ([`skip`]): per pool voxel and per brick, 0 where occupied, else `s >= 1` such that every
+/// voxel (brick) within `s - 1` of it along every axis is empty.
 #[derive(Clone, Debug)]
 pub struct Bricks {
     pub dims: [u32; 3],
     pub brick_dims: [u32; 3],
     pub table: Vec<u32>,
     pub pool: Vec<u8>,
+    pub pool_skip: Vec<u8>,
+    pub brick_skip: Vec<u8>,
 }
 
 impl Bricks {
@@ -162,6 +226,19 @@ impl Bricks {
         }
         let l = p.map(|c| c % BRICK);
         self.pool[b as usize * BRICK_VOXELS + (l[0] + BRICK * (l[1] + BRICK * l[2])) as usize]
+    }
+
+    /// Empty-space distance of voxel `p` inside an occupied brick (`block`, in range).
+    pub fn voxel_skip(&self, block: u32, p: [i64; 3]) -> u8 {
+        let l = p.map(|c| c.rem_euclid(BRICK as i64) as u32);
+        self.pool_skip
+            [block as usize * BRICK_VOXELS + (l[0] + BRICK * (l[1] + BRICK * l[2])) as usize]
+    }
+
+    /// Empty-space distance of brick `b` (in range; 0 where occupied).
+    pub fn brick_skip(&self, b: [u32; 3]) -> u8 {
+        let bd = self.brick_dims;
+        self.brick_skip[(b[0] + bd[0] * (b[1] + bd[1] * b[2])) as usize]
     }
 
     /// Pool block of brick `b` (in range).

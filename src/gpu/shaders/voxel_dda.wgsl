@@ -11,7 +11,7 @@ struct VoxInstance {
     local_from_world_2: vec4<f32>,
     // Eye in voxel units (computed in f64 on the CPU); w = voxel size in metres.
     eye_local: vec4<f32>,
-    // Model size in voxels; w = offset of the shown frame's brick table in `vox_bricks`.
+    // Model size in voxels; w = offset of the shown frame's brick table in `vox_data`.
     dims: vec4<u32>,
     // Brick grid size; w = offset of the frame's palette in `vox_palette`.
     bdims: vec4<u32>,
@@ -20,13 +20,17 @@ struct VoxInstance {
 // `vox_instances` (binding 10, a uniform array of VOX_INSTANCES records: one gather per load
 // on Mesa's CPU adapters, not a loop over the lanes as from a storage buffer) is declared
 // ahead of this file by `gpu::shaders::voxels`.
-// Per brick: its block in `vox_pool` (128 words = 512 palette indices), or VOX_EMPTY.
-@group(0) @binding(11) var<storage, read> vox_bricks: array<u32>;
-@group(0) @binding(12) var<storage, read> vox_pool: array<u32>;
+// The brick tables and the brick pool in one buffer, so that each DDA step loads one word
+// (a storage-buffer load costs Mesa's CPU adapters a loop over the SIMD lanes, and both
+// levels' code runs in every step): a brick's entry is the word address in this buffer of its
+// block of 512 voxels (256 words), or VOX_EMPTY_BIT | the brick's empty-space distance; a
+// voxel is 16 bits, palette index | empty-space distance << 8 (`voxel::skip`).
+@group(0) @binding(11) var<storage, read> vox_data: array<u32>;
 // sRGB RGBA8 per palette index.
 @group(0) @binding(13) var<storage, read> vox_palette: array<u32>;
 
-const VOX_EMPTY: u32 = 0xffffffffu;
+// Keep in step with `gpu::voxels::EMPTY_BIT`.
+const VOX_EMPTY_BIT: u32 = 0x80000000u;
 const VOX_BRICK: i32 = 8;
 const VOX_MAX_STEPS: u32 = 4096u;
 // Offset (voxels) a shadow ray leaves a voxel face by (`cpu::voxel::SHADOW_OFFSET_VOXELS`).
@@ -100,46 +104,34 @@ fn vox_dda(inst: VoxInstance, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32
         t0 = t_min;
         axis = 3u;
     }
-    if (t0 > t1) {
+    // Also refuses a NaN interval (a non-finite origin).
+    if (!(t0 <= t1)) {
         return r;
     }
-    let stp = select(vec3<i32>(-1), vec3<i32>(1), d >= vec3<f32>(0.0));
-    let up = select(vec3<i32>(0), vec3<i32>(1), d >= vec3<f32>(0.0));
+    let pos = d >= vec3<f32>(0.0);
+    let stp = select(vec3<i32>(-1), vec3<i32>(1), pos);
+    let up = select(vec3<i32>(0), vec3<i32>(1), pos);
     let flat = iv == vec3<f32>(BIG);
     let bd = vec3<i32>(inst.bdims.xyz);
     let p = o + d * t0;
-    var level = 1u;
+    // Brick level (cells of 8³ voxels) or voxel level inside `brick`, whose block starts at
+    // word `block`.
+    var fine = false;
     var cell = clamp(vec3<i32>(floor(p / f32(VOX_BRICK))), vec3<i32>(0), bd - 1);
     var brick = cell;
     var block = 0u;
     var t = t0;
     for (var i = 0u; i < VOX_MAX_STEPS; i++) {
         r.steps += 1u;
-        let size = select(1, VOX_BRICK, level == 1u);
-        let te = select((vec3<f32>((cell + up) * size) - o) * iv, vec3<f32>(BIG), flat);
-        var t_exit = te.x;
-        var ea = 0u;
-        if (te.y < t_exit) {
-            t_exit = te.y;
-            ea = 1u;
-        }
-        if (te.z < t_exit) {
-            t_exit = te.z;
-            ea = 2u;
-        }
-        if (level == 1u) {
-            let b = vox_bricks[inst.dims.w + u32(cell.x + bd.x * (cell.y + bd.y * cell.z))];
-            if (b != VOX_EMPTY) {
-                level = 0u;
-                brick = cell;
-                block = b;
-                cell = clamp(vec3<i32>(floor(o + d * t)), brick * VOX_BRICK, brick * VOX_BRICK + (VOX_BRICK - 1));
-                continue;
-            }
-        } else {
-            let l = cell - brick * VOX_BRICK;
-            let li = u32(l.x + VOX_BRICK * (l.y + VOX_BRICK * l.z));
-            let idx = (vox_pool[block * 128u + (li >> 2u)] >> ((li & 3u) * 8u)) & 0xffu;
+        let l = cell - brick * VOX_BRICK;
+        let li = u32(l.x + VOX_BRICK * (l.y + VOX_BRICK * l.z));
+        let entry = inst.dims.w + u32(cell.x + bd.x * (cell.y + bd.y * cell.z));
+        let w = vox_data[select(entry, block + (li >> 1u), fine)];
+        // Empty-space distance of the current cell: leave the cube of cells within jump - 1.
+        var jump: i32;
+        if (fine) {
+            let v = w >> ((li & 1u) * 16u);
+            let idx = v & 0xffu;
             if (idx != 0u) {
                 r.hit = true;
                 r.t = t;
@@ -147,18 +139,39 @@ fn vox_dda(inst: VoxInstance, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32
                 r.index = idx;
                 return r;
             }
+            jump = i32((v >> 8u) & 0xffu);
+        } else {
+            if ((w & VOX_EMPTY_BIT) == 0u) {
+                // Into the brick: its voxel at the current point, same t.
+                fine = true;
+                brick = cell;
+                block = w;
+                cell = clamp(vec3<i32>(floor(o + d * t)), brick * VOX_BRICK, brick * VOX_BRICK + (VOX_BRICK - 1));
+                continue;
+            }
+            jump = i32(w & 0xffffu);
         }
-        t = t_exit;
-        axis = ea;
+        let size = select(VOX_BRICK, 1, fine);
+        let lo = cell - (jump - 1);
+        let hi = cell + jump;
+        let te = select((vec3<f32>(select(lo, hi, pos) * size) - o) * iv, vec3<f32>(BIG), flat);
+        // Exit axis: x before y before z on ties.
+        let ex = te.x <= te.y && te.x <= te.z;
+        let ey = !ex && te.y <= te.z;
+        t = min(min(te.x, te.y), te.z);
+        axis = select(select(2u, 1u, ey), 0u, ex);
         if (t > t1) {
             return r;
         }
-        cell[ea] += stp[ea];
-        if (level == 0u && (cell[ea] >> 3u) != brick[ea]) {
-            level = 1u;
+        // Beyond the exit face along the exit axis; along the others the exit point's cell,
+        // clamped into the cube.
+        let q = clamp(vec3<i32>(floor((o + d * t) / f32(size))), lo, hi - 1);
+        cell = select(q, select(lo - 1, hi, pos), vec3<bool>(ex, ey, !ex && !ey));
+        if (fine && any((cell >> vec3<u32>(3u)) != brick)) {
+            fine = false;
             cell = cell >> vec3<u32>(3u);
         }
-        if (level == 1u && (cell[ea] < 0 || cell[ea] >= bd[ea])) {
+        if (!fine && (any(cell < vec3<i32>(0)) || any(cell >= bd))) {
             return r;
         }
     }

@@ -1,8 +1,10 @@
-// Voxel-model passes: a stencil mark (rays that enter a model box before the current hit),
+// Voxel-model passes, drawn over the pixel rectangles the models can cover (`gpu::voxels`):
 // the cast (nearest voxel in front of the G-buffer hit replaces it: distance, palette RGBA,
-// packed world normal, flags 1 | 32 | instance << 8 | steps << 16), and for shadows a mark
-// (sun rays from visible surface points that enter a model box) and the shadow pass (sets flag
-// 64 where a voxel blocks the sun). The stencil keeps the DDA out of pixels no model can touch.
+// packed world normal, flags 1 | 32 | instance << 8 | steps << 16) and the shadow pass (sets
+// flag 64 where a voxel blocks the sun). Both read a copy of the G-buffer and draw into the
+// G-buffer itself: a pixel they leave as it is discards, at the end: a fragment discarded
+// earlier may go on running as a helper invocation on Mesa's CPU adapters (its SIMD lanes do
+// not leave the DDA loop), so pixels without work get an empty ray interval instead.
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(4) var gbuffer_in: texture_2d<u32>;
@@ -12,28 +14,12 @@ fn vox_far(g: vec4<u32>) -> f32 {
 }
 
 @fragment
-fn fs_vox_mark(@builtin(position) pos: vec4<f32>) {
-    let px = vec2<u32>(pos.xy);
-    let g = textureLoad(gbuffer_in, vec2<i32>(px), 0);
-    let far = vox_far(g);
-    let dw = ray_dir(px);
-    var any = false;
-    for (var k = 0u; k < VOX_INSTANCES; k++) {
-        let inst = vox_instances[k];
-        let b = vox_box(inst, inst.eye_local.xyz, vox_dir(inst, dw));
-        any = any || (b.x <= min(b.y, far) && b.y >= 0.0);
-    }
-    if (!any || (g.w & 8u) != 0u) {
-        discard;
-    }
-}
-
-@fragment
 fn fs_voxels(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
     let px = vec2<u32>(pos.xy);
     let g = textureLoad(gbuffer_in, vec2<i32>(px), 0);
     let dw = ray_dir(px);
-    var best_t = vox_far(g);
+    // Flag 8: no ray here (a projector pixel off the screen).
+    var best_t = select(vox_far(g), -1.0, (g.w & 8u) != 0u);
     var found = false;
     var best: VoxTrace;
     var best_k = 0u;
@@ -50,7 +36,7 @@ fn fs_voxels(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
         }
     }
     if (!found) {
-        return g;
+        discard;
     }
     let inst = vox_instances[best_k];
     let n = vox_dir_world(inst, vox_normal(best.axis, vox_dir(inst, dw)));
@@ -73,37 +59,25 @@ fn vox_shadow_origin(px: vec2<u32>, g: vec4<u32>) -> vec4<f32> {
 }
 
 @fragment
-fn fs_vox_mark_shadow(@builtin(position) pos: vec4<f32>) {
-    let px = vec2<u32>(pos.xy);
-    let g = textureLoad(gbuffer_in, vec2<i32>(px), 0);
-    if ((g.w & 1u) == 0u) {
-        discard;
-    }
-    let p = vox_shadow_origin(px, g);
-    var any = false;
-    for (var k = 0u; k < VOX_INSTANCES; k++) {
-        let inst = vox_instances[k];
-        let b = vox_box(inst, inst.eye_local.xyz + vox_dir(inst, p.xyz), vox_dir(inst, frame.sun_world.xyz));
-        any = any || (b.x <= b.y && b.y >= 0.0);
-    }
-    if (!any || p.w == 0.0) {
-        discard;
-    }
-}
-
-@fragment
 fn fs_vox_shadow(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
     let px = vec2<u32>(pos.xy);
     let g = textureLoad(gbuffer_in, vec2<i32>(px), 0);
     let p = vox_shadow_origin(px, g);
+    // Sky (no finite origin), and surfaces facing away from the sun: nothing to trace.
+    let live = (g.w & 1u) != 0u && p.w != 0.0;
+    let o = select(vec3<f32>(0.0), p.xyz, live);
+    let t_max = select(-1.0, BIG, live);
     var blocked = false;
     for (var k = 0u; k < VOX_INSTANCES; k++) {
         let inst = vox_instances[k];
-        let tr = vox_dda(inst, inst.eye_local.xyz + vox_dir(inst, p.xyz), vox_dir(inst, frame.sun_world.xyz), 0.0, BIG);
+        let tr = vox_dda(inst, inst.eye_local.xyz + vox_dir(inst, o), vox_dir(inst, frame.sun_world.xyz), 0.0, t_max);
         if (tr.hit) {
             blocked = true;
             break;
         }
     }
-    return vec4<u32>(g.xyz, g.w | select(0u, 64u, blocked));
+    if (!blocked) {
+        discard;
+    }
+    return vec4<u32>(g.xyz, g.w | 64u);
 }
