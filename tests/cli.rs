@@ -219,3 +219,14 @@ fn query_without_a_question_fails() {
     let o = relief(&["query", &alps]);
     assert_fails("query without --at/--los", &o, &["--at", "--los"]);
 }
+
+#[test]
+fn voxel_bench_without_voxel_models_is_refused() {
+    let alps = s(&terrains().join("alps.toml"));
+    let o = relief(&["bench", "--voxels", &alps]);
+    assert_fails(
+        "bench --voxels alps",
+        &o,
+        &["alps.toml", "no [[voxels]] model"],
+    );
+}

@@ -9,7 +9,7 @@ use relief::cpu::voxel::{brute_force, dda, VoxelScene};
 use relief::gpu::{RenderSettings, TerrainRenderer, TraceMode};
 use relief::scene::{Camera, Pose};
 use relief::voxel::vox::VoxFile;
-use relief::voxel::{segment, Voxel, VoxelInstance, VoxelModel};
+use relief::voxel::{segment, Bricks, Voxel, VoxelInstance, VoxelModel};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -254,6 +254,24 @@ fn malformed_segment_files_are_refused_without_panics() {
         .contains("version 9"));
 }
 
+/// Asserts that the DDA and the brute-force slab test agree on the ray (same hit distance to
+/// 1e-9, on an occupied voxel, or both miss); true on a hit.
+fn dda_agrees_with_brute_force(m: &VoxelModel, b: &Bricks, o: DVec3, d: DVec3, t_min: f64) -> bool {
+    match (dda(b, o, d, t_min, 1e9), brute_force(m, o, d, t_min, 1e9)) {
+        (None, None) => false,
+        (Some(h), Some(w)) => {
+            assert!(
+                (h.t - w).abs() <= 1e-9 * (1.0 + w.abs()),
+                "dda t {} vs brute force {w}: o {o} d {d} t_min {t_min}",
+                h.t
+            );
+            assert_ne!(b.get(h.voxel), 0);
+            true
+        }
+        (g, w) => panic!("dda {g:?} vs brute force {w:?}: o {o} d {d} t_min {t_min}"),
+    }
+}
+
 #[test]
 fn cpu_dda_matches_brute_force_on_random_rays() {
     let mut rng = Rng::new(3);
@@ -288,21 +306,7 @@ fn cpu_dda_matches_brute_force_on_random_rays() {
             } else {
                 0.0
             };
-            let got = dda(&b, o, d, t_min, 1e9);
-            let want = brute_force(&m, o, d, t_min, 1e9);
-            match (got, want) {
-                (None, None) => {}
-                (Some(h), Some(w)) => {
-                    hits += 1;
-                    assert!(
-                        (h.t - w).abs() <= 1e-9 * (1.0 + w.abs()),
-                        "dda t {} vs brute force {w}: o {o} d {d}",
-                        h.t
-                    );
-                    assert_ne!(b.get(h.voxel), 0);
-                }
-                (g, w) => panic!("dda {g:?} vs brute force {w:?}: o {o} d {d} t_min {t_min}"),
-            }
+            hits += dda_agrees_with_brute_force(&m, &b, o, d, t_min) as usize;
         }
     }
     assert!(hits > 1000, "only {hits} rays hit");
@@ -735,21 +739,7 @@ fn cpu_dda_with_empty_space_jumps_matches_brute_force() {
                 continue;
             }
             let d = d.normalize() * rng.range(0.3, 2.0);
-            let got = dda(&b, o, d, 0.0, 1e9);
-            let want = brute_force(&m, o, d, 0.0, 1e9);
-            match (got, want) {
-                (None, None) => {}
-                (Some(h), Some(w)) => {
-                    hits += 1;
-                    assert!(
-                        (h.t - w).abs() <= 1e-9 * (1.0 + w.abs()),
-                        "dda t {} vs brute force {w}: o {o} d {d}",
-                        h.t
-                    );
-                    assert_ne!(b.get(h.voxel), 0);
-                }
-                (g, w) => panic!("dda {g:?} vs brute force {w:?}: o {o} d {d}"),
-            }
+            hits += dda_agrees_with_brute_force(&m, &b, o, d, 0.0) as usize;
         }
     }
     eprintln!(

@@ -632,7 +632,7 @@ pub fn print_freeforms(r: &FreeFormReport) {
 }
 
 /// Median of a non-empty sample (mean of the middle two for an even count).
-fn median(mut v: Vec<f64>) -> f64 {
+pub(crate) fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     let n = v.len();
     if n == 0 {

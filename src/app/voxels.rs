@@ -94,11 +94,6 @@ pub struct VoxelBench {
     pub paper: Vec<VoxelRun>,
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v.get(v.len() / 2).copied().unwrap_or(0.0)
-}
-
 /// Models of the paper's sizes at one voxel per pixel, `distance` metres ahead of `cam` in a
 /// row across the view: the smallest scene model upsampled to at least [`PAPER_SMALL`] voxels;
 /// and copies of the largest (then the upsampled small one) until at least [`PAPER_LARGE`].
@@ -219,8 +214,8 @@ pub fn bench(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<VoxelBe
             voxels: m.iter().map(|i| i.frames[0].voxels.len()).sum(),
             voxel_pixels: hits.len(),
             mean_steps: steps as f64 / hits.len().max(1) as f64,
-            cast_ms: median(cast),
-            shadow_ms: median(shadow),
+            cast_ms: super::bench::median(cast),
+            shadow_ms: super::bench::median(shadow),
             frame_ms,
         })
     };

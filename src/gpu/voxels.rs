@@ -112,6 +112,7 @@ impl VoxelPasses {
         // Brick tables first, then the pool (`vox_data` in voxel_dda.wgsl). A table entry is
         // its block's word address in the same buffer, or VOX_EMPTY_BIT | the brick's
         // empty-space distance; a pool voxel is 16 bits, palette index | distance << 8.
+        let built = std::time::Instant::now();
         let mut table: Vec<u32> = Vec::new();
         let mut pool: Vec<u16> = Vec::new();
         let mut palette: Vec<u32> = Vec::new();
@@ -199,8 +200,9 @@ impl VoxelPasses {
             fullscreen_pipeline_with(dev, label, &module, entry, &bgl, &target, None)
         };
         log::info!(
-            "voxel models: {} instance(s), {bytes} bytes of brick tables, pool and palettes",
-            instances.len()
+            "voxel models: {} instance(s), {bytes} bytes of brick tables, pool and palettes, built in {:.0} ms",
+            instances.len(),
+            built.elapsed().as_secs_f64() * 1e3
         );
         Ok(VoxelPasses {
             instances: instances.to_vec(),
