@@ -165,7 +165,7 @@ fn vox_dda(inst: VoxInstance, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32
         }
         // Beyond the exit face along the exit axis; along the others the exit point's cell,
         // clamped into the cube.
-        let q = clamp(vec3<i32>(floor((o + d * t) / f32(size))), lo, hi - 1);
+        let q = clamp(vec3<i32>(floor((o + d * t) * select(1.0 / f32(VOX_BRICK), 1.0, fine))), lo, hi - 1);
         cell = select(q, select(lo - 1, hi, pos), vec3<bool>(ex, ey, !ex && !ey));
         if (fine && any((cell >> vec3<u32>(3u)) != brick)) {
             fine = false;
