@@ -375,6 +375,13 @@ fn gpu_voxel_depth_matches_the_cpu_dda() {
     let scene = VoxelScene::new(models.clone());
     let (w, h) = (240u32, 160u32);
     let cam = camera(DVec3::new(310.0, 290.0, 16.0), 0.0, -12.0, w, h);
+    // Both kinds of draw run: a rectangle of one model (`fs_voxels_one`) and one of several.
+    let rects = relief::cpu::voxel::primary_rects(&models, &cam);
+    let ones = rects
+        .iter()
+        .filter(|r| r.instances.count_ones() == 1)
+        .count();
+    assert!(ones > 0 && ones < rects.len(), "{rects:?}");
     let Some(g) = gpu() else {
         return;
     };
@@ -700,6 +707,55 @@ fn blob_model(rng: &mut Rng, dims: [u32; 3], blobs: usize) -> VoxelModel {
 }
 
 #[test]
+fn brick_gaps_bound_the_distance_to_the_nearest_voxel() {
+    let mut rng = Rng::new(23);
+    let mut refined = 0;
+    let mut empty = 0;
+    for dims in [[45u32, 37, 52], [70, 20, 24]] {
+        let m = blob_model(&mut rng, dims, 6);
+        let b = m.bricks();
+        let bd = b.brick_dims;
+        for bz in 0..bd[2] {
+            for by in 0..bd[1] {
+                for bx in 0..bd[0] {
+                    let c = [bx, by, bz];
+                    let gap = b.brick_gap(c) as i64;
+                    let s = b.brick_skip(c) as i64;
+                    if b.brick(c) != relief::voxel::EMPTY_BRICK {
+                        assert_eq!(gap, 0, "occupied brick {c:?}");
+                        continue;
+                    }
+                    empty += 1;
+                    // L∞ distance in voxels from the brick's box to the nearest voxel.
+                    let nearest = m
+                        .voxels
+                        .iter()
+                        .map(|v| {
+                            (0..3)
+                                .map(|a| {
+                                    let (lo, p) = (c[a] as i64 * 8, v.pos[a] as i64);
+                                    (lo - p).max(p - (lo + 7)).max(0)
+                                })
+                                .max()
+                                .unwrap()
+                        })
+                        .min()
+                        .unwrap_or(i64::MAX);
+                    assert!(
+                        gap >= 1 && gap <= nearest,
+                        "brick {c:?}: gap {gap}, nearest voxel {nearest} voxels away"
+                    );
+                    assert!(gap >= 8 * (s - 1) + 1, "brick {c:?}: gap {gap} below its brick distance {s}");
+                    refined += (gap > 8 * (s - 1) + 1) as usize;
+                }
+            }
+        }
+    }
+    eprintln!("{refined} of {empty} empty bricks jump further than their brick distance allows");
+    assert!(refined > 20, "only {refined} bricks refined");
+}
+
+#[test]
 fn cpu_dda_with_empty_space_jumps_matches_brute_force() {
     let mut rng = Rng::new(5);
     let mut hits = 0;
@@ -707,7 +763,7 @@ fn cpu_dda_with_empty_space_jumps_matches_brute_force() {
     for dims in [[97u32, 64, 80], [40, 130, 33]] {
         let m = blob_model(&mut rng, dims, 12);
         let b = m.bricks();
-        brick_jumps += b.brick_skip.iter().filter(|&&s| s > 1).count();
+        brick_jumps += b.brick_gap.iter().filter(|&&g| g > 1).count();
         voxel_jumps += b.pool_skip.iter().filter(|&&s| s > 1).count();
         let size = DVec3::new(dims[0] as f64, dims[1] as f64, dims[2] as f64);
         for k in 0..3000 {
@@ -754,17 +810,22 @@ fn cpu_dda_with_empty_space_jumps_matches_brute_force() {
 
 #[test]
 fn screen_rectangles_hold_every_pixel_a_model_or_its_shadow_can_reach() {
-    use relief::cpu::voxel::{primary_rects, shadow_rects, PixelRect};
+    use relief::cpu::voxel::{primary_rects, shadow_rects, InstanceRect};
     let terrain = terrain_from_fn(65, 10.0, |x, y| 0.02 * x + 0.01 * y);
     let models = vec![
         instance("deer.vox", DVec3::new(300.0, 330.0, 8.0), 30.0, 0.6),
         instance("axes.vox", DVec3::new(345.0, 360.0, 9.0), -20.0, 0.12),
     ];
-    let scene = VoxelScene::new(models.clone());
+    // Each model alone: a pixel it reaches must lie in a rectangle drawn for it.
+    let alone: Vec<VoxelScene> = models
+        .iter()
+        .map(|m| VoxelScene::new(vec![m.clone()]))
+        .collect();
     let sun = DVec3::new(0.4, -0.5, 0.6).normalize();
     let floor = terrain.lowest_z() - 1.0;
     let (w, h) = (200u32, 130u32);
     let mut tested = 0;
+    let mut single = 0;
     for (pos, heading, pitch) in [
         (DVec3::new(310.0, 290.0, 16.0), 0.0, -12.0),
         (DVec3::new(250.0, 300.0, 30.0), 60.0, -25.0),
@@ -774,40 +835,58 @@ fn screen_rectangles_hold_every_pixel_a_model_or_its_shadow_can_reach() {
         let cam = camera(pos, heading, pitch, w, h);
         let prim = primary_rects(&models, &cam);
         let shad = shadow_rects(&models, &cam, sun, floor);
-        let inside = |rs: &[PixelRect], x, y| rs.iter().any(|r| r.contains(x, y));
-        for (i, a) in prim.iter().enumerate() {
-            assert!(
-                prim[i + 1..]
-                    .iter()
-                    .all(|b| !(a.x0 < b.x1 && b.x0 < a.x1 && a.y0 < b.y1 && b.y0 < a.y1)),
-                "{prim:?} overlap"
-            );
+        let drawn_for = |rs: &[InstanceRect], k: usize, x, y| {
+            rs.iter()
+                .any(|r| r.rect.contains(x, y) && r.instances & (1 << k) != 0)
+        };
+        for rs in [&prim, &shad] {
+            for (i, a) in rs.iter().enumerate() {
+                let a = a.rect;
+                assert!(
+                    rs[i + 1..].iter().map(|b| b.rect).all(|b| !(a.x0 < b.x1
+                        && b.x0 < a.x1
+                        && a.y0 < b.y1
+                        && b.y0 < a.y1)),
+                    "{rs:?} overlap"
+                );
+            }
+            single += rs
+                .iter()
+                .filter(|r| r.instances.count_ones() == 1)
+                .count();
         }
         for y in 0..h {
             for x in 0..w {
                 let d = cam.pixel_ray(x, y);
                 let o = cam.pose.position;
-                if scene.cast(o, d, 0.0, f64::INFINITY, 0.0).is_some() {
-                    tested += 1;
-                    assert!(inside(&prim, x, y), "voxel pixel {x},{y} outside {prim:?}");
-                }
                 let t =
                     relief::cpu::query::cast_ray(&terrain, o, d, 0.0, f64::INFINITY).map(|h| h.t);
-                if let Some(t) = t {
-                    if !scene.clear(o + d * t, sun, 0.0) {
+                for (k, scene) in alone.iter().enumerate() {
+                    if scene.cast(o, d, 0.0, f64::INFINITY, 0.0).is_some() {
                         tested += 1;
                         assert!(
-                            inside(&shad, x, y),
-                            "shadowed pixel {x},{y} outside {shad:?}"
+                            drawn_for(&prim, k, x, y),
+                            "model {k}'s pixel {x},{y} outside {prim:?}"
                         );
+                    }
+                    if let Some(t) = t {
+                        if !scene.clear(o + d * t, sun, 0.0) {
+                            tested += 1;
+                            assert!(
+                                drawn_for(&shad, k, x, y),
+                                "pixel {x},{y} shadowed by model {k} outside {shad:?}"
+                            );
+                        }
                     }
                 }
             }
         }
-        let area: u64 = prim.iter().map(|r| r.area()).sum();
+        let area: u64 = prim.iter().map(|r| r.rect.area()).sum();
         eprintln!("camera at {pos}: primary rects {prim:?} ({area} px), shadow rects {shad:?}");
     }
     assert!(tested > 2000, "only {tested} pixels reached");
+    // The separate rectangles of one model each (not everything merged into one) occur.
+    assert!(single > 0, "every rectangle was drawn for both models");
 }
 
 #[test]

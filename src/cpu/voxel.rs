@@ -93,6 +93,7 @@ pub fn dda(b: &Bricks, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<Vox
     let bd = b.brick_dims.map(|v| v as i64);
     let s = BRICK as i64;
     let p = o + d * t0;
+    // Brick level (`cell` in bricks) or voxel level inside `brick` (`cell` in voxels).
     let mut level = 1u32;
     let mut cell = [0, 1, 2].map(|a| ((p[a] / s as f64).floor() as i64).clamp(0, bd[a] - 1));
     let mut brick = cell;
@@ -104,21 +105,20 @@ pub fn dda(b: &Bricks, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<Vox
         if steps > 1_000_000 {
             return None;
         }
-        // Empty-space distance of the current cell (`voxel::skip`).
-        let jump = if level == 1 {
-            let bi = cell.map(|c| c as u32);
-            let entry = b.brick(bi);
+        if level == 1 {
+            let entry = b.brick(cell.map(|c| c as u32));
             if entry != EMPTY_BRICK {
+                // Into the brick in the same step: its voxel at the current point.
                 level = 0;
                 brick = cell;
                 block = entry;
                 let q = o + d * t;
                 cell = [0, 1, 2]
                     .map(|a| (q[a].floor() as i64).clamp(brick[a] * s, brick[a] * s + s - 1));
-                continue;
             }
-            b.brick_skip(bi) as i64
-        } else {
+        }
+        // The cube of voxels `[lo, hi)` around the current cell known to be empty (`voxel::skip`).
+        let (lo, hi) = if level == 0 {
             let idx = b.get(cell);
             if idx != 0 {
                 return Some(VoxHit {
@@ -129,17 +129,20 @@ pub fn dda(b: &Bricks, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<Vox
                     steps,
                 });
             }
-            b.voxel_skip(block, cell) as i64
+            let jump = b.voxel_skip(block, cell) as i64;
+            (cell.map(|c| c - (jump - 1)), cell.map(|c| c + jump))
+        } else {
+            let gap = b.brick_gap(cell.map(|c| c as u32)) as i64;
+            (
+                cell.map(|c| c * s - (gap - 1)),
+                cell.map(|c| c * s + s + (gap - 1)),
+            )
         };
-        // Leave the cube of cells within `jump - 1` of this one (jump 1: this cell), through
-        // the face of exit (x before y before z on ties).
-        let size = if level == 1 { s } else { 1 };
-        let lo = cell.map(|c| c - (jump - 1));
-        let hi = cell.map(|c| c + jump);
+        // Leave the cube through its face of exit (x before y before z on ties).
         let mut t_exit = BIG;
         let mut exit_axis = 0;
         for a in 0..3 {
-            let edge = if step[a] > 0 { hi[a] } else { lo[a] } * size;
+            let edge = if step[a] > 0 { hi[a] } else { lo[a] };
             let te = if iv[a] == BIG {
                 BIG
             } else {
@@ -155,10 +158,10 @@ pub fn dda(b: &Bricks, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<Vox
         if t > t1 {
             return None;
         }
-        // The cell beyond the exit face; along the other axes, the one the exit point lies in
-        // (clamped into the cube).
+        // The voxel beyond the exit face; along the other axes, the one the exit point lies
+        // in (clamped into the cube).
         let q = o + d * t;
-        cell = [0, 1, 2].map(|a| {
+        let next = [0, 1, 2].map(|a| {
             if a == exit_axis {
                 if step[a] > 0 {
                     hi[a]
@@ -166,15 +169,18 @@ pub fn dda(b: &Bricks, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<Vox
                     lo[a] - 1
                 }
             } else {
-                ((q[a] / size as f64).floor() as i64).clamp(lo[a], hi[a] - 1)
+                (q[a].floor() as i64).clamp(lo[a], hi[a] - 1)
             }
         });
-        if level == 0 && (0..3).any(|a| cell[a].div_euclid(s) != brick[a]) {
+        let next_brick = next.map(|c| c.div_euclid(s));
+        if level == 0 && next_brick == brick {
+            cell = next;
+        } else {
             level = 1;
-            cell = cell.map(|c| c.div_euclid(s));
-        }
-        if level == 1 && (0..3).any(|a| cell[a] < 0 || cell[a] >= bd[a]) {
-            return None;
+            cell = next_brick;
+            if (0..3).any(|a| cell[a] < 0 || cell[a] >= bd[a]) {
+                return None;
+            }
         }
     }
 }
@@ -350,14 +356,46 @@ pub fn covering_rect(cam: &crate::scene::Camera, points: &[DVec3]) -> Option<Pix
     (r.x0 < r.x1 && r.y0 < r.y1).then_some(r)
 }
 
+/// A rectangle of pixels and the voxel instances drawn over it (bit `k` = instance `k`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct InstanceRect {
+    pub rect: PixelRect,
+    pub instances: u64,
+}
+
+impl InstanceRect {
+    /// The whole `width` x `height` image for every one of `count` instances.
+    pub fn full(width: u32, height: u32, count: usize) -> InstanceRect {
+        InstanceRect {
+            rect: PixelRect::full(width, height),
+            instances: all_instances(count),
+        }
+    }
+}
+
+/// The mask of instances `0..count` (at most 64).
+pub fn all_instances(count: usize) -> u64 {
+    debug_assert!(count <= 64);
+    if count >= 64 {
+        u64::MAX
+    } else {
+        (1u64 << count) - 1
+    }
+}
+
 /// Rectangles covering every pixel in a set of rectangles, none overlapping another (each
-/// overlapping group replaced by its bounding rectangle), so no pixel is drawn twice.
-pub fn merge_rects(mut rects: Vec<PixelRect>) -> Vec<PixelRect> {
+/// overlapping group replaced by its bounding rectangle, drawn for the union of their
+/// instances), so no pixel is drawn twice and each pixel runs only the instances whose own
+/// rectangle its group overlaps.
+pub fn merge_rects(mut rects: Vec<InstanceRect>) -> Vec<InstanceRect> {
     'again: loop {
         for i in 0..rects.len() {
             for j in i + 1..rects.len() {
-                if rects[i].overlaps(&rects[j]) {
-                    let u = rects[i].union(&rects[j]);
+                if rects[i].rect.overlaps(&rects[j].rect) {
+                    let u = InstanceRect {
+                        rect: rects[i].rect.union(&rects[j].rect),
+                        instances: rects[i].instances | rects[j].instances,
+                    };
                     rects.swap_remove(j);
                     rects[i] = u;
                     continue 'again;
@@ -368,15 +406,32 @@ pub fn merge_rects(mut rects: Vec<PixelRect>) -> Vec<PixelRect> {
     }
 }
 
-/// Pixels the voxel models' primary rays can hit, for a pinhole camera: the covering
-/// rectangles of the models' boxes, merged.
-pub fn primary_rects(instances: &[VoxelInstance], cam: &crate::scene::Camera) -> Vec<PixelRect> {
+/// Each instance's rectangle (from `cover`), merged.
+fn instance_rects(
+    instances: &[VoxelInstance],
+    cover: impl Fn(&VoxelInstance) -> Option<PixelRect>,
+) -> Vec<InstanceRect> {
     merge_rects(
         instances
             .iter()
-            .filter_map(|i| covering_rect(cam, &i.box_corners()))
+            .enumerate()
+            .filter_map(|(k, i)| {
+                cover(i).map(|rect| InstanceRect {
+                    rect,
+                    instances: 1 << k,
+                })
+            })
             .collect(),
     )
+}
+
+/// Pixels the voxel models' primary rays can hit, for a pinhole camera: the covering
+/// rectangles of the models' boxes, merged, each with the instances it can show.
+pub fn primary_rects(
+    instances: &[VoxelInstance],
+    cam: &crate::scene::Camera,
+) -> Vec<InstanceRect> {
+    instance_rects(instances, |i| covering_rect(cam, &i.box_corners()))
 }
 
 /// Pixels whose visible surface can lie in a voxel model's shadow, for a pinhole camera: the
@@ -388,22 +443,17 @@ pub fn shadow_rects(
     cam: &crate::scene::Camera,
     to_sun: DVec3,
     z_floor: f64,
-) -> Vec<PixelRect> {
+) -> Vec<InstanceRect> {
     if to_sun.z < 0.5f64.to_radians().sin() {
-        return vec![PixelRect::full(cam.width, cam.height)];
+        return vec![InstanceRect::full(cam.width, cam.height, instances.len())];
     }
-    merge_rects(
-        instances
-            .iter()
-            .filter_map(|i| {
-                let c = i.box_corners();
-                let mut pts = c.to_vec();
-                pts.extend(
-                    c.iter()
-                        .map(|&p| p - to_sun * ((p.z - z_floor).max(0.0) / to_sun.z)),
-                );
-                covering_rect(cam, &pts)
-            })
-            .collect(),
-    )
+    instance_rects(instances, |i| {
+        let c = i.box_corners();
+        let mut pts = c.to_vec();
+        pts.extend(
+            c.iter()
+                .map(|&p| p - to_sun * ((p.z - z_floor).max(0.0) / to_sun.z)),
+        );
+        covering_rect(cam, &pts)
+    })
 }

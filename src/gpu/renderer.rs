@@ -6,7 +6,7 @@ use super::shade::{shade_pipelines, ShadeFeatures, ShadePipelines};
 use super::types::{FrameUniforms, RayGenUniforms, MAX_LEVELS};
 use super::voxels::{VoxelPasses, VoxelTargets};
 use super::{shaders, Gpu};
-use crate::cpu::voxel::PixelRect;
+use crate::cpu::voxel::InstanceRect;
 use crate::scene::{Camera, SceneDesc};
 use crate::terrain::Terrain;
 use crate::{Error, Result};
@@ -1209,33 +1209,42 @@ impl TerrainRenderer {
         // Pixels the voxel passes run on: rectangles from the models' boxes for a pinhole
         // camera, every pixel through a distortion table.
         let pinhole = self.table.is_none();
-        let full = || vec![PixelRect::full(cam.width, cam.height)];
-        if let Some((v, vt)) = voxels {
-            v.update(gpu, cam.pose.position, self.time);
-            let rects = if pinhole {
+        let full = |n| vec![InstanceRect::full(cam.width, cam.height, n)];
+        // Rectangles of the cast and (when shading with shadows) the shadow pass.
+        let voxel_rects = voxels.map(|(v, _)| {
+            let n = v.instances().len();
+            let cast = if pinhole {
                 crate::cpu::voxel::primary_rects(v.instances(), cam)
             } else {
-                full()
+                full(n)
             };
-            v.encode_cast(&mut enc, vt, final_gbuffer, &rects);
+            let shadows = if stage != Stage::Shade || !s.shadows {
+                Vec::new()
+            } else if pinhole {
+                crate::cpu::voxel::shadow_rects(
+                    v.instances(),
+                    cam,
+                    scene.sun.direction(),
+                    // No surface lies lower: the terrain's lowest point, the free
+                    // forms' and the models' own (their boxes start the sweep).
+                    terrain.lowest_z().min(self.objects_floor) - 1.0,
+                )
+            } else {
+                full(n)
+            };
+            (cast, shadows)
+        });
+        if let (Some((v, vt)), Some((cast, shadows))) = (voxels, &voxel_rects) {
+            v.update(gpu, cam.pose.position, self.time, cast, shadows);
+            v.encode_cast(&mut enc, vt, final_gbuffer, cast);
             lap(&mut enc, &mut times.voxels_ms)?;
         }
         if stage == Stage::Shade {
-            if let Some((v, vt)) = voxels.filter(|_| s.shadows) {
-                let rects = if pinhole {
-                    crate::cpu::voxel::shadow_rects(
-                        v.instances(),
-                        cam,
-                        scene.sun.direction(),
-                        // No surface lies lower: the terrain's lowest point, the free
-                        // forms' and the models' own (their boxes start the sweep).
-                        terrain.lowest_z().min(self.objects_floor) - 1.0,
-                    )
-                } else {
-                    full()
-                };
-                v.encode_shadows(&mut enc, vt, final_gbuffer, &rects);
-                lap(&mut enc, &mut times.voxel_shadow_ms)?;
+            if let (Some((v, vt)), Some((_, shadows))) = (voxels, &voxel_rects) {
+                if !shadows.is_empty() {
+                    v.encode_shadows(&mut enc, vt, final_gbuffer, shadows);
+                    lap(&mut enc, &mut times.voxel_shadow_ms)?;
+                }
             }
             let (pipeline, bg) = match objects {
                 Some((o, (ot, bg))) => {

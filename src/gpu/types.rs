@@ -129,3 +129,27 @@ pub struct VoxInstanceGpu {
 }
 
 const _: () = assert!(std::mem::size_of::<VoxInstanceGpu>() == 96);
+
+/// Mirrors WGSL `VoxDraw` in `shaders/voxels.wgsl`: the instances one rectangle of a voxel
+/// pass runs, bound by dynamic offset. `mask[0] | mask[1] << 32`: bit k = instance k;
+/// `mask[2]`: the instance of a one-instance draw, whose record `inst` repeats.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct VoxDrawGpu {
+    pub mask: [u32; 4],
+    pub inst: VoxInstanceGpu,
+}
+
+impl VoxDrawGpu {
+    /// The record of a draw of `instances` (a mask) out of this frame's instance `records`.
+    pub fn new(instances: u64, records: &[VoxInstanceGpu]) -> VoxDrawGpu {
+        let first = instances.trailing_zeros() as usize;
+        VoxDrawGpu {
+            mask: [instances as u32, (instances >> 32) as u32, first as u32, 0],
+            inst: match instances.count_ones() {
+                1 => records[first],
+                _ => VoxInstanceGpu::zeroed(),
+            },
+        }
+    }
+}

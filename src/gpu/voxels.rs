@@ -11,9 +11,9 @@ use super::renderer::{
     buf, fullscreen_pipeline_with, screen_texture, storage_entry, target_state, uint_texture_entry,
     uniform_entry, view,
 };
-use super::types::VoxInstanceGpu;
+use super::types::{VoxDrawGpu, VoxInstanceGpu};
 use super::{shaders, Gpu};
-use crate::cpu::voxel::PixelRect;
+use crate::cpu::voxel::InstanceRect;
 use crate::voxel::{VoxelInstance, VoxelModel, BRICK_VOXELS, EMPTY_BRICK};
 use crate::{Error, Result};
 use std::collections::HashMap;
@@ -40,12 +40,19 @@ pub(crate) struct VoxelPasses {
     instances: Vec<VoxelInstance>,
     frames: Vec<Vec<FrameRef>>,
     instance_buf: wgpu::Buffer,
+    /// One `VoxDrawGpu` per drawn rectangle, `draw_stride` bytes apart: the cast's first,
+    /// then the shadow pass's (at most one rectangle per instance each).
+    draws: wgpu::Buffer,
+    draw_stride: u64,
     /// Brick tables, then the brick pool (`vox_data`).
     data: wgpu::Buffer,
     palette: wgpu::Buffer,
     bgl: wgpu::BindGroupLayout,
+    /// Entry points for rectangles of several instances, and of one (`_one`).
     cast: wgpu::RenderPipeline,
+    cast_one: wgpu::RenderPipeline,
     shadow: wgpu::RenderPipeline,
+    shadow_one: wgpu::RenderPipeline,
 }
 
 /// Size-dependent resources.
@@ -111,7 +118,8 @@ impl VoxelPasses {
         check("voxel brick tables", table_bytes)?;
         // Brick tables first, then the pool (`vox_data` in voxel_dda.wgsl). A table entry is
         // its block's word address in the same buffer, or VOX_EMPTY_BIT | the brick's
-        // empty-space distance; a pool voxel is 16 bits, palette index | distance << 8.
+        // empty-space distance in voxels (`brick_gap`); a pool voxel is 16 bits, palette
+        // index | distance << 8.
         let built = std::time::Instant::now();
         let mut table: Vec<u32> = Vec::new();
         let mut pool: Vec<u16> = Vec::new();
@@ -131,7 +139,7 @@ impl VoxelPasses {
                     table: table.len() as u32,
                     palette: palette.len() as u32,
                 };
-                table.extend(b.table.iter().zip(&b.brick_skip).map(|(&i, &s)| {
+                table.extend(b.table.iter().zip(&b.brick_gap).map(|(&i, &s)| {
                     if i == EMPTY_BRICK {
                         EMPTY_BIT | s as u32
                     } else {
@@ -179,6 +187,14 @@ impl VoxelPasses {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
+        let draw_stride = (std::mem::size_of::<VoxDrawGpu>() as u64)
+            .next_multiple_of(gpu.limits.min_uniform_buffer_offset_alignment as u64);
+        let draws = dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("voxel draws"),
+            size: draw_stride * 2 * instances.len().max(1) as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
         let fs = wgpu::ShaderStages::FRAGMENT;
         let bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("voxels"),
@@ -189,6 +205,18 @@ impl VoxelPasses {
                 uniform_entry(10, fs),
                 storage_entry(11, fs, true),
                 storage_entry(13, fs, true),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 16,
+                    visibility: fs,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: true,
+                        min_binding_size: wgpu::BufferSize::new(
+                            std::mem::size_of::<VoxDrawGpu>() as u64
+                        ),
+                    },
+                    count: None,
+                },
             ],
         });
         let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -208,16 +236,29 @@ impl VoxelPasses {
             instances: instances.to_vec(),
             frames,
             instance_buf,
+            draws,
+            draw_stride,
             data,
             palette,
             cast: p("voxel cast", "fs_voxels"),
+            cast_one: p("voxel cast, one instance", "fs_voxels_one"),
             shadow: p("voxel shadows", "fs_vox_shadow"),
+            shadow_one: p("voxel shadows, one instance", "fs_vox_shadow_one"),
             bgl,
         })
     }
 
-    /// Writes the instance records for an eye position and time (seconds).
-    pub fn update(&self, gpu: &Gpu, eye: glam::DVec3, time: f64) {
+    /// Writes the instance records for an eye position and time (seconds), and the records of
+    /// the rectangles this frame's cast and shadow pass will draw (`encode_cast`,
+    /// `encode_shadows`).
+    pub fn update(
+        &self,
+        gpu: &Gpu,
+        eye: glam::DVec3,
+        time: f64,
+        cast: &[InstanceRect],
+        shadows: &[InstanceRect],
+    ) {
         let recs: Vec<VoxInstanceGpu> = self
             .instances
             .iter()
@@ -243,6 +284,32 @@ impl VoxelPasses {
             .collect();
         gpu.queue
             .write_buffer(&self.instance_buf, 0, bytemuck::cast_slice(&recs));
+        let stride = self.draw_stride as usize;
+        let slots = self.slots();
+        let mut bytes = vec![0u8; 2 * slots * stride];
+        for (pass, rects) in [cast, shadows].into_iter().enumerate() {
+            for (i, r) in self.drawn(rects).iter().enumerate() {
+                bytes[(pass * slots + i) * stride..][..std::mem::size_of::<VoxDrawGpu>()]
+                    .copy_from_slice(bytemuck::bytes_of(&VoxDrawGpu::new(r.instances, &recs)));
+            }
+        }
+        gpu.queue.write_buffer(&self.draws, 0, &bytes);
+    }
+
+    /// Records per pass in `draws`: at most one rectangle per instance.
+    fn slots(&self) -> usize {
+        self.instances.len().max(1)
+    }
+
+    /// The rectangles a pass draws: none empty, at most `slots` (merged rectangles never
+    /// outnumber the instances).
+    fn drawn<'a>(&self, rects: &'a [InstanceRect]) -> Vec<&'a InstanceRect> {
+        let drawn: Vec<_> = rects
+            .iter()
+            .filter(|r| r.rect.area() > 0 && r.instances != 0)
+            .collect();
+        debug_assert!(drawn.len() <= self.slots(), "more rectangles than instances");
+        drawn.into_iter().take(self.slots()).collect()
     }
 
     /// The placed models (as uploaded).
@@ -277,6 +344,14 @@ impl VoxelPasses {
                 buf(10, &self.instance_buf),
                 buf(11, &self.data),
                 buf(13, &self.palette),
+                wgpu::BindGroupEntry {
+                    binding: 16,
+                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: &self.draws,
+                        offset: 0,
+                        size: wgpu::BufferSize::new(std::mem::size_of::<VoxDrawGpu>() as u64),
+                    }),
+                },
             ],
         });
         VoxelTargets {
@@ -285,17 +360,25 @@ impl VoxelPasses {
         }
     }
 
-    /// Records `pipeline` over `rects` of `gbuffer`: copy the rectangles aside, then draw them
-    /// into the G-buffer, each pixel reading its copy (pixels a pass leaves as they are
-    /// discard).
+    /// Records the cast (`pass` 0) or shadow pass (1) over `rects` of `gbuffer`, each
+    /// rectangle running its own instances (records written by `update`): copy the rectangles
+    /// aside, then draw them into the G-buffer, each pixel reading its copy (pixels a pass
+    /// leaves as they are discard).
     fn over_rects(
+        &self,
         enc: &mut wgpu::CommandEncoder,
         t: &VoxelTargets,
         gbuffer: (&wgpu::Texture, &wgpu::TextureView),
-        pipeline: &wgpu::RenderPipeline,
-        rects: &[PixelRect],
+        pass: usize,
+        rects: &[InstanceRect],
     ) {
-        for r in rects.iter().filter(|r| r.area() > 0) {
+        let rects = self.drawn(rects);
+        let slots = self.slots();
+        if rects.is_empty() {
+            return;
+        }
+        for r in &rects {
+            let r = r.rect;
             let origin = wgpu::Origin3d {
                 x: r.x0,
                 y: r.y0,
@@ -317,7 +400,8 @@ impl VoxelPasses {
                 },
             );
         }
-        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+        let pipelines = [[&self.cast, &self.cast_one], [&self.shadow, &self.shadow_one]][pass];
+        let mut rp = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("voxels"),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {
                 view: gbuffer.1,
@@ -333,33 +417,38 @@ impl VoxelPasses {
             occlusion_query_set: None,
             multiview_mask: None,
         });
-        pass.set_pipeline(pipeline);
-        pass.set_bind_group(0, &t.bg, &[]);
-        for r in rects.iter().filter(|r| r.area() > 0) {
-            pass.set_scissor_rect(r.x0, r.y0, r.width(), r.height());
-            pass.draw(0..3, 0..1);
+        for (i, r) in rects.iter().enumerate() {
+            // A rectangle of one instance runs the `_one` entry point.
+            rp.set_pipeline(pipelines[(r.instances.count_ones() == 1) as usize]);
+            let offset = (pass * slots + i) as u64 * self.draw_stride;
+            rp.set_bind_group(0, &t.bg, &[offset as u32]);
+            let r = r.rect;
+            rp.set_scissor_rect(r.x0, r.y0, r.width(), r.height());
+            rp.draw(0..3, 0..1);
         }
     }
 
-    /// Records the voxel cast over `rects` (after the terrain and free-form casts).
+    /// Records the voxel cast over `rects` (after the terrain and free-form casts; the same
+    /// rectangles as given to `update`).
     pub fn encode_cast(
         &self,
         enc: &mut wgpu::CommandEncoder,
         t: &VoxelTargets,
         gbuffer: (&wgpu::Texture, &wgpu::TextureView),
-        rects: &[PixelRect],
+        rects: &[InstanceRect],
     ) {
-        Self::over_rects(enc, t, gbuffer, &self.cast, rects);
+        self.over_rects(enc, t, gbuffer, 0, rects);
     }
 
-    /// Records the voxel shadow rays over `rects` (before shading).
+    /// Records the voxel shadow rays over `rects` (before shading; the same rectangles as
+    /// given to `update`).
     pub fn encode_shadows(
         &self,
         enc: &mut wgpu::CommandEncoder,
         t: &VoxelTargets,
         gbuffer: (&wgpu::Texture, &wgpu::TextureView),
-        rects: &[PixelRect],
+        rects: &[InstanceRect],
     ) {
-        Self::over_rects(enc, t, gbuffer, &self.shadow, rects);
+        self.over_rects(enc, t, gbuffer, 1, rects);
     }
 }

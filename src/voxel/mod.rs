@@ -155,6 +155,7 @@ impl VoxelModel {
         }
         let occupied: Vec<bool> = table.iter().map(|&b| b != EMPTY_BRICK).collect();
         let brick_skip = skip::chebyshev(bd.map(|d| d as usize), &occupied, skip::BRICK_SKIP_CAP);
+        let brick_gap = skip::brick_gaps(bd, &table, &pool, &brick_skip);
         // Voxel-level distances on a dense grid where it is small enough, else 1 (plain steps).
         let mut pool_skip: Vec<u8> = pool.iter().map(|&i| (i == 0) as u8).collect();
         let cells: u64 = self.dims.iter().map(|&d| d as u64).product();
@@ -194,6 +195,7 @@ impl VoxelModel {
             pool,
             pool_skip,
             brick_skip,
+            brick_gap,
         }
     }
 }
@@ -202,7 +204,8 @@ impl VoxelModel {
 /// ([`EMPTY_BRICK`] if it holds no voxel); each block holds the palette indices of its voxels,
 /// local index `x + 8 (y + 8 z)`. With each, the empty-space distance the DDA jumps by
 /// ([`skip`]): per pool voxel and per brick, 0 where occupied, else `s >= 1` such that every
-/// voxel (brick) within `s - 1` of it along every axis is empty.
+/// voxel (brick) within `s - 1` of it along every axis is empty; per brick also that
+/// distance in voxels from the brick's box (`brick_gap`), which the DDA jumps by.
 #[derive(Clone, Debug)]
 pub struct Bricks {
     pub dims: [u32; 3],
@@ -211,6 +214,9 @@ pub struct Bricks {
     pub pool: Vec<u8>,
     pub pool_skip: Vec<u8>,
     pub brick_skip: Vec<u8>,
+    /// Per brick, 0 where occupied, else `g >= 1` such that every voxel within `g - 1` of the
+    /// brick's box along every axis is empty ([`skip::brick_gaps`]).
+    pub brick_gap: Vec<u16>,
 }
 
 impl Bricks {
@@ -239,6 +245,12 @@ impl Bricks {
     pub fn brick_skip(&self, b: [u32; 3]) -> u8 {
         let bd = self.brick_dims;
         self.brick_skip[(b[0] + bd[0] * (b[1] + bd[1] * b[2])) as usize]
+    }
+
+    /// Empty-space distance in voxels from the box of brick `b` (in range; 0 where occupied).
+    pub fn brick_gap(&self, b: [u32; 3]) -> u16 {
+        let bd = self.brick_dims;
+        self.brick_gap[(b[0] + bd[0] * (b[1] + bd[1] * b[2])) as usize]
     }
 
     /// Pool block of brick `b` (in range).

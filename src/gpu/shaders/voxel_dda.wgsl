@@ -2,7 +2,8 @@
 // brick pool and palettes, and the hierarchical DDA (`cpu::voxel::dda` step for step): the ray,
 // moved into the model's voxel units (t stays in metres), is clipped to the model box, walks
 // the brick grid (8³ voxels per brick) by Amanatides–Woo and, inside each occupied brick, its
-// voxels the same way. Cells are stepped by integer index and exit axis.
+// voxels the same way (a step that enters an occupied brick also tests its first voxel), both
+// with empty-space jumps measured in voxels. Cells are stepped by integer index and exit axis.
 
 struct VoxInstance {
     // Rows of Rᵀ / voxel size: world direction -> voxel units per metre.
@@ -20,11 +21,12 @@ struct VoxInstance {
 // `vox_instances` (binding 10, a uniform array of VOX_INSTANCES records: one gather per load
 // on Mesa's CPU adapters, not a loop over the lanes as from a storage buffer) is declared
 // ahead of this file by `gpu::shaders::voxels`.
-// The brick tables and the brick pool in one buffer, so that each DDA step loads one word
-// (a storage-buffer load costs Mesa's CPU adapters a loop over the SIMD lanes, and both
-// levels' code runs in every step): a brick's entry is the word address in this buffer of its
-// block of 512 voxels (256 words), or VOX_EMPTY_BIT | the brick's empty-space distance; a
-// voxel is 16 bits, palette index | empty-space distance << 8 (`voxel::skip`).
+// The brick tables and the brick pool in one buffer, so that a DDA step loads one word, two
+// where it enters an occupied brick (a storage-buffer load costs Mesa's CPU adapters a loop
+// over the SIMD lanes, and both levels' code runs in every step): a brick's entry is the word
+// address in this buffer of its block of 512 voxels (256 words), or VOX_EMPTY_BIT | the
+// brick's empty-space distance in voxels from its box (`Bricks::brick_gap`); a voxel is 16
+// bits, palette index | empty-space distance << 8 (`voxel::skip`).
 @group(0) @binding(11) var<storage, read> vox_data: array<u32>;
 // sRGB RGBA8 per palette index.
 @group(0) @binding(13) var<storage, read> vox_palette: array<u32>;
@@ -80,6 +82,12 @@ fn vox_normal(axis: u32, d: vec3<f32>) -> vec3<f32> {
     return n;
 }
 
+// Index of voxel `c` in its brick's block.
+fn vox_local(c: vec3<i32>) -> u32 {
+    let l = c & vec3<i32>(VOX_BRICK - 1);
+    return u32(l.x + VOX_BRICK * (l.y + VOX_BRICK * l.z));
+}
+
 fn vox_dda(inst: VoxInstance, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32) -> VoxTrace {
     var r: VoxTrace;
     r.hit = false;
@@ -109,13 +117,11 @@ fn vox_dda(inst: VoxInstance, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32
         return r;
     }
     let pos = d >= vec3<f32>(0.0);
-    let stp = select(vec3<i32>(-1), vec3<i32>(1), pos);
-    let up = select(vec3<i32>(0), vec3<i32>(1), pos);
     let flat = iv == vec3<f32>(BIG);
     let bd = vec3<i32>(inst.bdims.xyz);
     let p = o + d * t0;
-    // Brick level (cells of 8³ voxels) or voxel level inside `brick`, whose block starts at
-    // word `block`.
+    // Brick level (`cell` in bricks of 8³ voxels) or voxel level inside `brick` (`cell` in
+    // voxels), whose block starts at word `block`.
     var fine = false;
     var cell = clamp(vec3<i32>(floor(p / f32(VOX_BRICK))), vec3<i32>(0), bd - 1);
     var brick = cell;
@@ -123,14 +129,20 @@ fn vox_dda(inst: VoxInstance, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32
     var t = t0;
     for (var i = 0u; i < VOX_MAX_STEPS; i++) {
         r.steps += 1u;
-        let l = cell - brick * VOX_BRICK;
-        let li = u32(l.x + VOX_BRICK * (l.y + VOX_BRICK * l.z));
-        let entry = inst.dims.w + u32(cell.x + bd.x * (cell.y + bd.y * cell.z));
-        let w = vox_data[select(entry, block + (li >> 1u), fine)];
-        // Empty-space distance of the current cell: leave the cube of cells within jump - 1.
-        var jump: i32;
+        var w = vox_data[select(inst.dims.w + u32(cell.x + bd.x * (cell.y + bd.y * cell.z)), block + (vox_local(cell) >> 1u), fine)];
+        if (!fine && (w & VOX_EMPTY_BIT) == 0u) {
+            // Into the brick in the same step: its voxel at the current point.
+            fine = true;
+            brick = cell;
+            block = w;
+            cell = clamp(vec3<i32>(floor(o + d * t)), brick * VOX_BRICK, brick * VOX_BRICK + (VOX_BRICK - 1));
+            w = vox_data[block + (vox_local(cell) >> 1u)];
+        }
+        // The cube of voxels [lo, hi) around the current cell known to be empty.
+        var lo: vec3<i32>;
+        var hi: vec3<i32>;
         if (fine) {
-            let v = w >> ((li & 1u) * 16u);
+            let v = w >> ((vox_local(cell) & 1u) * 16u);
             let idx = v & 0xffu;
             if (idx != 0u) {
                 r.hit = true;
@@ -139,22 +151,15 @@ fn vox_dda(inst: VoxInstance, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32
                 r.index = idx;
                 return r;
             }
-            jump = i32((v >> 8u) & 0xffu);
+            let jump = i32((v >> 8u) & 0xffu);
+            lo = cell - (jump - 1);
+            hi = cell + jump;
         } else {
-            if ((w & VOX_EMPTY_BIT) == 0u) {
-                // Into the brick: its voxel at the current point, same t.
-                fine = true;
-                brick = cell;
-                block = w;
-                cell = clamp(vec3<i32>(floor(o + d * t)), brick * VOX_BRICK, brick * VOX_BRICK + (VOX_BRICK - 1));
-                continue;
-            }
-            jump = i32(w & 0xffffu);
+            let gap = i32(w & 0xffffu);
+            lo = cell * VOX_BRICK - (gap - 1);
+            hi = cell * VOX_BRICK + (VOX_BRICK - 1 + gap);
         }
-        let size = select(VOX_BRICK, 1, fine);
-        let lo = cell - (jump - 1);
-        let hi = cell + jump;
-        let te = select((vec3<f32>(select(lo, hi, pos) * size) - o) * iv, vec3<f32>(BIG), flat);
+        let te = select((vec3<f32>(select(lo, hi, pos)) - o) * iv, vec3<f32>(BIG), flat);
         // Exit axis: x before y before z on ties.
         let ex = te.x <= te.y && te.x <= te.z;
         let ey = !ex && te.y <= te.z;
@@ -163,16 +168,19 @@ fn vox_dda(inst: VoxInstance, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32
         if (t > t1) {
             return r;
         }
-        // Beyond the exit face along the exit axis; along the others the exit point's cell,
-        // clamped into the cube.
-        let q = clamp(vec3<i32>(floor((o + d * t) * select(1.0 / f32(VOX_BRICK), 1.0, fine))), lo, hi - 1);
-        cell = select(q, select(lo - 1, hi, pos), vec3<bool>(ex, ey, !ex && !ey));
-        if (fine && any((cell >> vec3<u32>(3u)) != brick)) {
+        // The voxel beyond the exit face along the exit axis; along the others the exit
+        // point's voxel, clamped into the cube.
+        let q = clamp(vec3<i32>(floor(o + d * t)), lo, hi - 1);
+        let next = select(q, select(lo - 1, hi, pos), vec3<bool>(ex, ey, !ex && !ey));
+        let next_brick = next >> vec3<u32>(3u);
+        if (fine && all(next_brick == brick)) {
+            cell = next;
+        } else {
             fine = false;
-            cell = cell >> vec3<u32>(3u);
-        }
-        if (!fine && (any(cell < vec3<i32>(0)) || any(cell >= bd))) {
-            return r;
+            cell = next_brick;
+            if (any(cell < vec3<i32>(0)) || any(cell >= bd)) {
+                return r;
+            }
         }
     }
     return r;
