@@ -890,6 +890,53 @@ fn screen_rectangles_hold_every_pixel_a_model_or_its_shadow_can_reach() {
 }
 
 #[test]
+fn partitioned_rectangles_cover_the_union_once_with_the_exact_models() {
+    use relief::cpu::voxel::{partition_rects, InstanceRect, PixelRect};
+    let mut rng = Rng::new(31);
+    let (w, h) = (64u32, 48u32);
+    let mut pieces = 0;
+    for round in 0..40 {
+        let n = 1 + round % 6;
+        let own: Vec<InstanceRect> = (0..n)
+            .map(|k| {
+                let x0 = rng.range(0.0, w as f64 - 1.0) as u32;
+                let y0 = rng.range(0.0, h as f64 - 1.0) as u32;
+                InstanceRect {
+                    rect: PixelRect {
+                        x0,
+                        y0,
+                        x1: (x0 + 1 + rng.range(0.0, 30.0) as u32).min(w),
+                        y1: (y0 + 1 + rng.range(0.0, 30.0) as u32).min(h),
+                    },
+                    instances: 1 << k,
+                }
+            })
+            .collect();
+        let parts = partition_rects(&own);
+        pieces += parts.len();
+        for y in 0..h {
+            for x in 0..w {
+                let want = own
+                    .iter()
+                    .filter(|r| r.rect.contains(x, y))
+                    .fold(0u64, |m, r| m | r.instances);
+                let drawn: Vec<u64> = parts
+                    .iter()
+                    .filter(|r| r.rect.contains(x, y))
+                    .map(|r| r.instances)
+                    .collect();
+                if want == 0 {
+                    assert!(drawn.is_empty(), "pixel {x},{y} outside every rectangle drawn");
+                } else {
+                    assert_eq!(drawn, vec![want], "pixel {x},{y}: {own:?} -> {parts:?}");
+                }
+            }
+        }
+    }
+    eprintln!("{pieces} pieces over 40 sets of 1-6 rectangles");
+}
+
+#[test]
 fn gpu_voxel_depth_through_a_distortion_table_matches_the_cpu_dda() {
     use relief::cpu::distortion::screen_points;
     use relief::display::DisplayConfig;

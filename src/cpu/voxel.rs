@@ -406,27 +406,98 @@ pub fn merge_rects(mut rects: Vec<InstanceRect>) -> Vec<InstanceRect> {
     }
 }
 
-/// Each instance's rectangle (from `cover`), merged.
+/// Most rectangles a pass draws for `count` instances ([`partition_rects`] beyond this falls
+/// back to [`merge_rects`], which never gives more than `count`).
+pub fn max_rects(count: usize) -> usize {
+    4 * count.max(1) + 4
+}
+
+/// The union of `rects`, cut into rectangles that do not overlap, each drawn for exactly the
+/// instances whose own rectangles hold it: cells of the grid of all rectangle edges, runs of
+/// equal cells in a row joined, then equal runs in consecutive rows. Unlike [`merge_rects`]
+/// no pixel outside every rectangle is drawn and no pixel runs an instance whose rectangle
+/// does not hold it.
+pub fn partition_rects(rects: &[InstanceRect]) -> Vec<InstanceRect> {
+    let edges = |f: fn(&PixelRect) -> [u32; 2]| {
+        let mut e: Vec<u32> = rects.iter().flat_map(|r| f(&r.rect)).collect();
+        e.sort_unstable();
+        e.dedup();
+        e
+    };
+    let xs = edges(|r| [r.x0, r.x1]);
+    let ys = edges(|r| [r.y0, r.y1]);
+    let mut out: Vec<InstanceRect> = Vec::new();
+    // Runs of the previous row band, open to extension downwards.
+    let mut open: Vec<usize> = Vec::new();
+    for band in ys.windows(2) {
+        let (y0, y1) = (band[0], band[1]);
+        let mut runs: Vec<InstanceRect> = Vec::new();
+        for col in xs.windows(2) {
+            let (x0, x1) = (col[0], col[1]);
+            let mask = rects
+                .iter()
+                .filter(|r| r.rect.contains(x0, y0))
+                .fold(0, |m, r| m | r.instances);
+            match runs.last_mut() {
+                Some(last) if last.instances == mask && last.rect.x1 == x0 => last.rect.x1 = x1,
+                _ if mask != 0 => runs.push(InstanceRect {
+                    rect: PixelRect { x0, y0, x1, y1 },
+                    instances: mask,
+                }),
+                _ => {}
+            }
+        }
+        let mut next_open = Vec::new();
+        for run in runs {
+            let above = open.iter().copied().find(|&i| {
+                let a = &out[i];
+                a.instances == run.instances
+                    && a.rect.x0 == run.rect.x0
+                    && a.rect.x1 == run.rect.x1
+                    && a.rect.y1 == y0
+            });
+            match above {
+                Some(i) => {
+                    out[i].rect.y1 = y1;
+                    next_open.push(i);
+                }
+                None => {
+                    next_open.push(out.len());
+                    out.push(run);
+                }
+            }
+        }
+        open = next_open;
+    }
+    out
+}
+
+/// Each instance's rectangle (from `cover`), partitioned ([`partition_rects`]), or merged
+/// where the partition would need more than [`max_rects`] draws.
 fn instance_rects(
     instances: &[VoxelInstance],
     cover: impl Fn(&VoxelInstance) -> Option<PixelRect>,
 ) -> Vec<InstanceRect> {
-    merge_rects(
-        instances
-            .iter()
-            .enumerate()
-            .filter_map(|(k, i)| {
-                cover(i).map(|rect| InstanceRect {
-                    rect,
-                    instances: 1 << k,
-                })
+    let own: Vec<InstanceRect> = instances
+        .iter()
+        .enumerate()
+        .filter_map(|(k, i)| {
+            cover(i).map(|rect| InstanceRect {
+                rect,
+                instances: 1 << k,
             })
-            .collect(),
-    )
+        })
+        .collect();
+    let parts = partition_rects(&own);
+    if parts.len() <= max_rects(instances.len()) {
+        parts
+    } else {
+        merge_rects(own)
+    }
 }
 
 /// Pixels the voxel models' primary rays can hit, for a pinhole camera: the covering
-/// rectangles of the models' boxes, merged, each with the instances it can show.
+/// rectangles of the models' boxes, partitioned, each with the instances it can show.
 pub fn primary_rects(
     instances: &[VoxelInstance],
     cam: &crate::scene::Camera,
@@ -436,7 +507,7 @@ pub fn primary_rects(
 
 /// Pixels whose visible surface can lie in a voxel model's shadow, for a pinhole camera: the
 /// covering rectangles of each model's box swept away from the sun down to `z_floor` (no
-/// surface lies lower), merged. The whole image when the sun is within 0.5° of the horizon
+/// surface lies lower), partitioned. The whole image when the sun is within 0.5° of the horizon
 /// (the sweep would be unbounded).
 pub fn shadow_rects(
     instances: &[VoxelInstance],

@@ -41,7 +41,7 @@ pub(crate) struct VoxelPasses {
     frames: Vec<Vec<FrameRef>>,
     instance_buf: wgpu::Buffer,
     /// One `VoxDrawGpu` per drawn rectangle, `draw_stride` bytes apart: the cast's first,
-    /// then the shadow pass's (at most one rectangle per instance each).
+    /// then the shadow pass's (`slots` each).
     draws: wgpu::Buffer,
     draw_stride: u64,
     /// Brick tables, then the brick pool (`vox_data`).
@@ -191,7 +191,7 @@ impl VoxelPasses {
             .next_multiple_of(gpu.limits.min_uniform_buffer_offset_alignment as u64);
         let draws = dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some("voxel draws"),
-            size: draw_stride * 2 * instances.len().max(1) as u64,
+            size: draw_stride * 2 * crate::cpu::voxel::max_rects(instances.len()) as u64,
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
@@ -296,19 +296,19 @@ impl VoxelPasses {
         gpu.queue.write_buffer(&self.draws, 0, &bytes);
     }
 
-    /// Records per pass in `draws`: at most one rectangle per instance.
+    /// Records per pass in `draws` (`cpu::voxel::max_rects`).
     fn slots(&self) -> usize {
-        self.instances.len().max(1)
+        crate::cpu::voxel::max_rects(self.instances.len())
     }
 
-    /// The rectangles a pass draws: none empty, at most `slots` (merged rectangles never
-    /// outnumber the instances).
+    /// The rectangles a pass draws: none empty, at most `slots` (`cpu::voxel` never gives
+    /// more).
     fn drawn<'a>(&self, rects: &'a [InstanceRect]) -> Vec<&'a InstanceRect> {
         let drawn: Vec<_> = rects
             .iter()
             .filter(|r| r.rect.area() > 0 && r.instances != 0)
             .collect();
-        debug_assert!(drawn.len() <= self.slots(), "more rectangles than instances");
+        debug_assert!(drawn.len() <= self.slots(), "more rectangles than draw records");
         drawn.into_iter().take(self.slots()).collect()
     }
 
