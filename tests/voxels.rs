@@ -376,7 +376,8 @@ fn gpu_voxel_depth_matches_the_cpu_dda() {
     let (w, h) = (240u32, 160u32);
     let cam = camera(DVec3::new(310.0, 290.0, 16.0), 0.0, -12.0, w, h);
     // Both kinds of draw run: a rectangle of one model (`fs_voxels_one`) and one of several.
-    let rects = relief::cpu::voxel::primary_rects(&models, &cam);
+    let rects =
+        relief::cpu::voxel::primary_rects(&models, &relief::cpu::voxel::cover_boxes(&models), &cam);
     let ones = rects
         .iter()
         .filter(|r| r.instances.count_ones() == 1)
@@ -810,7 +811,7 @@ fn cpu_dda_with_empty_space_jumps_matches_brute_force() {
 
 #[test]
 fn screen_rectangles_hold_every_pixel_a_model_or_its_shadow_can_reach() {
-    use relief::cpu::voxel::{primary_rects, shadow_rects, InstanceRect};
+    use relief::cpu::voxel::{cover_boxes, primary_rects, shadow_rects, InstanceRect};
     let terrain = terrain_from_fn(65, 10.0, |x, y| 0.02 * x + 0.01 * y);
     let models = vec![
         instance("deer.vox", DVec3::new(300.0, 330.0, 8.0), 30.0, 0.6),
@@ -826,6 +827,7 @@ fn screen_rectangles_hold_every_pixel_a_model_or_its_shadow_can_reach() {
     let (w, h) = (200u32, 130u32);
     let mut tested = 0;
     let mut single = 0;
+    let mut tighter = 0;
     for (pos, heading, pitch) in [
         (DVec3::new(310.0, 290.0, 16.0), 0.0, -12.0),
         (DVec3::new(250.0, 300.0, 30.0), 60.0, -25.0),
@@ -833,8 +835,9 @@ fn screen_rectangles_hold_every_pixel_a_model_or_its_shadow_can_reach() {
         (DVec3::new(300.0, 330.0, 12.0), 10.0, 0.0),
     ] {
         let cam = camera(pos, heading, pitch, w, h);
-        let prim = primary_rects(&models, &cam);
-        let shad = shadow_rects(&models, &cam, sun, floor);
+        let boxes = cover_boxes(&models);
+        let prim = primary_rects(&models, &boxes, &cam);
+        let shad = shadow_rects(&models, &boxes, &cam, sun, floor);
         let drawn_for = |rs: &[InstanceRect], k: usize, x, y| {
             rs.iter()
                 .any(|r| r.rect.contains(x, y) && r.instances & (1 << k) != 0)
@@ -882,11 +885,26 @@ fn screen_rectangles_hold_every_pixel_a_model_or_its_shadow_can_reach() {
             }
         }
         let area: u64 = prim.iter().map(|r| r.rect.area()).sum();
-        eprintln!("camera at {pos}: primary rects {prim:?} ({area} px), shadow rects {shad:?}");
+        // The same from the whole model boxes: the occupied slabs are never looser.
+        let whole: Vec<Vec<[DVec3; 2]>> = models
+            .iter()
+            .map(|m| {
+                let d = m.dims();
+                vec![[DVec3::ZERO, DVec3::new(d[0] as f64, d[1] as f64, d[2] as f64)]]
+            })
+            .collect();
+        let box_area: u64 = primary_rects(&models, &whole, &cam)
+            .iter()
+            .map(|r| r.rect.area())
+            .sum();
+        assert!(area <= box_area, "{area} px from slabs, {box_area} from boxes");
+        tighter += (area < box_area) as usize;
+        eprintln!("camera at {pos}: primary rects {prim:?} ({area} px, {box_area} from the boxes), shadow rects {shad:?}");
     }
     assert!(tested > 2000, "only {tested} pixels reached");
     // The separate rectangles of one model each (not everything merged into one) occur.
     assert!(single > 0, "every rectangle was drawn for both models");
+    assert!(tighter > 0, "the occupied slabs never gave smaller rectangles than the boxes");
 }
 
 #[test]

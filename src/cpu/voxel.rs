@@ -409,7 +409,7 @@ pub fn merge_rects(mut rects: Vec<InstanceRect>) -> Vec<InstanceRect> {
 /// Most rectangles a pass draws for `count` instances ([`partition_rects`] beyond this falls
 /// back to [`merge_rects`], which never gives more than `count`).
 pub fn max_rects(count: usize) -> usize {
-    4 * count.max(1) + 4
+    16 * count.max(1) + 4
 }
 
 /// The union of `rects`, cut into rectangles that do not overlap, each drawn for exactly the
@@ -472,20 +472,39 @@ pub fn partition_rects(rects: &[InstanceRect]) -> Vec<InstanceRect> {
     out
 }
 
-/// Each instance's rectangle (from `cover`), partitioned ([`partition_rects`]), or merged
-/// where the partition would need more than [`max_rects`] draws.
+/// Slabs of z per model whose occupied bounding boxes give its screen rectangles.
+pub const COVER_SLABS: u32 = 4;
+
+/// Per instance, the boxes (voxel units) its screen rectangles are taken from: the bounding
+/// boxes of its occupied voxels in [`COVER_SLABS`] slabs (`VoxelInstance::occupied_slabs`).
+/// The renderer computes them once per upload.
+pub fn cover_boxes(instances: &[VoxelInstance]) -> Vec<Vec<[DVec3; 2]>> {
+    instances
+        .iter()
+        .map(|i| i.occupied_slabs(COVER_SLABS))
+        .collect()
+}
+
+/// Each instance's rectangles (from `cover` of each of its boxes' world corners),
+/// partitioned ([`partition_rects`]), or merged where the partition would need more than
+/// [`max_rects`] draws.
 fn instance_rects(
     instances: &[VoxelInstance],
-    cover: impl Fn(&VoxelInstance) -> Option<PixelRect>,
+    boxes: &[Vec<[DVec3; 2]>],
+    cover: impl Fn([DVec3; 8]) -> Option<PixelRect>,
 ) -> Vec<InstanceRect> {
     let own: Vec<InstanceRect> = instances
         .iter()
+        .zip(boxes)
         .enumerate()
-        .filter_map(|(k, i)| {
-            cover(i).map(|rect| InstanceRect {
-                rect,
-                instances: 1 << k,
-            })
+        .flat_map(|(k, (i, b))| {
+            b.iter()
+                .filter_map(|&b| cover(i.local_box_corners(b)))
+                .map(move |rect| InstanceRect {
+                    rect,
+                    instances: 1 << k,
+                })
+                .collect::<Vec<_>>()
         })
         .collect();
     let parts = partition_rects(&own);
@@ -497,20 +516,23 @@ fn instance_rects(
 }
 
 /// Pixels the voxel models' primary rays can hit, for a pinhole camera: the covering
-/// rectangles of the models' boxes, partitioned, each with the instances it can show.
+/// rectangles of the models' occupied boxes ([`cover_boxes`]), partitioned, each with the
+/// instances it can show.
 pub fn primary_rects(
     instances: &[VoxelInstance],
+    boxes: &[Vec<[DVec3; 2]>],
     cam: &crate::scene::Camera,
 ) -> Vec<InstanceRect> {
-    instance_rects(instances, |i| covering_rect(cam, &i.box_corners()))
+    instance_rects(instances, boxes, |c| covering_rect(cam, &c))
 }
 
 /// Pixels whose visible surface can lie in a voxel model's shadow, for a pinhole camera: the
-/// covering rectangles of each model's box swept away from the sun down to `z_floor` (no
-/// surface lies lower), partitioned. The whole image when the sun is within 0.5° of the horizon
-/// (the sweep would be unbounded).
+/// covering rectangles of each model's occupied boxes ([`cover_boxes`]) swept away from the
+/// sun down to `z_floor` (no surface lies lower), partitioned. The whole image when the sun is
+/// within 0.5° of the horizon (the sweep would be unbounded).
 pub fn shadow_rects(
     instances: &[VoxelInstance],
+    boxes: &[Vec<[DVec3; 2]>],
     cam: &crate::scene::Camera,
     to_sun: DVec3,
     z_floor: f64,
@@ -518,8 +540,7 @@ pub fn shadow_rects(
     if to_sun.z < 0.5f64.to_radians().sin() {
         return vec![InstanceRect::full(cam.width, cam.height, instances.len())];
     }
-    instance_rects(instances, |i| {
-        let c = i.box_corners();
+    instance_rects(instances, boxes, |c| {
         let mut pts = c.to_vec();
         pts.extend(
             c.iter()

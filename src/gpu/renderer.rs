@@ -1214,7 +1214,7 @@ impl TerrainRenderer {
         let voxel_rects = voxels.map(|(v, _)| {
             let n = v.instances().len();
             let cast = if pinhole {
-                crate::cpu::voxel::primary_rects(v.instances(), cam)
+                crate::cpu::voxel::primary_rects(v.instances(), v.cover_boxes(), cam)
             } else {
                 full(n)
             };
@@ -1223,6 +1223,7 @@ impl TerrainRenderer {
             } else if pinhole {
                 crate::cpu::voxel::shadow_rects(
                     v.instances(),
+                    v.cover_boxes(),
                     cam,
                     scene.sun.direction(),
                     // No surface lies lower: the terrain's lowest point, the free

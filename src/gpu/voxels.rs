@@ -38,6 +38,8 @@ struct FrameRef {
 /// Uploaded voxel data and the pipelines.
 pub(crate) struct VoxelPasses {
     instances: Vec<VoxelInstance>,
+    /// Boxes the screen rectangles come from (`cpu::voxel::cover_boxes`), once per upload.
+    cover: Vec<Vec<[glam::DVec3; 2]>>,
     frames: Vec<Vec<FrameRef>>,
     instance_buf: wgpu::Buffer,
     /// One `VoxDrawGpu` per drawn rectangle, `draw_stride` bytes apart: the cast's first,
@@ -234,6 +236,7 @@ impl VoxelPasses {
         );
         Ok(VoxelPasses {
             instances: instances.to_vec(),
+            cover: crate::cpu::voxel::cover_boxes(instances),
             frames,
             instance_buf,
             draws,
@@ -315,6 +318,11 @@ impl VoxelPasses {
     /// The placed models (as uploaded).
     pub fn instances(&self) -> &[VoxelInstance] {
         &self.instances
+    }
+
+    /// Per model, the boxes its screen rectangles come from (`cpu::voxel::cover_boxes`).
+    pub fn cover_boxes(&self) -> &[Vec<[glam::DVec3; 2]>] {
+        &self.cover
     }
 
     /// Targets for a frame size; the passes update the G-buffer the shade pass reads.

@@ -127,14 +127,36 @@ impl VoxelInstance {
     /// World corners of the model box (all frames share its size).
     pub fn box_corners(&self) -> [DVec3; 8] {
         let d = self.dims();
+        self.local_box_corners([DVec3::ZERO, DVec3::new(d[0] as f64, d[1] as f64, d[2] as f64)])
+    }
+
+    /// World corners of the box `[lo, hi]` given in voxel units.
+    pub fn local_box_corners(&self, [lo, hi]: [DVec3; 2]) -> [DVec3; 8] {
         std::array::from_fn(|k| {
             let c = DVec3::new(
-                if k & 1 != 0 { d[0] as f64 } else { 0.0 },
-                if k & 2 != 0 { d[1] as f64 } else { 0.0 },
-                if k & 4 != 0 { d[2] as f64 } else { 0.0 },
+                if k & 1 != 0 { hi.x } else { lo.x },
+                if k & 2 != 0 { hi.y } else { lo.y },
+                if k & 4 != 0 { hi.z } else { lo.z },
             );
             self.position + self.rotation * (c - self.anchor()) * self.voxel_size
         })
+    }
+
+    /// Bounding boxes (voxel units, `[lo, hi]`) of the occupied voxels of every frame in
+    /// `slabs` equal ranges of z, empty ones left out: a tighter hull than the model box (a
+    /// tree's trunk and crown), for the voxel passes' screen rectangles.
+    pub fn occupied_slabs(&self, slabs: u32) -> Vec<[DVec3; 2]> {
+        let d = self.dims();
+        let slabs = slabs.clamp(1, d[2]);
+        let mut boxes = vec![[DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)]; slabs as usize];
+        for v in self.frames.iter().flat_map(|f| &f.voxels) {
+            let b = &mut boxes[(v.pos[2] as u64 * slabs as u64 / d[2] as u64) as usize];
+            let p = DVec3::new(v.pos[0] as f64, v.pos[1] as f64, v.pos[2] as f64);
+            b[0] = b[0].min(p);
+            b[1] = b[1].max(p + 1.0);
+        }
+        boxes.retain(|b| b[0].x <= b[1].x);
+        boxes
     }
 
     /// World-space bounding sphere (centre, radius).
