@@ -5,7 +5,9 @@
 //! cast runs the hierarchical DDA and writes the nearer voxel hit into the G-buffer, the shadow
 //! pass sets flag 64 where a voxel blocks the sun. Each pass reads a copy of its rectangles of
 //! the G-buffer and draws into the G-buffer itself, discarding the pixels it leaves as they
-//! are, so nothing outside the rectangles is read, written or copied.
+//! are, so nothing outside the rectangles is read, written or copied. Each rectangle runs the
+//! models its mask names (a record per rectangle in `draws`, bound by dynamic offset), a
+//! rectangle of one model by the `_one` entry points.
 
 use super::renderer::{
     buf, fullscreen_pipeline_with, screen_texture, storage_entry, target_state, uint_texture_entry,

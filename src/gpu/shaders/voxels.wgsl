@@ -6,8 +6,9 @@
 // earlier may go on running as a helper invocation on Mesa's CPU adapters (its SIMD lanes do
 // not leave the DDA loop), so pixels without work get an empty ray interval instead.
 //
-// Each rectangle runs only the instances whose own rectangle it covers. A rectangle of one
-// instance is drawn by the `_one` entry points: one DDA call on the record `vox_draw.inst`
+// Each rectangle (a piece of the partition of the models' rectangles, `cpu::voxel`) runs
+// exactly the instances whose own rectangles hold it. A rectangle of one instance is drawn by
+// the `_one` entry points: one DDA call on the record `vox_draw.inst`
 // (loaded at a fixed offset: one scalar load per component on Mesa's CPU adapters, where
 // `vox_instances[k]` at an index they cannot tell is uniform costs a gather per component,
 // and the loop over instances around the DDA loop costs more again).
