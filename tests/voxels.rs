@@ -908,6 +908,50 @@ fn screen_rectangles_hold_every_pixel_a_model_or_its_shadow_can_reach() {
 }
 
 #[test]
+fn a_herd_beyond_the_partition_limit_is_merged_and_still_covered() {
+    use relief::cpu::voxel::{cover_boxes, primary_rects, COVER_SLABS, PARTITION_LIMIT};
+    // 20 deer in a loose herd: more rectangles than the partition takes.
+    let models: Vec<VoxelInstance> = (0..20)
+        .map(|k| {
+            let (x, y) = ((k % 5) as f64, (k / 5) as f64);
+            instance(
+                "deer.vox",
+                DVec3::new(300.0 + 7.0 * x + 2.0 * y, 330.0 + 9.0 * y, 8.0),
+                17.0 * k as f64,
+                0.3,
+            )
+        })
+        .collect();
+    let boxes = cover_boxes(&models);
+    let rects: usize = boxes.iter().map(|b| b.len()).sum();
+    assert!(rects > PARTITION_LIMIT, "{rects} rectangles");
+    assert!(boxes.iter().all(|b| b.len() <= COVER_SLABS as usize));
+    let (w, h) = (96u32, 64u32);
+    let cam = camera(DVec3::new(310.0, 290.0, 16.0), 0.0, -12.0, w, h);
+    let drawn = primary_rects(&models, &boxes, &cam);
+    assert!(drawn.len() <= models.len(), "{} merged rectangles", drawn.len());
+    let mut reached = 0;
+    for (k, m) in models.iter().enumerate() {
+        let scene = VoxelScene::new(vec![m.clone()]);
+        for y in 0..h {
+            for x in 0..w {
+                let d = cam.pixel_ray(x, y);
+                if scene.cast(cam.pose.position, d, 0.0, f64::INFINITY, 0.0).is_some() {
+                    reached += 1;
+                    assert!(
+                        drawn
+                            .iter()
+                            .any(|r| r.rect.contains(x, y) && r.instances & (1 << k) != 0),
+                        "deer {k}'s pixel {x},{y} outside {drawn:?}"
+                    );
+                }
+            }
+        }
+    }
+    assert!(reached > 500, "only {reached} pixels reached");
+}
+
+#[test]
 fn partitioned_rectangles_cover_the_union_once_with_the_exact_models() {
     use relief::cpu::voxel::{partition_rects, InstanceRect, PixelRect};
     let mut rng = Rng::new(31);

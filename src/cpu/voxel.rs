@@ -429,15 +429,19 @@ pub fn partition_rects(rects: &[InstanceRect]) -> Vec<InstanceRect> {
     let mut out: Vec<InstanceRect> = Vec::new();
     // Runs of the previous row band, open to extension downwards.
     let mut open: Vec<usize> = Vec::new();
+    let mut masks = vec![0u64; xs.len()];
     for band in ys.windows(2) {
         let (y0, y1) = (band[0], band[1]);
+        // Each column's mask: the rectangles across this band, OR-ed over their columns.
+        masks.fill(0);
+        for r in rects.iter().filter(|r| r.rect.y0 <= y0 && y0 < r.rect.y1) {
+            let i0 = xs.partition_point(|&x| x < r.rect.x0);
+            let i1 = xs.partition_point(|&x| x < r.rect.x1);
+            masks[i0..i1].iter_mut().for_each(|m| *m |= r.instances);
+        }
         let mut runs: Vec<InstanceRect> = Vec::new();
-        for col in xs.windows(2) {
+        for (col, &mask) in xs.windows(2).zip(&masks) {
             let (x0, x1) = (col[0], col[1]);
-            let mask = rects
-                .iter()
-                .filter(|r| r.rect.contains(x0, y0))
-                .fold(0, |m, r| m | r.instances);
             match runs.last_mut() {
                 Some(last) if last.instances == mask && last.rect.x1 == x0 => last.rect.x1 = x1,
                 _ if mask != 0 => runs.push(InstanceRect {
@@ -486,8 +490,8 @@ pub fn cover_boxes(instances: &[VoxelInstance]) -> Vec<Vec<[DVec3; 2]>> {
 }
 
 /// Each instance's rectangles (from `cover` of each of its boxes' world corners),
-/// partitioned ([`partition_rects`]), or merged where the partition would need more than
-/// [`max_rects`] draws.
+/// partitioned ([`partition_rects`]), or merged where there are more than
+/// [`PARTITION_LIMIT`] of them or the partition would need more than [`max_rects`] draws.
 fn instance_rects(
     instances: &[VoxelInstance],
     boxes: &[Vec<[DVec3; 2]>],
@@ -507,13 +511,19 @@ fn instance_rects(
                 .collect::<Vec<_>>()
         })
         .collect();
-    let parts = partition_rects(&own);
-    if parts.len() <= max_rects(instances.len()) {
-        parts
-    } else {
-        merge_rects(own)
+    // The partition costs up to (2 n)² cells times n rectangles: bounded to stay well under a
+    // millisecond per pass.
+    if own.len() <= PARTITION_LIMIT {
+        let parts = partition_rects(&own);
+        if parts.len() <= max_rects(instances.len()) {
+            return parts;
+        }
     }
+    merge_rects(own)
 }
+
+/// Most rectangles [`instance_rects`] partitions; more are merged.
+pub const PARTITION_LIMIT: usize = 64;
 
 /// Pixels the voxel models' primary rays can hit, for a pinhole camera: the covering
 /// rectangles of the models' occupied boxes ([`cover_boxes`]), partitioned, each with the
