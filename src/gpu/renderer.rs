@@ -1206,8 +1206,9 @@ impl TerrainRenderer {
             Some((ot, _)) if !ot.final_in_terrain => (&ot.gbuffer, &ot.gbuffer_view),
             _ => (&t.gbuffer, &t.gbuffer_view),
         };
-        // Pixels the voxel passes run on: rectangles from the models' boxes for a pinhole
-        // camera, every pixel through a distortion table.
+        // Pixels the voxel passes run on: rectangles from the models' occupied slabs for a
+        // pinhole camera (partitioned, each with its models), every pixel through a
+        // distortion table.
         let pinhole = self.table.is_none();
         let full = |n| vec![InstanceRect::full(cam.width, cam.height, n)];
         // Rectangles of the cast and (when shading with shadows) the shadow pass.
