@@ -746,7 +746,10 @@ fn brick_gaps_bound_the_distance_to_the_nearest_voxel() {
                         gap >= 1 && gap <= nearest,
                         "brick {c:?}: gap {gap}, nearest voxel {nearest} voxels away"
                     );
-                    assert!(gap >= 8 * (s - 1) + 1, "brick {c:?}: gap {gap} below its brick distance {s}");
+                    assert!(
+                        gap >= 8 * (s - 1) + 1,
+                        "brick {c:?}: gap {gap} below its brick distance {s}"
+                    );
                     refined += (gap > 8 * (s - 1) + 1) as usize;
                 }
             }
@@ -846,17 +849,14 @@ fn screen_rectangles_hold_every_pixel_a_model_or_its_shadow_can_reach() {
             for (i, a) in rs.iter().enumerate() {
                 let a = a.rect;
                 assert!(
-                    rs[i + 1..].iter().map(|b| b.rect).all(|b| !(a.x0 < b.x1
-                        && b.x0 < a.x1
-                        && a.y0 < b.y1
-                        && b.y0 < a.y1)),
+                    rs[i + 1..]
+                        .iter()
+                        .map(|b| b.rect)
+                        .all(|b| !(a.x0 < b.x1 && b.x0 < a.x1 && a.y0 < b.y1 && b.y0 < a.y1)),
                     "{rs:?} overlap"
                 );
             }
-            single += rs
-                .iter()
-                .filter(|r| r.instances.count_ones() == 1)
-                .count();
+            single += rs.iter().filter(|r| r.instances.count_ones() == 1).count();
         }
         for y in 0..h {
             for x in 0..w {
@@ -890,21 +890,30 @@ fn screen_rectangles_hold_every_pixel_a_model_or_its_shadow_can_reach() {
             .iter()
             .map(|m| {
                 let d = m.dims();
-                vec![[DVec3::ZERO, DVec3::new(d[0] as f64, d[1] as f64, d[2] as f64)]]
+                vec![[
+                    DVec3::ZERO,
+                    DVec3::new(d[0] as f64, d[1] as f64, d[2] as f64),
+                ]]
             })
             .collect();
         let box_area: u64 = primary_rects(&models, &whole, &cam)
             .iter()
             .map(|r| r.rect.area())
             .sum();
-        assert!(area <= box_area, "{area} px from slabs, {box_area} from boxes");
+        assert!(
+            area <= box_area,
+            "{area} px from slabs, {box_area} from boxes"
+        );
         tighter += (area < box_area) as usize;
         eprintln!("camera at {pos}: primary rects {prim:?} ({area} px, {box_area} from the boxes), shadow rects {shad:?}");
     }
     assert!(tested > 2000, "only {tested} pixels reached");
     // The separate rectangles of one model each (not everything merged into one) occur.
     assert!(single > 0, "every rectangle was drawn for both models");
-    assert!(tighter > 0, "the occupied slabs never gave smaller rectangles than the boxes");
+    assert!(
+        tighter > 0,
+        "the occupied slabs never gave smaller rectangles than the boxes"
+    );
 }
 
 #[test]
@@ -929,14 +938,21 @@ fn a_herd_beyond_the_partition_limit_is_merged_and_still_covered() {
     let (w, h) = (96u32, 64u32);
     let cam = camera(DVec3::new(310.0, 290.0, 16.0), 0.0, -12.0, w, h);
     let drawn = primary_rects(&models, &boxes, &cam);
-    assert!(drawn.len() <= models.len(), "{} merged rectangles", drawn.len());
+    assert!(
+        drawn.len() <= models.len(),
+        "{} merged rectangles",
+        drawn.len()
+    );
     let mut reached = 0;
     for (k, m) in models.iter().enumerate() {
         let scene = VoxelScene::new(vec![m.clone()]);
         for y in 0..h {
             for x in 0..w {
                 let d = cam.pixel_ray(x, y);
-                if scene.cast(cam.pose.position, d, 0.0, f64::INFINITY, 0.0).is_some() {
+                if scene
+                    .cast(cam.pose.position, d, 0.0, f64::INFINITY, 0.0)
+                    .is_some()
+                {
                     reached += 1;
                     assert!(
                         drawn
@@ -988,7 +1004,10 @@ fn partitioned_rectangles_cover_the_union_once_with_the_exact_models() {
                     .map(|r| r.instances)
                     .collect();
                 if want == 0 {
-                    assert!(drawn.is_empty(), "pixel {x},{y} outside every rectangle drawn");
+                    assert!(
+                        drawn.is_empty(),
+                        "pixel {x},{y} outside every rectangle drawn"
+                    );
                 } else {
                     assert_eq!(drawn, vec![want], "pixel {x},{y}: {own:?} -> {parts:?}");
                 }

@@ -186,16 +186,13 @@ pub fn volume_sun() -> String {
     .concat()
 }
 
-/// Voxel-model passes (fragment): box marks, hierarchical-DDA cast and shadow rays, for
+/// Voxel-model passes (fragment): hierarchical-DDA cast and shadow rays over rectangles, for
 /// `instances` model instances (at most `voxel::desc::MAX_INSTANCES`, so the records always
 /// fit a uniform buffer).
 pub fn voxels(instances: u32) -> String {
     let n = instances.max(1);
     [
-        &format!(
-            "const VOX_INSTANCES: u32 = {instances}u;\n\
-             @group(0) @binding(10) var<uniform> vox_instances: array<VoxInstance, {n}>;\n"
-        ),
+        &format!("@group(0) @binding(10) var<uniform> vox_instances: array<VoxInstance, {n}>;\n"),
         FRAME,
         FULLSCREEN,
         RAY_TABLE,

@@ -313,7 +313,10 @@ impl VoxelPasses {
             .iter()
             .filter(|r| r.rect.area() > 0 && r.instances != 0)
             .collect();
-        debug_assert!(drawn.len() <= self.slots(), "more rectangles than draw records");
+        debug_assert!(
+            drawn.len() <= self.slots(),
+            "more rectangles than draw records"
+        );
         drawn.into_iter().take(self.slots()).collect()
     }
 
@@ -410,7 +413,10 @@ impl VoxelPasses {
                 },
             );
         }
-        let pipelines = [[&self.cast, &self.cast_one], [&self.shadow, &self.shadow_one]][pass];
+        let pipelines = [
+            [&self.cast, &self.cast_one],
+            [&self.shadow, &self.shadow_one],
+        ][pass];
         let mut rp = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("voxels"),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {

@@ -127,7 +127,10 @@ impl VoxelInstance {
     /// World corners of the model box (all frames share its size).
     pub fn box_corners(&self) -> [DVec3; 8] {
         let d = self.dims();
-        self.local_box_corners([DVec3::ZERO, DVec3::new(d[0] as f64, d[1] as f64, d[2] as f64)])
+        self.local_box_corners([
+            DVec3::ZERO,
+            DVec3::new(d[0] as f64, d[1] as f64, d[2] as f64),
+        ])
     }
 
     /// World corners of the box `[lo, hi]` given in voxel units.

@@ -18,7 +18,7 @@ struct VoxInstance {
     bdims: vec4<u32>,
 }
 
-// `vox_instances` (binding 10, a uniform array of VOX_INSTANCES records: one gather per load
+// `vox_instances` (binding 10, a uniform array of the scene's records: one gather per load
 // on Mesa's CPU adapters, not a loop over the lanes as from a storage buffer) is declared
 // ahead of this file by `gpu::shaders::voxels`.
 // The brick tables and the brick pool in one buffer, so that a DDA step loads one word, two
@@ -58,16 +58,6 @@ fn vox_dir_world(inst: VoxInstance, n: vec3<f32>) -> vec3<f32> {
 
 fn vox_inv(d: f32) -> f32 {
     return select(1.0 / d, BIG, abs(d) < 1.0e-30);
-}
-
-// Slab test of the ray against the model box: (entry, exit) distances.
-fn vox_box(inst: VoxInstance, o: vec3<f32>, d: vec3<f32>) -> vec2<f32> {
-    let iv = vec3<f32>(vox_inv(d.x), vox_inv(d.y), vox_inv(d.z));
-    let ta = -o * iv;
-    let tb = (vec3<f32>(inst.dims.xyz) - o) * iv;
-    let lo = min(ta, tb);
-    let hi = max(ta, tb);
-    return vec2<f32>(max(max(lo.x, lo.y), lo.z), min(min(hi.x, hi.y), hi.z));
 }
 
 // Outward face normal (voxel frame) of a hit entered through `axis` along d.
