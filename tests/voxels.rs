@@ -684,6 +684,59 @@ fn chebyshev_distances_match_brute_force_and_bound_empty_cubes() {
     }
 }
 
+#[test]
+fn octant_cubes_are_the_largest_empty_cubes_ahead() {
+    use relief::voxel::skip::octant_cubes;
+    let mut rng = Rng::new(17);
+    let mut wide = 0;
+    for (dims, fill, cap) in [
+        ([11, 7, 9], 0.03, 15u8),
+        ([16, 3, 13], 0.01, 5),
+        ([5, 6, 4], 0.0, 15),
+        ([9, 9, 9], 0.3, 15),
+    ] {
+        let n = dims[0] * dims[1] * dims[2];
+        let occ: Vec<bool> = (0..n).map(|_| rng.range(0.0, 1.0) < fill).collect();
+        let at = |p: [i64; 3]| -> bool {
+            // Beyond the grid counts as empty.
+            (0..3).all(|a| p[a] >= 0 && p[a] < dims[a] as i64)
+                && occ[p[0] as usize + dims[0] * (p[1] as usize + dims[1] * p[2] as usize)]
+        };
+        for oct in 0..8 {
+            let got = octant_cubes(dims, &occ, oct, cap);
+            let sign: [i64; 3] = std::array::from_fn(|a| if oct >> a & 1 != 0 { 1 } else { -1 });
+            for k in 0..n {
+                let c = [
+                    (k % dims[0]) as i64,
+                    ((k / dims[0]) % dims[1]) as i64,
+                    (k / (dims[0] * dims[1])) as i64,
+                ];
+                // Brute force: the largest side s <= cap whose cube from c towards the octant
+                // holds no occupied cell.
+                let empty = |s: i64| {
+                    (0..s).all(|i| {
+                        (0..s).all(|j| {
+                            (0..s).all(|l| {
+                                !at([c[0] + sign[0] * i, c[1] + sign[1] * j, c[2] + sign[2] * l])
+                            })
+                        })
+                    })
+                };
+                let want = (1..=cap as i64)
+                    .take_while(|&s| empty(s))
+                    .last()
+                    .unwrap_or(0);
+                assert_eq!(
+                    got[k] as i64, want,
+                    "cell {c:?}, octant {oct}, grid {dims:?}"
+                );
+                wide += (want > 1) as usize;
+            }
+        }
+    }
+    assert!(wide > 1000, "only {wide} cubes wider than one cell");
+}
+
 /// A sparse model of a few solid blobs in a large box, so that the DDA jumps at both levels.
 fn blob_model(rng: &mut Rng, dims: [u32; 3], blobs: usize) -> VoxelModel {
     let palette = vec![[90u8, 160, 60, 255]; 256];
@@ -768,7 +821,12 @@ fn cpu_dda_with_empty_space_jumps_matches_brute_force() {
         let m = blob_model(&mut rng, dims, 12);
         let b = m.bricks();
         brick_jumps += b.brick_gap.iter().filter(|&&g| g > 1).count();
-        voxel_jumps += b.pool_skip.iter().filter(|&&s| s > 1).count();
+        // Pool voxels whose cube ahead of them is wider than one voxel in some octant.
+        voxel_jumps += b
+            .pool_jump
+            .iter()
+            .filter(|&&w| (0..8).any(|o| w >> (4 * o) & 0xf > 1))
+            .count();
         let size = DVec3::new(dims[0] as f64, dims[1] as f64, dims[2] as f64);
         for k in 0..3000 {
             let o = DVec3::new(

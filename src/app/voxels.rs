@@ -97,7 +97,7 @@ pub struct VoxelBench {
 /// Models of the paper's sizes at one voxel per pixel, `distance` metres ahead of `cam` in a
 /// row across the view: the smallest scene model upsampled to at least [`PAPER_SMALL`] voxels;
 /// and copies of the largest (then the upsampled small one) until at least [`PAPER_LARGE`].
-fn paper_sets(
+pub fn paper_sets(
     models: &[VoxelInstance],
     cam: &crate::scene::Camera,
     distance: f64,

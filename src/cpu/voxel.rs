@@ -1,7 +1,8 @@
 //! Voxel models on the CPU (f64): the hierarchical DDA the GPU pass runs step for step — a
 //! ray clipped to the model box walks the brick grid (8³ voxels per brick) by Amanatides–Woo,
 //! and inside each occupied brick walks its voxels the same way, jumping over empty space by
-//! the distances of `voxel::skip` (out of the cube of empty cells around the current one) —
+//! the distances of `voxel::skip` (out of a cube of empty cells: around the current brick, or
+//! ahead of the current voxel towards the ray's octant) —
 //! plus a brute-force oracle
 //! (a slab test against every voxel) and scene helpers (nearest hit over instances, shadow
 //! query). Ray distances are in metres throughout: the ray is moved into voxel units rigidly
@@ -90,6 +91,7 @@ pub fn dda(b: &Bricks, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<Vox
         return None;
     }
     let step = [d.x, d.y, d.z].map(|v| if v >= 0.0 { 1i64 } else { -1 });
+    let oct = crate::voxel::skip::octant([d.x, d.y, d.z]);
     let bd = b.brick_dims.map(|v| v as i64);
     let s = BRICK as i64;
     let p = o + d * t0;
@@ -108,16 +110,19 @@ pub fn dda(b: &Bricks, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<Vox
         if level == 1 {
             let entry = b.brick(cell.map(|c| c as u32));
             if entry != EMPTY_BRICK {
-                // Into the brick in the same step: its voxel at the current point.
+                // Into the brick, as a step of its own that does not move: its voxel at the
+                // current point.
                 level = 0;
                 brick = cell;
                 block = entry;
                 let q = o + d * t;
                 cell = [0, 1, 2]
                     .map(|a| (q[a].floor() as i64).clamp(brick[a] * s, brick[a] * s + s - 1));
+                continue;
             }
         }
-        // The cube of voxels `[lo, hi)` around the current cell known to be empty (`voxel::skip`).
+        // A cube of voxels `[lo, hi)` holding the current cell and known to be empty
+        // (`voxel::skip`).
         let (lo, hi) = if level == 0 {
             let idx = b.get(cell);
             if idx != 0 {
@@ -129,8 +134,24 @@ pub fn dda(b: &Bricks, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<Vox
                     steps,
                 });
             }
-            let jump = b.voxel_skip(block, cell) as i64;
-            (cell.map(|c| c - (jump - 1)), cell.map(|c| c + jump))
+            // The empty cube with this voxel as its corner, ahead of the ray.
+            let side = b.voxel_jump(block, cell, oct) as i64;
+            (
+                [0, 1, 2].map(|a| {
+                    if step[a] > 0 {
+                        cell[a]
+                    } else {
+                        cell[a] - (side - 1)
+                    }
+                }),
+                [0, 1, 2].map(|a| {
+                    if step[a] > 0 {
+                        cell[a] + side
+                    } else {
+                        cell[a] + 1
+                    }
+                }),
+            )
         } else {
             let gap = b.brick_gap(cell.map(|c| c as u32)) as i64;
             (

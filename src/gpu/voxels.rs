@@ -27,6 +27,18 @@ use wgpu::util::DeviceExt;
 /// empty-space distance.
 pub const EMPTY_BIT: u32 = 0x8000_0000;
 
+/// Words of one octant's voxel codes in a brick's block (WGSL `VOX_CODE_WORDS`).
+const CODE_WORDS: usize = BRICK_VOXELS / 8;
+/// Words of a brick's block in `vox_data`: 8 octants' codes, then the palette indices.
+const BLOCK_WORDS: usize = 8 * CODE_WORDS + BRICK_VOXELS / 4;
+
+/// Octant `oct`'s 4-bit code of a voxel's `Bricks::pool_jump` word: 0 where occupied, else the
+/// octant's cube side.
+fn octant_code(jump: u32, oct: u32) -> u32 {
+    jump >> (crate::voxel::JUMP_BITS * oct) & 0xf
+}
+const _: () = assert!(crate::voxel::JUMP_BITS == 4);
+
 const _: () =
     assert!(crate::voxel::desc::MAX_INSTANCES * std::mem::size_of::<VoxInstanceGpu>() <= 16384);
 
@@ -122,11 +134,12 @@ impl VoxelPasses {
         check("voxel brick tables", table_bytes)?;
         // Brick tables first, then the pool (`vox_data` in voxel_dda.wgsl). A table entry is
         // its block's word address in the same buffer, or VOX_EMPTY_BIT | the brick's
-        // empty-space distance in voxels (`brick_gap`); a pool voxel is 16 bits, palette
-        // index | distance << 8.
+        // empty-space distance in voxels (`brick_gap`). A block holds for each octant of ray
+        // directions the brick's 512 4-bit voxel codes (0 = occupied, else the octant's cube
+        // side, `Bricks::pool_jump`; 8 a word), then the palette indices (4 a word).
         let built = std::time::Instant::now();
         let mut table: Vec<u32> = Vec::new();
-        let mut pool: Vec<u16> = Vec::new();
+        let mut pool: Vec<u32> = Vec::new();
         let mut palette: Vec<u32> = Vec::new();
         let mut seen: HashMap<*const VoxelModel, FrameRef> = HashMap::new();
         let mut frames = Vec::new();
@@ -138,7 +151,7 @@ impl VoxelPasses {
                     continue;
                 }
                 let b = f.bricks();
-                let base = (pool.len() / BRICK_VOXELS) as u32;
+                let base = (pool.len() / BLOCK_WORDS) as u32;
                 let r = FrameRef {
                     table: table.len() as u32,
                     palette: palette.len() as u32,
@@ -150,30 +163,38 @@ impl VoxelPasses {
                         base + i
                     }
                 }));
-                pool.extend(
-                    b.pool
-                        .iter()
-                        .zip(&b.pool_skip)
-                        .map(|(&i, &s)| i as u16 | (s as u16) << 8),
-                );
+                for (index, jump) in b
+                    .pool
+                    .chunks_exact(BRICK_VOXELS)
+                    .zip(b.pool_jump.chunks_exact(BRICK_VOXELS))
+                {
+                    for oct in 0..8 {
+                        pool.extend(
+                            jump.chunks_exact(8).map(|j| {
+                                (0..8).fold(0, |w, k| w | octant_code(j[k], oct) << (4 * k))
+                            }),
+                        );
+                    }
+                    pool.extend(
+                        index
+                            .chunks_exact(4)
+                            .map(|i| u32::from_le_bytes([i[0], i[1], i[2], i[3]])),
+                    );
+                }
                 palette.extend(f.palette.iter().map(|c| u32::from_le_bytes(*c)));
                 seen.insert(Arc::as_ptr(f), r);
                 refs.push(r);
             }
             frames.push(refs);
         }
-        let data_bytes = table.len() as u64 * 4 + pool.len() as u64 * 2;
+        let data_bytes = (table.len() + pool.len()) as u64 * 4;
         check("voxel brick tables and pool", data_bytes)?;
         let pool_base = table.len() as u32;
-        let words_per_block = (BRICK_VOXELS / 2) as u32;
         let mut data = table;
         for e in data.iter_mut().filter(|e| **e & EMPTY_BIT == 0) {
-            *e = pool_base + *e * words_per_block;
+            *e = pool_base + *e * BLOCK_WORDS as u32;
         }
-        data.extend(
-            pool.chunks_exact(2)
-                .map(|c| c[0] as u32 | (c[1] as u32) << 16),
-        );
+        data.extend(pool);
         let bytes = data_bytes + palette.len() as u64 * 4;
         let storage = wgpu::BufferUsages::STORAGE;
         let init = |label: &str, contents: &[u8], usage| {

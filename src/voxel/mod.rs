@@ -14,6 +14,7 @@ pub mod vox;
 pub use desc::{VoxelDesc, VoxelInstance};
 
 use crate::{Error, Result};
+use rayon::prelude::*;
 
 /// Voxels per brick side: the coarse level of the hierarchical DDA (WGSL `VOX_BRICK`).
 pub const BRICK: u32 = 8;
@@ -23,6 +24,12 @@ pub const BRICK_VOXELS: usize = (BRICK * BRICK * BRICK) as usize;
 pub const MAX_SIDE: u32 = 4096;
 /// Marks an empty brick in [`Bricks::table`].
 pub const EMPTY_BRICK: u32 = u32::MAX;
+/// Bits of one octant's cube side in a word of [`Bricks::pool_jump`].
+pub const JUMP_BITS: u32 = 4;
+const JUMP_MASK: u32 = (1 << JUMP_BITS) - 1;
+/// A `pool_jump` word of side 1 in every octant: plain Amanatides–Woo steps.
+const PLAIN_STEPS: u32 = 0x1111_1111;
+const _: () = assert!(skip::VOXEL_SKIP_CAP as u32 <= JUMP_MASK);
 
 /// One occupied voxel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -156,19 +163,18 @@ impl VoxelModel {
         let occupied: Vec<bool> = table.iter().map(|&b| b != EMPTY_BRICK).collect();
         let brick_skip = skip::chebyshev(bd.map(|d| d as usize), &occupied, skip::BRICK_SKIP_CAP);
         let brick_gap = skip::brick_gaps(bd, &table, &pool, &brick_skip);
-        // Voxel-level distances on a dense grid where it is small enough, else 1 (plain steps).
-        let mut pool_skip: Vec<u8> = pool.iter().map(|&i| (i == 0) as u8).collect();
+        // Voxel-level octant cubes on a dense grid where it is small enough, else 1 (plain
+        // steps).
+        let mut pool_jump: Vec<u32> = pool
+            .iter()
+            .map(|&i| if i == 0 { PLAIN_STEPS } else { 0 })
+            .collect();
         let cells: u64 = self.dims.iter().map(|&d| d as u64).product();
         if cells <= skip::DENSE_LIMIT {
             let [dx, dy, _] = self.dims.map(|d| d as usize);
-            let dense = self.dense();
-            let occupied: Vec<bool> = dense.iter().map(|&i| i != 0).collect();
-            drop(dense);
-            let dist = skip::chebyshev(
-                self.dims.map(|d| d as usize),
-                &occupied,
-                skip::VOXEL_SKIP_CAP,
-            );
+            let occupied: Vec<bool> = self.dense().iter().map(|&i| i != 0).collect();
+            // Per pool voxel inside the model, its index in the dense grid.
+            let mut dense_index = vec![u32::MAX; pool.len()];
             for (bi, &block) in table.iter().enumerate() {
                 if block == EMPTY_BRICK {
                     continue;
@@ -182,10 +188,30 @@ impl VoxelModel {
                     let l = [li % 8, (li / 8) % 8, li / 64];
                     let p: [usize; 3] = std::array::from_fn(|a| b[a] * BRICK as usize + l[a]);
                     if (0..3).all(|a| p[a] < self.dims[a] as usize) {
-                        pool_skip[block as usize * BRICK_VOXELS + li] =
-                            dist[p[0] + dx * (p[1] + dy * p[2])];
+                        dense_index[block as usize * BRICK_VOXELS + li] =
+                            (p[0] + dx * (p[1] + dy * p[2])) as u32;
                     }
                 }
+            }
+            let octants: Vec<Vec<u8>> = (0..8)
+                .into_par_iter()
+                .map(|oct| {
+                    let f = skip::octant_cubes(
+                        self.dims.map(|d| d as usize),
+                        &occupied,
+                        oct,
+                        skip::VOXEL_SKIP_CAP,
+                    );
+                    dense_index
+                        .iter()
+                        .map(|&k| if k == u32::MAX { 1 } else { f[k as usize] })
+                        .collect()
+                })
+                .collect();
+            for (i, w) in pool_jump.iter_mut().enumerate() {
+                *w = (0..8).fold(0, |w, oct| {
+                    w | (octants[oct][i] as u32) << (JUMP_BITS * oct as u32)
+                });
             }
         }
         Bricks {
@@ -193,7 +219,7 @@ impl VoxelModel {
             brick_dims: bd,
             table,
             pool,
-            pool_skip,
+            pool_jump,
             brick_skip,
             brick_gap,
         }
@@ -202,17 +228,23 @@ impl VoxelModel {
 
 /// Two-level occupancy: per brick of [`BRICK`]³ voxels, the index of its block in `pool`
 /// ([`EMPTY_BRICK`] if it holds no voxel); each block holds the palette indices of its voxels,
-/// local index `x + 8 (y + 8 z)`. With each, the empty-space distance the DDA jumps by
-/// ([`skip`]): per pool voxel and per brick, 0 where occupied, else `s >= 1` such that every
-/// voxel (brick) within `s - 1` of it along every axis is empty; per brick also that
-/// distance in voxels from the brick's box (`brick_gap`), which the DDA jumps by.
+/// local index `x + 8 (y + 8 z)`. With each, the empty space the DDA jumps over ([`skip`]):
+/// per pool voxel the empty cubes ahead of it towards each octant (`pool_jump`), per brick
+/// its distance in bricks to the nearest occupied one (`brick_skip`) and in voxels from its
+/// box to the nearest voxel (`brick_gap`).
 #[derive(Clone, Debug)]
 pub struct Bricks {
     pub dims: [u32; 3],
     pub brick_dims: [u32; 3],
     pub table: Vec<u32>,
     pub pool: Vec<u8>,
-    pub pool_skip: Vec<u8>,
+    /// Per pool voxel, 0 where occupied, else for each octant `o` of ray directions
+    /// ([`skip::octant`]) the side (1..=[`skip::VOXEL_SKIP_CAP`]) of the largest empty cube
+    /// with the voxel as its corner towards that octant, in bits `4 o .. 4 o + 4`
+    /// ([`skip::octant_cubes`]).
+    pub pool_jump: Vec<u32>,
+    /// Per brick, 0 where occupied, else its L∞ distance in bricks to the nearest occupied
+    /// one ([`skip::chebyshev`]).
     pub brick_skip: Vec<u8>,
     /// Per brick, 0 where occupied, else `g >= 1` such that every voxel within `g - 1` of the
     /// brick's box along every axis is empty ([`skip::brick_gaps`]).
@@ -234,11 +266,13 @@ impl Bricks {
         self.pool[b as usize * BRICK_VOXELS + (l[0] + BRICK * (l[1] + BRICK * l[2])) as usize]
     }
 
-    /// Empty-space distance of voxel `p` inside an occupied brick (`block`, in range).
-    pub fn voxel_skip(&self, block: u32, p: [i64; 3]) -> u8 {
+    /// Side of the empty cube towards octant `oct` at voxel `p` inside an occupied brick
+    /// (`block`, in range; 0 where occupied).
+    pub fn voxel_jump(&self, block: u32, p: [i64; 3], oct: usize) -> u8 {
         let l = p.map(|c| c.rem_euclid(BRICK as i64) as u32);
-        self.pool_skip
-            [block as usize * BRICK_VOXELS + (l[0] + BRICK * (l[1] + BRICK * l[2])) as usize]
+        let w = self.pool_jump
+            [block as usize * BRICK_VOXELS + (l[0] + BRICK * (l[1] + BRICK * l[2])) as usize];
+        (w >> (JUMP_BITS * oct as u32) & JUMP_MASK) as u8
     }
 
     /// Empty-space distance of brick `b` (in range; 0 where occupied).

@@ -1,7 +1,15 @@
-//! Empty-space distances for the voxel DDA: for every empty voxel (and every empty brick), a
-//! lower bound of its Chebyshev (L∞) distance to the nearest occupied voxel (brick). A ray in
-//! an empty cell at distance `s` may jump out of the cube of cells within `s - 1` of it in one
-//! step, since every cell of that cube is empty; `s = 1` is the plain Amanatides–Woo step.
+//! Empty-space distances for the voxel DDA.
+//!
+//! * Bricks: for every empty brick, a lower bound of its Chebyshev (L∞) distance to the
+//!   nearest occupied brick ([`chebyshev`]), refined into a distance in voxels from the
+//!   brick's box ([`brick_gaps`]). A ray in an empty brick at distance `s` may jump out of the
+//!   cube of bricks within `s - 1` of it in one step, since every brick of that cube is empty.
+//! * Voxels: for every empty voxel and each of the 8 octants a ray can travel in, the side of
+//!   the largest empty cube that has the voxel as its corner and extends in that octant's
+//!   directions ([`octant_cubes`]). A ray travelling in that octant leaves the cube before it
+//!   can meet anything, so it jumps to the cube's exit in one step. In a sparse cloud of
+//!   voxels (a tree's crown) the octant ahead is empty much further than the cube all around
+//!   the voxel (a ray never looks back). Side 1 is the plain Amanatides–Woo step.
 //!
 //! The L∞ distance transform is separable: along x, then y, then z, each cell takes
 //! `min over k of max(|k|, f(cell + k))`. Distances are capped (a cap is a valid lower bound,
@@ -10,8 +18,8 @@
 use super::{BRICK, BRICK_VOXELS, EMPTY_BRICK};
 use rayon::prelude::*;
 
-/// Cap of the voxel-level distances (a jump crosses at most `2 * cap - 1` voxels).
-pub const VOXEL_SKIP_CAP: u8 = 8;
+/// Cap of the voxel-level octant cube sides (4 bits, [`super::JUMP_BITS`]).
+pub const VOXEL_SKIP_CAP: u8 = 15;
 /// Cap of the brick-level distances.
 pub const BRICK_SKIP_CAP: u8 = 16;
 /// Largest model (in voxels) whose voxel-level distances are computed, on a dense grid of one
@@ -28,6 +36,73 @@ pub fn chebyshev(dims: [usize; 3], occupied: &[bool], cap: u8) -> Vec<u8> {
         f = pass(&f, dims, stride, axis);
     }
     f
+}
+
+/// Octant `oct` of a ray direction: bit `a` set where its component along axis `a` is >= 0.
+pub fn octant(d: [f64; 3]) -> usize {
+    (0..3).filter(|&a| d[a] >= 0.0).map(|a| 1 << a).sum()
+}
+
+/// Largest empty cubes of a `dims` grid (index `x + dx (y + dy z)`) that have a cell as their
+/// corner and extend along octant `oct` (bit `a` set: towards +axis `a`, else towards −):
+/// 0 where `occupied`, else `min(cap, s)` with every cell `c + (±k0, ±k1, ±k2)`,
+/// `0 <= k < s`, empty. Beyond the grid counts as empty (rays are clipped to it).
+///
+/// Dynamic programming (the 3-D largest-square recurrence): the cube of side `s` at `c` is `c`
+/// and the cubes of side `s - 1` at its 7 neighbours towards the octant, so
+/// `s(c) = 1 + min(s(neighbours))`, visiting cells from the octant's far corner.
+pub fn octant_cubes(dims: [usize; 3], occupied: &[bool], oct: usize, cap: u8) -> Vec<u8> {
+    assert_eq!(occupied.len(), dims[0] * dims[1] * dims[2]);
+    // Padded by one cell of `cap` on every side, so neighbours need no bounds checks.
+    let p = dims.map(|d| d + 2);
+    let stride = [1, p[0], p[0] * p[1]];
+    let mut f = vec![cap; p[0] * p[1] * p[2]];
+    let towards: [bool; 3] = std::array::from_fn(|a| oct >> a & 1 != 0);
+    // Offsets (in the padded grid) of the 7 neighbours towards the octant.
+    let offsets: Vec<isize> = (1..8usize)
+        .map(|v| {
+            (0..3)
+                .filter(|&a| v >> a & 1 != 0)
+                .map(|a| {
+                    if towards[a] {
+                        stride[a] as isize
+                    } else {
+                        -(stride[a] as isize)
+                    }
+                })
+                .sum()
+        })
+        .collect();
+    // Far side first along every axis.
+    let order = |a: usize, k: usize| if towards[a] { dims[a] - 1 - k } else { k };
+    for kz in 0..dims[2] {
+        let z = order(2, kz);
+        for ky in 0..dims[1] {
+            let y = order(1, ky);
+            for kx in 0..dims[0] {
+                let x = order(0, kx);
+                let i = (x + 1) + stride[1] * (y + 1) + stride[2] * (z + 1);
+                f[i] = if occupied[x + dims[0] * (y + dims[1] * z)] {
+                    0
+                } else {
+                    let m = offsets
+                        .iter()
+                        .map(|&o| f[(i as isize + o) as usize])
+                        .min()
+                        .unwrap_or(cap);
+                    (m + 1).min(cap)
+                };
+            }
+        }
+    }
+    let mut out = Vec::with_capacity(occupied.len());
+    for z in 0..dims[2] {
+        for y in 0..dims[1] {
+            let row = 1 + stride[1] * (y + 1) + stride[2] * (z + 1);
+            out.extend_from_slice(&f[row..row + dims[0]]);
+        }
+    }
+    out
 }
 
 /// One separable pass along `axis`: `g(i) = min over k of max(|k|, f(i + k))`, `|k| < f(i)`

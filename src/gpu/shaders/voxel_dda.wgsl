@@ -2,8 +2,7 @@
 // brick pool and palettes, and the hierarchical DDA (`cpu::voxel::dda` step for step): the ray,
 // moved into the model's voxel units (t stays in metres), is clipped to the model box, walks
 // the brick grid (8³ voxels per brick) by Amanatides–Woo and, inside each occupied brick, its
-// voxels the same way (a step that enters an occupied brick also tests its first voxel), both
-// with empty-space jumps measured in voxels. Cells are stepped by integer index and exit axis.
+// voxels the same way, both with empty-space jumps measured in voxels. Cells are stepped by integer index and exit axis.
 
 struct VoxInstance {
     // Rows of Rᵀ / voxel size: world direction -> voxel units per metre.
@@ -21,12 +20,15 @@ struct VoxInstance {
 // `vox_instances` (binding 10, a uniform array of the scene's records: one gather per load
 // on Mesa's CPU adapters, not a loop over the lanes as from a storage buffer) is declared
 // ahead of this file by `gpu::shaders::voxels`.
-// The brick tables and the brick pool in one buffer, so that a DDA step loads one word, two
-// where it enters an occupied brick (a storage-buffer load costs Mesa's CPU adapters a loop
-// over the SIMD lanes, and both levels' code runs in every step): a brick's entry is the word
-// address in this buffer of its block of 512 voxels (256 words), or VOX_EMPTY_BIT | the
-// brick's empty-space distance in voxels from its box (`Bricks::brick_gap`); a voxel is 16
-// bits, palette index | empty-space distance << 8 (`voxel::skip`).
+// The brick tables and the brick pool in one buffer, so that a DDA step loads one word (a
+// storage-buffer load costs Mesa's CPU adapters a loop over the SIMD lanes, and both levels'
+// code runs in every step): a brick's entry is the word address in this buffer of its block,
+// or VOX_EMPTY_BIT | the brick's empty-space distance in voxels from its box
+// (`Bricks::brick_gap`). A block holds, for each octant of ray directions, its 512 voxels'
+// 4-bit codes (64 words, 8 voxels each): 0 = occupied, else the side of the largest empty
+// cube with the voxel as its corner towards that octant (`Bricks::pool_jump`); a ray reads
+// only its octant's codes. Then the palette indices (128 words, 4 voxels each, read once a
+// ray hits).
 @group(0) @binding(11) var<storage, read> vox_data: array<u32>;
 // sRGB RGBA8 per palette index.
 @group(0) @binding(13) var<storage, read> vox_palette: array<u32>;
@@ -34,6 +36,8 @@ struct VoxInstance {
 // Keep in step with `gpu::voxels::EMPTY_BIT`.
 const VOX_EMPTY_BIT: u32 = 0x80000000u;
 const VOX_BRICK: i32 = 8;
+// Words of one octant's voxel codes in a brick's block (`gpu::voxels::CODE_WORDS`).
+const VOX_CODE_WORDS: u32 = 64u;
 const VOX_MAX_STEPS: u32 = 4096u;
 // Offset (voxels) a shadow ray leaves a voxel face by (`cpu::voxel::SHADOW_OFFSET_VOXELS`).
 const VOX_SHADOW_OFFSET: f32 = 0.01;
@@ -108,70 +112,63 @@ fn vox_dda(inst: VoxInstance, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32
     }
     let pos = d >= vec3<f32>(0.0);
     let flat = iv == vec3<f32>(BIG);
+    // Where this ray's octant keeps its codes in a block (`voxel::skip::octant`).
+    let codes = VOX_CODE_WORDS * dot(select(vec3<u32>(0u), vec3<u32>(1u, 2u, 4u), pos), vec3<u32>(1u));
     let bd = vec3<i32>(inst.bdims.xyz);
-    let p = o + d * t0;
-    // Brick level (`cell` in bricks of 8³ voxels) or voxel level inside `brick` (`cell` in
-    // voxels), whose block starts at word `block`.
+    // Brick level (`cell` in bricks of 8³ voxels) or voxel level (`cell` in voxels, inside the
+    // brick whose block starts at word `block`). Every step runs all of this on Mesa's CPU
+    // adapters (both sides of a branch, masked), so both levels share one load and one exit.
     var fine = false;
-    var cell = clamp(vec3<i32>(floor(p / f32(VOX_BRICK))), vec3<i32>(0), bd - 1);
-    var brick = cell;
+    var cell = clamp(vec3<i32>(floor((o + d * t0) / f32(VOX_BRICK))), vec3<i32>(0), bd - 1);
     var block = 0u;
     var t = t0;
+    var local = 0u;
     for (var i = 0u; i < VOX_MAX_STEPS; i++) {
         r.steps += 1u;
-        var w = vox_data[select(inst.dims.w + u32(cell.x + bd.x * (cell.y + bd.y * cell.z)), block + (vox_local(cell) >> 1u), fine)];
-        if (!fine && (w & VOX_EMPTY_BIT) == 0u) {
-            // Into the brick in the same step: its voxel at the current point.
-            fine = true;
-            brick = cell;
-            block = w;
-            cell = clamp(vec3<i32>(floor(o + d * t)), brick * VOX_BRICK, brick * VOX_BRICK + (VOX_BRICK - 1));
-            w = vox_data[block + (vox_local(cell) >> 1u)];
+        local = vox_local(cell);
+        let w = vox_data[select(inst.dims.w + u32(cell.x + bd.x * (cell.y + bd.y * cell.z)), block + codes + (local >> 3u), fine)];
+        let side = i32((w >> ((local & 7u) * 4u)) & 15u);
+        if (fine && side == 0) {
+            r.hit = true;
+            break;
         }
-        // The cube of voxels [lo, hi) around the current cell known to be empty.
-        var lo: vec3<i32>;
-        var hi: vec3<i32>;
-        if (fine) {
-            let v = w >> ((vox_local(cell) & 1u) * 16u);
-            let idx = v & 0xffu;
-            if (idx != 0u) {
-                r.hit = true;
-                r.t = t;
-                r.axis = axis;
-                r.index = idx;
-                return r;
-            }
-            let jump = i32((v >> 8u) & 0xffu);
-            lo = cell - (jump - 1);
-            hi = cell + jump;
-        } else {
-            let gap = i32(w & 0xffffu);
-            lo = cell * VOX_BRICK - (gap - 1);
-            hi = cell * VOX_BRICK + (VOX_BRICK - 1 + gap);
-        }
+        // An occupied brick is entered without moving: its cube is the brick itself and the
+        // next cell is the voxel at the current point, clamped into it.
+        let enter = !fine && (w & VOX_EMPTY_BIT) == 0u;
+        // A cube of voxels [lo, hi) holding the current cell and known to be empty: an empty
+        // brick grown by its gap in voxels; the brick being entered; the empty cube with the
+        // current voxel as its corner, ahead of the ray.
+        let g = select(i32(w & 0xffffu), 1, enter);
+        let lo = select(cell * VOX_BRICK - (g - 1), select(cell - (side - 1), cell, pos), fine);
+        let hi = select(cell * VOX_BRICK + (VOX_BRICK - 1 + g), select(cell + 1, cell + side, pos), fine);
         let te = select((vec3<f32>(select(lo, hi, pos)) - o) * iv, vec3<f32>(BIG), flat);
         // Exit axis: x before y before z on ties.
         let ex = te.x <= te.y && te.x <= te.z;
         let ey = !ex && te.y <= te.z;
-        t = min(min(te.x, te.y), te.z);
-        axis = select(select(2u, 1u, ey), 0u, ex);
+        if (!enter) {
+            t = min(min(te.x, te.y), te.z);
+            axis = select(select(2u, 1u, ey), 0u, ex);
+        }
         if (t > t1) {
             return r;
         }
         // The voxel beyond the exit face along the exit axis; along the others the exit
         // point's voxel, clamped into the cube.
         let q = clamp(vec3<i32>(floor(o + d * t)), lo, hi - 1);
-        let next = select(q, select(lo - 1, hi, pos), vec3<bool>(ex, ey, !ex && !ey));
+        let next = select(q, select(lo - 1, hi, pos), vec3<bool>(ex, ey, !ex && !ey) & vec3<bool>(!enter));
         let next_brick = next >> vec3<u32>(3u);
-        if (fine && all(next_brick == brick)) {
-            cell = next;
-        } else {
-            fine = false;
-            cell = next_brick;
-            if (any(cell < vec3<i32>(0)) || any(cell >= bd)) {
-                return r;
-            }
+        fine = enter || (fine && all(next_brick == cell >> vec3<u32>(3u)));
+        block = select(block, w, enter);
+        cell = select(next_brick, next, fine);
+        if (!fine && (any(cell < vec3<i32>(0)) || any(cell >= bd))) {
+            return r;
         }
+    }
+    if (r.hit) {
+        // The palette index, after the block's codes.
+        r.t = t;
+        r.axis = axis;
+        r.index = (vox_data[block + 8u * VOX_CODE_WORDS + (local >> 2u)] >> ((local & 3u) * 8u)) & 0xffu;
     }
     return r;
 }
