@@ -694,6 +694,8 @@ fn octant_cubes_are_the_largest_empty_cubes_ahead() {
         ([16, 3, 13], 0.01, 5),
         ([5, 6, 4], 0.0, 15),
         ([9, 9, 9], 0.3, 15),
+        // The largest cap (one byte): cubes that run out of the grid reach it.
+        ([7, 5, 6], 0.02, 255),
     ] {
         let n = dims[0] * dims[1] * dims[2];
         let occ: Vec<bool> = (0..n).map(|_| rng.range(0.0, 1.0) < fill).collect();
@@ -722,10 +724,26 @@ fn octant_cubes_are_the_largest_empty_cubes_ahead() {
                         })
                     })
                 };
-                let want = (1..=cap as i64)
+                // Once a cube reaches past the grid along every axis, larger ones add only
+                // cells beyond it (empty): the cap.
+                let beyond = (0..3)
+                    .map(|a| {
+                        if sign[a] > 0 {
+                            dims[a] as i64 - c[a]
+                        } else {
+                            c[a] + 1
+                        }
+                    })
+                    .max()
+                    .unwrap();
+                let want = match (1..=beyond.min(cap as i64))
                     .take_while(|&s| empty(s))
                     .last()
-                    .unwrap_or(0);
+                {
+                    Some(s) if s == beyond => cap as i64,
+                    Some(s) => s,
+                    None => 0,
+                };
                 assert_eq!(
                     got[k] as i64, want,
                     "cell {c:?}, octant {oct}, grid {dims:?}"
@@ -764,19 +782,25 @@ fn blob_model(rng: &mut Rng, dims: [u32; 3], blobs: usize) -> VoxelModel {
 fn brick_gaps_bound_the_distance_to_the_nearest_voxel() {
     let mut rng = Rng::new(23);
     let mut refined = 0;
+    let mut one_sided = 0;
     let mut empty = 0;
     for dims in [[45u32, 37, 52], [70, 20, 24]] {
         let m = blob_model(&mut rng, dims, 6);
         let b = m.bricks();
         let bd = b.brick_dims;
+        let symmetric = relief::voxel::skip::brick_gaps(bd, &b.table, &b.pool, &b.brick_skip);
         for bz in 0..bd[2] {
             for by in 0..bd[1] {
                 for bx in 0..bd[0] {
                     let c = [bx, by, bz];
-                    let gap = b.brick_gap(c) as i64;
+                    let gap = symmetric[(bx + bd[0] * (by + bd[1] * bz)) as usize] as i64;
                     let s = b.brick_skip(c) as i64;
                     if b.brick(c) != relief::voxel::EMPTY_BRICK {
                         assert_eq!(gap, 0, "occupied brick {c:?}");
+                        assert!(
+                            (0..8).all(|o| b.brick_gap(c, o) == 0),
+                            "occupied brick {c:?}"
+                        );
                         continue;
                     }
                     empty += 1;
@@ -804,12 +828,40 @@ fn brick_gaps_bound_the_distance_to_the_nearest_voxel() {
                         "brick {c:?}: gap {gap} below its brick distance {s}"
                     );
                     refined += (gap > 8 * (s - 1) + 1) as usize;
+                    // Towards each octant: never below the symmetric gap, and the box grown
+                    // that far towards the octant holds no voxel.
+                    for o in 0..8 {
+                        let g = b.brick_gap(c, o) as i64;
+                        assert!(g >= gap, "brick {c:?}, octant {o}: {g} below {gap}");
+                        let inside = |v: &Voxel| {
+                            (0..3).all(|a| {
+                                let lo = c[a] as i64 * 8;
+                                let p = v.pos[a] as i64;
+                                if o >> a & 1 != 0 {
+                                    p >= lo && p < lo + 8 + g - 1
+                                } else {
+                                    p > lo - g && p < lo + 8
+                                }
+                            })
+                        };
+                        if let Some(v) = m.voxels.iter().find(|v| inside(v)) {
+                            panic!("brick {c:?}, octant {o}: gap {g} reaches voxel {:?}", v.pos);
+                        }
+                        one_sided += (g > gap) as usize;
+                    }
                 }
             }
         }
     }
-    eprintln!("{refined} of {empty} empty bricks jump further than their brick distance allows");
+    eprintln!(
+        "{refined} of {empty} empty bricks jump further than their brick distance allows; {one_sided} of {} brick octants further than the symmetric gap",
+        8 * empty
+    );
     assert!(refined > 20, "only {refined} bricks refined");
+    assert!(
+        one_sided > 100,
+        "only {one_sided} brick octants reach further"
+    );
 }
 
 #[test]
@@ -820,7 +872,11 @@ fn cpu_dda_with_empty_space_jumps_matches_brute_force() {
     for dims in [[97u32, 64, 80], [40, 130, 33]] {
         let m = blob_model(&mut rng, dims, 12);
         let b = m.bricks();
-        brick_jumps += b.brick_gap.iter().filter(|&&g| g > 1).count();
+        brick_jumps += b
+            .brick_gap
+            .iter()
+            .filter(|g| g.iter().any(|&g| g > 1))
+            .count();
         // Pool voxels whose cube ahead of them is wider than one voxel in some octant.
         voxel_jumps += b
             .pool_jump

@@ -1,8 +1,8 @@
 //! Voxel models on the CPU (f64): the hierarchical DDA the GPU pass runs step for step — a
 //! ray clipped to the model box walks the brick grid (8³ voxels per brick) by Amanatides–Woo,
 //! and inside each occupied brick walks its voxels the same way, jumping over empty space by
-//! the distances of `voxel::skip` (out of a cube of empty cells: around the current brick, or
-//! ahead of the current voxel towards the ray's octant) —
+//! the distances of `voxel::skip` (out of a box of empty cells ahead of the ray, towards its
+//! octant: the current brick grown by its gap, or the empty cube at the current voxel) —
 //! plus a brute-force oracle
 //! (a slab test against every voxel) and scene helpers (nearest hit over instances, shadow
 //! query). Ray distances are in metres throughout: the ray is moved into voxel units rigidly
@@ -153,10 +153,23 @@ pub fn dda(b: &Bricks, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<Vox
                 }),
             )
         } else {
-            let gap = b.brick_gap(cell.map(|c| c as u32)) as i64;
+            // The brick's box grown by its gap towards the ray's octant.
+            let gap = b.brick_gap(cell.map(|c| c as u32), oct) as i64;
             (
-                cell.map(|c| c * s - (gap - 1)),
-                cell.map(|c| c * s + s + (gap - 1)),
+                [0, 1, 2].map(|a| {
+                    if step[a] > 0 {
+                        cell[a] * s
+                    } else {
+                        cell[a] * s - (gap - 1)
+                    }
+                }),
+                [0, 1, 2].map(|a| {
+                    if step[a] > 0 {
+                        cell[a] * s + s + (gap - 1)
+                    } else {
+                        cell[a] * s + s
+                    }
+                }),
             )
         };
         // Leave the cube through its face of exit (x before y before z on ties).

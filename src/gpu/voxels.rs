@@ -129,12 +129,14 @@ impl VoxelPasses {
                     .map(|&d| d.div_ceil(crate::voxel::BRICK) as u64)
                     .product::<u64>()
                     * 4
+                    * 8
             })
             .sum();
         check("voxel brick tables", table_bytes)?;
-        // Brick tables first, then the pool (`vox_data` in voxel_dda.wgsl). A table entry is
-        // its block's word address in the same buffer, or VOX_EMPTY_BIT | the brick's
-        // empty-space distance in voxels (`brick_gap`). A block holds for each octant of ray
+        // Brick tables first, then the pool (`vox_data` in voxel_dda.wgsl). A frame has a table
+        // per octant of ray directions; an entry is its block's word address in the same
+        // buffer, or VOX_EMPTY_BIT | the brick's gap in voxels towards the octant
+        // (`Bricks::brick_gap`). A block holds for each octant of ray
         // directions the brick's 512 4-bit voxel codes (0 = occupied, else the octant's cube
         // side, `Bricks::pool_jump`; 8 a word), then the palette indices (4 a word).
         let built = std::time::Instant::now();
@@ -156,13 +158,16 @@ impl VoxelPasses {
                     table: table.len() as u32,
                     palette: palette.len() as u32,
                 };
-                table.extend(b.table.iter().zip(&b.brick_gap).map(|(&i, &s)| {
-                    if i == EMPTY_BRICK {
-                        EMPTY_BIT | s as u32
-                    } else {
-                        base + i
-                    }
-                }));
+                // One table per octant of ray directions, each with that octant's gaps.
+                for oct in 0..8 {
+                    table.extend(b.table.iter().zip(&b.brick_gap).map(|(&i, g)| {
+                        if i == EMPTY_BRICK {
+                            EMPTY_BIT | g[oct] as u32
+                        } else {
+                            base + i
+                        }
+                    }));
+                }
                 for (index, jump) in b
                     .pool
                     .chunks_exact(BRICK_VOXELS)

@@ -162,9 +162,10 @@ impl VoxelModel {
         }
         let occupied: Vec<bool> = table.iter().map(|&b| b != EMPTY_BRICK).collect();
         let brick_skip = skip::chebyshev(bd.map(|d| d as usize), &occupied, skip::BRICK_SKIP_CAP);
-        let brick_gap = skip::brick_gaps(bd, &table, &pool, &brick_skip);
-        // Voxel-level octant cubes on a dense grid where it is small enough, else 1 (plain
-        // steps).
+        let symmetric_gap = skip::brick_gaps(bd, &table, &pool, &brick_skip);
+        let mut brick_gap: Vec<[u16; 8]> = symmetric_gap.iter().map(|&g| [g; 8]).collect();
+        // Octant cubes on a dense grid where it is small enough: voxel-level jumps (else 1,
+        // plain steps) and the bricks' one-sided gaps (else the symmetric ones).
         let mut pool_jump: Vec<u32> = pool
             .iter()
             .map(|&i| if i == 0 { PLAIN_STEPS } else { 0 })
@@ -193,25 +194,66 @@ impl VoxelModel {
                     }
                 }
             }
-            let octants: Vec<Vec<u8>> = (0..8)
+            // Per empty brick and octant, its corner voxel facing away from the octant (the
+            // last one inside the model).
+            let corner = |bi: usize, oct: usize| -> usize {
+                let b = [
+                    bi % bd[0] as usize,
+                    (bi / bd[0] as usize) % bd[1] as usize,
+                    bi / (bd[0] * bd[1]) as usize,
+                ];
+                let p: [usize; 3] = std::array::from_fn(|a| {
+                    let lo = b[a] * BRICK as usize;
+                    if oct >> a & 1 != 0 {
+                        lo
+                    } else {
+                        (lo + BRICK as usize - 1).min(self.dims[a] as usize - 1)
+                    }
+                });
+                p[0] + dx * (p[1] + dy * p[2])
+            };
+            let octants: Vec<(Vec<u8>, Vec<u16>)> = (0..8)
                 .into_par_iter()
                 .map(|oct| {
                     let f = skip::octant_cubes(
                         self.dims.map(|d| d as usize),
                         &occupied,
                         oct,
-                        skip::VOXEL_SKIP_CAP,
+                        skip::GAP_CUBE_CAP,
                     );
-                    dense_index
+                    let codes = dense_index
                         .iter()
-                        .map(|&k| if k == u32::MAX { 1 } else { f[k as usize] })
-                        .collect()
+                        .map(|&k| {
+                            if k == u32::MAX {
+                                1
+                            } else {
+                                f[k as usize].min(skip::VOXEL_SKIP_CAP)
+                            }
+                        })
+                        .collect();
+                    // The brick's box grown by g - 1 voxels towards the octant is the cube of
+                    // side 8 + g - 1 at that corner.
+                    let gaps = (0..table.len())
+                        .map(|bi| {
+                            if table[bi] != EMPTY_BRICK {
+                                return 0;
+                            }
+                            let side = f[corner(bi, oct)] as u16;
+                            (side + 1)
+                                .saturating_sub(BRICK as u16)
+                                .max(symmetric_gap[bi])
+                        })
+                        .collect();
+                    (codes, gaps)
                 })
                 .collect();
             for (i, w) in pool_jump.iter_mut().enumerate() {
                 *w = (0..8).fold(0, |w, oct| {
-                    w | (octants[oct][i] as u32) << (JUMP_BITS * oct as u32)
+                    w | (octants[oct].0[i] as u32) << (JUMP_BITS * oct as u32)
                 });
+            }
+            for (bi, g) in brick_gap.iter_mut().enumerate() {
+                *g = std::array::from_fn(|oct| octants[oct].1[bi]);
             }
         }
         Bricks {
@@ -230,8 +272,8 @@ impl VoxelModel {
 /// ([`EMPTY_BRICK`] if it holds no voxel); each block holds the palette indices of its voxels,
 /// local index `x + 8 (y + 8 z)`. With each, the empty space the DDA jumps over ([`skip`]):
 /// per pool voxel the empty cubes ahead of it towards each octant (`pool_jump`), per brick
-/// its distance in bricks to the nearest occupied one (`brick_skip`) and in voxels from its
-/// box to the nearest voxel (`brick_gap`).
+/// its distance in bricks to the nearest occupied one (`brick_skip`) and, towards each
+/// octant, how far in voxels its box can grow and stay empty (`brick_gap`).
 #[derive(Clone, Debug)]
 pub struct Bricks {
     pub dims: [u32; 3],
@@ -246,9 +288,12 @@ pub struct Bricks {
     /// Per brick, 0 where occupied, else its L∞ distance in bricks to the nearest occupied
     /// one ([`skip::chebyshev`]).
     pub brick_skip: Vec<u8>,
-    /// Per brick, 0 where occupied, else `g >= 1` such that every voxel within `g - 1` of the
-    /// brick's box along every axis is empty ([`skip::brick_gaps`]).
-    pub brick_gap: Vec<u16>,
+    /// Per brick and octant `o` of ray directions ([`skip::octant`]), 0 where occupied, else
+    /// `g >= 1` such that the brick's box grown by `g - 1` voxels towards the octant (along
+    /// axis `a` towards + where bit `a` of `o` is set, else towards −) holds no voxel: at least
+    /// the symmetric gap of [`skip::brick_gaps`], more where the octant cube at the brick's
+    /// back corner ([`skip::octant_cubes`]) reaches further.
+    pub brick_gap: Vec<[u16; 8]>,
 }
 
 impl Bricks {
@@ -282,9 +327,9 @@ impl Bricks {
     }
 
     /// Empty-space distance in voxels from the box of brick `b` (in range; 0 where occupied).
-    pub fn brick_gap(&self, b: [u32; 3]) -> u16 {
+    pub fn brick_gap(&self, b: [u32; 3], oct: usize) -> u16 {
         let bd = self.brick_dims;
-        self.brick_gap[(b[0] + bd[0] * (b[1] + bd[1] * b[2])) as usize]
+        self.brick_gap[(b[0] + bd[0] * (b[1] + bd[1] * b[2])) as usize][oct]
     }
 
     /// Pool block of brick `b` (in range).

@@ -20,6 +20,9 @@ use rayon::prelude::*;
 
 /// Cap of the voxel-level octant cube sides (4 bits, [`super::JUMP_BITS`]).
 pub const VOXEL_SKIP_CAP: u8 = 15;
+/// Cap of the octant cubes the bricks' one-sided gaps come from (one byte per voxel while
+/// they are computed).
+pub const GAP_CUBE_CAP: u8 = 255;
 /// Cap of the brick-level distances.
 pub const BRICK_SKIP_CAP: u8 = 16;
 /// Largest model (in voxels) whose voxel-level distances are computed, on a dense grid of one
@@ -90,7 +93,7 @@ pub fn octant_cubes(dims: [usize; 3], occupied: &[bool], oct: usize, cap: u8) ->
                         .map(|&o| f[(i as isize + o) as usize])
                         .min()
                         .unwrap_or(cap);
-                    (m + 1).min(cap)
+                    m.saturating_add(1).min(cap)
                 };
             }
         }

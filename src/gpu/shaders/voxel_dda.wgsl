@@ -22,9 +22,9 @@ struct VoxInstance {
 // ahead of this file by `gpu::shaders::voxels`.
 // The brick tables and the brick pool in one buffer, so that a DDA step loads one word (a
 // storage-buffer load costs Mesa's CPU adapters a loop over the SIMD lanes, and both levels'
-// code runs in every step): a brick's entry is the word address in this buffer of its block,
-// or VOX_EMPTY_BIT | the brick's empty-space distance in voxels from its box
-// (`Bricks::brick_gap`). A block holds, for each octant of ray directions, its 512 voxels'
+// code runs in every step). A frame has a brick table per octant of ray directions: a brick's
+// entry is the word address in this buffer of its block, or VOX_EMPTY_BIT | how far in voxels
+// its box can grow towards the octant and stay empty (`Bricks::brick_gap`). A block holds, for each octant of ray directions, its 512 voxels'
 // 4-bit codes (64 words, 8 voxels each): 0 = occupied, else the side of the largest empty
 // cube with the voxel as its corner towards that octant (`Bricks::pool_jump`); a ray reads
 // only its octant's codes. Then the palette indices (128 words, 4 voxels each, read once a
@@ -112,9 +112,11 @@ fn vox_dda(inst: VoxInstance, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32
     }
     let pos = d >= vec3<f32>(0.0);
     let flat = iv == vec3<f32>(BIG);
-    // Where this ray's octant keeps its codes in a block (`voxel::skip::octant`).
-    let codes = VOX_CODE_WORDS * dot(select(vec3<u32>(0u), vec3<u32>(1u, 2u, 4u), pos), vec3<u32>(1u));
     let bd = vec3<i32>(inst.bdims.xyz);
+    // This ray's octant (`voxel::skip::octant`): its brick table and its codes in a block.
+    let oct = dot(select(vec3<u32>(0u), vec3<u32>(1u, 2u, 4u), pos), vec3<u32>(1u));
+    let table = inst.dims.w + oct * u32(bd.x * bd.y * bd.z);
+    let codes = VOX_CODE_WORDS * oct;
     // Brick level (`cell` in bricks of 8³ voxels) or voxel level (`cell` in voxels, inside the
     // brick whose block starts at word `block`). Every step runs all of this on Mesa's CPU
     // adapters (both sides of a branch, masked), so both levels share one load and one exit.
@@ -126,7 +128,7 @@ fn vox_dda(inst: VoxInstance, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32
     for (var i = 0u; i < VOX_MAX_STEPS; i++) {
         r.steps += 1u;
         local = vox_local(cell);
-        let w = vox_data[select(inst.dims.w + u32(cell.x + bd.x * (cell.y + bd.y * cell.z)), block + codes + (local >> 3u), fine)];
+        let w = vox_data[select(table + u32(cell.x + bd.x * (cell.y + bd.y * cell.z)), block + codes + (local >> 3u), fine)];
         let side = i32((w >> ((local & 7u) * 4u)) & 15u);
         if (fine && side == 0) {
             r.hit = true;
@@ -135,12 +137,13 @@ fn vox_dda(inst: VoxInstance, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32
         // An occupied brick is entered without moving: its cube is the brick itself and the
         // next cell is the voxel at the current point, clamped into it.
         let enter = !fine && (w & VOX_EMPTY_BIT) == 0u;
-        // A cube of voxels [lo, hi) holding the current cell and known to be empty: an empty
-        // brick grown by its gap in voxels; the brick being entered; the empty cube with the
-        // current voxel as its corner, ahead of the ray.
-        let g = select(i32(w & 0xffffu), 1, enter);
-        let lo = select(cell * VOX_BRICK - (g - 1), select(cell - (side - 1), cell, pos), fine);
-        let hi = select(cell * VOX_BRICK + (VOX_BRICK - 1 + g), select(cell + 1, cell + side, pos), fine);
+        // A box of voxels [lo, hi) holding the current cell, known to be empty, grown from the
+        // cell towards the ray's octant: an empty brick by its gap; the brick being entered
+        // not at all; a voxel to the empty cube at its corner.
+        let ext = select(select(i32(w & 0xffffu), 1, enter), side, fine) - 1;
+        let base = select(cell * VOX_BRICK, cell, fine);
+        let lo = base - select(vec3<i32>(ext), vec3<i32>(0), pos);
+        let hi = base + select(VOX_BRICK, 1, fine) + select(vec3<i32>(0), vec3<i32>(ext), pos);
         let te = select((vec3<f32>(select(lo, hi, pos)) - o) * iv, vec3<f32>(BIG), flat);
         // Exit axis: x before y before z on ties.
         let ex = te.x <= te.y && te.x <= te.z;
