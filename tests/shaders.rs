@@ -149,6 +149,37 @@ fn volume_constants_match_the_cpu_side() {
 }
 
 #[test]
+fn voxel_constants_match_the_cpu_side() {
+    use relief::gpu::shaders;
+    let src = shaders::voxels(3);
+    for (what, want) in [
+        (
+            "VOX_EMPTY_BIT",
+            format!(
+                "const VOX_EMPTY_BIT: u32 = {:#x}u;",
+                relief::gpu::voxels::EMPTY_BIT
+            ),
+        ),
+        (
+            "VOX_BRICK",
+            format!("const VOX_BRICK: i32 = {};", relief::voxel::BRICK),
+        ),
+        (
+            "VOX_CODE_WORDS",
+            format!(
+                "const VOX_CODE_WORDS: u32 = {}u;",
+                relief::gpu::voxels::CODE_WORDS
+            ),
+        ),
+    ] {
+        assert!(
+            src.contains(&want),
+            "WGSL {what} differs from the CPU side: want `{want}`"
+        );
+    }
+}
+
+#[test]
 fn full_screen_passes_never_discard() {
     // The full-screen passes start from LoadOp::DontCare (renderer `encode_fullscreen`): that is
     // sound only while every pixel is written, i.e. no fragment of theirs discards.

@@ -752,6 +752,7 @@ fn octant_cubes_are_the_largest_empty_cubes_ahead() {
             }
         }
     }
+    eprintln!("{wide} cubes wider than one cell");
     assert!(wide > 1000, "only {wide} cubes wider than one cell");
 }
 

@@ -72,7 +72,8 @@ pub struct VoxelRun {
     pub voxels: usize,
     /// Pixels showing a voxel.
     pub voxel_pixels: usize,
-    /// Mean DDA steps (bricks and voxels visited, jumps counted once) per voxel pixel.
+    /// Mean DDA steps (bricks and voxels visited, jumps counted once, entering an occupied
+    /// brick a step of its own) per voxel pixel.
     pub mean_steps: f64,
     /// Median per-pass times over the timed frames (each pass waited for on its own).
     pub cast_ms: f64,
@@ -97,7 +98,7 @@ pub struct VoxelBench {
 /// Models of the paper's sizes at one voxel per pixel, `distance` metres ahead of `cam` in a
 /// row across the view: the smallest scene model upsampled to at least [`PAPER_SMALL`] voxels;
 /// and copies of the largest (then the upsampled small one) until at least [`PAPER_LARGE`].
-pub fn paper_sets(
+fn paper_sets(
     models: &[VoxelInstance],
     cam: &crate::scene::Camera,
     distance: f64,

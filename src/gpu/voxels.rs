@@ -28,7 +28,7 @@ use wgpu::util::DeviceExt;
 pub const EMPTY_BIT: u32 = 0x8000_0000;
 
 /// Words of one octant's voxel codes in a brick's block (WGSL `VOX_CODE_WORDS`).
-const CODE_WORDS: usize = BRICK_VOXELS / 8;
+pub const CODE_WORDS: usize = BRICK_VOXELS / 8;
 /// Words of a brick's block in `vox_data`: 8 octants' codes, then the palette indices.
 const BLOCK_WORDS: usize = 8 * CODE_WORDS + BRICK_VOXELS / 4;
 
