@@ -121,9 +121,10 @@ pub fn dda(b: &Bricks, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<Vox
                 continue;
             }
         }
-        // A cube of voxels `[lo, hi)` holding the current cell and known to be empty
-        // (`voxel::skip`).
-        let (lo, hi) = if level == 0 {
+        // A box of voxels `[lo, hi)` holding the current cell, known to be empty, grown from the
+        // cell by `ext` voxels towards the ray's octant (`voxel::skip`): a voxel to the empty
+        // cube at its corner, a brick by its gap.
+        let (base, size, ext) = if level == 0 {
             let idx = b.get(cell);
             if idx != 0 {
                 return Some(VoxHit {
@@ -134,44 +135,13 @@ pub fn dda(b: &Bricks, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<Vox
                     steps,
                 });
             }
-            // The empty cube with this voxel as its corner, ahead of the ray.
-            let side = b.voxel_jump(block, cell, oct) as i64;
-            (
-                [0, 1, 2].map(|a| {
-                    if step[a] > 0 {
-                        cell[a]
-                    } else {
-                        cell[a] - (side - 1)
-                    }
-                }),
-                [0, 1, 2].map(|a| {
-                    if step[a] > 0 {
-                        cell[a] + side
-                    } else {
-                        cell[a] + 1
-                    }
-                }),
-            )
+            (cell, 1, b.voxel_jump(block, cell, oct) as i64 - 1)
         } else {
-            // The brick's box grown by its gap towards the ray's octant.
             let gap = b.brick_gap(cell.map(|c| c as u32), oct) as i64;
-            (
-                [0, 1, 2].map(|a| {
-                    if step[a] > 0 {
-                        cell[a] * s
-                    } else {
-                        cell[a] * s - (gap - 1)
-                    }
-                }),
-                [0, 1, 2].map(|a| {
-                    if step[a] > 0 {
-                        cell[a] * s + s + (gap - 1)
-                    } else {
-                        cell[a] * s + s
-                    }
-                }),
-            )
+            (cell.map(|c| c * s), s, gap - 1)
         };
+        let lo = [0, 1, 2].map(|a| base[a] - if step[a] > 0 { 0 } else { ext });
+        let hi = [0, 1, 2].map(|a| base[a] + size + if step[a] > 0 { ext } else { 0 });
         // Leave the cube through its face of exit (x before y before z on ties).
         let mut t_exit = BIG;
         let mut exit_axis = 0;

@@ -23,8 +23,8 @@ use std::sync::Arc;
 use wgpu::util::DeviceExt;
 
 // Every scene's instance records fit the smallest uniform binding WebGPU guarantees (16 KiB).
-/// Marks an empty brick's entry in `vox_data` (WGSL `VOX_EMPTY_BIT`); the low bits hold its
-/// empty-space distance.
+/// Marks an empty brick's entry in `vox_data` (WGSL `VOX_EMPTY_BIT`); the low 16 bits hold
+/// its gap in voxels towards the table's octant (`Bricks::brick_gap`).
 pub const EMPTY_BIT: u32 = 0x8000_0000;
 
 /// Words of one octant's voxel codes in a brick's block (WGSL `VOX_CODE_WORDS`).
@@ -136,9 +136,9 @@ impl VoxelPasses {
         // Brick tables first, then the pool (`vox_data` in voxel_dda.wgsl). A frame has a table
         // per octant of ray directions; an entry is its block's word address in the same
         // buffer, or VOX_EMPTY_BIT | the brick's gap in voxels towards the octant
-        // (`Bricks::brick_gap`). A block holds for each octant of ray
-        // directions the brick's 512 4-bit voxel codes (0 = occupied, else the octant's cube
-        // side, `Bricks::pool_jump`; 8 a word), then the palette indices (4 a word).
+        // (`Bricks::brick_gap`). A block holds for each octant the brick's 512 4-bit voxel
+        // codes (0 = occupied, else the octant's cube side, `Bricks::pool_jump`; 8 a word),
+        // then the palette indices (4 a word).
         let built = std::time::Instant::now();
         let mut table: Vec<u32> = Vec::new();
         let mut pool: Vec<u32> = Vec::new();

@@ -212,41 +212,43 @@ impl VoxelModel {
                 });
                 p[0] + dx * (p[1] + dy * p[2])
             };
-            let octants: Vec<(Vec<u8>, Vec<u16>)> = (0..8)
-                .into_par_iter()
-                .map(|oct| {
-                    let f = skip::octant_cubes(
-                        self.dims.map(|d| d as usize),
-                        &occupied,
-                        oct,
-                        skip::GAP_CUBE_CAP,
-                    );
-                    let codes = dense_index
-                        .iter()
-                        .map(|&k| {
-                            if k == u32::MAX {
-                                1
-                            } else {
-                                f[k as usize].min(skip::VOXEL_SKIP_CAP)
-                            }
-                        })
-                        .collect();
-                    // The brick's box grown by g - 1 voxels towards the octant is the cube of
-                    // side 8 + g - 1 at that corner.
-                    let gaps = (0..table.len())
-                        .map(|bi| {
-                            if table[bi] != EMPTY_BRICK {
-                                return 0;
-                            }
-                            let side = f[corner(bi, oct)] as u16;
-                            (side + 1)
-                                .saturating_sub(BRICK as u16)
-                                .max(symmetric_gap[bi])
-                        })
-                        .collect();
-                    (codes, gaps)
-                })
-                .collect();
+            let octant = |oct: usize| -> (Vec<u8>, Vec<u16>) {
+                let f = skip::octant_cubes(
+                    self.dims.map(|d| d as usize),
+                    &occupied,
+                    oct,
+                    skip::GAP_CUBE_CAP,
+                );
+                let codes = dense_index
+                    .iter()
+                    .map(|&k| {
+                        if k == u32::MAX {
+                            1
+                        } else {
+                            f[k as usize].min(skip::VOXEL_SKIP_CAP)
+                        }
+                    })
+                    .collect();
+                // The brick's box grown by g - 1 voxels towards the octant is the cube of
+                // side 8 + g - 1 at that corner.
+                let gaps = (0..table.len())
+                    .map(|bi| {
+                        if table[bi] != EMPTY_BRICK {
+                            return 0;
+                        }
+                        let side = f[corner(bi, oct)] as u16;
+                        (side + 1)
+                            .saturating_sub(BRICK as u16)
+                            .max(symmetric_gap[bi])
+                    })
+                    .collect();
+                (codes, gaps)
+            };
+            let octants: Vec<(Vec<u8>, Vec<u16>)> = if cells <= skip::PARALLEL_LIMIT {
+                (0..8).into_par_iter().map(octant).collect()
+            } else {
+                (0..8).map(octant).collect()
+            };
             for (i, w) in pool_jump.iter_mut().enumerate() {
                 *w = (0..8).fold(0, |w, oct| {
                     w | (octants[oct].0[i] as u32) << (JUMP_BITS * oct as u32)
@@ -326,7 +328,7 @@ impl Bricks {
         self.brick_skip[(b[0] + bd[0] * (b[1] + bd[1] * b[2])) as usize]
     }
 
-    /// Empty-space distance in voxels from the box of brick `b` (in range; 0 where occupied).
+    /// Gap in voxels of brick `b` towards octant `oct` (in range; 0 where occupied).
     pub fn brick_gap(&self, b: [u32; 3], oct: usize) -> u16 {
         let bd = self.brick_dims;
         self.brick_gap[(b[0] + bd[0] * (b[1] + bd[1] * b[2])) as usize][oct]

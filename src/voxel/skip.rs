@@ -2,8 +2,9 @@
 //!
 //! * Bricks: for every empty brick, a lower bound of its Chebyshev (L∞) distance to the
 //!   nearest occupied brick ([`chebyshev`]), refined into a distance in voxels from the
-//!   brick's box ([`brick_gaps`]). A ray in an empty brick at distance `s` may jump out of the
-//!   cube of bricks within `s - 1` of it in one step, since every brick of that cube is empty.
+//!   brick's box ([`brick_gaps`]), and further, towards each octant, by the octant cube at the
+//!   brick's back corner (`Bricks::brick_gap`). A ray in an empty brick leaves the brick's box
+//!   grown by that gap in one step, since every voxel in it is empty.
 //! * Voxels: for every empty voxel and each of the 8 octants a ray can travel in, the side of
 //!   the largest empty cube that has the voxel as its corner and extends in that octant's
 //!   directions ([`octant_cubes`]). A ray travelling in that octant leaves the cube before it
@@ -25,9 +26,13 @@ pub const VOXEL_SKIP_CAP: u8 = 15;
 pub const GAP_CUBE_CAP: u8 = 255;
 /// Cap of the brick-level distances.
 pub const BRICK_SKIP_CAP: u8 = 16;
-/// Largest model (in voxels) whose voxel-level distances are computed, on a dense grid of one
-/// byte per voxel; larger models step voxel by voxel inside occupied bricks (distance 1).
+/// Largest model (in voxels) whose octant cubes are computed, on dense grids of one byte per
+/// voxel; larger models step voxel by voxel inside occupied bricks (side 1) and keep the
+/// bricks' symmetric gaps.
 pub const DENSE_LIMIT: u64 = 1 << 27;
+/// Largest model (in voxels) whose 8 octant passes run in parallel; beyond, one at a time, so
+/// that a large model holds one pass's grids at once.
+pub const PARALLEL_LIMIT: u64 = 1 << 24;
 
 /// Capped L∞ distance transform of a `dims` grid (index `x + dx (y + dy z)`): 0 where
 /// `occupied`, else `min(cap, distance to the nearest occupied cell)`.

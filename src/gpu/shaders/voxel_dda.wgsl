@@ -2,7 +2,8 @@
 // brick pool and palettes, and the hierarchical DDA (`cpu::voxel::dda` step for step): the ray,
 // moved into the model's voxel units (t stays in metres), is clipped to the model box, walks
 // the brick grid (8³ voxels per brick) by Amanatides–Woo and, inside each occupied brick, its
-// voxels the same way, both with empty-space jumps measured in voxels. Cells are stepped by integer index and exit axis.
+// voxels the same way, both jumping over the empty space ahead of the ray towards its octant
+// (`voxel::skip`). Cells are stepped by integer index and exit axis.
 
 struct VoxInstance {
     // Rows of Rᵀ / voxel size: world direction -> voxel units per metre.
@@ -24,11 +25,11 @@ struct VoxInstance {
 // storage-buffer load costs Mesa's CPU adapters a loop over the SIMD lanes, and both levels'
 // code runs in every step). A frame has a brick table per octant of ray directions: a brick's
 // entry is the word address in this buffer of its block, or VOX_EMPTY_BIT | how far in voxels
-// its box can grow towards the octant and stay empty (`Bricks::brick_gap`). A block holds, for each octant of ray directions, its 512 voxels'
-// 4-bit codes (64 words, 8 voxels each): 0 = occupied, else the side of the largest empty
-// cube with the voxel as its corner towards that octant (`Bricks::pool_jump`); a ray reads
-// only its octant's codes. Then the palette indices (128 words, 4 voxels each, read once a
-// ray hits).
+// its box can grow towards the octant and stay empty (`Bricks::brick_gap`). A block holds, for
+// each octant, its 512 voxels' 4-bit codes (64 words, 8 voxels each): 0 = occupied, else the
+// side of the largest empty cube with the voxel as its corner towards that octant
+// (`Bricks::pool_jump`); a ray reads only its octant's table and codes. Then the palette
+// indices (128 words, 4 voxels each, read once a ray hits).
 @group(0) @binding(11) var<storage, read> vox_data: array<u32>;
 // sRGB RGBA8 per palette index.
 @group(0) @binding(13) var<storage, read> vox_palette: array<u32>;
