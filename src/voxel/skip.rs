@@ -63,51 +63,45 @@ pub fn octant_cubes(dims: [usize; 3], occupied: &[bool], oct: usize, cap: u8) ->
     assert_eq!(occupied.len(), dims[0] * dims[1] * dims[2]);
     // Padded by one cell of `cap` on every side, so neighbours need no bounds checks.
     let p = dims.map(|d| d + 2);
-    let stride = [1, p[0], p[0] * p[1]];
     let mut f = vec![cap; p[0] * p[1] * p[2]];
     let towards: [bool; 3] = std::array::from_fn(|a| oct >> a & 1 != 0);
-    // Offsets (in the padded grid) of the 7 neighbours towards the octant.
-    let offsets: Vec<isize> = (1..8usize)
-        .map(|v| {
-            (0..3)
-                .filter(|&a| v >> a & 1 != 0)
-                .map(|a| {
-                    if towards[a] {
-                        stride[a] as isize
-                    } else {
-                        -(stride[a] as isize)
-                    }
-                })
-                .sum()
-        })
-        .collect();
-    // Far side first along every axis.
+    // Far side first along every axis; `step` leads from a cell to its neighbour towards
+    // the octant.
     let order = |a: usize, k: usize| if towards[a] { dims[a] - 1 - k } else { k };
+    let step = |a: usize, i: usize| if towards[a] { i + 1 } else { i - 1 };
+    let row = |y: usize, z: usize| p[0] * (y + p[1] * z);
+    // Per row, the least of the 3 neighbours in the rows already done (towards y, z and both),
+    // then along the row: s = 1 + min(that at x, that at x's neighbour, s at x's neighbour).
+    let mut m = vec![cap; p[0]];
     for kz in 0..dims[2] {
-        let z = order(2, kz);
+        let z = order(2, kz) + 1;
         for ky in 0..dims[1] {
-            let y = order(1, ky);
+            let y = order(1, ky) + 1;
+            let (ny, nz, nyz) = (
+                row(step(1, y), z),
+                row(y, step(2, z)),
+                row(step(1, y), step(2, z)),
+            );
+            for (x, m) in m.iter_mut().enumerate() {
+                *m = f[ny + x].min(f[nz + x]).min(f[nyz + x]);
+            }
+            let cur = row(y, z);
+            let occ = &occupied[dims[0] * (y - 1 + dims[1] * (z - 1))..][..dims[0]];
             for kx in 0..dims[0] {
-                let x = order(0, kx);
-                let i = (x + 1) + stride[1] * (y + 1) + stride[2] * (z + 1);
-                f[i] = if occupied[x + dims[0] * (y + dims[1] * z)] {
+                let x = order(0, kx) + 1;
+                let n = step(0, x);
+                f[cur + x] = if occ[x - 1] {
                     0
                 } else {
-                    let m = offsets
-                        .iter()
-                        .map(|&o| f[(i as isize + o) as usize])
-                        .min()
-                        .unwrap_or(cap);
-                    m.saturating_add(1).min(cap)
+                    m[x].min(m[n]).min(f[cur + n]).saturating_add(1).min(cap)
                 };
             }
         }
     }
     let mut out = Vec::with_capacity(occupied.len());
-    for z in 0..dims[2] {
-        for y in 0..dims[1] {
-            let row = 1 + stride[1] * (y + 1) + stride[2] * (z + 1);
-            out.extend_from_slice(&f[row..row + dims[0]]);
+    for z in 1..=dims[2] {
+        for y in 1..=dims[1] {
+            out.extend_from_slice(&f[row(y, z) + 1..][..dims[0]]);
         }
     }
     out
