@@ -882,7 +882,7 @@ fn cpu_dda_with_empty_space_jumps_matches_brute_force() {
         voxel_jumps += b
             .pool_jump
             .iter()
-            .filter(|&&w| (0..8).any(|o| w >> (4 * o) & 0xf > 1))
+            .filter(|&&w| (0..8).any(|o| relief::voxel::jump_side(w, o) > 1))
             .count();
         let size = DVec3::new(dims[0] as f64, dims[1] as f64, dims[2] as f64);
         for k in 0..3000 {

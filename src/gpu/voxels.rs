@@ -32,11 +32,7 @@ pub const CODE_WORDS: usize = BRICK_VOXELS / 8;
 /// Words of a brick's block in `vox_data`: 8 octants' codes, then the palette indices.
 const BLOCK_WORDS: usize = 8 * CODE_WORDS + BRICK_VOXELS / 4;
 
-/// Octant `oct`'s 4-bit code of a voxel's `Bricks::pool_jump` word: 0 where occupied, else the
-/// octant's cube side.
-fn octant_code(jump: u32, oct: u32) -> u32 {
-    jump >> (crate::voxel::JUMP_BITS * oct) & 0xf
-}
+// The codes are 4 bits (`voxel::jump_side`, 0 where occupied).
 const _: () = assert!(crate::voxel::JUMP_BITS == 4);
 
 const _: () =
@@ -174,11 +170,11 @@ impl VoxelPasses {
                     .zip(b.pool_jump.chunks_exact(BRICK_VOXELS))
                 {
                     for oct in 0..8 {
-                        pool.extend(
-                            jump.chunks_exact(8).map(|j| {
-                                (0..8).fold(0, |w, k| w | octant_code(j[k], oct) << (4 * k))
-                            }),
-                        );
+                        pool.extend(jump.chunks_exact(8).map(|j| {
+                            (0..8).fold(0, |w, k| {
+                                w | (crate::voxel::jump_side(j[k], oct) as u32) << (4 * k)
+                            })
+                        }));
                     }
                     pool.extend(
                         index

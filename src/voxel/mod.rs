@@ -27,6 +27,11 @@ pub const EMPTY_BRICK: u32 = u32::MAX;
 /// Bits of one octant's cube side in a word of [`Bricks::pool_jump`].
 pub const JUMP_BITS: u32 = 4;
 const JUMP_MASK: u32 = (1 << JUMP_BITS) - 1;
+
+/// Octant `oct`'s cube side in a [`Bricks::pool_jump`] word (0 where occupied).
+pub fn jump_side(word: u32, oct: usize) -> u8 {
+    (word >> (JUMP_BITS * oct as u32) & JUMP_MASK) as u8
+}
 /// A `pool_jump` word of side 1 in every octant: plain Amanatides–Woo steps.
 const PLAIN_STEPS: u32 = 0x1111_1111;
 const _: () = assert!(skip::VOXEL_SKIP_CAP as u32 <= JUMP_MASK);
@@ -317,9 +322,11 @@ impl Bricks {
     /// (`block`, in range; 0 where occupied).
     pub fn voxel_jump(&self, block: u32, p: [i64; 3], oct: usize) -> u8 {
         let l = p.map(|c| c.rem_euclid(BRICK as i64) as u32);
-        let w = self.pool_jump
-            [block as usize * BRICK_VOXELS + (l[0] + BRICK * (l[1] + BRICK * l[2])) as usize];
-        (w >> (JUMP_BITS * oct as u32) & JUMP_MASK) as u8
+        jump_side(
+            self.pool_jump
+                [block as usize * BRICK_VOXELS + (l[0] + BRICK * (l[1] + BRICK * l[2])) as usize],
+            oct,
+        )
     }
 
     /// Empty-space distance of brick `b` (in range; 0 where occupied).
