@@ -6,13 +6,10 @@ use std::path::PathBuf;
 /// Errors from loading, validating and rendering.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
-    /// A file could not be opened or read.
-    #[error("{}: {source}", path.display())]
-    Io {
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
+    /// A file could not be opened, read or written. The I/O error is part of the message and
+    /// deliberately not a `source()`: error chains (`anyhow`'s `{:#}`) would print it twice.
+    #[error("{}: {err}", path.display())]
+    Io { path: PathBuf, err: std::io::Error },
     /// A file was read but its contents are not what the format requires.
     #[error("{}: {msg}", path.display())]
     Format { path: PathBuf, msg: String },
@@ -34,7 +31,7 @@ impl Error {
     pub(crate) fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
         Error::Io {
             path: path.into(),
-            source,
+            err: source,
         }
     }
     pub(crate) fn format(path: impl Into<PathBuf>, msg: impl Into<String>) -> Self {

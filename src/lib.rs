@@ -13,11 +13,13 @@
 //! * [`display`]: curved-screen display model (screen, projectors, eye) for pre-distortion.
 //! * [`gpu`]: wgpu passes (ray generation, tile pre-pass, terrain cast + shade) and readback.
 //! * [`app`]: headless capture, benchmark and command-line front end.
+//! * [`fileio`]: bounded reads (memory budget, declared vs actual sizes) and atomic writes.
 
 pub mod app;
 pub mod cpu;
 pub mod display;
 pub mod error;
+pub mod fileio;
 pub mod freeform;
 pub mod gpu;
 pub mod scene;

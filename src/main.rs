@@ -16,6 +16,10 @@ const DEFAULT_SCENE: &str = "terrains/alps.toml";
 struct Cli {
     #[command(subcommand)]
     command: Option<Command>,
+    /// Memory budget in MiB for what loading one input file may allocate (default 8192, 8 GiB):
+    /// files whose declared sizes need more are refused before anything is allocated.
+    #[arg(long, global = true, value_name = "MB", value_parser = clap::value_parser!(u64).range(1..=1 << 40))]
+    memory_budget: Option<u64>,
 }
 
 #[derive(Subcommand)]
@@ -74,9 +78,9 @@ enum Command {
         size: (u32, u32),
         /// Timed frames per configuration (submitted in pairs as a frame loop does; the median
         /// over the pairs is reported; the --freeforms headline ratio alternates single frames
-        /// of its two configurations instead).
-        #[arg(long, default_value_t = 10)]
-        frames: u32,
+        /// of its two configurations instead). Default 10; 600 with --soak.
+        #[arg(long)]
+        frames: Option<u32>,
         /// Print one JSON object instead of a table.
         #[arg(long)]
         json: bool,
@@ -105,6 +109,11 @@ enum Command {
         display: Option<PathBuf>,
         #[arg(long, default_value_t = 0)]
         channel: usize,
+        /// Soak test instead: render --frames frames (default 600) as `render` does, without
+        /// writing files; report RSS per frame and its slope over frames 100-500, wgpu's live
+        /// objects at frames 100 and 500, and frame-time p50/p99/max.
+        #[arg(long, conflicts_with_all = ["dump_rays", "primary_only", "freeforms", "voxels", "volume", "display"])]
+        soak: bool,
     },
     /// Voxel model files: convert to the segment format (.rvs) and report sizes.
     Voxels {
@@ -126,6 +135,9 @@ enum Command {
         #[arg(long, value_parser = parse_vec::<3>, num_args = 2, allow_hyphen_values = true)]
         los: Option<Vec<[f64; 3]>>,
     },
+    /// Open the graphics adapter relief would render on (honours WGPU_BACKEND and
+    /// WGPU_ADAPTER_NAME) and print what it is; exit 1 if there is none.
+    Adapter,
 }
 
 /// `relief view` flags (see README: Window).
@@ -407,7 +419,12 @@ fn main() {
     )
     .format_timestamp(None)
     .init();
-    if let Err(e) = run(Cli::parse()) {
+    relief::fileio::install_signal_cleanup();
+    let cli = Cli::parse();
+    if let Some(mb) = cli.memory_budget {
+        relief::fileio::set_memory_budget(mb << 20);
+    }
+    if let Err(e) = run(cli) {
         eprintln!("error: {e:#}");
         std::process::exit(1);
     }
@@ -493,9 +510,22 @@ fn run(cli: Cli) -> Result<()> {
             volume,
             display,
             channel,
+            soak,
         }) => {
+            let frames = frames.unwrap_or(if soak { 600 } else { 10 });
             if frames == 0 {
                 bail!("--frames must be at least 1");
+            }
+            if soak {
+                let scene = scene.unwrap_or_else(default_scene);
+                let report = relief::app::soak::run(&scene, size, frames)
+                    .with_context(|| format!("soak test of {}", scene.display()))?;
+                if json {
+                    println!("{}", serde_json::to_string_pretty(&report)?);
+                } else {
+                    relief::app::soak::print(&report);
+                }
+                return Ok(());
             }
             if let Some(config) = display {
                 let scene = scene.unwrap_or_else(default_scene);
@@ -648,6 +678,22 @@ fn run(cli: Cli) -> Result<()> {
                 );
             }
         },
+        Some(Command::Adapter) => {
+            let gpu = relief::gpu::Gpu::new()?;
+            let l = &gpu.limits;
+            println!(
+                "{} ({:?}, {:?}, driver {} {})\n  parameter blocks: {:?}; 2-D textures up to {}, 3-D up to {}, storage buffers up to {} bytes",
+                gpu.info.name,
+                gpu.info.backend,
+                gpu.info.device_type,
+                gpu.info.driver,
+                gpu.info.driver_info,
+                gpu.params,
+                l.max_texture_dimension_2d,
+                l.max_texture_dimension_3d,
+                l.max_storage_buffer_binding_size
+            );
+        }
         Some(Command::Query { scene, at, los }) => {
             let s = relief::scene::Scene::load(&scene)?;
             let terrain = s.load_terrain()?;
@@ -664,8 +710,18 @@ fn run(cli: Cli) -> Result<()> {
             if let Some(pts) = los {
                 let (a, b) = (glam::DVec3::from(pts[0]), glam::DVec3::from(pts[1]));
                 let clear = relief::cpu::line_of_sight(&terrain, a, b);
+                let below: Vec<_> = [("first", a), ("second", b)]
+                    .iter()
+                    .filter(|(_, p)| relief::cpu::query::is_underground(&terrain, *p))
+                    .map(|(n, _)| *n)
+                    .collect();
+                let why = if below.is_empty() {
+                    String::new()
+                } else {
+                    format!(" ({} point below the terrain surface)", below.join(" and "))
+                };
                 println!(
-                    "line of sight {a} -> {b}: {}",
+                    "line of sight {a} -> {b}: {}{why}",
                     if clear { "clear" } else { "blocked" }
                 );
             }

@@ -1,6 +1,19 @@
 //! Every composed WGSL pass parses and validates with naga; no GPU needed.
 
+/// Validates `src` as written (parameter blocks in uniform buffers) and as bound on
+/// lavapipe (read-only storage buffers, `relief::gpu::ParamSpace::Storage`).
 fn validate(name: &str, src: &str) {
+    use relief::gpu::ParamSpace;
+    validate_one(name, &ParamSpace::Uniform.wgsl(src));
+    let storage = ParamSpace::Storage.wgsl(src);
+    assert!(
+        !storage.contains("var<uniform>"),
+        "{name}: a uniform block is left"
+    );
+    validate_one(&format!("{name} (storage parameters)"), &storage);
+}
+
+fn validate_one(name: &str, src: &str) {
     let module = match naga::front::wgsl::parse_str(src) {
         Ok(m) => m,
         Err(e) => panic!("{name}.wgsl does not parse:\n{}", e.emit_to_string(src)),

@@ -285,12 +285,15 @@ fn window_frames_match_headless_render() {
         );
     }
     // What was presented: the swap-chain image, and the window's pixels in the X server.
+    // wgpu's GL backend offers no COPY_SRC on the swap chain: there, and only there, the
+    // swap-chain readback is skipped (the X server's copy is still compared).
     let expected = head.join("frame_0040.png");
-    assert_matches(
-        "view-surface-0040",
-        &grab.join("surface_0040.png"),
-        &expected,
-    );
+    let surface = grab.join("surface_0040.png");
+    if !surface.exists() && adapter_of(&cap.join("frame_0040.json")).contains("Gl") {
+        eprintln!("skipping the swap-chain readback comparison: the GL backend's surface does not allow COPY_SRC");
+    } else {
+        assert_matches("view-surface-0040", &surface, &expected);
+    }
     let x11 = grab.join("x11_0040.png");
     assert!(x11.exists(), "no X server readback: {}", o_stderr(&o));
     assert!(
@@ -623,7 +626,15 @@ fn debug_views_show_depth_and_traversal_steps() {
             &[],
         );
         check_ok(&format!("relief view --debug-view {view}"), &o);
-        shots.push(load_rgb(&out.join("surface_0000.png")));
+        // The swap-chain image, or where the surface cannot be read back (wgpu's GL backend)
+        // the window's pixels in the X server.
+        let surface = out.join("surface_0000.png");
+        if surface.exists() {
+            shots.push(load_rgb(&surface));
+        } else {
+            eprintln!("{view}: no swap-chain readback on this adapter; using the X server's copy");
+            shots.push(load_rgb(&out.join("x11_0000.png")));
+        }
     }
     let grey = |img: &image::RgbImage| {
         img.pixels()
@@ -994,4 +1005,45 @@ fn eye_feed_lines() {
     assert_eq!(f.at(99), glam::DVec3::new(0.1, -0.2, 0.3));
     let e = motion::EyeFeed::parse(p, "0,0\n").unwrap_err().to_string();
     assert!(e.contains("eyes.csv") && e.contains("line 1"), "{e}");
+}
+
+/// Hours in a window: 600 unpaced frames, the RSS slope over frames 100..500 and wgpu's live
+/// objects at frames 100 and 500 from the exit summary. Before the fix lavapipe grew about
+/// 3.6 MB a frame here.
+#[test]
+fn view_keeps_memory_and_wgpu_objects_flat() {
+    let Some((x, _lock)) = window_env() else {
+        return;
+    };
+    let o = relief(
+        &[
+            "view",
+            "terrains/alps.toml",
+            "--size",
+            "160x120",
+            "--frames",
+            "600",
+            "--unpaced",
+            "--no-overlay",
+        ],
+        Some(&x.display),
+        &[],
+    );
+    let out = check_ok("relief view (soak)", &o);
+    eprintln!("{out}");
+    let memory = out
+        .lines()
+        .find(|l| l.starts_with("memory:"))
+        .unwrap_or_else(|| panic!("no memory line in the summary: {out}"));
+    let slope: f64 = memory
+        .split("RSS slope ")
+        .nth(1)
+        .and_then(|r| r.split_whitespace().next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no RSS slope in `{memory}`"));
+    assert!(slope < 4.0, "RSS grows {slope} KiB per frame: {memory}");
+    assert!(
+        memory.contains("wgpu objects at frames 100 and 500: unchanged"),
+        "wgpu objects changed between frames 100 and 500: {memory}"
+    );
 }

@@ -1,54 +1,88 @@
 //! Headless frame capture: `frame_NNNN.png`, `depth_NNNN.tiff` (f32 ray distance, +inf sky)
 //! and `frame_NNNN.json` (camera model, terrain mapping, timings, adapter).
-//! Files are written to a temporary name and renamed, so nothing is left half-written.
+//! Files are written atomically ([`crate::fileio::write_atomic`]: a temporary file renamed when
+//! complete, removed on any error), so nothing is left half-written.
 
 use crate::gpu::{FrameOutput, Gpu, RenderSettings, TerrainRenderer};
 use crate::scene::{Camera, Scene};
 use crate::terrain::Terrain;
-use crate::{Error, Result};
+use crate::{fileio, Error, Result};
 use serde_json::json;
 use std::path::{Path, PathBuf};
 
-fn write_atomic(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
-    let tmp = path.with_extension(format!(
-        "{}.partial",
-        path.extension().and_then(|e| e.to_str()).unwrap_or("")
-    ));
-    match write(&tmp) {
-        Ok(()) => std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e)),
-        Err(e) => {
-            let _ = std::fs::remove_file(&tmp);
-            Err(e)
-        }
-    }
-}
-
-/// Writes an sRGB RGBA8 image as PNG.
+/// Writes an sRGB RGBA8 image as PNG (atomically).
 pub fn write_png(path: &Path, width: u32, height: u32, rgba: &[u8]) -> Result<()> {
-    write_atomic(path, |tmp| {
-        let img = image::RgbaImage::from_raw(width, height, rgba.to_vec()).ok_or_else(|| {
-            Error::invalid(
-                "image",
-                format!(
-                    "{} bytes do not make a {width}x{height} RGBA image",
-                    rgba.len()
-                ),
-            )
-        })?;
-        img.save_with_format(tmp, image::ImageFormat::Png)
-            .map_err(|e| Error::format(path, format!("writing PNG: {e}")))
-    })
+    fileio::write_atomic(path, |f| encode_png(f, width, height, rgba))
 }
 
-/// Writes a single-channel f32 TIFF (the depth image).
+/// Encodes an sRGB RGBA8 image as PNG into `f`.
+fn encode_png(f: &mut fileio::AtomicFile, width: u32, height: u32, rgba: &[u8]) -> Result<()> {
+    if rgba.len() as u64 != width as u64 * height as u64 * 4 {
+        return Err(Error::invalid(
+            "image",
+            format!(
+                "{} bytes do not make a {width}x{height} RGBA image",
+                rgba.len()
+            ),
+        ));
+    }
+    let path = f.target().to_path_buf();
+    image::write_buffer_with_format(
+        f,
+        rgba,
+        width,
+        height,
+        image::ExtendedColorType::Rgba8,
+        image::ImageFormat::Png,
+    )
+    .map_err(|e| Error::format(path, format!("writing PNG: {e}")))
+}
+
+/// Writes a single-channel f32 TIFF (the depth image), atomically.
 pub fn write_depth_tiff(path: &Path, width: u32, height: u32, depth: &[f32]) -> Result<()> {
-    write_atomic(path, |tmp| {
-        let file = std::fs::File::create(tmp).map_err(|e| Error::io(tmp, e))?;
-        let mut enc = tiff::encoder::TiffEncoder::new(std::io::BufWriter::new(file))
-            .map_err(|e| Error::format(path, format!("writing TIFF: {e}")))?;
-        enc.write_image::<tiff::encoder::colortype::Gray32Float>(width, height, depth)
-            .map_err(|e| Error::format(path, format!("writing TIFF: {e}")))
-    })
+    fileio::write_atomic(path, |f| encode_depth_tiff(f, width, height, depth))
+}
+
+fn encode_depth_tiff(
+    f: &mut fileio::AtomicFile,
+    width: u32,
+    height: u32,
+    depth: &[f32],
+) -> Result<()> {
+    let path = f.target().to_path_buf();
+    let mut enc = tiff::encoder::TiffEncoder::new(f)
+        .map_err(|e| Error::format(&path, format!("writing TIFF: {e}")))?;
+    enc.write_image::<tiff::encoder::colortype::Gray32Float>(width, height, depth)
+        .map_err(|e| Error::format(&path, format!("writing TIFF: {e}")))
+}
+
+/// Writes a JSON value (pretty-printed), atomically.
+pub fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
+    fileio::write_atomic(path, |f| encode_json(f, value))
+}
+
+fn encode_json(f: &mut fileio::AtomicFile, value: &impl serde::Serialize) -> Result<()> {
+    let path = f.target().to_path_buf();
+    serde_json::to_writer_pretty(&mut *f, value)
+        .map_err(|e| Error::format(path, format!("writing JSON: {e}")))
+}
+
+/// Writes a frame's PNG, depth TIFF and JSON all or nothing: all three are written and flushed
+/// to temporary files before any is renamed into place ([`fileio::commit_all`]).
+pub fn write_frame_files(
+    png: &Path,
+    tif: &Path,
+    json: &Path,
+    out: &FrameOutput,
+    meta: &serde_json::Value,
+) -> Result<()> {
+    let mut a = fileio::AtomicFile::create(png)?;
+    encode_png(&mut a, out.width, out.height, &out.rgba)?;
+    let mut b = fileio::AtomicFile::create(tif)?;
+    encode_depth_tiff(&mut b, out.width, out.height, &out.depth)?;
+    let mut c = fileio::AtomicFile::create(json)?;
+    encode_json(&mut c, meta)?;
+    fileio::commit_all(vec![a, b, c])
 }
 
 /// Reads a depth TIFF written by [`write_depth_tiff`].
@@ -76,6 +110,15 @@ fn mat_rows(m: glam::DMat4) -> Vec<[f64; 4]> {
         t.z_axis.to_array(),
         t.w_axis.to_array(),
     ]
+}
+
+/// The affine map from (i, j, h_file, 1) to world points, h_file being a sample's height as
+/// the height file gives it (metres, before `terrain.vertical_scale`): the terrain's
+/// `world_from_grid` with the vertical scale folded into its height column.
+pub fn world_from_file_grid(scene: &Scene, terrain: &Terrain) -> glam::DMat4 {
+    let mut m = terrain.frame.world_from_grid();
+    m.z_axis *= scene.desc.terrain.vertical_scale;
+    m
 }
 
 /// Metadata describing exactly how a frame's pixels were made.
@@ -119,8 +162,8 @@ pub fn frame_metadata(
         "terrain": {
             "samples": [terrain.field.width, terrain.field.height],
             "spacing_m": terrain.field.spacing,
-            "world_from_grid": mat_rows(terrain.frame.world_from_grid()),
-            "grid": "sample (i, j) is at grid point (i, j, height); j runs north (row 0 is the southern edge); the surface is bilinear in each cell",
+            "world_from_grid": mat_rows(world_from_file_grid(scene, terrain)),
+            "grid": "sample (i, j) with height h in metres as the height file gives it (before vertical_scale) is at world point world_from_grid * (i, j, h, 1): the vertical scale is folded into the height column; j runs north (row 0 is the southern edge); the surface is bilinear in each cell",
             "height_range_m": [terrain.min_height, terrain.max_height],
             "vertical_scale": scene.desc.terrain.vertical_scale,
             "voids_filled": terrain.field.voids_filled,
@@ -196,6 +239,18 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
             format!("must be 1..=100000, got {}", job.frames),
         ));
     }
+    // The last frame number must exist: `--first` + `--frames` − 1 within u32.
+    let last_frame = job.first_frame.checked_add(job.frames - 1).ok_or_else(|| {
+        Error::invalid(
+            "--first",
+            format!(
+                "{} with --frames {} runs past the largest frame number {}: lower --first or --frames",
+                job.first_frame,
+                job.frames,
+                u32::MAX
+            ),
+        )
+    })?;
     let terrain = scene.load_terrain()?;
     let objects = scene.free_forms(&terrain)?;
     let volumes = scene.volumes(&terrain)?;
@@ -310,7 +365,22 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
     }
     std::fs::create_dir_all(&job.out_dir).map_err(|e| Error::io(&job.out_dir, e))?;
     let mut written = Vec::new();
-    for frame in job.first_frame..job.first_frame + job.frames {
+    for frame in job.first_frame..=last_frame {
+        // An error names the frame and what is kept: every earlier frame is complete.
+        let at = |e: Error| {
+            let done = frame - job.first_frame;
+            Error::invalid(
+                format!("frame {frame}"),
+                if done == 0 {
+                    format!("{e}; no frame was written")
+                } else {
+                    format!(
+                        "{e}; the {done} frame(s) before it are complete in {}",
+                        job.out_dir.display()
+                    )
+                },
+            )
+        };
         let cam = scene.camera(frame, &terrain);
         renderer.set_time(frame as f64 / fps);
         if job.pattern {
@@ -329,8 +399,11 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
                 dirs,
                 cam.width,
                 cam.height,
-            )?,
-            None => renderer.capture(&gpu, &terrain, &scene.desc, &cam, &settings)?,
+            )
+            .map_err(at)?,
+            None => renderer
+                .capture(&gpu, &terrain, &scene.desc, &cam, &settings)
+                .map_err(at)?,
         };
         if let Some(b) = &blend_after_warp {
             b.apply_rgba8(&mut out.rgba);
@@ -338,21 +411,17 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
         let png = job.out_dir.join(format!("frame_{frame:04}.png"));
         let tif = job.out_dir.join(format!("depth_{frame:04}.tiff"));
         let meta = job.out_dir.join(format!("frame_{frame:04}.json"));
-        write_png(&png, out.width, out.height, &out.rgba)?;
-        write_depth_tiff(&tif, out.width, out.height, &out.depth)?;
+        // None of the frame's files is written when one of them cannot be.
+        for p in [&png, &tif, &meta] {
+            fileio::check_writable_target(p).map_err(at)?;
+        }
         let mut m = frame_metadata(&gpu, &scene, &terrain, &cam, &settings, frame, &out);
         if !display_meta.is_null() {
             m["display"] = display_meta.clone();
             m["camera"]["model"] =
                 json!("distortion-table (see display); the pinhole intrinsics do not apply");
         }
-        write_atomic(&meta, |tmp| {
-            std::fs::write(
-                tmp,
-                serde_json::to_string_pretty(&m).expect("metadata serialises"),
-            )
-            .map_err(|e| Error::io(tmp, e))
-        })?;
+        write_frame_files(&png, &tif, &meta, &out, &m).map_err(at)?;
         log::info!(
             "frame {frame}: raygen {:.1} ms, tile {:.1} ms, cast {:.1} ms, free forms {:.1} ms, voxels {:.1} ms, voxel shadows {:.1} ms, shade {:.1} ms, volume shadows {:.1} ms, volume {:.1} ms -> {}",
             out.times.raygen_ms,

@@ -2,6 +2,7 @@
 
 pub mod bench;
 pub mod capture;
+pub mod soak;
 pub mod verify;
 pub mod view;
 pub mod volumes;

@@ -903,13 +903,7 @@ pub fn run(
         }
     }
     let json = out.join("verify.json");
-    let tmp = out.join("verify.json.partial");
-    std::fs::write(
-        &tmp,
-        serde_json::to_string_pretty(&report).expect("report serialises"),
-    )
-    .map_err(|e| Error::io(&tmp, e))?;
-    std::fs::rename(&tmp, &json).map_err(|e| Error::io(&json, e))?;
+    super::capture::write_json(&json, &report)?;
     written.push(json);
     Ok((report, written))
 }

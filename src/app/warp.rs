@@ -5,7 +5,7 @@ use crate::display::warp::{
     read_bourke, read_pfm, write_bourke, write_pfm, BourkeMesh, MeshNode, Pfm, RowOrder,
 };
 use crate::display::DisplayConfig;
-use crate::{Error, Result};
+use crate::{fileio, Error, Result};
 use glam::DVec3;
 use std::path::Path;
 
@@ -78,6 +78,7 @@ pub fn export(
     out: &Path,
     step: u32,
 ) -> Result<String> {
+    fileio::check_writable_target(out)?;
     let cfg = DisplayConfig::load(config)?;
     let ch = cfg.channels.get(channel).ok_or_else(|| {
         Error::invalid(
@@ -191,6 +192,7 @@ pub fn apply_dome_master(
     out: &Path,
 ) -> Result<String> {
     crate::display::dome_master::check_fov("--fov", fov)?;
+    fileio::check_writable_target(out)?;
     let cfg = DisplayConfig::load(config)?;
     let ch = cfg.channels.get(channel).ok_or_else(|| {
         Error::invalid(
@@ -202,9 +204,7 @@ pub fn apply_dome_master(
             ),
         )
     })?;
-    let img = image::open(input)
-        .map_err(|e| Error::format(input, format!("cannot read the dome master: {e}")))?
-        .to_rgba8();
+    let img = read_dome_master(input)?;
     let (w, h) = img.dimensions();
     if w != h || w < 2 {
         return Err(Error::format(
@@ -250,12 +250,27 @@ pub fn apply_dome_master(
     ))
 }
 
+/// Reads a dome master image as RGBA8, its declared size checked against the file's length and
+/// the memory budget first.
+fn read_dome_master(input: &Path) -> Result<image::RgbaImage> {
+    // The RGBA copy.
+    let img = fileio::read_image(input, 4).map_err(|e| match e {
+        Error::Format { path, msg } => Error::Format {
+            path,
+            msg: format!("cannot read the dome master: {msg}"),
+        },
+        e => e,
+    })?;
+    Ok(img.to_rgba8())
+}
+
 /// `relief warp apply --mesh`: warps a dome master into a projector image of `size` through a
 /// Paul Bourke type-2 mesh (nodes at projector positions x in ±aspect, y in ±1 up, holding the
 /// master's u, v (v = 0 at the bottom) and a brightness), interpolating bilinearly between
 /// nodes and multiplying by the interpolated brightness, as Bourke's own tools do. Cells with
 /// an unused node (negative brightness) stay black.
 pub fn apply_mesh(mesh: &Path, input: &Path, size: (u32, u32), out: &Path) -> Result<String> {
+    fileio::check_writable_target(out)?;
     let m = read_bourke(mesh)?;
     if m.mesh_type != 2 {
         return Err(Error::format(
@@ -290,9 +305,7 @@ pub fn apply_mesh(mesh: &Path, input: &Path, size: (u32, u32), out: &Path) -> Re
             "node x must increase along each row and y up the rows (bottom row first)",
         ));
     }
-    let img = image::open(input)
-        .map_err(|e| Error::format(input, format!("cannot read the dome master: {e}")))?
-        .to_rgba8();
+    let img = read_dome_master(input)?;
     let (mw, mh) = img.dimensions();
     let aspect = w as f64 / h as f64;
     let mut rgba = vec![0u8; (w * h * 4) as usize];

@@ -1,7 +1,7 @@
 //! Terrain queries on the CPU: ray casting, height of terrain, height above terrain, line of
 //! sight and sun visibility. All in world coordinates (metres).
 
-use super::traverse::{intersect, make_hit, GridRay, Hit, TraversalStats};
+use super::traverse::{intersect_with_walls, make_hit, GridRay, Hit, TraversalStats};
 use crate::terrain::Terrain;
 use glam::DVec3;
 
@@ -16,11 +16,30 @@ pub fn cast_ray(
     t_min: f64,
     t_max: f64,
 ) -> Option<Hit> {
+    cast(terrain, origin, dir, t_min, t_max, terrain.walls)
+}
+
+fn cast(
+    terrain: &Terrain,
+    origin: DVec3,
+    dir: DVec3,
+    t_min: f64,
+    t_max: f64,
+    walls: bool,
+) -> Option<Hit> {
     let dir = dir.normalize();
     let r = GridRay::from_world(terrain, origin, dir);
     let mut stats = TraversalStats::default();
-    intersect(terrain, &r, t_min, t_max, QUERY_MAX_STEPS, &mut stats)
-        .map(|(t, cell)| make_hit(terrain, &r, t, cell))
+    intersect_with_walls(
+        terrain,
+        &r,
+        t_min,
+        t_max,
+        QUERY_MAX_STEPS,
+        &mut stats,
+        walls,
+    )
+    .map(|(t, cell)| make_hit(terrain, &r, t, cell))
 }
 
 /// The terrain surface point on the base-plane normal through `p` (for the default horizontal
@@ -37,16 +56,55 @@ pub fn height_above_terrain(terrain: &Terrain, p: DVec3) -> Option<f64> {
     terrain.height_at_grid(g.x, g.y).map(|h| g.z - h)
 }
 
-/// True when the segment from `a` to `b` does not touch the terrain. Touching at the very end
-/// points (within `1e-6` of the length, at least 1 mm) does not count as blocking.
+/// True when the segment from `a` to `b` does not touch the terrain. The terrain is solid
+/// ground: a segment with any point below the surface over the height grid is blocked, so
+/// one with an end point underground is blocked even where it never crosses the surface (it
+/// may run below the lowest sample). Touching at the very end points (within `1e-6` of the
+/// length, at least 1 mm) does not count as blocking. `terrain.walls` plays no part here.
 pub fn line_of_sight(terrain: &Terrain, a: DVec3, b: DVec3) -> bool {
     let d = b - a;
     let len = d.length();
+    let eps = (len * 1e-6).max(1e-3);
+    // Where the segment is over the grid, it is underground from its first point there on
+    // if that point is below the surface; otherwise only by crossing the surface downwards,
+    // which the traversal finds.
+    let (ga, gb) = (
+        terrain.frame.world_to_grid(a),
+        terrain.frame.world_to_grid(b),
+    );
+    let [cw, ch] = terrain.cells();
+    let (mut s0, mut s1) = (0.0f64, 1.0f64);
+    for (lo, hi, pa, pb) in [(0.0, cw as f64, ga.x, gb.x), (0.0, ch as f64, ga.y, gb.y)] {
+        let dp = pb - pa;
+        if dp == 0.0 {
+            if pa < lo || pa > hi {
+                return true;
+            }
+        } else {
+            let (ta, tb) = ((lo - pa) / dp, (hi - pa) / dp);
+            s0 = s0.max(ta.min(tb));
+            s1 = s1.min(ta.max(tb));
+        }
+    }
+    if s0 > s1 {
+        return true; // never over the grid
+    }
+    let first = terrain.frame.world_to_grid(a + d * s0);
+    let ground =
+        terrain.height_at_grid(first.x.clamp(0.0, cw as f64), first.y.clamp(0.0, ch as f64));
+    if ground.is_some_and(|h| first.z < h - eps) {
+        return false;
+    }
     if len == 0.0 {
         return true;
     }
-    let eps = (len * 1e-6).max(1e-3);
-    cast_ray(terrain, a, d / len, eps, len - eps).is_none()
+    // Walls on: a segment entering the grid's box below the surface is blocked where it enters.
+    cast(terrain, a, d / len, eps, len - eps, true).is_none()
+}
+
+/// True when `p` is over the height grid and more than 1 mm below the terrain surface.
+pub fn is_underground(terrain: &Terrain, p: DVec3) -> bool {
+    height_above_terrain(terrain, p).is_some_and(|h| h < -1e-3)
 }
 
 /// Offset (metres along the surface normal) from which shadow rays leave a surface point,

@@ -5,6 +5,12 @@
 //! the cell's maximum; otherwise descend to the child containing the entry point; at level 0
 //! intersect the bilinear patch exactly (a quadratic in t, re-centred on the entry point).
 //! After a crossing climb while the new cell's parent differs from the old one's.
+//!
+//! Walls: a ray already below the surface where it enters the box (through a side of the
+//! grid, its floor, or from an origin underground) meets the patch test's `C ≤ 0` at once,
+//! i.e. the terrain renders as a solid block with vertical side walls down to the lowest
+//! sample and a floor there. With `terrain.walls = false` such a ray instead passes under the
+//! surface until it comes up through it ([`patch_hit_from_below`]).
 
 use crate::terrain::pyramid::PAD;
 use crate::terrain::Terrain;
@@ -118,6 +124,76 @@ pub fn patch_hit(
     t_a: f64,
     t_b: f64,
 ) -> Option<f64> {
+    let (qa, qb, qc) = patch_quadratic(terrain, r, i, j, t_a);
+    if qc <= 0.0 {
+        return Some(t_a);
+    }
+    first_root(qa, qb, qc, t_b - t_a).map(|s| t_a + s)
+}
+
+/// As [`patch_hit`] for a ray that may be below the surface (`*under`, terrain without
+/// walls): such a ray hits nothing until it has come up through the surface, and then only
+/// where it goes down through it again. `*under` is cleared once the ray is above the
+/// surface (at the cell entry or where it comes out within the cell).
+pub fn patch_hit_from_below(
+    terrain: &Terrain,
+    r: &GridRay,
+    i: usize,
+    j: usize,
+    t_a: f64,
+    t_b: f64,
+    under: &mut bool,
+) -> Option<f64> {
+    let (qa, qb, qc) = patch_quadratic(terrain, r, i, j, t_a);
+    let s_max = t_b - t_a;
+    if qc > 0.0 {
+        *under = false;
+        return first_root(qa, qb, qc, s_max).map(|s| t_a + s);
+    }
+    // q(s) = qa s² + qb s + qc with q(0) ≤ 0. Roots by the stable formula.
+    let disc = qb * qb - 4.0 * qa * qc;
+    let linear = qa.abs() < 1e-12 * (qb.abs() + qc.abs()).max(1e-300);
+    if disc < 0.0 {
+        return None; // q < 0 throughout (qa < 0): stays below
+    }
+    let q = -0.5 * (qb + qb.signum() * disc.sqrt());
+    let r2 = if q != 0.0 { qc / q } else { f64::INFINITY };
+    if linear {
+        // Comes up through the surface where the line crosses 0 (qb > 0), never goes down.
+        if r2 >= 0.0 && r2 <= s_max {
+            *under = false;
+        }
+        return None;
+    }
+    let r1 = q / qa;
+    let (lo, hi) = (r1.min(r2), r1.max(r2));
+    if qa < 0.0 {
+        // Positive between the roots: out at `lo`, back down (a hit from above) at `hi`.
+        if lo >= 0.0 && lo <= s_max {
+            *under = false;
+            if hi <= s_max {
+                return Some(t_a + hi);
+            }
+        }
+        None
+    } else {
+        // Negative between the roots and 0 lies between them: out at `hi`, never down again.
+        if hi >= 0.0 && hi <= s_max {
+            *under = false;
+        }
+        None
+    }
+}
+
+/// The bilinear patch of cell `(i, j)` along the ray, re-centred on `t_a`: ray height above
+/// the patch is `qa s² + qb s + qc` at `t = t_a + s`.
+fn patch_quadratic(
+    terrain: &Terrain,
+    r: &GridRay,
+    i: usize,
+    j: usize,
+    t_a: f64,
+) -> (f64, f64, f64) {
     let f = &terrain.field;
     let (h00, h10, h01, h11) = (
         f.at(i, j) as f64,
@@ -131,13 +207,13 @@ pub fn patch_hit(
     let qa = -e * r.d.x * r.d.y;
     let qb = r.d.z - b * r.d.x - c * r.d.y - e * (u0 * r.d.y + v0 * r.d.x);
     let qc = p.z - (a + b * u0 + c * v0 + e * u0 * v0);
-    if qc <= 0.0 {
-        return Some(t_a);
-    }
-    first_root(qa, qb, qc, t_b - t_a).map(|s| t_a + s)
+    (qa, qb, qc)
 }
 
-/// Traverses the pyramid; returns the first hit `(t, cell)` in `[t_min, t_max]`.
+/// Traverses the pyramid; returns the first hit `(t, cell)` in `[t_min, t_max]`. The
+/// terrain's `walls` decide what a ray below the surface where it enters the terrain's box
+/// meets: with walls (the default) the side walls and floor of the block at once, without
+/// them nothing until it comes up through the surface (the surface is seen from above only).
 pub fn intersect(
     terrain: &Terrain,
     r: &GridRay,
@@ -146,7 +222,34 @@ pub fn intersect(
     max_steps: u32,
     stats: &mut TraversalStats,
 ) -> Option<(f64, [usize; 2])> {
+    intersect_with_walls(terrain, r, t_min, t_max, max_steps, stats, terrain.walls)
+}
+
+/// Height of the bilinear surface at grid `(x, y)` clamped to the grid (the shader's
+/// `surface_height`).
+pub fn surface_height_clamped(terrain: &Terrain, x: f64, y: f64) -> f64 {
+    let [cw, ch] = terrain.cells();
+    terrain
+        .height_at_grid(x.clamp(0.0, cw as f64), y.clamp(0.0, ch as f64))
+        .unwrap_or(f64::NAN)
+}
+
+/// [`intersect`] with the walls switch given instead of taken from the terrain.
+pub fn intersect_with_walls(
+    terrain: &Terrain,
+    r: &GridRay,
+    t_min: f64,
+    t_max: f64,
+    max_steps: u32,
+    stats: &mut TraversalStats,
+    walls: bool,
+) -> Option<(f64, [usize; 2])> {
     let (t0, t1) = clip_to_box(terrain, r, t_min, t_max)?;
+    // Without walls: is the ray below the surface where it enters the box?
+    let mut under = !walls && {
+        let p = r.at(t0);
+        p.z < surface_height_clamped(terrain, p.x, p.y)
+    };
     let pyr = &terrain.pyramid;
     let top = pyr.top();
     let slack = height_slack(terrain);
@@ -196,8 +299,14 @@ pub fn intersect(
                 continue;
             }
             stats.patch_tests += 1;
-            if let Some(th) = patch_hit(terrain, r, ix as usize, iy as usize, t, t_exit) {
-                return Some((th, [ix as usize, iy as usize]));
+            let (i, j) = (ix as usize, iy as usize);
+            let hit = if under {
+                patch_hit_from_below(terrain, r, i, j, t, t_exit, &mut under)
+            } else {
+                patch_hit(terrain, r, i, j, t, t_exit)
+            };
+            if let Some(th) = hit {
+                return Some((th, [i, j]));
             }
         }
         // Advance to the next cell.

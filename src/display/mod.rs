@@ -165,6 +165,64 @@ impl LensDistortion {
         ]
     }
 
+    /// `Ok` when the radial mapping `g(r) = r·(1 + k1 r² + k2 r⁴ + k3 r⁶)` keeps increasing
+    /// (g′ > 0) over every ideal radius the projector's image needs: from 0 until `g` reaches
+    /// the normalised radius of the farthest image corner (for an f-theta lens at most the
+    /// fisheye circle, ideal radius 1, beyond which pixels are outside the field). A fold
+    /// there would image two directions at one pixel. `field` names the table in the error.
+    pub fn check_radial_monotonic(&self, field: &str, p: &Projector) -> Result<()> {
+        let (w, h) = (p.width as f64, p.height as f64);
+        let (centre, norm, field_radius) = match p.lens {
+            Lens::Perspective { fov, shift } => {
+                let f = 0.5 * w / (0.5 * fov.to_radians()).tan();
+                (
+                    [0.5 * w + shift[0] * w, 0.5 * h + shift[1] * h],
+                    f,
+                    f64::INFINITY,
+                )
+            }
+            Lens::Ftheta { .. } => ([0.5 * w, 0.5 * h], 0.5 * w.min(h), 1.0),
+        };
+        let corner = [(0.0, 0.0), (w, 0.0), (0.0, h), (w, h)]
+            .iter()
+            .map(|&(u, v)| ((u - centre[0]) / norm).hypot((v - centre[1]) / norm))
+            .fold(0.0, f64::max);
+        if !corner.is_finite() {
+            return Ok(()); // the lens values are refused by their own checks
+        }
+        let g = |r: f64| {
+            let r2 = r * r;
+            r * (1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3)))
+        };
+        let dg = |r: f64| {
+            let r2 = r * r;
+            1.0 + r2 * (3.0 * self.k1 + r2 * (5.0 * self.k2 + r2 * 7.0 * self.k3))
+        };
+        // Walk the ideal radius in small steps; g' is a cubic in r², so a fold shows as g' ≤ 0.
+        let step = corner.min(field_radius) / 4096.0;
+        let mut r = 0.0;
+        for _ in 0..1_000_000 {
+            if g(r) >= corner || r >= field_radius {
+                return Ok(());
+            }
+            if dg(r) <= 0.0 {
+                return Err(Error::invalid(
+                    field,
+                    format!(
+                        "the radial distortion folds over inside the image, so it does not invert \
+                         there: r·(1 + k1 r² + k2 r⁴ + k3 r⁶) stops increasing at normalised radius \
+                         {r:.4} (imaged at {:.4}) but the image corners reach {corner:.4}; check the \
+                         coefficients' signs and units (normalised coordinates, not pixels), \
+                         e.g. a smaller |k1|",
+                        g(r)
+                    ),
+                ));
+            }
+            r += step;
+        }
+        Ok(())
+    }
+
     /// The ideal point imaged at `a` (Newton's method, numeric Jacobian); `None` if it does not
     /// converge (the distortion folds over there).
     pub fn invert(&self, a: [f64; 2]) -> Option<[f64; 2]> {
@@ -473,9 +531,16 @@ fn positive_radius(radius: f64) -> Result<()> {
 impl DisplayConfig {
     /// Reads and validates a display configuration.
     pub fn load(path: &Path) -> Result<DisplayConfig> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        let cfg: DisplayConfig = toml::from_str(&text)
-            .map_err(|e| Error::format(path, format!("display config error: {e}")))?;
+        let text = crate::fileio::read_to_string(path, crate::fileio::MAX_CONFIG_BYTES)?;
+        let cfg: DisplayConfig = toml::from_str(&text).map_err(|e| {
+            Error::format(
+                path,
+                format!(
+                    "display config error: {}",
+                    crate::fileio::toml_error(&text, &e)
+                ),
+            )
+        })?;
         cfg.validate()
             .map_err(|e| Error::format(path, e.to_string()))?;
         let mut cfg = cfg;
@@ -496,6 +561,15 @@ impl DisplayConfig {
             )
         })?;
         let p = &c.projector;
+        // The table (an optional f64 point per pixel) and its f32 upload: 48 bytes a pixel
+        // on the host, before any render target.
+        crate::fileio::check_alloc(
+            format_args!(
+                "channel {channel} ({:?}): its {}x{} projector's ray table",
+                c.name, p.width, p.height
+            ),
+            p.width as u64 * p.height as u64 * 48,
+        )?;
         let Some(file) = &c.warp else {
             return Ok(crate::cpu::distortion::screen_points(&self.screen, p));
         };
@@ -661,6 +735,8 @@ impl DisplayConfig {
                         format!("coefficients must be finite and within ±10, got {k:?}"),
                     ));
                 }
+                // The radial part must not fold over inside the image.
+                d.check_radial_monotonic(&f("distortion"), p)?;
                 // The measured model must be invertible over the whole image.
                 let corners = [(0.0, 0.0), (p.width as f64, 0.0), (0.0, p.height as f64)];
                 let edge = corners

@@ -1,7 +1,7 @@
 //! Warp file formats: MPCDI-style PFM geometry warps (2-D u,v or 3-D screen X,Y,Z per pixel,
 //! NaN = no data) and Paul Bourke warp meshes (`x y u v i` nodes, types 1 and 2).
 
-use crate::{Error, Result};
+use crate::{fileio, Error, Result};
 use std::path::Path;
 
 /// Row order of a PFM file's data. Netpbm stores the bottom row first; some tools store the
@@ -44,7 +44,12 @@ fn header_token<'a>(bytes: &'a [u8], pos: &mut usize) -> Option<&'a str> {
 
 /// Reads a PFM file.
 pub fn read_pfm(path: &Path, order: RowOrder) -> Result<Pfm> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = fileio::read_file(path, fileio::memory_budget())?;
+    parse_pfm(&bytes, path, order)
+}
+
+/// Parses PFM bytes; `path` names the file in errors.
+pub fn parse_pfm(bytes: &[u8], path: &Path, order: RowOrder) -> Result<Pfm> {
     let mut pos = 0;
     let bad = |msg: &str| Error::format(path, format!("not a PFM file: {msg}"));
     let channels = match header_token(&bytes, &mut pos) {
@@ -84,6 +89,8 @@ pub fn read_pfm(path: &Path, order: RowOrder) -> Result<Pfm> {
             ),
         ));
     }
+    // The floats and their reordered copy.
+    fileio::check_alloc(path.display(), (n as u64).saturating_mul(8))?;
     let little = scale < 0.0;
     let vals: Vec<f32> = body[..n * 4]
         .chunks_exact(4)
@@ -109,7 +116,8 @@ pub fn read_pfm(path: &Path, order: RowOrder) -> Result<Pfm> {
     })
 }
 
-/// Writes a little-endian PFM file in the given row order.
+/// Writes a little-endian PFM file in the given row order (atomically: nothing half-written is
+/// left).
 pub fn write_pfm(path: &Path, pfm: &Pfm, order: RowOrder) -> Result<()> {
     let mut out = format!(
         "{}\n{} {}\n-1.0\n",
@@ -128,7 +136,7 @@ pub fn write_pfm(path: &Path, pfm: &Pfm, order: RowOrder) -> Result<()> {
             out.extend_from_slice(&v.to_le_bytes());
         }
     }
-    std::fs::write(path, out).map_err(|e| Error::io(path, e))
+    fileio::write_file_atomic(path, &out)
 }
 
 /// One node of a Bourke warp mesh.
@@ -153,9 +161,18 @@ pub struct BourkeMesh {
     pub nodes: Vec<MeshNode>,
 }
 
+/// Most nodes a Bourke mesh may declare.
+pub const MAX_MESH_NODES: usize = 16_000_000;
+
 /// Reads a Bourke mesh.
 pub fn read_bourke(path: &Path) -> Result<BourkeMesh> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = fileio::read_to_string(path, fileio::memory_budget())?;
+    parse_bourke(&text, path)
+}
+
+/// Parses a Bourke mesh's text; `path` names the file in errors. The declared node count is
+/// checked against the lines the file has and the memory budget before nodes are stored.
+pub fn parse_bourke(text: &str, path: &Path) -> Result<BourkeMesh> {
     let mut lines = text
         .lines()
         .enumerate()
@@ -181,17 +198,33 @@ pub fn read_bourke(path: &Path) -> Result<BourkeMesh> {
         .split_whitespace()
         .filter_map(|s| s.parse().ok())
         .collect();
-    if d.len() != 2 || d[0] == 0 || d[1] == 0 || d[0] * d[1] > 16_000_000 {
+    let total = match d[..] {
+        [nx, ny] if nx > 0 && ny > 0 => nx.checked_mul(ny).filter(|&t| t <= MAX_MESH_NODES),
+        _ => None,
+    };
+    let Some(total) = total else {
         return Err(bad(
             l1,
             format!(
-                "expected `nx ny` (positive, at most 16 M nodes), got `{}`",
+                "expected `nx ny` (positive, at most {MAX_MESH_NODES} nodes), got `{}`",
                 dims.trim()
             ),
         ));
-    }
+    };
     let (nx, ny) = (d[0], d[1]);
-    let mut nodes = Vec::with_capacity(nx * ny);
+    // One line per node: a file with fewer lines cannot hold them.
+    let remaining = lines.clone().count();
+    if remaining < total {
+        return Err(Error::format(
+            path,
+            format!("the header says {nx}x{ny} = {total} nodes, the file has {remaining}"),
+        ));
+    }
+    fileio::check_alloc(
+        path.display(),
+        (total as u64).saturating_mul(std::mem::size_of::<MeshNode>() as u64),
+    )?;
+    let mut nodes = Vec::with_capacity(total);
     for (ln, l) in lines {
         let v: Vec<f64> = l
             .split_whitespace()
@@ -235,12 +268,13 @@ pub fn read_bourke(path: &Path) -> Result<BourkeMesh> {
     })
 }
 
-/// Writes a Bourke mesh (shortest round-trip number formatting, so reading it back is exact).
+/// Writes a Bourke mesh (shortest round-trip number formatting, so reading it back is exact),
+/// atomically: nothing half-written is left.
 pub fn write_bourke(path: &Path, mesh: &BourkeMesh) -> Result<()> {
     use std::fmt::Write;
     let mut s = format!("{}\n{} {}\n", mesh.mesh_type, mesh.nx, mesh.ny);
     for n in &mesh.nodes {
         let _ = writeln!(s, "{} {} {} {} {}", n.x, n.y, n.u, n.v, n.i);
     }
-    std::fs::write(path, s).map_err(|e| Error::io(path, e))
+    fileio::write_file_atomic(path, s.as_bytes())
 }

@@ -44,15 +44,12 @@ impl BlendPass {
         let bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("blend"),
             entries: &[
-                uniform_entry(0, fs),
+                uniform_entry(gpu.params, 0, fs),
                 float_texture_entry(1, fs, wgpu::TextureViewDimension::D2),
                 float_texture_entry(2, fs, wgpu::TextureViewDimension::D2),
             ],
         });
-        let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("blend.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(shaders::blend().into()),
-        });
+        let module = super::shader_module(dev, gpu.params, "blend.wgsl", &shaders::blend());
         let pipeline = fullscreen_pipeline(
             dev,
             "blend",
@@ -64,7 +61,7 @@ impl BlendPass {
         let ub = dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some("blend uniforms"),
             size: std::mem::size_of::<BlendUniforms>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            usage: super::PARAM_USAGE,
             mapped_at_creation: false,
         });
         let (size, data) = match &cb.mask {

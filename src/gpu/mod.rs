@@ -25,12 +25,85 @@ use crate::{Error, Result};
 
 /// A wgpu device and queue with the adapter they came from.
 pub struct Gpu {
+    /// The instance the adapter came from (for wgpu's resource report).
+    pub instance: wgpu::Instance,
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
     pub info: wgpu::AdapterInfo,
     pub limits: wgpu::Limits,
     /// What a downlevel (GL, GLES) adapter can do; full on Vulkan, Metal and DX12.
     pub downlevel: wgpu::DownlevelFlags,
+    /// How the passes' parameter blocks are bound on this adapter.
+    pub params: ParamSpace,
+}
+
+/// Where the passes' parameter blocks (`Frame`, `RayGen`, `Volume`, the free-form tables
+/// that fit, ...: `var<uniform>` in the WGSL sources) live on an adapter.
+///
+/// Mesa's lavapipe (seen on 22.3) inlines the current values of uniform buffers into a
+/// pipeline's shader and compiles a new variant every time a bind group holding one is set
+/// in a command buffer, without freeing the previous variant: each frame JIT-compiles its
+/// passes again (hundreds of ms) and leaks the code (about 3.5 MB a frame). Read-only
+/// storage buffers are never inlined, so on lavapipe the blocks are bound as storage; the
+/// WGSL struct layouts are the same in both address spaces (uniform only adds alignment
+/// rules the structs already meet). Every other adapter keeps uniform buffers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ParamSpace {
+    Uniform,
+    Storage,
+}
+
+impl ParamSpace {
+    /// Storage on lavapipe (Vulkan on a CPU device), uniform elsewhere.
+    pub fn for_adapter(info: &wgpu::AdapterInfo) -> ParamSpace {
+        if info.backend == wgpu::Backend::Vulkan && info.device_type == wgpu::DeviceType::Cpu {
+            ParamSpace::Storage
+        } else {
+            ParamSpace::Uniform
+        }
+    }
+
+    /// The buffer binding type of a parameter block.
+    pub fn binding_type(self) -> wgpu::BufferBindingType {
+        match self {
+            ParamSpace::Uniform => wgpu::BufferBindingType::Uniform,
+            ParamSpace::Storage => wgpu::BufferBindingType::Storage { read_only: true },
+        }
+    }
+
+    /// The WGSL source with its `var<uniform>` declarations in this space.
+    pub fn wgsl(self, src: &str) -> String {
+        match self {
+            ParamSpace::Uniform => src.to_string(),
+            ParamSpace::Storage => src.replace("var<uniform>", "var<storage, read>"),
+        }
+    }
+
+    /// The alignment of dynamic offsets into a buffer of parameter blocks.
+    pub fn offset_alignment(self, limits: &wgpu::Limits) -> u32 {
+        match self {
+            ParamSpace::Uniform => limits.min_uniform_buffer_offset_alignment,
+            ParamSpace::Storage => limits.min_storage_buffer_offset_alignment,
+        }
+    }
+}
+
+/// Buffer usages of a parameter block: bindable in either space, written by the queue.
+pub const PARAM_USAGE: wgpu::BufferUsages = wgpu::BufferUsages::UNIFORM
+    .union(wgpu::BufferUsages::STORAGE)
+    .union(wgpu::BufferUsages::COPY_DST);
+
+/// A shader module from WGSL `src`, its parameter blocks declared in `space`.
+pub(crate) fn shader_module(
+    dev: &wgpu::Device,
+    space: ParamSpace,
+    label: &str,
+    src: &str,
+) -> wgpu::ShaderModule {
+    dev.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(label),
+        source: wgpu::ShaderSource::Wgsl(space.wgsl(src).into()),
+    })
 }
 
 impl Gpu {
@@ -128,13 +201,65 @@ impl Gpu {
             })
             .await
             .map_err(|e| Error::Gpu(format!("cannot open a device on {}: {e}", info.name)))?;
+        let params = ParamSpace::for_adapter(&info);
+        log::debug!("parameter blocks: {params:?}");
         Ok(Gpu {
+            instance: instance.clone(),
             device,
             queue,
+            params,
             info,
             limits,
             downlevel: adapter.get_downlevel_capabilities().flags,
         })
+    }
+
+    /// Live wgpu objects per kind (wgpu-core's registry report: buffers, textures, bind
+    /// groups, pipelines, ...), in a fixed order; `None` where wgpu has no report.
+    pub fn resource_counts(&self) -> Option<Vec<(&'static str, usize)>> {
+        let r = self.instance.generate_report()?;
+        let h = &r.hub;
+        let kept =
+            |n: &'static str, c: &wgpu::wgc::registry::RegistryReport| (n, c.num_kept_from_user);
+        Some(vec![
+            kept("devices", &h.devices),
+            kept("queues", &h.queues),
+            kept("pipeline_layouts", &h.pipeline_layouts),
+            kept("shader_modules", &h.shader_modules),
+            kept("bind_group_layouts", &h.bind_group_layouts),
+            kept("bind_groups", &h.bind_groups),
+            kept("command_encoders", &h.command_encoders),
+            kept("command_buffers", &h.command_buffers),
+            kept("render_pipelines", &h.render_pipelines),
+            kept("compute_pipelines", &h.compute_pipelines),
+            kept("query_sets", &h.query_sets),
+            kept("buffers", &h.buffers),
+            kept("textures", &h.textures),
+            kept("texture_views", &h.texture_views),
+            kept("samplers", &h.samplers),
+        ])
+    }
+
+    /// Runs `f`, which creates GPU resources, and turns the out-of-memory and validation
+    /// errors wgpu reports meanwhile (fatal by default) into an error naming `what`.
+    pub fn scoped<T>(&self, what: &str, f: impl FnOnce() -> Result<T>) -> Result<T> {
+        let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let invalid = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let made = f();
+        let errors = [
+            pollster::block_on(invalid.pop()),
+            pollster::block_on(oom.pop()),
+        ];
+        match errors.into_iter().flatten().next() {
+            Some(e) => Err(Error::Limit {
+                what: what.to_string(),
+                msg: format!(
+                    "the adapter {} could not allocate it ({e}); use a smaller size",
+                    self.info.name
+                ),
+            }),
+            None => made,
+        }
     }
 
     /// "name (backend)" for logs and metadata.

@@ -58,19 +58,22 @@ impl FfTables {
     }
 
     /// Storage buffers the most demanding free-form stage binds: the shade pass (heights,
-    /// pyramid, drape), plus the object records where they are not in a uniform buffer.
-    fn storage_buffers(&self) -> u32 {
-        if self.uniform() {
-            3
-        } else {
-            4
-        }
+    /// pyramid, drape), plus the object records where they are not in a uniform buffer,
+    /// plus the frame block and uniform-sized tables where parameter blocks are storage.
+    fn storage_buffers(&self, space: super::ParamSpace) -> u32 {
+        let params_in_storage = space == super::ParamSpace::Storage;
+        3 + u32::from(!self.uniform() || params_in_storage) + u32::from(params_in_storage)
     }
 
     /// Bind-group-layout entry of table `binding` (6: objects, 7: nodes).
-    fn entry(&self, binding: u32, vis: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+    fn entry(
+        &self,
+        space: super::ParamSpace,
+        binding: u32,
+        vis: wgpu::ShaderStages,
+    ) -> wgpu::BindGroupLayoutEntry {
         if self.uniform() {
-            uniform_entry(binding, vis)
+            uniform_entry(space, binding, vis)
         } else {
             storage_entry(binding, vis, true)
         }
@@ -209,7 +212,7 @@ impl ObjectPasses {
             },
         );
         log::debug!("free-form tables: {tables:?}");
-        let need = tables.storage_buffers();
+        let need = tables.storage_buffers(gpu.params);
         let have = gpu.limits.max_storage_buffers_per_shader_stage;
         if have < need {
             return Err(Error::Limit {
@@ -221,7 +224,7 @@ impl ObjectPasses {
             });
         }
         let usage = if tables.uniform() {
-            wgpu::BufferUsages::UNIFORM
+            super::PARAM_USAGE
         } else {
             wgpu::BufferUsages::STORAGE
         };
@@ -241,44 +244,39 @@ impl ObjectPasses {
         let bin_bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("free-form bins"),
             entries: &[
-                uniform_entry(0, cs),
+                uniform_entry(gpu.params, 0, cs),
                 uint_texture_entry(3, cs),
                 uint_texture_entry(4, cs),
-                tables.entry(6, cs),
+                tables.entry(gpu.params, 6, cs),
                 storage_entry(8, cs, false),
             ],
         });
         let cast_bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("free-form cast"),
             entries: &[
-                uniform_entry(0, vfs),
+                uniform_entry(gpu.params, 0, vfs),
                 uint_texture_entry(3, fs),
                 uint_texture_entry(4, fs),
-                tables.entry(6, fs),
-                tables.entry(7, fs),
+                tables.entry(gpu.params, 6, fs),
+                tables.entry(gpu.params, 7, fs),
                 storage_entry(8, vfs, true),
             ],
         });
         let shade_bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("shade with free forms"),
             entries: &[
-                uniform_entry(0, fs),
+                uniform_entry(gpu.params, 0, fs),
                 storage_entry(1, fs, true),
                 storage_entry(2, fs, true),
                 uint_texture_entry(3, fs),
                 uint_texture_entry(4, fs),
                 storage_entry(5, fs, true),
-                tables.entry(6, fs),
+                tables.entry(gpu.params, 6, fs),
                 uint_texture_entry(9, fs),
                 float_texture_entry(19, fs, wgpu::TextureViewDimension::D2),
             ],
         });
-        let module = |label: &str, src: String| {
-            dev.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some(label),
-                source: wgpu::ShaderSource::Wgsl(src.into()),
-            })
-        };
+        let module = |label: &str, src: String| super::shader_module(dev, gpu.params, label, &src);
         let bin_mod = module("ff_bin.wgsl", shaders::ff_bin(tables));
         // Perturbed objects of at most FF_RAY_NODES nodes (every one in the demo) keep their
         // node data per ray in the interval search.
@@ -349,6 +347,7 @@ impl ObjectPasses {
         ];
         let plain = objects.iter().filter(|o| o.nodes.len() == 1).count() as u32;
         let shade = shade_pipelines(
+            gpu.params,
             "shade (free forms)",
             move |f| shaders::shade_objects(f, tables),
             shade_bgl.clone(),

@@ -28,12 +28,9 @@ impl PatternPass {
         let fs = wgpu::ShaderStages::FRAGMENT;
         let bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("pattern"),
-            entries: &[uniform_entry(0, fs), uint_texture_entry(3, fs)],
+            entries: &[uniform_entry(gpu.params, 0, fs), uint_texture_entry(3, fs)],
         });
-        let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("pattern"),
-            source: wgpu::ShaderSource::Wgsl(shaders::pattern().into()),
-        });
+        let module = super::shader_module(dev, gpu.params, "pattern", &shaders::pattern());
         let pipeline = fullscreen_pipeline(
             dev,
             "pattern",
@@ -48,7 +45,7 @@ impl PatternPass {
         let ub = dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some("pattern uniforms"),
             size: std::mem::size_of::<PatternUniforms>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            usage: super::PARAM_USAGE,
             mapped_at_creation: false,
         });
         PatternPass { bgl, pipeline, ub }

@@ -259,12 +259,17 @@ pub(crate) fn storage_entry(
     }
 }
 
-pub(crate) fn uniform_entry(binding: u32, vis: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+/// A bind-group entry for a parameter block (`var<uniform>` in WGSL) bound in `space`.
+pub(crate) fn uniform_entry(
+    space: super::ParamSpace,
+    binding: u32,
+    vis: wgpu::ShaderStages,
+) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility: vis,
         ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Uniform,
+            ty: space.binding_type(),
             has_dynamic_offset: false,
             min_binding_size: None,
         },
@@ -389,13 +394,13 @@ impl TerrainRenderer {
         let frame_ub = dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some("frame uniforms"),
             size: std::mem::size_of::<FrameUniforms>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            usage: super::PARAM_USAGE,
             mapped_at_creation: false,
         });
         let raygen_ub = dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some("raygen uniforms"),
             size: std::mem::size_of::<RayGenUniforms>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            usage: super::PARAM_USAGE,
             mapped_at_creation: false,
         });
         let cs = wgpu::ShaderStages::COMPUTE;
@@ -405,7 +410,7 @@ impl TerrainRenderer {
             label: Some("raygen"),
             entries: &if raygen_compute {
                 vec![
-                    uniform_entry(0, cs),
+                    uniform_entry(gpu.params, 0, cs),
                     wgpu::BindGroupLayoutEntry {
                         binding: 1,
                         visibility: cs,
@@ -418,12 +423,12 @@ impl TerrainRenderer {
                     },
                 ]
             } else {
-                vec![uniform_entry(0, fs)]
+                vec![uniform_entry(gpu.params, 0, fs)]
             },
         });
         let uint_texture = |binding| uint_texture_entry(binding, fs);
         let common = [
-            uniform_entry(0, fs),
+            uniform_entry(gpu.params, 0, fs),
             storage_entry(1, fs, true),
             storage_entry(2, fs, true),
             uint_texture(3),
@@ -448,12 +453,7 @@ impl TerrainRenderer {
             entries: &shade_entries,
         });
 
-        let module = |label: &str, src: String| {
-            dev.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some(label),
-                source: wgpu::ShaderSource::Wgsl(src.into()),
-            })
-        };
+        let module = |label: &str, src: String| super::shader_module(dev, gpu.params, label, &src);
         let raygen_mod = module("raygen.wgsl", shaders::raygen());
         let tile_mod = module("tile.wgsl", shaders::tile());
         let cast_mod = module("cast.wgsl", shaders::cast());
@@ -507,7 +507,7 @@ impl TerrainRenderer {
             &cast_bgl,
             &[target(wgpu::TextureFormat::Rgba32Uint)],
         );
-        let shade = shade_pipelines("shade", shaders::shade, shade_bgl.clone());
+        let shade = shade_pipelines(gpu.params, "shade", shaders::shade, shade_bgl.clone());
         let has_drape = terrain.drape.is_some();
         Ok(TerrainRenderer {
             heights,
@@ -549,6 +549,16 @@ impl TerrainRenderer {
     /// (kept while the projector does not move) and builds the table pipelines. Frames must
     /// then be rendered at the projector's resolution; the eye is set by [`Self::set_eye`].
     pub fn set_display(
+        &mut self,
+        gpu: &Gpu,
+        points: &crate::cpu::distortion::ScreenPoints,
+        eye: glam::DVec3,
+    ) -> Result<()> {
+        let what = format!("projector resolution {}x{}", points.width, points.height);
+        gpu.scoped(&what, || self.upload_display(gpu, points, eye))
+    }
+
+    fn upload_display(
         &mut self,
         gpu: &Gpu,
         points: &crate::cpu::distortion::ScreenPoints,
@@ -602,7 +612,7 @@ impl TerrainRenderer {
         let bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("raygen (table)"),
             entries: &[
-                uniform_entry(0, fs),
+                uniform_entry(gpu.params, 0, fs),
                 wgpu::BindGroupLayoutEntry {
                     binding: 2,
                     visibility: fs,
@@ -819,6 +829,19 @@ impl TerrainRenderer {
         }
     }
 
+    /// GPU bytes per output pixel of the render targets and readback buffers (ray table,
+    /// G-buffers, colour, capture data, volume layers, edge blend), an upper estimate.
+    fn target_bytes_per_pixel(&self) -> u64 {
+        let base = 16 + 16 + 4 + 16 + 4 + 16 + 2; // rays, G-buffer, colour, data, readbacks, sun
+        let objects = if self.objects.is_some() { 16 } else { 0 };
+        let volumes = self.volumes.len() as u64 * 48 + if self.volumes.is_empty() { 0 } else { 36 };
+        let blend = if self.blend.is_some() { 8 } else { 0 };
+        base + objects + volumes + blend + 16
+    }
+
+    /// Creates the render targets for `width` x `height` unless they exist. Refuses sizes over
+    /// the adapter's limits or the memory budget before allocating, and turns wgpu's
+    /// out-of-memory and validation errors during creation into an error naming the size.
     fn ensure_targets(&mut self, gpu: &Gpu, width: u32, height: u32) -> Result<()> {
         if self
             .targets
@@ -827,15 +850,56 @@ impl TerrainRenderer {
         {
             return Ok(());
         }
+        let what = if self.table.is_some() {
+            "projector channel resolution"
+        } else {
+            "output size (--size)"
+        };
         let max = gpu.limits.max_texture_dimension_2d;
         if width > max || height > max {
             return Err(Error::Limit {
-                what: "output size".into(),
+                what: what.into(),
                 msg: format!(
                     "{width}x{height} is larger than the adapter's {max}x{max} texture limit"
                 ),
             });
         }
+        let readback = padded_row(width.saturating_mul(16)) as u64 * height as u64;
+        if readback > gpu.limits.max_buffer_size {
+            return Err(Error::Limit {
+                what: what.into(),
+                msg: format!(
+                    "{width}x{height} needs a {} readback buffer, the adapter {} allows {}; render at a smaller size",
+                    crate::fileio::human_bytes(readback),
+                    gpu.info.name,
+                    crate::fileio::human_bytes(gpu.limits.max_buffer_size)
+                ),
+            });
+        }
+        let bytes = width as u64 * height as u64 * self.target_bytes_per_pixel();
+        let budget = crate::fileio::memory_budget();
+        if bytes > budget {
+            return Err(Error::Limit {
+                what: what.into(),
+                msg: format!(
+                    "{width}x{height} needs about {} of GPU memory for its render targets, more than the memory budget of {}; render at a smaller size, or raise --memory-budget (MiB) if the adapter has the memory",
+                    crate::fileio::human_bytes(bytes),
+                    crate::fileio::human_bytes(budget)
+                ),
+            });
+        }
+        // Free the old targets before allocating the new ones.
+        self.targets = None;
+        let made = gpu.scoped(&format!("{what} {width}x{height}"), || {
+            self.create_targets(gpu, width, height)
+        });
+        if made.is_err() {
+            self.targets = None;
+        }
+        made
+    }
+
+    fn create_targets(&mut self, gpu: &Gpu, width: u32, height: u32) -> Result<()> {
         let dev = &gpu.device;
         let mut usage = wgpu::TextureUsages::TEXTURE_BINDING
             | wgpu::TextureUsages::RENDER_ATTACHMENT
@@ -1754,7 +1818,12 @@ pub fn frame_uniforms(
             terrain.pyramid.levels.len() as u32,
             0,
         ],
-        mode: [mode, s.max_steps, 0, s.tile_prepass as u32],
+        mode: [
+            mode,
+            s.max_steps,
+            (!terrain.walls) as u32,
+            s.tile_prepass as u32,
+        ],
         drape_size,
         march,
         pyramid_dims: [0; 4],

@@ -49,6 +49,7 @@ pub type ShadePipelines = SpecialisedPipelines<ShadeFeatures>;
 
 /// Shade pipelines of `source` (e.g. [`super::shaders::shade`]) with bind-group layout `bgl`.
 pub fn shade_pipelines(
+    space: super::ParamSpace,
     label: &'static str,
     source: impl Fn(ShadeFeatures) -> String + Send + Sync + 'static,
     bgl: wgpu::BindGroupLayout,
@@ -57,5 +58,5 @@ pub fn shade_pipelines(
         Some(target_state(wgpu::TextureFormat::Rgba8Unorm)),
         Some(target_state(wgpu::TextureFormat::Rgba32Uint)),
     ];
-    SpecialisedPipelines::new(label, source, "fs_shade", bgl, targets)
+    SpecialisedPipelines::new(space, label, source, "fs_shade", bgl, targets)
 }

@@ -30,6 +30,7 @@ pub fn wgsl_bools(switches: &[(&str, bool)]) -> String {
 
 /// The pipelines of one full-screen fragment pass, one per switch combination used so far.
 pub struct SpecialisedPipelines<S: Switches> {
+    space: super::ParamSpace,
     label: &'static str,
     source: Box<dyn Fn(S) -> String + Send + Sync>,
     entry: &'static str,
@@ -40,8 +41,10 @@ pub struct SpecialisedPipelines<S: Switches> {
 
 impl<S: Switches> SpecialisedPipelines<S> {
     /// Pipelines of fragment entry point `entry` of `source(switches)` (full-screen vertex
-    /// stage), bind-group layout `bgl`, colour `targets`; none built yet.
+    /// stage, parameter blocks in `space`), bind-group layout `bgl`, colour `targets`; none
+    /// built yet.
     pub fn new(
+        space: super::ParamSpace,
         label: &'static str,
         source: impl Fn(S) -> String + Send + Sync + 'static,
         entry: &'static str,
@@ -49,6 +52,7 @@ impl<S: Switches> SpecialisedPipelines<S> {
         targets: Vec<Option<wgpu::ColorTargetState>>,
     ) -> SpecialisedPipelines<S> {
         SpecialisedPipelines {
+            space,
             label,
             source: Box::new(source),
             entry,
@@ -64,10 +68,7 @@ impl<S: Switches> SpecialisedPipelines<S> {
         if let Some(i) = self.built.iter().position(|(s, _)| *s == switches) {
             return i;
         }
-        let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some(self.label),
-            source: wgpu::ShaderSource::Wgsl((self.source)(switches).into()),
-        });
+        let module = super::shader_module(dev, self.space, self.label, &(self.source)(switches));
         let pipeline = render_pipeline(
             dev,
             self.label,

@@ -46,18 +46,15 @@ impl VolumeSunPass {
         let bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("volume sun"),
             entries: &[
-                uniform_entry(0, fs),
+                uniform_entry(gpu.params, 0, fs),
                 uint_texture_entry(3, fs),
                 uint_texture_entry(4, fs),
-                uniform_entry(16, fs),
+                uniform_entry(gpu.params, 16, fs),
                 filterable_3d_entry(17),
                 sampler_entry(18),
             ],
         });
-        let m = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("volume_sun.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(shaders::volume_sun().into()),
-        });
+        let m = super::shader_module(dev, gpu.params, "volume_sun.wgsl", &shaders::volume_sun());
         let pipeline = |label, blend| {
             fullscreen_pipeline(
                 dev,
@@ -220,16 +217,18 @@ impl CompositePass {
         let bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("volume composite"),
             entries: &[
-                uniform_entry(0, fs),
+                uniform_entry(gpu.params, 0, fs),
                 float_texture_entry(1, fs, wgpu::TextureViewDimension::D2),
                 array(2),
                 array(3),
             ],
         });
-        let m = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("volume_composite.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(shaders::volume_composite(count).into()),
-        });
+        let m = super::shader_module(
+            dev,
+            gpu.params,
+            "volume_composite.wgsl",
+            &shaders::volume_composite(count),
+        );
         let pipeline = fullscreen_pipeline(
             dev,
             "volume composite",
@@ -264,13 +263,16 @@ impl CompositePass {
             usage,
         );
         let under_view = under.create_view(&Default::default());
+        // At least two layers: wgpu's GL backend fixes a texture's view dimension when it is
+        // created and takes a one-layer 2-D texture for `D2`, so the composite pass's
+        // `D2Array` view of a single volume's layer would read nothing (all-black frames).
         let layers = |label, format| {
             let tex = dev.create_texture(&wgpu::TextureDescriptor {
                 label: Some(label),
                 size: wgpu::Extent3d {
                     width,
                     height,
-                    depth_or_array_layers: self.count,
+                    depth_or_array_layers: self.count.max(2),
                 },
                 mip_level_count: 1,
                 sample_count: 1,
@@ -422,7 +424,7 @@ impl VolumePass {
         let table = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("transfer table"),
             contents: &table_bytes(volume),
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            usage: super::PARAM_USAGE,
         });
         let bricks = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("volume bricks"),
@@ -432,25 +434,26 @@ impl VolumePass {
         let uniforms = dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some("volume uniforms"),
             size: std::mem::size_of::<VolumeUniforms>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            usage: super::PARAM_USAGE,
             mapped_at_creation: false,
         });
         let fs = wgpu::ShaderStages::FRAGMENT;
         let bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("volume"),
             entries: &[
-                uniform_entry(0, fs),
+                uniform_entry(gpu.params, 0, fs),
                 uint_texture_entry(3, fs),
                 uint_texture_entry(11, fs),
                 float_texture_entry(12, fs, wgpu::TextureViewDimension::D3),
-                uniform_entry(14, fs),
+                uniform_entry(gpu.params, 14, fs),
                 storage_entry(15, fs, true),
-                uniform_entry(16, fs),
+                uniform_entry(gpu.params, 16, fs),
                 filterable_3d_entry(17),
                 sampler_entry(18),
             ],
         });
         let pipelines = SpecialisedPipelines::new(
+            gpu.params,
             "volume",
             shaders::volume,
             "fs_volume",

@@ -210,32 +210,32 @@ impl VoxelPasses {
         let instance_buf = dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some("voxel instances"),
             size: (instances.len().max(1) * std::mem::size_of::<VoxInstanceGpu>()) as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            usage: super::PARAM_USAGE,
             mapped_at_creation: false,
         });
         let draw_stride = (std::mem::size_of::<VoxDrawGpu>() as u64)
-            .next_multiple_of(gpu.limits.min_uniform_buffer_offset_alignment as u64);
+            .next_multiple_of(gpu.params.offset_alignment(&gpu.limits) as u64);
         let draws = dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some("voxel draws"),
             size: draw_stride * 2 * crate::cpu::voxel::max_rects(instances.len()) as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            usage: super::PARAM_USAGE,
             mapped_at_creation: false,
         });
         let fs = wgpu::ShaderStages::FRAGMENT;
         let bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("voxels"),
             entries: &[
-                uniform_entry(0, fs),
+                uniform_entry(gpu.params, 0, fs),
                 uint_texture_entry(3, fs),
                 uint_texture_entry(4, fs),
-                uniform_entry(10, fs),
+                uniform_entry(gpu.params, 10, fs),
                 storage_entry(11, fs, true),
                 storage_entry(13, fs, true),
                 wgpu::BindGroupLayoutEntry {
                     binding: 16,
                     visibility: fs,
                     ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
+                        ty: gpu.params.binding_type(),
                         has_dynamic_offset: true,
                         min_binding_size: wgpu::BufferSize::new(
                             std::mem::size_of::<VoxDrawGpu>() as u64
@@ -245,10 +245,12 @@ impl VoxelPasses {
                 },
             ],
         });
-        let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("voxels.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(shaders::voxels(instances.len() as u32).into()),
-        });
+        let module = super::shader_module(
+            dev,
+            gpu.params,
+            "voxels.wgsl",
+            &shaders::voxels(instances.len() as u32),
+        );
         let target = [Some(target_state(wgpu::TextureFormat::Rgba32Uint))];
         let p = |label, entry| {
             fullscreen_pipeline_with(dev, label, &module, entry, &bgl, &target, None)

@@ -74,8 +74,15 @@ pub struct TerrainDesc {
     pub axis_x: [f64; 3],
     /// RGB image draped over the terrain instead of the elevation/slope ramp.
     pub drape: Option<PathBuf>,
+    /// Vertical side walls at the grid's edge down to the lowest sample (the terrain renders
+    /// as a solid block); `false`: rays pass under the surface, seen from above only.
+    #[serde(default = "yes")]
+    pub walls: bool,
 }
 
+fn yes() -> bool {
+    true
+}
 fn one() -> f64 {
     1.0
 }
@@ -294,14 +301,18 @@ pub(crate) fn check_finite(field: &str, v: &[f64]) -> Result<()> {
 impl Scene {
     /// Reads and validates a scene file.
     pub fn load(path: &Path) -> Result<Scene> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::fileio::read_to_string(path, crate::fileio::MAX_CONFIG_BYTES)?;
         Self::parse(&text, path)
     }
 
     /// Parses scene text; `path` names the file in errors and anchors relative paths.
     pub fn parse(text: &str, path: &Path) -> Result<Scene> {
-        let desc: SceneDesc =
-            toml::from_str(text).map_err(|e| Error::format(path, format!("scene error: {e}")))?;
+        let desc: SceneDesc = toml::from_str(text).map_err(|e| {
+            Error::format(
+                path,
+                format!("scene error: {}", crate::fileio::toml_error(text, &e)),
+            )
+        })?;
         desc.validate()?;
         let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
         Ok(Scene {
@@ -311,9 +322,44 @@ impl Scene {
         })
     }
 
-    /// Loads the terrain the scene names.
+    /// Loads the terrain the scene names; checks that `camera.above_terrain` (if set) has
+    /// ground below the camera.
     pub fn load_terrain(&self) -> Result<Terrain> {
-        Terrain::from_desc(&self.desc.terrain, &self.base_dir)
+        let terrain = Terrain::from_desc(&self.desc.terrain, &self.base_dir)?;
+        self.check_above_terrain(&terrain)?;
+        Ok(terrain)
+    }
+
+    /// `Err` naming `camera.above_terrain` when it is set but the camera position is not over
+    /// the height grid (there is no ground to be above).
+    pub fn check_above_terrain(&self, terrain: &Terrain) -> Result<()> {
+        let c = &self.desc.camera;
+        if c.above_terrain.is_none() {
+            return Ok(());
+        }
+        let p = DVec3::from(c.position);
+        if crate::cpu::query::terrain_point_below(terrain, p).is_some() {
+            return Ok(());
+        }
+        let [cw, ch] = terrain.cells();
+        let fr = &terrain.frame;
+        let corner = |i: usize, j: usize| {
+            let w = fr.grid_to_world(DVec3::new(i as f64, j as f64, 0.0));
+            format!("({:.1}, {:.1})", w.x, w.y)
+        };
+        Err(Error::invalid(
+            "camera.above_terrain",
+            format!(
+                "camera.position ({}, {}) is outside the height grid, whose corners are {}, {}, {}, {} \
+                 (world x, y): move the camera over the grid or drop above_terrain",
+                p.x,
+                p.y,
+                corner(0, 0),
+                corner(cw, 0),
+                corner(cw, ch),
+                corner(0, ch)
+            ),
+        ))
     }
 
     /// Builds the scene's free forms (`above_terrain` needs the terrain).
@@ -396,6 +442,13 @@ impl SceneDesc {
         camera::check_fov("camera.fov", c.fov)?;
         if let Some(a) = c.above_terrain {
             check_finite("camera.above_terrain", &[a])?;
+            if self.path.is_some() {
+                return Err(Error::invalid(
+                    "camera.above_terrain",
+                    "applies to the static camera only, and this scene has a [path]: \
+                     give the keyframes' positions their heights, or drop above_terrain",
+                ));
+            }
         }
         let o = &self.output;
         if !(1..=16384).contains(&o.width) || !(1..=16384).contains(&o.height) {

@@ -107,6 +107,11 @@ pub struct Terrain {
     pub max_height: f32,
     /// Optional draped colour image and its texel mapping.
     pub drape: Option<(Drape, DrapeMapping)>,
+    /// Vertical side walls down to the lowest sample (and a floor there): rays that meet the
+    /// grid's box below the surface stop at once, so the terrain renders as a solid block.
+    /// `false` (`terrain.walls = false`): such rays pass under the surface, which is then
+    /// only seen from above. Default `true`.
+    pub walls: bool,
 }
 
 impl Terrain {
@@ -129,7 +134,13 @@ impl Terrain {
         }
         let (min_height, max_height) = field.range();
         if !min_height.is_finite() || !max_height.is_finite() {
-            return Err(Error::invalid("terrain", "heights are not finite"));
+            return Err(Error::invalid(
+                "terrain.vertical_scale",
+                format!(
+                    "heights times the vertical scale {vertical_scale} are not finite \
+                     ({min_height}..{max_height} m): check the height source's values and the scale"
+                ),
+            ));
         }
         let t = std::time::Instant::now();
         let pyramid = MaxPyramid::build(&field);
@@ -153,6 +164,7 @@ impl Terrain {
             min_height,
             max_height,
             drape: None,
+            walls: true,
         })
     }
 
@@ -171,6 +183,7 @@ impl Terrain {
                 )?
             }
         };
+        check_height_range(desc, base_dir, &field)?;
         let (axis_x, axis_y, normal) = desc.axes()?;
         let frame = TerrainFrame {
             origin: DVec3::from(desc.origin),
@@ -180,6 +193,7 @@ impl Terrain {
             spacing: field.spacing,
         };
         let mut terrain = Terrain::new(field, frame, desc.vertical_scale)?;
+        terrain.walls = desc.walls;
         if let Some(d) = &desc.drape {
             let drape = geotiff::load_drape(&base_dir.join(d))?;
             let mapping = drape_mapping(&terrain.field, &drape);
@@ -224,6 +238,55 @@ impl Terrain {
             f.at(i + 1, j + 1) as f64,
         );
         Some(h00 * (1.0 - u) * (1.0 - v) + h10 * u * (1.0 - v) + h01 * (1.0 - u) * v + h11 * u * v)
+    }
+}
+
+/// Largest height magnitude (metres, before the vertical scale) a terrain may have.
+pub const MAX_ABS_HEIGHT: f64 = 1.0e7;
+
+/// `Err` naming the scene field that made the heights non-finite or absurd (beyond
+/// ±[`MAX_ABS_HEIGHT`]): `terrain.png_scale`/`png_offset` for PNG, `terrain.procedural.height`.
+fn check_height_range(desc: &TerrainDesc, base_dir: &Path, field: &Heightfield) -> Result<()> {
+    let (lo, hi) = field.range();
+    let ok = |v: f32| v.is_finite() && (v as f64).abs() <= MAX_ABS_HEIGHT;
+    if ok(lo) && ok(hi) {
+        return Ok(());
+    }
+    let range = format!("{lo}..{hi} m");
+    match desc.height_source()? {
+        HeightSource::Procedural(p) => Err(Error::invalid(
+            "terrain.procedural.height",
+            format!(
+                "{} m gives heights {range}, beyond ±{MAX_ABS_HEIGHT:e} m: give the \
+                 peak-to-valley height in metres (default 2000)",
+                p.height
+            ),
+        )),
+        HeightSource::File(src) => {
+            let path = base_dir.join(src);
+            let is_png = path
+                .extension()
+                .and_then(|e| e.to_str())
+                .is_some_and(|e| e.eq_ignore_ascii_case("png"));
+            if is_png {
+                Err(Error::invalid(
+                    "terrain.png_scale/png_offset",
+                    format!(
+                        "{}: png_offset + grey level × png_scale = {} + value × {} gives heights \
+                         {range}, beyond ±{MAX_ABS_HEIGHT:e} m: give png_scale in metres per grey \
+                         level (e.g. 0.1) and png_offset in metres",
+                        path.display(),
+                        desc.png_offset,
+                        desc.png_scale
+                    ),
+                ))
+            } else {
+                Err(Error::format(
+                    &path,
+                    format!("heights {range} are beyond ±{MAX_ABS_HEIGHT:e} m: set terrain.nodata if they mark voids"),
+                ))
+            }
+        }
     }
 }
 

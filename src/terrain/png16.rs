@@ -1,24 +1,54 @@
 //! Greyscale PNG height maps (8 or 16 bit): height = offset + value * scale.
 
 use super::heightfield::Heightfield;
-use crate::{Error, Result};
+use crate::{fileio, Error, Result};
 use std::path::Path;
 
-/// Loads a greyscale PNG; `spacing` is required (PNG has no georeference).
+/// Per pixel, beyond the decoded image: raw values, samples and the height field.
+const BYTES_PER_PIXEL: u64 = 24;
+
+/// Loads a greyscale PNG; `spacing` is required (PNG has no georeference). The declared size
+/// is checked against the file's length and the memory budget before decoding.
 pub fn load(
     path: &Path,
     spacing: Option<[f64; 2]>,
     scale: f64,
     offset: f64,
 ) -> Result<Heightfield> {
-    let spacing = spacing.ok_or_else(|| {
+    let spacing = need_spacing(path, spacing)?;
+    let img = fileio::read_image(path, BYTES_PER_PIXEL)?;
+    from_image(path, img, spacing, scale, offset)
+}
+
+/// [`load`] from the file's bytes; `path` names it in errors.
+pub fn decode(
+    bytes: &[u8],
+    path: &Path,
+    spacing: Option<[f64; 2]>,
+    scale: f64,
+    offset: f64,
+) -> Result<Heightfield> {
+    let spacing = need_spacing(path, spacing)?;
+    let img = fileio::decode_image(bytes, path, BYTES_PER_PIXEL)?;
+    from_image(path, img, spacing, scale, offset)
+}
+
+fn need_spacing(path: &Path, spacing: Option<[f64; 2]>) -> Result<[f64; 2]> {
+    spacing.ok_or_else(|| {
         Error::format(
             path,
             "a PNG height map has no georeference: set terrain.cell_size = [dx, dy] (metres)",
         )
-    })?;
-    let img =
-        image::open(path).map_err(|e| Error::format(path, format!("cannot read PNG: {e}")))?;
+    })
+}
+
+fn from_image(
+    path: &Path,
+    img: image::DynamicImage,
+    spacing: [f64; 2],
+    scale: f64,
+    offset: f64,
+) -> Result<Heightfield> {
     let color = img.color();
     if color.has_color() {
         return Err(Error::format(

@@ -2,15 +2,25 @@
 //! detached (`data file:`) data, any scalar type, either endianness. Spacing comes from
 //! `spacings` or the lengths of `space directions` (millimetres when `space` is an anatomical
 //! one or `space units` says mm, else metres); `space directions` must be axis-aligned.
+//!
+//! Hostile files: the header is read first (at most [`MAX_HEADER_BYTES`]); the declared sizes
+//! are checked against the memory budget and against the data the file holds (raw: its length;
+//! gzip: its length at deflate's best ratio) before the samples are read, and gzip data is
+//! inflated through a bound of the declared size. Only the declared samples are read from a
+//! (detached) data file, which must be a regular file. Samples are quantised straight from the
+//! bytes, without an f64 copy.
 
 use super::DensityGrid;
-use crate::{Error, Result};
-use std::io::Read;
-use std::path::Path;
+use crate::{fileio, Error, Result};
+use std::io::{Read, Seek, SeekFrom};
+use std::path::{Path, PathBuf};
+
+/// Longest header read (the 1000 lines it may have, at generous line lengths).
+pub const MAX_HEADER_BYTES: u64 = 1 << 20;
 
 /// Sample types NRRD names, with their byte size.
 #[derive(Clone, Copy, Debug, PartialEq)]
-enum Kind {
+pub(crate) enum Kind {
     I8,
     U8,
     I16,
@@ -22,7 +32,7 @@ enum Kind {
 }
 
 impl Kind {
-    fn parse(s: &str) -> Option<Kind> {
+    pub(crate) fn parse(s: &str) -> Option<Kind> {
         Some(match s {
             "signed char" | "int8" | "int8_t" => Kind::I8,
             "uchar" | "unsigned char" | "uint8" | "uint8_t" => Kind::U8,
@@ -72,51 +82,6 @@ impl Kind {
     }
 }
 
-/// Sample type names accepted by [`decode_samples`] (NRRD spellings).
-pub fn parse_kind(s: &str) -> bool {
-    Kind::parse(s).is_some()
-}
-
-/// Decodes `count` samples of NRRD type `kind` from `bytes`; `path` names the file.
-pub(crate) fn decode_samples(
-    path: &Path,
-    kind: &str,
-    big_endian: bool,
-    bytes: &[u8],
-    count: usize,
-) -> Result<Vec<f64>> {
-    let k = Kind::parse(kind)
-        .ok_or_else(|| Error::format(path, format!("unsupported sample type {kind:?}")))?;
-    decode(path, k, big_endian, bytes, count)
-}
-
-fn decode(path: &Path, k: Kind, big_endian: bool, bytes: &[u8], count: usize) -> Result<Vec<f64>> {
-    let kind = format!("{k:?}");
-    let need = count
-        .checked_mul(k.size())
-        .ok_or_else(|| Error::format(path, "sample count overflows"))?;
-    if bytes.len() < need {
-        return Err(Error::format(
-            path,
-            format!(
-                "data is truncated: {} bytes for {count} {kind} samples ({need} bytes needed)",
-                bytes.len()
-            ),
-        ));
-    }
-    if bytes.len() > need {
-        log::warn!(
-            "{}: {} bytes of data after the {count} samples ignored",
-            path.display(),
-            bytes.len() - need
-        );
-    }
-    Ok(bytes[..need]
-        .chunks_exact(k.size())
-        .map(|b| k.value(b, big_endian))
-        .collect())
-}
-
 /// Parses "(a,b,c)" into three numbers.
 fn vector(s: &str) -> Option<[f64; 3]> {
     let s = s.trim().strip_prefix('(')?.strip_suffix(')')?;
@@ -127,14 +92,74 @@ fn vector(s: &str) -> Option<[f64; 3]> {
     v.try_into().ok()
 }
 
-/// Gunzips `bytes`, refusing more than `limit` bytes of output.
-pub(crate) fn gunzip(path: &Path, bytes: &[u8], limit: usize) -> Result<Vec<u8>> {
+/// Reads `count` samples of `k` (raw or gzip-encoded) from `r`, which holds `len` bytes of
+/// which the first `skip` are skipped; `path` names the data in errors. The declared size is
+/// checked against `len` before anything is read; gzip data is inflated through a bound.
+pub(crate) fn read_samples(
+    path: &Path,
+    mut r: impl Read,
+    len: u64,
+    skip: u64,
+    gzip: bool,
+    k: Kind,
+    count: usize,
+) -> Result<Vec<u8>> {
+    let need = (count as u64).saturating_mul(k.size() as u64);
+    let truncated = |have: u64| {
+        Error::format(
+            path,
+            format!(
+                "data is truncated: {have} bytes for {count} {k:?} samples ({need} bytes needed)"
+            ),
+        )
+    };
+    if skip > len {
+        return Err(Error::format(
+            path,
+            format!("data is truncated: byte skip {skip} is past its {len} bytes"),
+        ));
+    }
+    std::io::copy(&mut r.by_ref().take(skip), &mut std::io::sink())
+        .map_err(|e| Error::io(path, e))?;
+    let avail = len - skip;
+    if !gzip {
+        if avail < need {
+            return Err(truncated(avail));
+        }
+        if avail > need {
+            log::warn!(
+                "{}: {} bytes of data after the {count} samples ignored",
+                path.display(),
+                avail - need
+            );
+        }
+        let mut out = vec![0u8; need as usize];
+        r.read_exact(&mut out).map_err(|e| Error::io(path, e))?;
+        return Ok(out);
+    }
+    fileio::check_inflated(
+        path,
+        &format!("{count} {k:?} samples"),
+        need,
+        avail,
+        fileio::DEFLATE_MAX_RATIO,
+    )?;
+    let out = gunzip(path, r.take(avail), need)?;
+    if (out.len() as u64) < need {
+        return Err(truncated(out.len() as u64));
+    }
+    Ok(out)
+}
+
+/// Gunzips `r`, refusing more than `limit` bytes of output (inflated through a bound, so a
+/// gzip bomb stops there).
+pub(crate) fn gunzip(path: &Path, r: impl Read, limit: u64) -> Result<Vec<u8>> {
     let mut out = Vec::new();
-    flate2::read::MultiGzDecoder::new(bytes)
-        .take(limit as u64 + 1)
+    flate2::read::MultiGzDecoder::new(std::io::BufReader::new(r))
+        .take(limit.saturating_add(1))
         .read_to_end(&mut out)
         .map_err(|e| Error::format(path, format!("corrupt or truncated gzip stream: {e}")))?;
-    if out.len() > limit {
+    if out.len() as u64 > limit {
         return Err(Error::format(
             path,
             format!("gzip stream holds more than the {limit} bytes the header declares"),
@@ -143,10 +168,162 @@ pub(crate) fn gunzip(path: &Path, bytes: &[u8], limit: usize) -> Result<Vec<u8>>
     Ok(out)
 }
 
+/// Quantises the samples in `bytes` (x fastest) to 8 bits over `range`, or over the data's
+/// own min..max when `range` is `None`, as [`DensityGrid::from_values`] does, without an f64
+/// copy. Non-finite values are refused; `what` names the volume, `path` the data.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn grid_from_samples(
+    what: &str,
+    path: &Path,
+    k: Kind,
+    big_endian: bool,
+    bytes: &[u8],
+    dims: [u32; 3],
+    spacing: [f64; 3],
+    range: Option<[f64; 2]>,
+) -> Result<DensityGrid> {
+    let count = dims.iter().map(|&d| d as usize).product::<usize>();
+    let need = count * k.size();
+    if bytes.len() < need {
+        return Err(Error::format(
+            path,
+            format!(
+                "data is truncated: {} bytes for {count} {k:?} samples ({need} bytes needed)",
+                bytes.len()
+            ),
+        ));
+    }
+    let samples = || bytes[..need].chunks_exact(k.size());
+    let mut lo = f64::INFINITY;
+    let mut hi = f64::NEG_INFINITY;
+    for (i, b) in samples().enumerate() {
+        let v = k.value(b, big_endian);
+        if !v.is_finite() {
+            return Err(Error::invalid(
+                what,
+                format!("value {i} is not finite ({v})"),
+            ));
+        }
+        lo = lo.min(v);
+        hi = hi.max(v);
+    }
+    let [lo, hi] = range.unwrap_or([lo, hi]);
+    let hi = if hi > lo { hi } else { lo + 1.0 };
+    let scale = 255.0 / (hi - lo);
+    let data = samples()
+        .map(|b| {
+            ((k.value(b, big_endian) - lo) * scale)
+                .round()
+                .clamp(0.0, 255.0) as u8
+        })
+        .collect();
+    let g = DensityGrid {
+        dims,
+        data,
+        spacing,
+        value_range: [lo, hi],
+        slices: 0,
+    };
+    g.check(what)?;
+    Ok(g)
+}
+
+/// Checks the memory a `dims` grid of `k` samples takes while loading (the samples and the
+/// quantised grid); `what` names the volume.
+pub(crate) fn check_grid_memory(what: &str, k: Kind, dims: [u32; 3]) -> Result<()> {
+    let count: u64 = dims.iter().map(|&d| d as u64).product();
+    fileio::check_alloc(
+        format!("{what} ({}x{}x{} {k:?} samples)", dims[0], dims[1], dims[2]),
+        count.saturating_mul(k.size() as u64 + 1),
+    )
+}
+
 /// Reads a 3-D NRRD volume. Values are quantised to 8 bits over `range` (data units), or
 /// over the type's range for 8-bit data and the data's min..max otherwise.
 pub fn load(path: &Path, range: Option<[f64; 2]>) -> Result<DensityGrid> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let (mut file, len) = fileio::open_regular(path)?;
+    let mut head = Vec::new();
+    (&mut file)
+        .take(MAX_HEADER_BYTES)
+        .read_to_end(&mut head)
+        .map_err(|e| Error::io(path, e))?;
+    let h = header(path, &head)?;
+    file.seek(SeekFrom::Start(h.len))
+        .map_err(|e| Error::io(path, e))?;
+    finish(path, h, file, len, range)
+}
+
+/// [`load`] from the file's bytes; `path` names the file and anchors a detached data file.
+pub fn decode(bytes: &[u8], path: &Path, range: Option<[f64; 2]>) -> Result<DensityGrid> {
+    let h = header(path, bytes)?;
+    let rest = &bytes[h.len as usize..];
+    finish(path, h, rest, bytes.len() as u64, range)
+}
+
+/// A parsed header.
+struct Header {
+    /// Its length in bytes, up to and including the empty line.
+    len: u64,
+    kind: Kind,
+    dims: [u32; 3],
+    spacing: [f64; 3],
+    gzip: bool,
+    big_endian: bool,
+    data_file: Option<String>,
+    byte_skip: u64,
+}
+
+/// Reads the samples (attached after the header in `attached`, or from the data file) and
+/// quantises them.
+fn finish(
+    path: &Path,
+    h: Header,
+    attached: impl Read,
+    file_len: u64,
+    range: Option<[f64; 2]>,
+) -> Result<DensityGrid> {
+    let what = path.display().to_string();
+    check_grid_memory(&what, h.kind, h.dims)?;
+    let count = h.dims.iter().map(|&d| d as usize).product::<usize>();
+    let (data_path, raw): (PathBuf, Vec<u8>) = match &h.data_file {
+        Some(f) => {
+            let p = path.parent().unwrap_or(Path::new("")).join(f);
+            let (file, len) = fileio::open_regular(&p)?;
+            let raw = read_samples(&p, file, len, h.byte_skip, h.gzip, h.kind, count)?;
+            (p, raw)
+        }
+        None => {
+            let raw = read_samples(
+                path,
+                attached,
+                file_len.saturating_sub(h.len),
+                h.byte_skip,
+                h.gzip,
+                h.kind,
+                count,
+            )?;
+            (path.to_path_buf(), raw)
+        }
+    };
+    let range = range.or(match h.kind {
+        Kind::U8 => Some([0.0, 255.0]),
+        Kind::I8 => Some([-128.0, 127.0]),
+        _ => None,
+    });
+    grid_from_samples(
+        &what,
+        &data_path,
+        h.kind,
+        h.big_endian,
+        &raw,
+        h.dims,
+        h.spacing,
+        range,
+    )
+}
+
+/// Parses the header at the start of `bytes`.
+fn header(path: &Path, bytes: &[u8]) -> Result<Header> {
     let fmt = |m: String| Error::format(path, m);
     let magic = bytes.get(..8).unwrap_or(&[]);
     if !(magic.starts_with(b"NRRD000") && (b'1'..=b'5').contains(&magic[7])) {
@@ -162,7 +339,16 @@ pub fn load(path: &Path, range: Option<[f64; 2]>) -> Result<DensityGrid> {
             .iter()
             .position(|&b| b == b'\n')
             .map(|e| pos + e)
-            .ok_or_else(|| fmt("header does not end (no empty line before the data)".into()))?;
+            .ok_or_else(|| {
+                fmt(format!(
+                    "header does not end (no empty line before the data{})",
+                    if bytes.len() as u64 >= MAX_HEADER_BYTES {
+                        format!(" within {MAX_HEADER_BYTES} bytes")
+                    } else {
+                        String::new()
+                    }
+                ))
+            })?;
         let line = std::str::from_utf8(&bytes[pos..end])
             .map_err(|_| fmt("header is not text".into()))?
             .trim_end_matches('\r');
@@ -185,7 +371,7 @@ pub fn load(path: &Path, range: Option<[f64; 2]>) -> Result<DensityGrid> {
     let mut space = String::new();
     let mut units_mm = false;
     let mut data_file = None;
-    let mut byte_skip = 0usize;
+    let mut byte_skip = 0u64;
     for line in lines.iter().skip(1) {
         if line.starts_with('#') {
             continue;
@@ -278,30 +464,23 @@ pub fn load(path: &Path, range: Option<[f64; 2]>) -> Result<DensityGrid> {
     } else {
         [to_m; 3]
     };
-    let count = dims.iter().map(|&d| d as usize).product::<usize>();
-    let need = count * kind.size();
-    let payload: Vec<u8> = match &data_file {
-        Some(f) => {
-            let p = path.parent().unwrap_or(Path::new("")).join(f);
-            std::fs::read(&p).map_err(|e| Error::io(&p, e))?
-        }
-        None => bytes[pos..].to_vec(),
-    };
-    let payload = payload.get(byte_skip..).unwrap_or(&[]);
-    let raw = match encoding.as_str() {
-        "raw" => payload.to_vec(),
-        "gzip" | "gz" => gunzip(path, payload, need)?,
+    let gzip = match encoding.as_str() {
+        "raw" => false,
+        "gzip" | "gz" => true,
         e => {
             return Err(fmt(format!(
                 "encoding {e:?} is not supported (use raw or gzip)"
             )))
         }
     };
-    let values = decode(path, kind, big_endian, &raw, count)?;
-    let range = range.or(match kind {
-        Kind::U8 => Some([0.0, 255.0]),
-        Kind::I8 => Some([-128.0, 127.0]),
-        _ => None,
-    });
-    DensityGrid::from_values(&path.display().to_string(), dims, &values, spacing, range)
+    Ok(Header {
+        len: pos as u64,
+        kind,
+        dims,
+        spacing,
+        gzip,
+        big_endian,
+        data_file,
+        byte_skip,
+    })
 }

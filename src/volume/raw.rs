@@ -9,8 +9,9 @@
 //! units = "mm"             # spacing units: "m" (default) or "mm"
 //! ```
 
+use super::nrrd::Kind;
 use super::DensityGrid;
-use crate::{Error, Result};
+use crate::{fileio, Error, Result};
 use serde::Deserialize;
 use std::path::Path;
 
@@ -40,14 +41,21 @@ fn metres() -> String {
 }
 
 /// Reads the header at `path` and the raw file it names; values are quantised to 8 bits over
-/// `range` (data units), the type's range for 8-bit data, else the data's min..max.
+/// `range` (data units), the type's range for 8-bit data, else the data's min..max. The data
+/// file must be a regular file; the declared size is checked against its length (at
+/// deflate's best ratio for `.gz`) and the memory budget before it is read, and only the
+/// declared samples are read.
 pub fn load(path: &Path, range: Option<[f64; 2]>) -> Result<DensityGrid> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    let h: RawHeader = toml::from_str(&text)
-        .map_err(|e| Error::format(path, format!("raw volume header: {e}")))?;
+    let text = fileio::read_to_string(path, fileio::MAX_CONFIG_BYTES)?;
+    let h: RawHeader = toml::from_str(&text).map_err(|e| {
+        Error::format(
+            path,
+            format!("raw volume header: {}", fileio::toml_error(&text, &e)),
+        )
+    })?;
     let what = path.display().to_string();
     let dims = super::check_dims(&what, h.dims)?;
-    if !super::nrrd::parse_kind(&h.kind) {
+    let Some(kind) = Kind::parse(&h.kind) else {
         return Err(Error::invalid(
             format!("{what}: type"),
             format!(
@@ -55,7 +63,7 @@ pub fn load(path: &Path, range: Option<[f64; 2]>) -> Result<DensityGrid> {
                 h.kind
             ),
         ));
-    }
+    };
     let big = match h.endian.as_str() {
         "little" => false,
         "big" => true,
@@ -77,24 +85,24 @@ pub fn load(path: &Path, range: Option<[f64; 2]>) -> Result<DensityGrid> {
         }
     };
     let data_path = path.parent().unwrap_or(Path::new("")).join(&h.file);
-    let bytes = std::fs::read(&data_path).map_err(|e| Error::io(&data_path, e))?;
+    super::nrrd::check_grid_memory(&what, kind, dims)?;
+    let (file, len) = fileio::open_regular(&data_path)?;
     let count = dims.iter().map(|&d| d as usize).product::<usize>();
-    let bytes = if data_path.extension().is_some_and(|e| e == "gz") {
-        let size = match h.kind.as_str() {
-            "int8" | "uint8" => 1,
-            "int16" | "uint16" => 2,
-            "double" => 8,
-            _ => 4,
-        };
-        super::nrrd::gunzip(&data_path, &bytes, count * size)?
-    } else {
-        bytes
-    };
-    let values = super::nrrd::decode_samples(&data_path, &h.kind, big, &bytes, count)?;
-    let range = range.or(match h.kind.as_str() {
-        "uint8" => Some([0.0, 255.0]),
-        "int8" => Some([-128.0, 127.0]),
+    let gzip = data_path.extension().is_some_and(|e| e == "gz");
+    let bytes = super::nrrd::read_samples(&data_path, file, len, 0, gzip, kind, count)?;
+    let range = range.or(match kind {
+        Kind::U8 => Some([0.0, 255.0]),
+        Kind::I8 => Some([-128.0, 127.0]),
         _ => None,
     });
-    DensityGrid::from_values(&what, dims, &values, h.spacing.map(|s| s * scale), range)
+    super::nrrd::grid_from_samples(
+        &what,
+        &data_path,
+        kind,
+        big,
+        &bytes,
+        dims,
+        h.spacing.map(|s| s * scale),
+        range,
+    )
 }

@@ -353,6 +353,22 @@ impl Bricks {
     }
 }
 
+/// Estimated peak memory of a model of `dims` with `voxels` voxels once loaded and turned
+/// into its brick grid ([`VoxelModel::bricks`]): the voxel list, the dense grids of the
+/// octant jumps (up to [`skip::DENSE_LIMIT`] cells), about 32 bytes of tables per brick and,
+/// per occupied brick, its pool and jump codes. Loaders check it against the memory budget.
+pub(crate) fn model_memory(dims: [u32; 3], voxels: u64) -> u64 {
+    let cells: u64 = dims.iter().map(|&d| d as u64).product();
+    let bricks: u64 = dims.iter().map(|&d| d.div_ceil(BRICK) as u64).product();
+    let occupied = voxels.min(bricks);
+    cells
+        .min(skip::DENSE_LIMIT)
+        .saturating_mul(4)
+        .saturating_add(bricks.saturating_mul(32))
+        .saturating_add(occupied.saturating_mul(BRICK_VOXELS as u64 * 5))
+        .saturating_add(voxels.saturating_mul(48))
+}
+
 pub(crate) fn check_dims(what: &str, dims: [u32; 3]) -> Result<()> {
     if dims.iter().any(|&d| d == 0 || d > MAX_SIDE) {
         return Err(Error::invalid(

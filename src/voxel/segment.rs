@@ -22,9 +22,12 @@
 //! voxels, varint) and `n` records of `1 + Σ sizes` bytes: the palette index (1..=255) then the
 //! extra attributes in header order; the run with `n = 0` (written `0, 0`) ends it. The writer
 //! is canonical (maximal runs, columns in order), so write → read → write is bit-exact.
+//! The reader requires the segments in column order without overlap (so no voxel record is
+//! read twice: the voxel count is bounded by the file's length) and checks the model's grid
+//! against the memory budget before decoding.
 
 use super::{Voxel, VoxelModel};
-use crate::{Error, Result};
+use crate::{fileio, Error, Result};
 use std::path::Path;
 
 pub const MAGIC: &[u8; 8] = b"RLFVSEG\0";
@@ -193,8 +196,21 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<VoxelModel> {
             bytes.len() - base
         )));
     }
+    // Each record takes at least one byte of segment data.
+    fileio::check_alloc(
+        format!(
+            "{} ({}x{}x{} voxels)",
+            path.display(),
+            dims[0],
+            dims[1],
+            dims[2]
+        ),
+        super::model_memory(dims, (len / (1 + stride)) as u64),
+    )?;
     let mut voxels = Vec::new();
     let mut extra = Vec::new();
+    // End of the previous column's segment (relative): segments do not overlap.
+    let mut next_free = 0usize;
     for (col, &off) in offsets.iter().enumerate() {
         if off == EMPTY {
             continue;
@@ -202,6 +218,11 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<VoxelModel> {
         if off as usize >= len {
             return Err(c.err(format!(
                 "column {col}: offset {off} is past the segment data ({len} bytes)"
+            )));
+        }
+        if (off as usize) < next_free {
+            return Err(c.err(format!(
+                "column {col}: its segment at offset {off} overlaps the previous column's (ending at {next_free}); segments are stored in column order, each once"
             )));
         }
         c.pos = base + off as usize;
@@ -246,6 +267,7 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<VoxelModel> {
                 "column ({x}, {y}) is stored but empty (empty segments are not stored)"
             )));
         }
+        next_free = c.pos - base;
     }
     Ok(VoxelModel {
         dims,
@@ -256,17 +278,16 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<VoxelModel> {
     })
 }
 
-/// Writes a model to `path` (via a temporary file, so nothing half-written is left).
+/// Writes a model to `path` atomically ([`fileio::write_atomic`]: nothing half-written is
+/// left, whatever fails).
 pub fn write(m: &VoxelModel, path: &Path) -> Result<u64> {
     let bytes = encode(m);
-    let tmp = path.with_extension("rvs.partial");
-    std::fs::write(&tmp, &bytes).map_err(|e| Error::io(&tmp, e))?;
-    std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))?;
+    fileio::write_file_atomic(path, &bytes)?;
     Ok(bytes.len() as u64)
 }
 
 /// Reads a segment file.
 pub fn read(path: &Path) -> Result<VoxelModel> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = fileio::read_file(path, fileio::memory_budget())?;
     decode(&bytes, path)
 }

@@ -8,9 +8,15 @@
 //! the root down (integer signed-permutation rotations, integer translations), so every voxel
 //! lands on the lattice; all frames share one bounding box. Without a scene graph a file with
 //! several models is an animation, one model per frame.
+//!
+//! Hostile files: every chunk and count is checked against the bytes that hold it, the scene
+//! graph is bounded ([`MAX_PLACEMENTS`] shapes, [`MAX_GRAPH_VISITS`] node visits: groups that
+//! list a child twice at each of 30 levels would place 2^30 shapes from 1 KB), and the composed
+//! voxels and the models' grids are checked against the memory budget
+//! ([`crate::fileio::check_alloc`]) before they are built.
 
 use super::{Voxel, VoxelModel};
-use crate::{Error, Result};
+use crate::{fileio, Error, Result};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
@@ -51,6 +57,11 @@ pub struct VoxFile {
     pub has_palette: bool,
     pub nodes: HashMap<i32, Node>,
 }
+
+/// Most shapes the scene graph may place (instances of `nSHP` nodes after composition).
+pub const MAX_PLACEMENTS: usize = 1 << 16;
+/// Most node visits while composing the scene graph.
+pub const MAX_GRAPH_VISITS: usize = 1 << 20;
 
 struct Reader<'a> {
     data: &'a [u8],
@@ -121,7 +132,7 @@ fn rotation(r: u8) -> Option<[[i32; 3]; 3]> {
 impl VoxFile {
     /// Reads and parses a `.vox` file.
     pub fn load(path: &Path) -> Result<VoxFile> {
-        let data = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        let data = fileio::read_file(path, fileio::memory_budget())?;
         Self::parse(&data, path)
     }
 
@@ -159,6 +170,12 @@ impl VoxFile {
         }
         let content = r.count("MAIN content size", 1)?;
         let children = r.count("MAIN children size", 1)?;
+        if content + children > r.end - r.pos {
+            return Err(r.err(format!(
+                "MAIN claims {content} + {children} bytes of content and children, the file holds {} after its header (truncated file?)",
+                r.end - r.pos
+            )));
+        }
         r.bytes(content, "MAIN content")?;
         r.end = r.pos + children;
         let mut size: Option<[u32; 3]> = None;
@@ -269,6 +286,9 @@ impl VoxFile {
                     let node = r.i32("node id")?;
                     r.dict()?;
                     let k = r.count("shape model count", 8)?;
+                    if k == 0 {
+                        return Err(r.err(format!("node {node}: shape lists no model")));
+                    }
                     let mut models = Vec::with_capacity(k);
                     for i in 0..k {
                         let id = r.i32("model id")?;
@@ -328,7 +348,17 @@ impl VoxFile {
         let ident = rotation(4).expect("identity");
         // (node, rotation, translation, depth)
         let mut stack = vec![(0i32, ident, [0i64; 3], 0u32)];
+        let mut visits = 0usize;
         while let Some((id, rot, t, depth)) = stack.pop() {
+            visits += 1;
+            if visits > MAX_GRAPH_VISITS || out.len() > MAX_PLACEMENTS {
+                return Err(Error::Limit {
+                    what: format!("{} scene graph (nTRN/nGRP/nSHP)", self.path.display()),
+                    msg: format!(
+                        "it places more than {MAX_PLACEMENTS} shapes or visits more than {MAX_GRAPH_VISITS} nodes (groups listing the same child over and over?)"
+                    ),
+                });
+            }
             if depth > 256 {
                 return Err(Error::format(
                     &self.path,
@@ -373,6 +403,13 @@ impl VoxFile {
     pub fn frames(&self) -> Result<Vec<VoxelModel>> {
         let what = self.path.display().to_string();
         if self.nodes.is_empty() {
+            let grids = self.models.iter().fold(0u64, |acc, m| {
+                acc.saturating_add(super::model_memory(m.size, m.voxels.len() as u64))
+            });
+            fileio::check_alloc(
+                format!("{} ({} model(s))", self.path.display(), self.models.len()),
+                grids,
+            )?;
             return self
                 .models
                 .iter()
@@ -392,23 +429,46 @@ impl VoxFile {
         let shapes = self.placements()?;
         let frames = shapes
             .iter()
-            .flat_map(|(ms, _, _)| ms.iter().map(|(_, f)| *f + 1))
+            .flat_map(|(ms, _, _)| ms.iter().map(|(_, f)| f.saturating_add(1)))
             .max()
             .unwrap_or(1)
             .min(1024);
+        // Each shape's models sorted by frame key; the model shown at frame k is the last whose
+        // key is ≤ k (else the first).
+        let sorted: Vec<Vec<(u32, u32)>> = shapes
+            .iter()
+            .map(|(ms, _, _)| {
+                let mut s = ms.clone();
+                s.sort_by_key(|(_, f)| *f);
+                s
+            })
+            .collect();
+        let shown = |s: &[(u32, u32)], k: usize| -> Option<u32> {
+            s.iter()
+                .rev()
+                .find(|(_, f)| *f as usize <= k)
+                .or(s.first())
+                .map(|m| m.0)
+        };
+        // The composed voxels, counted before they are built.
+        let mut total: u64 = 0;
+        for k in 0..frames as usize {
+            for s in &sorted {
+                if let Some(id) = shown(s, k) {
+                    total += self.models[id as usize].voxels.len() as u64;
+                }
+            }
+            // World cell + voxel + the model's sort: about 64 bytes per composed voxel.
+            fileio::check_alloc(
+                format!("{} (composed scene graph)", self.path.display()),
+                total.saturating_mul(64),
+            )?;
+        }
         // World cells per frame.
         let mut cells: Vec<Vec<([i64; 3], u8)>> = vec![Vec::new(); frames as usize];
         for (k, cell) in cells.iter_mut().enumerate() {
-            for (ms, rot, t) in &shapes {
-                // The model shown at frame k: the last whose key is ≤ k (else the first).
-                let mut sorted = ms.clone();
-                sorted.sort_by_key(|(_, f)| *f);
-                let id = sorted
-                    .iter()
-                    .rev()
-                    .find(|(_, f)| *f as usize <= k)
-                    .unwrap_or(&sorted[0])
-                    .0;
+            for ((_, rot, t), s) in shapes.iter().zip(&sorted) {
+                let Some(id) = shown(s, k) else { continue };
                 let m = &self.models[id as usize];
                 let half = m.size.map(|s| (s / 2) as i64);
                 for v in &m.voxels {
@@ -435,6 +495,20 @@ impl VoxFile {
         }
         let dims = [0, 1, 2].map(|a| (hi[a] - lo[a] + 1).min(u32::MAX as i64) as u32);
         super::check_dims(&what, dims)?;
+        let grids = cells.iter().fold(0u64, |acc, c| {
+            acc.saturating_add(super::model_memory(dims, c.len() as u64))
+        });
+        fileio::check_alloc(
+            format!(
+                "{} ({} frame(s) of {}x{}x{} voxels)",
+                self.path.display(),
+                cells.len(),
+                dims[0],
+                dims[1],
+                dims[2]
+            ),
+            grids,
+        )?;
         cells
             .into_iter()
             .map(|c| {

@@ -95,3 +95,47 @@ impl Rng {
         lo + (hi - lo) * ((self.next_u64() >> 11) as f64 / (1u64 << 53) as f64)
     }
 }
+
+/// A fresh, empty directory under `target/test-output/` for test `name`.
+pub fn temp_dir(name: &str) -> PathBuf {
+    let d = project_dir()
+        .join("target")
+        .join("test-output")
+        .join(format!("{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// Runs the `relief` binary from the project directory with `envs` set (no display).
+pub fn relief_cli(args: &[&str], envs: &[(&str, &str)]) -> std::process::Output {
+    let mut c = std::process::Command::new(env!("CARGO_BIN_EXE_relief"));
+    c.args(args)
+        .env("NODEVICE_SELECT", "1")
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .current_dir(project_dir());
+    for (k, v) in envs {
+        c.env(k, v);
+    }
+    c.output().expect("the relief binary runs")
+}
+
+/// The adapters of a software machine a test can ask for by `WGPU_BACKEND`: `vulkan`
+/// (lavapipe) where an adapter answers, and `gl` (llvmpipe). A missing Vulkan adapter is
+/// printed, not failed: the README's machines may have GL only.
+pub fn backends() -> Vec<&'static str> {
+    let mut v = Vec::new();
+    for b in ["vulkan", "gl"] {
+        let probe = relief_cli(&["adapter"], &[("WGPU_BACKEND", b)]);
+        if probe.status.success() {
+            v.push(b);
+        } else {
+            eprintln!(
+                "no {b} adapter here ({}); its runs are skipped",
+                String::from_utf8_lossy(&probe.stderr).trim()
+            );
+        }
+    }
+    v
+}

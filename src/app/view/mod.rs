@@ -147,6 +147,8 @@ pub struct ViewReport {
     pub summary: stats::Summary,
     /// Frames the terrain floor lifted the viewpoint.
     pub floor_contacts: u64,
+    /// wgpu's live objects per kind at frames 100 and 500 (those the run reached).
+    pub resources: Vec<(u64, Vec<(&'static str, usize)>)>,
 }
 
 impl std::fmt::Display for ViewReport {
@@ -181,14 +183,36 @@ impl std::fmt::Display for ViewReport {
             opt(s.gpu_ms_p50),
             opt(s.gpu_ms_p99)
         )?;
-        write!(
+        writeln!(
             f,
             "present interval p50 {:.2} ms, p99 {:.2} ms; input-to-present latency p50 {:.2} ms, p99 {:.2} ms",
             s.present_interval_ms_p50,
             s.present_interval_ms_p99,
             s.latency_ms_p50,
             s.latency_ms_p99
-        )
+        )?;
+        write!(
+            f,
+            "memory: RSS slope {:.2} KiB/frame over frames {}..{}",
+            s.rss_slope_kib_per_frame, s.rss_window[0], s.rss_window[1]
+        )?;
+        if let [(a, ca), (b, cb)] = &self.resources[..] {
+            let total: usize = cb.iter().map(|(_, n)| n).sum();
+            let changed: Vec<String> = (ca.iter().zip(cb))
+                .filter(|(x, y)| x.1 != y.1)
+                .map(|(x, y)| format!("{} {} -> {}", x.0, x.1, y.1))
+                .collect();
+            write!(
+                f,
+                "; wgpu objects at frames {a} and {b}: {}",
+                if changed.is_empty() {
+                    format!("unchanged ({total} live)")
+                } else {
+                    changed.join(", ")
+                }
+            )?;
+        }
+        Ok(())
     }
 }
 

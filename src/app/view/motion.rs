@@ -312,7 +312,8 @@ const PATH_COLUMNS: [&str; 7] = ["time", "x", "y", "alt", "heading", "pitch", "r
 /// Reads a path CSV into a camera path (Catmull-Rom through the samples, as scene paths) with
 /// field of view `fov`. Times are relative to the first row.
 pub fn read_path_csv(path: &Path, fov: f64) -> Result<CameraPath> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    // Parsed rows take several times their text: an eighth of the memory budget at most.
+    let text = crate::fileio::read_to_string(path, crate::fileio::memory_budget() / 8)?;
     let rows = csv_fields(path, &text, &PATH_COLUMNS)?;
     let t0 = rows[0].1[0];
     let keyframes = rows
@@ -376,7 +377,8 @@ pub struct ControlScript {
 
 impl ControlScript {
     pub fn load(path: &Path) -> Result<ControlScript> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        // Parsed rows take several times their text: an eighth of the memory budget at most.
+        let text = crate::fileio::read_to_string(path, crate::fileio::memory_budget() / 8)?;
         let cols = ["time", "throttle", "pitch", "roll", "yaw"];
         let rows = csv_fields(path, &text, &cols)?;
         let mut out = Vec::with_capacity(rows.len());
@@ -415,7 +417,8 @@ pub struct EyeFeed {
 
 impl EyeFeed {
     pub fn load(path: &Path) -> Result<EyeFeed> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        // Parsed rows take several times their text: an eighth of the memory budget at most.
+        let text = crate::fileio::read_to_string(path, crate::fileio::memory_budget() / 8)?;
         Self::parse(path, &text)
     }
 

@@ -188,11 +188,12 @@ pub struct PresentPass {
 }
 
 impl PresentPass {
-    /// A pipeline drawing into views of `format`.
-    pub fn new(device: &wgpu::Device, format: wgpu::TextureFormat) -> PresentPass {
+    /// A pipeline drawing into views of `format` (parameters bound in `gpu.params`).
+    pub fn new(gpu: &crate::gpu::Gpu, format: wgpu::TextureFormat) -> PresentPass {
+        let device = &gpu.device;
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("present.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(present_shader().into()),
+            source: wgpu::ShaderSource::Wgsl(gpu.params.wgsl(&present_shader()).into()),
         });
         let fs = wgpu::ShaderStages::FRAGMENT;
         let texture = |binding, sample_type| wgpu::BindGroupLayoutEntry {
@@ -212,7 +213,7 @@ impl PresentPass {
                     binding: 0,
                     visibility: fs,
                     ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
+                        ty: gpu.params.binding_type(),
                         has_dynamic_offset: false,
                         min_binding_size: None,
                     },
@@ -255,7 +256,7 @@ impl PresentPass {
         let uniforms = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("present uniforms"),
             size: std::mem::size_of::<PresentUniforms>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            usage: crate::gpu::PARAM_USAGE,
             mapped_at_creation: false,
         });
         PresentPass {

@@ -56,6 +56,8 @@ pub struct FrameStat {
     pub heading: f64,
     pub pitch: f64,
     pub roll: f64,
+    /// Resident set size of the process after the frame (KiB; 0 where the OS does not say).
+    pub rss_kib: u64,
 }
 
 /// Percentile (nearest rank) of unsorted values; NaNs are ignored. `None` when empty.
@@ -97,6 +99,10 @@ pub struct Summary {
     pub latency_ms_p50: f64,
     pub latency_ms_p99: f64,
     pub dropped: u64,
+    /// Frames (from, to) the RSS slope is fitted over ([`crate::app::soak::window`]).
+    pub rss_window: [u32; 2],
+    /// Least-squares slope of the resident set size over `rss_window` (KiB per frame).
+    pub rss_slope_kib_per_frame: f64,
 }
 
 pub fn summarize(frames: &[FrameStat]) -> Summary {
@@ -110,6 +116,13 @@ pub fn summarize(frames: &[FrameStat]) -> Summary {
     let gpu = col(|s| s.gpu_ms, false);
     let present = col(|s| s.present_interval_ms, true);
     let lat = col(|s| s.latency_ms, false);
+    let rss_window = crate::app::soak::window(frames.len() as u32);
+    let rss: Vec<f64> = frames
+        .get(rss_window[0] as usize..rss_window[1] as usize)
+        .unwrap_or(&[])
+        .iter()
+        .map(|s| s.rss_kib as f64)
+        .collect();
     let seconds = match (frames.first(), frames.last()) {
         (Some(a), Some(b)) if frames.len() > 1 => b.start_s - a.start_s,
         _ => 0.0,
@@ -135,12 +148,15 @@ pub fn summarize(frames: &[FrameStat]) -> Summary {
         latency_ms_p50: p(&lat, 50.0),
         latency_ms_p99: p(&lat, 99.0),
         dropped: frames.iter().map(|s| s.dropped as u64).sum(),
+        rss_window,
+        rss_slope_kib_per_frame: crate::app::soak::slope(&rss),
     }
 }
 
-pub const CSV_HEADER: &str = "frame,sim_time_s,start_s,frame_ms,cpu_ms,acquire_ms,present_ms,gpu_ms,present_interval_ms,latency_ms,dropped,width,height,x,y,alt,agl,heading,pitch,roll";
+pub const CSV_HEADER: &str = "frame,sim_time_s,start_s,frame_ms,cpu_ms,acquire_ms,present_ms,gpu_ms,present_interval_ms,latency_ms,dropped,width,height,x,y,alt,agl,heading,pitch,roll,rss_kib";
 
-/// Writes [`FrameStat`] rows to a CSV file.
+/// Writes [`FrameStat`] rows to a CSV file, flushed per row (a run that stops keeps every
+/// row written so far).
 pub struct StatsCsv {
     out: std::io::BufWriter<std::fs::File>,
     path: PathBuf,
@@ -161,7 +177,7 @@ impl StatsCsv {
         let [x, y, z] = s.position;
         writeln!(
             self.out,
-            "{},{:.6},{:.6},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{},{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3}",
+            "{},{:.6},{:.6},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{},{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{}",
             s.frame,
             s.sim_time,
             s.start_s,
@@ -181,8 +197,10 @@ impl StatsCsv {
             s.agl,
             s.heading,
             s.pitch,
-            s.roll
+            s.roll,
+            s.rss_kib
         )
+        .and_then(|()| self.out.flush())
         .map_err(|e| Error::io(&self.path, e))
     }
 

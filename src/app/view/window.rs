@@ -12,7 +12,7 @@ use super::motion::{ControlScript, Controls, EyeFeed, Mode, Motion, PathRecorder
 use super::present::{font_words, pack_text, PresentPass, PresentUniforms, ViewMode};
 use super::stats::{self, FrameStat, GpuTimeSource, StatsCsv};
 use super::{ViewOptions, ViewReport};
-use crate::app::capture::{frame_metadata, write_depth_tiff, write_png};
+use crate::app::capture::{frame_metadata, write_png};
 use crate::cpu::distortion::ScreenPoints;
 use crate::gpu::{Gpu, RenderSettings, Stage, TerrainRenderer};
 use crate::scene::{Camera, Pose, Scene, SceneDesc};
@@ -468,6 +468,8 @@ struct App {
     /// Waiting for a requested size (debug `--resize-at`): (size, give up at).
     pending_resize: Option<(PhysicalSize<u32>, Instant)>,
     report: Option<ViewReport>,
+    /// wgpu's live objects per kind at frames 100 and 500.
+    resources: Vec<(u64, Vec<(&'static str, usize)>)>,
     adapter: String,
     font: [[u32; 4]; 48],
 }
@@ -498,6 +500,7 @@ impl App {
             look: (0.0, 0.0),
             screenshot: false,
             pending_resize: None,
+            resources: Vec::new(),
             report: None,
             adapter: String::new(),
             font: font_words(),
@@ -624,7 +627,7 @@ impl App {
                 }
             }
             let mut win = Win {
-                present: PresentPass::new(&gpu.device, format),
+                present: PresentPass::new(&gpu, format),
                 copy_src: usage.contains(wgpu::TextureUsages::COPY_SRC),
                 window,
                 surface,
@@ -831,6 +834,11 @@ impl App {
         let dt = 1.0 / opts.rate;
         let t = n as f64 * dt;
         if let Some(run) = &mut self.run {
+            // wgpu's live objects at both ends of the soak window (`ViewReport::resources`).
+            if n == 100 || n == 500 {
+                let counts = run.gpu.resource_counts().unwrap_or_default();
+                self.resources.push((n, counts));
+            }
             let _ = run.gpu.device.poll(wgpu::PollType::Poll);
             if let Some(timer) = &mut run.timer {
                 for (f, ms) in timer.collect() {
@@ -1115,6 +1123,7 @@ impl App {
             heading: pose.heading,
             pitch: pose.pitch,
             roll: pose.roll,
+            rss_kib: crate::app::soak::resident_kib().unwrap_or(0),
         };
         self.stats.push(stat);
         if last_present.is_some() {
@@ -1268,6 +1277,7 @@ impl App {
                 .into(),
                 summary: stats::summarize(&self.stats),
                 floor_contacts: self.prep.motion.floor_contacts,
+                resources: std::mem::take(&mut self.resources),
             });
             // Surfaces before the windows they draw to, everything before the device.
             for w in run.windows {
@@ -1289,26 +1299,13 @@ fn write_capture(
     meta: &serde_json::Value,
 ) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-    write_png(
+    crate::app::capture::write_frame_files(
         &dir.join(format!("frame_{n:04}.png")),
-        out.width,
-        out.height,
-        &out.rgba,
-    )?;
-    write_depth_tiff(
         &dir.join(format!("depth_{n:04}.tiff")),
-        out.width,
-        out.height,
-        &out.depth,
-    )?;
-    let p = dir.join(format!("frame_{n:04}.json"));
-    let tmp = p.with_extension("json.partial");
-    std::fs::write(
-        &tmp,
-        serde_json::to_string_pretty(meta).expect("metadata serialises"),
+        &dir.join(format!("frame_{n:04}.json")),
+        out,
+        meta,
     )
-    .map_err(|e| Error::io(&tmp, e))?;
-    std::fs::rename(&tmp, &p).map_err(|e| Error::io(&p, e))
 }
 
 /// Maps a swap-chain readback and returns RGBA8 rows (BGRA formats swizzled).

@@ -37,8 +37,9 @@ struct Frame {
     // samples x, samples y, pyramid levels, unused (the shade pass is built with or without
     // the drape, see gpu::shade).
     grid: vec4<u32>,
-    // x: 0 = pyramid traversal, 1 = fixed-step march; y: max steps; z: unused (the shade pass
-    // is built with or without shadows); w: tile pre-pass on.
+    // x: 0 = pyramid traversal, 1 = fixed-step march; y: max steps; z: 1 = terrain without
+    // side walls (terrain.walls = false: rays below the surface where they enter the box pass
+    // under it), 0 = walls (the default); w: tile pre-pass on.
     mode: vec4<u32>,
     // drape width, height.
     drape_size: vec4<u32>,

@@ -60,7 +60,9 @@ fn pat_label(az_deg: f32, el_deg: f32, el: f32) -> bool {
     }
     var value = i32(j * LABEL_EL);
     if (j == 0.0) {
-        value = (i32(k * LABEL_AZ) % 360 + 360) % 360;
+        // Floored modulo without a negative `%` operand (see `half_az` below).
+        let deg = i32(k * LABEL_AZ);
+        value = deg - 360 * i32(floor(f32(deg) / 360.0));
     }
     let a = u32(abs(value));
     let neg = select(0u, 1u, value < 0);
@@ -100,7 +102,9 @@ fn pattern_colour(d: vec3<f32>, cone: f32) -> vec3<f32> {
     let k_el = floor(el_deg / GRID_DEG + 0.5);
     let grid_el = cover(abs(el_deg - k_el * GRID_DEG), LINE_HALF, fw);
     let k_az = floor(az_deg / GRID_DEG + 0.5);
-    let half_az = select(LINE_HALF, MAJOR_HALF, (i32(k_az) % 18) == 0);
+    // `%` of non-negative operands only: GLSL leaves a negative operand's remainder
+    // undefined, and naga's GL output differs from WGSL there.
+    let half_az = select(LINE_HALF, MAJOR_HALF, (abs(i32(k_az)) % 18) == 0);
     var grid_az = 0.0;
     if (abs(el_deg) < 85.0) {
         grid_az = cover(abs(az_deg - k_az * GRID_DEG) * cos(el), half_az, fw);

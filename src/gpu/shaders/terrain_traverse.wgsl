@@ -92,8 +92,10 @@ fn clip_box(r: Ray, t_min: f32, t_max: f32) -> vec2<f32> {
 
 // Exact intersection with the bilinear patch of cell (i, j) over [ta, tb]: the quadratic
 // A s^2 + B s + C in s = t - ta (re-centred on the entry point), stable root formula.
-// Returns the hit t, or -1.
-fn patch_hit(r: Ray, i: i32, j: i32, ta: f32, tb: f32) -> f32 {
+// `under`: the ray is below the surface (terrain without walls, `patch_hit_from_below` on the
+// CPU): it hits only after coming up through the surface, where it goes down again.
+// Returns (hit t or -1, 1 if the ray is still below the surface after the cell else 0).
+fn patch_hit(r: Ray, i: i32, j: i32, ta: f32, tb: f32, under: bool) -> vec2<f32> {
     let w = frame.grid.x;
     let base = u32(j) * w + u32(i);
     let h00 = heights[base];
@@ -109,30 +111,52 @@ fn patch_hit(r: Ray, i: i32, j: i32, ta: f32, tb: f32) -> f32 {
     let qa = -e * r.d.x * r.d.y;
     let qb = r.d.z - b * r.d.x - c * r.d.y - e * (u0 * r.d.y + v0 * r.d.x);
     let qc = p.z - (h00 + b * u0 + c * v0 + e * u0 * v0);
-    if (qc <= 0.0) {
-        return ta;
+    let below = under && qc <= 0.0;
+    if (qc <= 0.0 && !below) {
+        return vec2<f32>(ta, 0.0);
     }
     var best = BIG;
+    var r1 = BIG;
+    var r2 = BIG;
     let disc = qb * qb - 4.0 * qa * qc;
+    let quadratic = abs(qa) > 1.0e-30;
     if (disc >= 0.0) {
         let q = -0.5 * (qb + select(-1.0, 1.0, qb >= 0.0) * sqrt(disc));
-        if (abs(qa) > 1.0e-30) {
-            let r1 = q / qa;
+        if (quadratic) {
+            r1 = q / qa;
             if (r1 >= 0.0) {
                 best = r1;
             }
         }
         if (q != 0.0) {
-            let r2 = qc / q;
+            r2 = qc / q;
             if (r2 >= 0.0 && r2 < best) {
                 best = r2;
             }
         }
     }
-    if (best <= tb - ta) {
-        return ta + best;
+    let s_max = tb - ta;
+    if (below) {
+        // q(0) <= 0. A < 0: positive between the roots, out at the lower, down (a hit from
+        // above) at the higher; otherwise out at the higher root, never down again.
+        let lo = min(r1, r2);
+        let hi = select(r2, max(r1, r2), quadratic);
+        if (quadratic && qa < 0.0) {
+            if (disc >= 0.0 && lo >= 0.0 && lo <= s_max) {
+                if (hi <= s_max) {
+                    return vec2<f32>(ta + hi, 0.0);
+                }
+                return vec2<f32>(-1.0, 0.0);
+            }
+        } else if (hi >= 0.0 && hi <= s_max) {
+            return vec2<f32>(-1.0, 0.0);
+        }
+        return vec2<f32>(-1.0, 1.0);
     }
-    return -1.0;
+    if (best <= s_max) {
+        return vec2<f32>(ta + best, 0.0);
+    }
+    return vec2<f32>(-1.0, 0.0);
 }
 
 // Levels to climb after stepping from cell (ox, oy) to (ix, iy): while the parents differ,
@@ -237,6 +261,12 @@ fn traverse_from(r: Ray, t_min: f32, t_max: f32, max_steps: u32, start_level: u3
     let top = frame.grid.z - 1u;
     let dir = walk_dir(r);
     var w = walk_start(r, tt.x, min(start_level, top));
+    // Terrain without walls: is the ray below the surface where it enters the box?
+    var under = false;
+    if (frame.mode.z != 0u) {
+        let p0 = r.o + r.d * tt.x;
+        under = p0.z < surface_height(p0.x, p0.y);
+    }
     // Two nested loops for SIMD rasterisers: the inner one only steps through the pyramid and
     // stops at a level-0 cell the segment may touch; the patch test runs after it, once for
     // all lanes that stopped, instead of inside every stepping iteration that one lane needs
@@ -275,7 +305,9 @@ fn traverse_from(r: Ray, t_min: f32, t_max: f32, max_steps: u32, start_level: u3
             break;
         }
         res.patches += 1u;
-        let th = patch_hit(r, w.cell.x, w.cell.y, w.t, t_exit);
+        let ph = patch_hit(r, w.cell.x, w.cell.y, w.t, t_exit, under);
+        under = ph.y != 0.0;
+        let th = ph.x;
         if (th >= 0.0) {
             res.hit = true;
             res.t = th;
