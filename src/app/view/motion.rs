@@ -351,7 +351,10 @@ impl PathRecorder {
     }
 
     fn line(&mut self, args: std::fmt::Arguments) -> Result<()> {
-        writeln!(self.out, "{args}").map_err(|e| Error::io(&self.path, e))
+        // Flushed per line: a run that stops keeps every pose recorded so far.
+        writeln!(self.out, "{args}")
+            .and_then(|()| self.out.flush())
+            .map_err(|e| Error::io(&self.path, e))
     }
 
     /// Appends the pose at time `t` (full precision: playback reproduces it exactly).
