@@ -64,7 +64,7 @@ fn every_specialised_variant_validates_with_naga() {
             );
         }
     }
-    for bits in 0..128 {
+    for bits in 0..256 {
         let sw = VolumeSwitches {
             skip: bit(bits, 0),
             termination: bit(bits, 1),
@@ -73,6 +73,7 @@ fn every_specialised_variant_validates_with_naga() {
             shell: bit(bits, 4),
             slices: bit(bits, 5),
             shadow: bit(bits, 6),
+            sampled_fetch: bit(bits, 7),
         };
         validate(&format!("volume {sw:?}"), &shaders::volume(sw));
     }

@@ -1348,7 +1348,7 @@ impl TerrainRenderer {
                     Self::encode_fullscreen(
                         &mut enc,
                         "volume",
-                        self.volumes[i].pipeline(&gpu.device),
+                        self.volumes[i].pipeline(gpu),
                         &vt.bg,
                         &[&ct.result_views[i], &ct.stats_views[i]],
                     );

@@ -163,6 +163,8 @@ pub(crate) struct VolumePass {
     surface_shadow: wgpu::Texture,
     surface_shadow_view: wgpu::TextureView,
     linear: wgpu::Sampler,
+    /// Nearest texel, nearest level: reads one texel of a chosen level (see `vol_texel`).
+    nearest: wgpu::Sampler,
     table: wgpu::Buffer,
     bricks: wgpu::Buffer,
     uniforms: wgpu::Buffer,
@@ -420,6 +422,10 @@ impl VolumePass {
             min_filter: wgpu::FilterMode::Linear,
             ..Default::default()
         });
+        let nearest = dev.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some("volume texel"),
+            ..Default::default()
+        });
         let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
         let table = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("transfer table"),
@@ -450,6 +456,12 @@ impl VolumePass {
                 uniform_entry(gpu.params, 16, fs),
                 filterable_3d_entry(17),
                 sampler_entry(18),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 20,
+                    visibility: fs,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::NonFiltering),
+                    count: None,
+                },
             ],
         });
         let pipelines = SpecialisedPipelines::new(
@@ -473,6 +485,7 @@ impl VolumePass {
             surface_shadow,
             surface_shadow_view,
             linear,
+            nearest,
             table,
             bricks,
             uniforms,
@@ -494,10 +507,10 @@ impl VolumePass {
     }
 
     /// The pipeline for the volume's current sampling switches, built on first use.
-    pub fn pipeline(&mut self, dev: &wgpu::Device) -> &wgpu::RenderPipeline {
+    pub fn pipeline(&mut self, gpu: &Gpu) -> &wgpu::RenderPipeline {
         let i = self
             .pipelines
-            .prepare(dev, VolumeSwitches::of(&self.volume));
+            .prepare(&gpu.device, VolumeSwitches::on(&self.volume, &gpu.info));
         self.pipelines.get(i)
     }
 
@@ -551,6 +564,10 @@ impl VolumePass {
                 wgpu::BindGroupEntry {
                     binding: 18,
                     resource: wgpu::BindingResource::Sampler(&self.linear),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 20,
+                    resource: wgpu::BindingResource::Sampler(&self.nearest),
                 },
             ],
         });
@@ -642,6 +659,9 @@ pub struct VolumeSwitches {
     pub slices: bool,
     /// Self-shadowing: samples lit with the sun's transmittance (`volume::shadow`).
     pub shadow: bool,
+    /// Mip texels read through a nearest sampler instead of `textureLoad` (on GL: llvmpipe's
+    /// GL path fetches with one level for a whole SIMD block; 1.5x the volume pass there).
+    pub sampled_fetch: bool,
 }
 
 impl VolumeSwitches {
@@ -654,6 +674,7 @@ impl VolumeSwitches {
         shell: true,
         slices: true,
         shadow: true,
+        sampled_fetch: true,
     };
     /// Every switch off.
     pub const NONE: VolumeSwitches = VolumeSwitches {
@@ -664,9 +685,10 @@ impl VolumeSwitches {
         shell: false,
         slices: false,
         shadow: false,
+        sampled_fetch: false,
     };
 
-    /// The switches volume `v` renders with.
+    /// The switches volume `v` renders with (`sampled_fetch` off: see [`VolumeSwitches::on`]).
     pub fn of(v: &Volume) -> VolumeSwitches {
         let s = &v.settings;
         VolumeSwitches {
@@ -677,6 +699,16 @@ impl VolumeSwitches {
             shell: v.shell.is_some(),
             slices: v.grid.slices > 0,
             shadow: v.sun_shadow.is_some(),
+            sampled_fetch: false,
+        }
+    }
+
+    /// The switches volume `v` renders with on the adapter `info`: texels of the mip levels
+    /// sampled on GL, loaded elsewhere.
+    pub fn on(v: &Volume, info: &wgpu::AdapterInfo) -> VolumeSwitches {
+        VolumeSwitches {
+            sampled_fetch: v.settings.mipmaps && info.backend == wgpu::Backend::Gl,
+            ..VolumeSwitches::of(v)
         }
     }
 }
@@ -691,6 +723,7 @@ impl Switches for VolumeSwitches {
             ("SHELL", self.shell),
             ("SLICES", self.slices),
             ("SHADOW", self.shadow),
+            ("SAMPLED_FETCH", self.sampled_fetch),
         ])
     }
 }

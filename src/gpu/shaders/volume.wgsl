@@ -18,6 +18,8 @@
 // fraction of a level of the CPU reference's trilinear weights.
 @group(0) @binding(17) var vol_shadow: texture_3d<f32>;
 @group(0) @binding(18) var vol_linear: sampler;
+// Nearest texel of the nearest level: `vol_texel` reads single texels through it.
+@group(0) @binding(20) var vol_nearest: sampler;
 
 // Voxels per brick side (`volume::BRICK`), table entries (`volume::transfer::TABLE_SIZE`),
 // samples after which a ray gives up (`cpu::volume::MAX_SAMPLES`).
@@ -80,26 +82,38 @@ fn vol_interval(o: vec3<f32>, d: vec3<f32>, t_max: f32) -> vec3<f32> {
     return vec3<f32>(t0, ts, te);
 }
 
+// Texel `c` of mip level `l` (n texels per axis). With SAMPLED_FETCH (on GL), read through the
+// nearest sampler at its centre with an explicit level, exactly the texel `textureLoad`
+// returns: llvmpipe's GL path fetches texels with one mip level for all lanes of a SIMD block,
+// so a lane whose level differs from its neighbours' would read the wrong level
+// (docs/robustness.md). Sampling costs ~1.5x the volume pass, so other adapters load.
+fn vol_texel(c: vec3<i32>, n: vec3<i32>, l: f32) -> vec4<f32> {
+    if (SAMPLED_FETCH) {
+        return textureSampleLevel(vol_tex, vol_nearest, (vec3<f32>(c) + 0.5) / vec3<f32>(n), l);
+    }
+    // i32 level: naga's GLSL output bounds-checks with textureSize(sampler, int).
+    return textureLoad(vol_tex, c, i32(l));
+}
+
 // Trilinear sample of mip level `level` at texture coordinates u (texel centres at
 // (i + 0.5) / n, clamp to edge), with f32 weights: texture units filter with 8-bit weights,
 // which the CPU reference cannot follow through steep transfer functions.
 fn vol_trilinear(u: vec3<f32>, level: u32) -> vec4<f32> {
     let n = vec3<i32>(max(vol.dims.xyz >> vec3<u32>(level), vec3<u32>(1u)));
-    // i32 level: naga's GLSL output bounds-checks with textureSize(sampler, int).
-    let li = i32(level);
+    let lf = f32(level);
     let q = u * vec3<f32>(n) - 0.5;
     let i0 = floor(q);
     let f = q - i0;
     let a = clamp(vec3<i32>(i0), vec3<i32>(0), n - 1);
     let b = clamp(vec3<i32>(i0) + 1, vec3<i32>(0), n - 1);
-    let c000 = textureLoad(vol_tex, a, li);
-    let c100 = textureLoad(vol_tex, vec3<i32>(b.x, a.y, a.z), li);
-    let c010 = textureLoad(vol_tex, vec3<i32>(a.x, b.y, a.z), li);
-    let c110 = textureLoad(vol_tex, vec3<i32>(b.x, b.y, a.z), li);
-    let c001 = textureLoad(vol_tex, vec3<i32>(a.x, a.y, b.z), li);
-    let c101 = textureLoad(vol_tex, vec3<i32>(b.x, a.y, b.z), li);
-    let c011 = textureLoad(vol_tex, vec3<i32>(a.x, b.y, b.z), li);
-    let c111 = textureLoad(vol_tex, b, li);
+    let c000 = vol_texel(a, n, lf);
+    let c100 = vol_texel(vec3<i32>(b.x, a.y, a.z), n, lf);
+    let c010 = vol_texel(vec3<i32>(a.x, b.y, a.z), n, lf);
+    let c110 = vol_texel(vec3<i32>(b.x, b.y, a.z), n, lf);
+    let c001 = vol_texel(vec3<i32>(a.x, a.y, b.z), n, lf);
+    let c101 = vol_texel(vec3<i32>(b.x, a.y, b.z), n, lf);
+    let c011 = vol_texel(vec3<i32>(a.x, b.y, b.z), n, lf);
+    let c111 = vol_texel(b, n, lf);
     let x0 = mix(mix(c000, c100, f.x), mix(c010, c110, f.x), f.y);
     let x1 = mix(mix(c001, c101, f.x), mix(c011, c111, f.x), f.y);
     return mix(x0, x1, f.z);

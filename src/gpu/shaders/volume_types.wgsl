@@ -18,7 +18,7 @@ struct Volume {
     // Voxels x, y, z; mip levels.
     dims: vec4<u32>,
     // Bricks x, y, z; unused (the pass branches on the compile-time constants SKIP,
-    // TERMINATION, JITTER, MIPMAPS, SHELL and SLICES, `gpu::volumes::VolumeSwitches`).
+    // TERMINATION, JITTER, MIPMAPS, SHELL, SLICES, SHADOW and SAMPLED_FETCH, `gpu::volumes::VolumeSwitches`).
     bricks: vec4<u32>,
     // Ambient, diffuse, specular weights; shininess.
     material: vec4<f32>,
