@@ -15,7 +15,7 @@
 
 mod common;
 
-use common::{project_dir, terrains, Rng};
+use common::{project_dir, temp_dir, terrains, Rng};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::io::Write;
@@ -397,13 +397,6 @@ fn fuzz_with_budget(
         "{loader}: {rep:?}; examples (files in target/hostile-failures): {examples:#?}"
     );
     rep
-}
-
-fn tmp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("relief-hostile-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -822,7 +815,7 @@ fn mutations_nrrd() {
 #[test]
 fn mutations_raw_volume() {
     // Header and data mutate in turn (files, as the loader follows the header's path).
-    let dir = tmp_dir("mut-raw");
+    let dir = temp_dir("mut-raw");
     let header = b"file = \"v.raw\"\ndims = [4, 3, 2]\ntype = \"uint16\"\nendian = \"big\"\nspacing = [2.0, 2.0, 4.0]\nunits = \"mm\"\n".to_vec();
     let data: Vec<u8> = (0..24u16).flat_map(|v| (v * 1000).to_be_bytes()).collect();
     let gz_header = b"file = \"v.raw.gz\"\ndims = [4, 3, 2]\ntype = \"int16\"\n".to_vec();
@@ -912,7 +905,7 @@ fn mutations_scene_toml() {
 
 #[test]
 fn mutations_display_toml() {
-    let dir = tmp_dir("mut-display");
+    let dir = temp_dir("mut-display");
     let p = dir.join("display.toml");
     let samples: Vec<Sample> = ["dome-fisheye.toml", "cylinder-3ch.toml", "mirror-dome.toml"]
         .iter()
@@ -933,7 +926,7 @@ fn mutations_display_toml() {
 #[test]
 fn mutations_path_script_and_eye_csv() {
     use relief::app::view::motion::{read_path_csv, ControlScript, EyeFeed};
-    let dir = tmp_dir("mut-csv");
+    let dir = temp_dir("mut-csv");
     let p = dir.join("in.csv");
     let path_csv = "time,x,y,alt,heading,pitch,roll\n0,0,0,1000,0,0,0\n0.5,10,0,1001,1,0,0\n1.5,20,5,1002,2,1,-1\n";
     let script =
@@ -1394,7 +1387,7 @@ fn s(p: &Path) -> String {
 #[cfg(unix)]
 #[test]
 fn hostile_files_fail_cleanly_through_the_cli() {
-    let dir = tmp_dir("cli-corpus");
+    let dir = temp_dir("cli-corpus");
     let out = dir.join("out");
     std::fs::create_dir_all(&out).unwrap();
     let c = |name: &str| s(&corpus_dir().join(name));
@@ -1476,7 +1469,7 @@ fn hostile_files_fail_cleanly_through_the_cli() {
 #[cfg(unix)]
 #[test]
 fn dev_zero_and_sparse_files_are_not_read_whole() {
-    let dir = tmp_dir("cli-sparse");
+    let dir = temp_dir("cli-sparse");
     let out = dir.join("out");
     std::fs::create_dir_all(&out).unwrap();
     let o = s(&out);
@@ -1554,7 +1547,7 @@ fn dev_zero_and_sparse_files_are_not_read_whole() {
 #[cfg(unix)]
 #[test]
 fn outputs_that_are_directories_leave_nothing_behind() {
-    let dir = tmp_dir("cli-outdir");
+    let dir = temp_dir("cli-outdir");
     let out = dir.join("out");
     std::fs::create_dir_all(&out).unwrap();
     let scene = cli_scene(&dir, "s.toml", PROCEDURAL, "");
@@ -1614,7 +1607,7 @@ fn outputs_that_are_directories_leave_nothing_behind() {
 #[cfg(unix)]
 #[test]
 fn a_full_disk_leaves_no_partial_files() {
-    let dir = tmp_dir("cli-full");
+    let dir = temp_dir("cli-full");
     let out = dir.join("out");
     std::fs::create_dir_all(&out).unwrap();
     let scene = cli_scene(&dir, "s.toml", PROCEDURAL, "");
@@ -1662,7 +1655,7 @@ fn a_full_disk_leaves_no_partial_files() {
 #[cfg(unix)]
 #[test]
 fn sigint_and_sigterm_remove_unfinished_files() {
-    let dir = tmp_dir("cli-signal");
+    let dir = temp_dir("cli-signal");
     let scene = cli_scene(&dir, "s.toml", PROCEDURAL, "");
     for (sig, code) in [(libc::SIGTERM, 143), (libc::SIGINT, 130)] {
         let out = dir.join(format!("out-{sig}"));

@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{gpu, gpu_lock, synthetic_scene, terrain_from_fn};
+use common::{gpu, gpu_lock, relief_cli, synthetic_scene, temp_dir, terrain_from_fn};
 use glam::{DVec3, DVec4};
 use rayon::prelude::*;
 use relief::cpu;
@@ -14,24 +14,12 @@ use relief::gpu::{RenderSettings, TerrainRenderer, TraceMode};
 use relief::scene::{Camera, Pose, Scene};
 use relief::terrain::{geotiff, hgt, Terrain};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 use tiff::encoder::{colortype, TiffEncoder};
 use tiff::tags::Tag;
 
-fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("relief-semantics-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
 fn relief(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_relief"))
-        .args(args)
-        .env("NODEVICE_SELECT", "1")
-        .env("RUST_LOG", "warn")
-        .output()
-        .expect("the relief binary runs")
+    relief_cli(args, &[("RUST_LOG", "warn")])
 }
 
 /// Asserts exit status 1 and exactly one stderr line that mentions every needle.

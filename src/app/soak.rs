@@ -8,6 +8,7 @@
 //! A leak shows as a slope of kilobytes per frame; objects created per frame and never
 //! dropped show as counts that differ.
 
+use super::view::stats::percentile;
 use crate::gpu::{Gpu, RenderSettings};
 use crate::Result;
 use serde::Serialize;
@@ -62,15 +63,6 @@ pub fn slope(y: &[f64]) -> f64 {
         sxx += dx * dx;
     }
     sxy / sxx
-}
-
-/// The `q` quantile (0..=1) of `v` by nearest rank (0 for an empty slice).
-pub fn quantile(v: &[f64], q: f64) -> f64 {
-    let mut s = v.to_vec();
-    s.sort_by(|a, b| a.total_cmp(b));
-    s.get(((s.len() as f64 - 1.0) * q).round() as usize)
-        .copied()
-        .unwrap_or(0.0)
 }
 
 /// The frame window the slope is fitted over: 100..500, shrunk for shorter runs.
@@ -157,8 +149,8 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<SoakRepor
         resources_equal: start_counts == end_counts,
         resources_start: start_counts,
         resources_end: end_counts,
-        frame_ms_p50: quantile(&times, 0.5),
-        frame_ms_p99: quantile(&times, 0.99),
+        frame_ms_p50: percentile(&times, 50.0).unwrap_or(0.0),
+        frame_ms_p99: percentile(&times, 99.0).unwrap_or(0.0),
         frame_ms_max: times.iter().copied().fold(0.0, f64::max),
     })
 }

@@ -829,12 +829,19 @@ impl TerrainRenderer {
         }
     }
 
-    /// GPU bytes per output pixel of the render targets and readback buffers (ray table,
-    /// G-buffers, colour, capture data, volume layers, edge blend), an upper estimate.
+    /// GPU bytes per output pixel of the render targets and readback buffers, an upper
+    /// estimate: ray table 16, G-buffer 16, colour 4 + readback 4, capture data 16 +
+    /// readback 16, volume sun 1 + readback 1; free-form G-buffer 16; per volume result,
+    /// statistics and statistics readback 48, plus the image under the volumes and the
+    /// second layer GL needs 36; edge-blend copy 8; 16 of slack (tile texture, readback row
+    /// padding).
     fn target_bytes_per_pixel(&self) -> u64 {
-        let base = 16 + 16 + 4 + 16 + 4 + 16 + 2; // rays, G-buffer, colour, data, readbacks, sun
+        let base = 16 + 16 + (4 + 4) + (16 + 16) + (1 + 1);
         let objects = if self.objects.is_some() { 16 } else { 0 };
-        let volumes = self.volumes.len() as u64 * 48 + if self.volumes.is_empty() { 0 } else { 36 };
+        let volumes = match self.volumes.len() as u64 {
+            0 => 0,
+            n => n * 48 + 36,
+        };
         let blend = if self.blend.is_some() { 8 } else { 0 };
         base + objects + volumes + blend + 16
     }

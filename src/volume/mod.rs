@@ -97,24 +97,35 @@ impl DensityGrid {
                 ),
             ));
         }
-        if let Some(i) = values.iter().position(|v| !v.is_finite()) {
-            return Err(Error::invalid(
-                what,
-                format!("value {i} is not finite ({})", values[i]),
-            ));
+        Self::from_samples(what, dims, || values.iter().copied(), spacing, range)
+    }
+
+    /// As [`DensityGrid::from_values`], from `samples()`, an iterator over the grid's values
+    /// (x fastest, as many as `dims` holds) that is walked twice (range, then quantisation)
+    /// so that large inputs need no f64 copy.
+    pub fn from_samples<I: Iterator<Item = f64>>(
+        what: &str,
+        dims: [u32; 3],
+        samples: impl Fn() -> I,
+        spacing: [f64; 3],
+        range: Option<[f64; 2]>,
+    ) -> Result<DensityGrid> {
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for (i, v) in samples().enumerate() {
+            if !v.is_finite() {
+                return Err(Error::invalid(
+                    what,
+                    format!("value {i} is not finite ({v})"),
+                ));
+            }
+            lo = lo.min(v);
+            hi = hi.max(v);
         }
-        let [lo, hi] = range.unwrap_or_else(|| {
-            values
-                .iter()
-                .fold([f64::INFINITY, f64::NEG_INFINITY], |[a, b], &v| {
-                    [a.min(v), b.max(v)]
-                })
-        });
+        let [lo, hi] = range.unwrap_or([lo, hi]);
         let hi = if hi > lo { hi } else { lo + 1.0 };
         let scale = 255.0 / (hi - lo);
-        let data = values
-            .iter()
-            .map(|&v| ((v - lo) * scale).round().clamp(0.0, 255.0) as u8)
+        let data = samples()
+            .map(|v| ((v - lo) * scale).round().clamp(0.0, 255.0) as u8)
             .collect();
         let g = DensityGrid {
             dims,

@@ -169,8 +169,8 @@ pub(crate) fn gunzip(path: &Path, r: impl Read, limit: u64) -> Result<Vec<u8>> {
 }
 
 /// Quantises the samples in `bytes` (x fastest) to 8 bits over `range`, or over the data's
-/// own min..max when `range` is `None`, as [`DensityGrid::from_values`] does, without an f64
-/// copy. Non-finite values are refused; `what` names the volume, `path` the data.
+/// own min..max when `range` is `None` ([`DensityGrid::from_samples`]), without an f64 copy.
+/// Non-finite values are refused; `what` names the volume, `path` the data.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn grid_from_samples(
     what: &str,
@@ -193,39 +193,12 @@ pub(crate) fn grid_from_samples(
             ),
         ));
     }
-    let samples = || bytes[..need].chunks_exact(k.size());
-    let mut lo = f64::INFINITY;
-    let mut hi = f64::NEG_INFINITY;
-    for (i, b) in samples().enumerate() {
-        let v = k.value(b, big_endian);
-        if !v.is_finite() {
-            return Err(Error::invalid(
-                what,
-                format!("value {i} is not finite ({v})"),
-            ));
-        }
-        lo = lo.min(v);
-        hi = hi.max(v);
-    }
-    let [lo, hi] = range.unwrap_or([lo, hi]);
-    let hi = if hi > lo { hi } else { lo + 1.0 };
-    let scale = 255.0 / (hi - lo);
-    let data = samples()
-        .map(|b| {
-            ((k.value(b, big_endian) - lo) * scale)
-                .round()
-                .clamp(0.0, 255.0) as u8
-        })
-        .collect();
-    let g = DensityGrid {
-        dims,
-        data,
-        spacing,
-        value_range: [lo, hi],
-        slices: 0,
+    let samples = || {
+        bytes[..need]
+            .chunks_exact(k.size())
+            .map(|b| k.value(b, big_endian))
     };
-    g.check(what)?;
-    Ok(g)
+    DensityGrid::from_samples(what, dims, samples, spacing, range)
 }
 
 /// Checks the memory a `dims` grid of `k` samples takes while loading (the samples and the
