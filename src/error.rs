@@ -47,3 +47,15 @@ impl Error {
         }
     }
 }
+
+/// `Ok` when every value is finite; the error names `field`.
+pub(crate) fn check_finite(field: &str, v: &[f64]) -> Result<()> {
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(())
+    } else {
+        Err(Error::invalid(
+            field,
+            format!("must be finite numbers, got {v:?}"),
+        ))
+    }
+}

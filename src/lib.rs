@@ -21,6 +21,7 @@ pub mod display;
 pub mod error;
 pub mod fileio;
 pub mod freeform;
+pub mod geom;
 pub mod gpu;
 pub mod scene;
 pub mod terrain;

@@ -45,15 +45,12 @@ fn cast(
 /// The terrain surface point on the base-plane normal through `p` (for the default horizontal
 /// plane: the ground directly below or above `p`); `None` outside the height grid.
 pub fn terrain_point_below(terrain: &Terrain, p: DVec3) -> Option<DVec3> {
-    let g = terrain.frame.world_to_grid(p);
-    let h = terrain.height_at_grid(g.x, g.y)?;
-    Some(terrain.frame.grid_to_world(DVec3::new(g.x, g.y, h)))
+    terrain.point_below(p)
 }
 
 /// Height of `p` above the terrain surface along the base-plane normal (negative below ground).
 pub fn height_above_terrain(terrain: &Terrain, p: DVec3) -> Option<f64> {
-    let g = terrain.frame.world_to_grid(p);
-    terrain.height_at_grid(g.x, g.y).map(|h| g.z - h)
+    terrain.height_above(p)
 }
 
 /// True when the segment from `a` to `b` does not touch the terrain. The terrain is solid

@@ -166,7 +166,7 @@ pub fn geometric_weight<'a>(
     let mine = rel(m, own).powf(p);
     let mut total = mine;
     for q in others {
-        if let Some((qu, qv)) = crate::cpu::distortion::projector_coord(screen, q, s) {
+        if let Some((qu, qv)) = super::screen_points::projector_coord(screen, q, s) {
             if let Some(mq) = border_margin(qu, qv, q.width, q.height) {
                 total += rel(mq, q).powf(p);
             }
@@ -186,7 +186,7 @@ pub fn geometric_weight<'a>(
 pub fn geometric_weights(cfg: &super::DisplayConfig, channel: usize, p: f64) -> Vec<f32> {
     use rayon::prelude::*;
     let own = cfg.channels[channel].projector;
-    let pts = crate::cpu::distortion::screen_points(&cfg.screen, &own);
+    let pts = super::screen_points::screen_points(&cfg.screen, &own);
     pts.points
         .par_iter()
         .enumerate()

@@ -1,6 +1,6 @@
 //! Curved-screen display model (TOML files in `distortion/`): screen surface, projectors, eye
 //! point and channels. No GPU types; the per-frame ray table is computed from it by
-//! [`crate::cpu::distortion`] (reference) and by the GPU ray-generation pass.
+//! `cpu::distortion` (reference) and by the GPU ray-generation pass.
 //!
 //! Display frame: metres, x right, y forward, z up, fixed to the vehicle (cockpit). A direction
 //! in it maps to the world through the camera's attitude: x → camera right, y → camera forward,
@@ -9,9 +9,11 @@
 pub mod blend;
 pub mod dome_master;
 pub mod pattern;
+pub mod screen_points;
 pub mod warp;
 
-use crate::scene::{attitude_basis, check_finite as finite};
+use crate::error::check_finite as finite;
+use crate::geom::attitude_basis;
 use crate::{Error, Result};
 use glam::{DMat3, DVec3};
 use serde::{Deserialize, Serialize};
@@ -115,7 +117,7 @@ pub struct ViewOffset {
 impl ViewOffset {
     /// The rotation of display directions.
     pub fn matrix(&self) -> glam::DMat3 {
-        crate::cpu::distortion::world_from_display(self.heading, self.pitch, self.roll)
+        crate::geom::attitude_matrix(self.heading, self.pitch, self.roll)
     }
 }
 
@@ -549,8 +551,8 @@ impl DisplayConfig {
     }
 
     /// The screen point of every pixel of `channel`: from its measured `warp` file if it has
-    /// one, else from the projector model ([`crate::cpu::distortion::screen_points`]).
-    pub fn channel_points(&self, channel: usize) -> Result<crate::cpu::distortion::ScreenPoints> {
+    /// one, else from the projector model ([`screen_points::screen_points`]).
+    pub fn channel_points(&self, channel: usize) -> Result<screen_points::ScreenPoints> {
         let c = self.channels.get(channel).ok_or_else(|| {
             Error::invalid(
                 "channel",
@@ -571,7 +573,7 @@ impl DisplayConfig {
             p.width as u64 * p.height as u64 * 48,
         )?;
         let Some(file) = &c.warp else {
-            return Ok(crate::cpu::distortion::screen_points(&self.screen, p));
+            return Ok(screen_points::screen_points(&self.screen, p));
         };
         let path = self.base_dir.join(file);
         let order = match c.warp_rows.as_deref() {
@@ -632,7 +634,7 @@ impl DisplayConfig {
                 v.is_finite().then_some(v)
             })
             .collect();
-        Ok(crate::cpu::distortion::ScreenPoints {
+        Ok(screen_points::ScreenPoints {
             width: p.width,
             height: p.height,
             points,

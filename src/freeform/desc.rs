@@ -2,7 +2,8 @@
 //! material and nested `[[objects.perturb]]` tables. Unknown keys are errors.
 
 use super::{FreeForm, Material, Node, Quadric, MAX_DEPTH, MAX_NODES};
-use crate::scene::attitude_basis;
+use crate::error::check_finite;
+use crate::geom::{checked_attitude, place_above_ground};
 use crate::{Error, Result};
 use glam::{DMat3, DVec3};
 use serde::{Deserialize, Serialize};
@@ -217,12 +218,7 @@ fn shape_quadric(d: &FreeFormDesc, field: &str) -> Result<(Quadric, Option<[DVec
 }
 
 fn rotation(d: &FreeFormDesc, field: &str) -> Result<DMat3> {
-    crate::scene::check_finite(
-        &format!("{field}.heading/pitch/roll"),
-        &[d.heading, d.pitch, d.roll],
-    )?;
-    let (right, down, fwd) = attitude_basis(d.heading, d.pitch, d.roll);
-    Ok(DMat3::from_cols(right, fwd, -down))
+    checked_attitude(&|k| format!("{field}.{k}"), d.heading, d.pitch, d.roll)
 }
 
 fn forbid(present: bool, field: &str, key: &str, why: &str) -> Result<()> {
@@ -257,21 +253,11 @@ impl FreeFormDesc {
         let pos = self
             .position
             .ok_or_else(|| Error::invalid(&field, "needs `position = [x, y, z]` (world metres)"))?;
-        crate::scene::check_finite(&format!("{field}.position"), &pos)?;
-        let mut position = DVec3::from(pos);
-        if let Some(agl) = self.above_terrain {
-            crate::scene::check_finite(&format!("{field}.above_terrain"), &[agl])?;
-            let z = ground(position).ok_or_else(|| {
-                Error::invalid(
-                    format!("{field}.position"),
-                    "above_terrain is set but the position is outside the terrain",
-                )
-            })?;
-            position.z = z + agl;
-        }
+        let position =
+            place_above_ground(&|k| format!("{field}.{k}"), pos, self.above_terrain, ground)?;
         let bounds = match (self.bounds, natural) {
             (Some([lo, hi]), _) => {
-                crate::scene::check_finite(&format!("{field}.bounds"), &[lo, hi].concat())?;
+                check_finite(&format!("{field}.bounds"), &[lo, hi].concat())?;
                 let (lo, hi) = (DVec3::from(lo), DVec3::from(hi));
                 if !(lo.cmplt(hi).all()) || (hi - lo).max_element() > 1e7 {
                     return Err(Error::invalid(
@@ -389,7 +375,7 @@ impl FreeFormDesc {
             q.negated()
         };
         let c = self.centre.unwrap_or([0.0; 3]);
-        crate::scene::check_finite(&format!("{field}.centre"), &c)?;
+        check_finite(&format!("{field}.centre"), &c)?;
         let w = self.weight.unwrap_or(1.0);
         if !w.is_finite() || w == 0.0 || w.abs() > 1e6 {
             return Err(Error::invalid(

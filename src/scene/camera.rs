@@ -18,18 +18,7 @@ pub(crate) fn check_fov(field: &str, fov: f64) -> Result<()> {
     Ok(())
 }
 
-/// (right, down, forward) unit vectors of an attitude in degrees, in a frame whose z is up and
-/// whose heading 0 looks along +y: heading turns clockwise seen from above, pitch raises the
-/// nose, roll lowers the right wing.
-pub fn attitude_basis(heading: f64, pitch: f64, roll: f64) -> (DVec3, DVec3, DVec3) {
-    let (h, p, r) = (heading.to_radians(), pitch.to_radians(), roll.to_radians());
-    let fwd = DVec3::new(h.sin() * p.cos(), h.cos() * p.cos(), p.sin());
-    let right0 = DVec3::new(h.cos(), -h.sin(), 0.0);
-    let up0 = right0.cross(fwd);
-    let right = right0 * r.cos() - up0 * r.sin();
-    let up = up0 * r.cos() + right0 * r.sin();
-    (right, -up, fwd)
-}
+pub use crate::geom::attitude_basis;
 
 /// Position, attitude (degrees) and horizontal field of view (degrees).
 #[derive(Clone, Copy, Debug, PartialEq, Deserialize, Serialize)]

@@ -5,7 +5,7 @@ mod camera;
 
 pub use camera::{attitude_basis, Camera, CameraPath, Keyframe, Pose};
 
-use crate::terrain::procedural::RidgedFbm;
+pub use crate::terrain::desc::{HeightSource, TerrainDesc};
 use crate::terrain::Terrain;
 use crate::{Error, Result};
 use glam::DVec3;
@@ -40,104 +40,6 @@ pub struct SceneDesc {
     /// Coloured voxel models (`[[voxels]]`).
     #[serde(default)]
     pub voxels: Vec<crate::voxel::VoxelDesc>,
-}
-
-/// `[terrain]`: height source and its placement.
-#[derive(Clone, Debug, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct TerrainDesc {
-    /// Height file relative to the scene file: `.hgt`, `.tif`/`.tiff` or `.png`.
-    pub source: Option<PathBuf>,
-    /// Procedural terrain instead of a file.
-    pub procedural: Option<RidgedFbm>,
-    /// Sample spacing in metres `[dx, dy]`; overrides the file's georeference (required for PNG).
-    pub cell_size: Option<[f64; 2]>,
-    /// No-data value; overrides GDAL_NODATA.
-    pub nodata: Option<f64>,
-    /// PNG only: metres per grey level.
-    #[serde(default = "one")]
-    pub png_scale: f64,
-    /// PNG only: height of grey level 0.
-    #[serde(default)]
-    pub png_offset: f64,
-    /// Vertical exaggeration.
-    #[serde(default = "one")]
-    pub vertical_scale: f64,
-    /// World position of sample (0, 0) at height 0 (the base plane's origin).
-    #[serde(default)]
-    pub origin: [f64; 3],
-    /// Base-plane normal (heights are measured along it).
-    #[serde(default = "up")]
-    pub normal: [f64; 3],
-    /// Direction of grid +x in the world (made orthogonal to the normal).
-    #[serde(default = "east")]
-    pub axis_x: [f64; 3],
-    /// RGB image draped over the terrain instead of the elevation/slope ramp.
-    pub drape: Option<PathBuf>,
-    /// Vertical side walls at the grid's edge down to the lowest sample (the terrain renders
-    /// as a solid block); `false`: rays pass under the surface, seen from above only.
-    #[serde(default = "yes")]
-    pub walls: bool,
-}
-
-fn yes() -> bool {
-    true
-}
-fn one() -> f64 {
-    1.0
-}
-fn up() -> [f64; 3] {
-    [0.0, 0.0, 1.0]
-}
-fn east() -> [f64; 3] {
-    [1.0, 0.0, 0.0]
-}
-
-/// Where a terrain's heights come from.
-#[derive(Clone, Copy, Debug)]
-pub enum HeightSource<'a> {
-    File(&'a Path),
-    Procedural(&'a RidgedFbm),
-}
-
-impl TerrainDesc {
-    /// The one height source the table names (exactly one of `source` and `procedural`).
-    pub fn height_source(&self) -> Result<HeightSource<'_>> {
-        match (&self.source, &self.procedural) {
-            (Some(_), Some(_)) => Err(Error::invalid(
-                "terrain",
-                "set either `source` or `procedural`, not both",
-            )),
-            (None, None) => Err(Error::invalid(
-                "terrain",
-                "set `source = \"file.hgt|tif|png\"` or a `[terrain.procedural]` table",
-            )),
-            (Some(src), None) => Ok(HeightSource::File(src)),
-            (None, Some(p)) => Ok(HeightSource::Procedural(p)),
-        }
-    }
-
-    /// Orthonormal (x, y, normal) axes of the base plane.
-    pub fn axes(&self) -> Result<(DVec3, DVec3, DVec3)> {
-        let n = DVec3::from(self.normal);
-        let ax = DVec3::from(self.axis_x);
-        if !n.is_finite() || n.length() < 1e-9 {
-            return Err(Error::invalid(
-                "terrain.normal",
-                "must be a finite non-zero vector",
-            ));
-        }
-        let n = n.normalize();
-        let x = ax - n * ax.dot(n);
-        if !x.is_finite() || x.length() < 1e-6 {
-            return Err(Error::invalid(
-                "terrain.axis_x",
-                "must be finite and not parallel to terrain.normal",
-            ));
-        }
-        let x = x.normalize();
-        Ok((x, n.cross(x), n))
-    }
 }
 
 /// `[sun]`: direction and colour of the sun.
@@ -286,17 +188,7 @@ pub struct Scene {
     pub path: PathBuf,
 }
 
-/// `Ok` when every value is finite; the error names `field`.
-pub(crate) fn check_finite(field: &str, v: &[f64]) -> Result<()> {
-    if v.iter().all(|x| x.is_finite()) {
-        Ok(())
-    } else {
-        Err(Error::invalid(
-            field,
-            format!("must be finite numbers, got {v:?}"),
-        ))
-    }
-}
+pub(crate) use crate::error::check_finite;
 
 impl Scene {
     /// Reads and validates a scene file.
@@ -338,7 +230,7 @@ impl Scene {
             return Ok(());
         }
         let p = DVec3::from(c.position);
-        if crate::cpu::query::terrain_point_below(terrain, p).is_some() {
+        if terrain.point_below(p).is_some() {
             return Ok(());
         }
         let [cw, ch] = terrain.cells();
@@ -380,7 +272,7 @@ impl Scene {
             .enumerate()
             .map(|(i, o)| {
                 o.build(i, |p| {
-                    crate::cpu::query::terrain_point_below(terrain, p).map(|g| g.z)
+                    terrain.point_below(p).map(|g| g.z)
                 })
             })
             .collect()
@@ -395,7 +287,7 @@ impl Scene {
             .enumerate()
             .map(|(i, v)| {
                 let mut v = v.build(i, &self.base_dir, |p| {
-                    crate::cpu::query::terrain_point_below(terrain, p).map(|g| g.z)
+                    terrain.point_below(p).map(|g| g.z)
                 })?;
                 v.set_sun(self.desc.sun.direction());
                 Ok(v)
@@ -425,7 +317,7 @@ impl Scene {
         };
         let mut pose = pose;
         if let Some(agl) = d.camera.above_terrain.filter(|_| d.path.is_none()) {
-            if let Some(h) = crate::cpu::query::terrain_point_below(terrain, pose.position) {
+            if let Some(h) = terrain.point_below(pose.position) {
                 pose.position = h + terrain.frame.normal * agl;
             }
         }

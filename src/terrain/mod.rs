@@ -4,6 +4,7 @@
 //! in metres along the base plane's normal. [`TerrainFrame`] maps it to and from the world
 //! (metres, x east, y north, z up by default).
 
+pub mod desc;
 pub mod geotiff;
 pub mod heightfield;
 pub mod hgt;
@@ -15,7 +16,7 @@ pub use geotiff::Drape;
 pub use heightfield::{GeoRef, Heightfield};
 pub use pyramid::MaxPyramid;
 
-use crate::scene::{HeightSource, TerrainDesc};
+pub use desc::{HeightSource, TerrainDesc};
 use crate::{Error, Result};
 use glam::{DMat4, DVec3, DVec4};
 use std::path::Path;
@@ -219,6 +220,21 @@ impl Terrain {
             }
         }
         z
+    }
+
+    /// The terrain surface point on the base-plane normal through `p` (for the default
+    /// horizontal plane: the ground directly below or above `p`); `None` outside the grid.
+    pub fn point_below(&self, p: DVec3) -> Option<DVec3> {
+        let g = self.frame.world_to_grid(p);
+        let h = self.height_at_grid(g.x, g.y)?;
+        Some(self.frame.grid_to_world(DVec3::new(g.x, g.y, h)))
+    }
+
+    /// Height of `p` above the terrain surface along the base-plane normal (negative below
+    /// ground); `None` outside the grid.
+    pub fn height_above(&self, p: DVec3) -> Option<f64> {
+        let g = self.frame.world_to_grid(p);
+        self.height_at_grid(g.x, g.y).map(|h| g.z - h)
     }
 
     /// Height of the bilinear surface at grid position `(x, y)`, or `None` outside the grid.

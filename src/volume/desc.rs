@@ -3,9 +3,11 @@
 use super::procedural::ProceduralVolume;
 use super::transfer::{TfPoint, TransferFunction, TransferTable};
 use super::{BrickGrid, DensityGrid, VolumeTexture};
-use crate::scene::{attitude_basis, check_finite};
+use crate::error::check_finite;
+use crate::geom::checked_attitude;
 use crate::{Error, Result};
 use glam::{DMat3, DVec3};
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -153,10 +155,7 @@ impl VolumeDesc {
             .clone()
             .unwrap_or_else(|| format!("volumes[{index}]"));
         let field = |f: &str| format!("volume {name:?}: {f}");
-        check_finite(
-            &field("heading/pitch/roll"),
-            &[self.heading, self.pitch, self.roll],
-        )?;
+        let rotation = checked_attitude(&field, self.heading, self.pitch, self.roll)?;
         if let Some(r) = self.range {
             check_finite(&field("range"), &r)?;
             if r[1] <= r[0] {
@@ -246,8 +245,6 @@ impl VolumeDesc {
             ..transfer
         };
         transfer.validate(&field("transfer_points"))?;
-        let (right, down, fwd) = attitude_basis(self.heading, self.pitch, self.roll);
-        let rotation = DMat3::from_cols(right, fwd, -down);
         let ext = DVec3::from(grid.extent());
         let pos = self
             .position
@@ -427,4 +424,63 @@ impl Volume {
         let g = &self.grid;
         self.transfer.hidden_fraction(&g.data, |d| g.value_of(d))
     }
+}
+
+/// Lets the volumes shadow each other: per shadow-casting volume, its grid times, at each cell
+/// centre, the sun's transmittance through every other volume
+/// ([`Volume::transmittance_to_sun`]; optical depths add, so the product is exact),
+/// rounded to bytes into [`super::shadow::SunShadow::lit`]. Baked on the CPU when the volumes are loaded or
+/// reclassified (the sun and the boxes do not move within a scene), so the volume pass pays
+/// nothing for it. Returns per volume whether another one shadows it.
+pub fn shadow_each_other(volumes: &mut [&mut Volume]) -> Vec<bool> {
+    let start = std::time::Instant::now();
+    let lits: Vec<Option<Vec<u8>>> = (0..volumes.len())
+        .map(|i| {
+            let v = &*volumes[i];
+            let sh = v.sun_shadow.as_ref()?;
+            let others: Vec<&Volume> = volumes
+                .iter()
+                .enumerate()
+                .filter(|&(j, o)| j != i && o.sun_shadow.is_some())
+                .map(|(_, o)| &**o)
+                .collect();
+            if others.is_empty() {
+                return None;
+            }
+            let n = sh.dims.map(|d| d as usize);
+            let cell = v.extent() / DVec3::new(n[0] as f64, n[1] as f64, n[2] as f64);
+            let lit: Vec<u8> = sh
+                .data
+                .par_iter()
+                .enumerate()
+                .map(|(k, &b)| {
+                    let idx = DVec3::new(
+                        (k % n[0]) as f64,
+                        (k / n[0] % n[1]) as f64,
+                        (k / (n[0] * n[1])) as f64,
+                    );
+                    let p = v.corner + v.rotation * ((idx + 0.5) * cell);
+                    let t: f64 = others.iter().map(|o| o.transmittance_to_sun(p)).product();
+                    (b as f64 * t).round() as u8
+                })
+                .collect();
+            (lit != sh.data).then_some(lit)
+        })
+        .collect();
+    let shadowed = lits
+        .into_iter()
+        .zip(volumes.iter_mut())
+        .map(|(lit, v)| {
+            let some = lit.is_some();
+            if let Some(sh) = &mut v.sun_shadow {
+                sh.lit = lit;
+            }
+            some
+        })
+        .collect();
+    log::debug!(
+        "volumes shadowing each other: {shadowed:?} in {:.1} ms",
+        start.elapsed().as_secs_f64() * 1e3
+    );
+    shadowed
 }

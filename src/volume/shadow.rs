@@ -60,64 +60,7 @@ impl SunShadow {
     }
 }
 
-/// Lets the volumes shadow each other: per shadow-casting volume, its grid times, at each cell
-/// centre, the sun's transmittance through every other volume
-/// ([`super::Volume::transmittance_to_sun`]; optical depths add, so the product is exact),
-/// rounded to bytes into [`SunShadow::lit`]. Baked on the CPU when the volumes are loaded or
-/// reclassified (the sun and the boxes do not move within a scene), so the volume pass pays
-/// nothing for it. Returns per volume whether another one shadows it.
-pub fn shadow_each_other(volumes: &mut [&mut super::Volume]) -> Vec<bool> {
-    let start = std::time::Instant::now();
-    let lits: Vec<Option<Vec<u8>>> = (0..volumes.len())
-        .map(|i| {
-            let v = &*volumes[i];
-            let sh = v.sun_shadow.as_ref()?;
-            let others: Vec<&super::Volume> = volumes
-                .iter()
-                .enumerate()
-                .filter(|&(j, o)| j != i && o.sun_shadow.is_some())
-                .map(|(_, o)| &**o)
-                .collect();
-            if others.is_empty() {
-                return None;
-            }
-            let n = sh.dims.map(|d| d as usize);
-            let cell = v.extent() / DVec3::new(n[0] as f64, n[1] as f64, n[2] as f64);
-            let lit: Vec<u8> = sh
-                .data
-                .par_iter()
-                .enumerate()
-                .map(|(k, &b)| {
-                    let idx = DVec3::new(
-                        (k % n[0]) as f64,
-                        (k / n[0] % n[1]) as f64,
-                        (k / (n[0] * n[1])) as f64,
-                    );
-                    let p = v.corner + v.rotation * ((idx + 0.5) * cell);
-                    let t: f64 = others.iter().map(|o| o.transmittance_to_sun(p)).product();
-                    (b as f64 * t).round() as u8
-                })
-                .collect();
-            (lit != sh.data).then_some(lit)
-        })
-        .collect();
-    let shadowed = lits
-        .into_iter()
-        .zip(volumes.iter_mut())
-        .map(|(lit, v)| {
-            let some = lit.is_some();
-            if let Some(sh) = &mut v.sun_shadow {
-                sh.lit = lit;
-            }
-            some
-        })
-        .collect();
-    log::debug!(
-        "volumes shadowing each other: {shadowed:?} in {:.1} ms",
-        start.elapsed().as_secs_f64() * 1e3
-    );
-    shadowed
-}
+pub use super::desc::shadow_each_other;
 
 /// The sun's transmittance through `grid` classified by `table` (extinction per metre in each
 /// entry's alpha), for the unit direction towards the sun `sun` in the volume frame: per voxel,

@@ -14,7 +14,7 @@
 //! ```
 
 use super::VoxelModel;
-use crate::scene::attitude_basis;
+use crate::geom::{checked_attitude, place_above_ground};
 use crate::{Error, Result};
 use glam::{DMat3, DVec3};
 use serde::{Deserialize, Serialize};
@@ -201,11 +201,8 @@ impl VoxelDesc {
             .clone()
             .unwrap_or_else(|| format!("voxels {index}"));
         let field = format!("voxels[{index}] ({name})");
-        crate::scene::check_finite(&format!("{field}.position"), &self.position)?;
-        crate::scene::check_finite(
-            &format!("{field}.heading/pitch/roll"),
-            &[self.heading, self.pitch, self.roll],
-        )?;
+        let at = |k: &str| format!("{field}.{k}");
+        let rotation = checked_attitude(&at, self.heading, self.pitch, self.roll)?;
         if !self.voxel_size.is_finite() || !(1e-4..=1e3).contains(&self.voxel_size) {
             return Err(Error::invalid(
                 format!("{field}.voxel_size"),
@@ -218,17 +215,7 @@ impl VoxelDesc {
                 format!("must be 0..=1000, got {}", self.fps),
             ));
         }
-        let mut position = DVec3::from(self.position);
-        if let Some(agl) = self.above_terrain {
-            crate::scene::check_finite(&format!("{field}.above_terrain"), &[agl])?;
-            let z = ground(position).ok_or_else(|| {
-                Error::invalid(
-                    format!("{field}.position"),
-                    "above_terrain is set but the position is outside the terrain",
-                )
-            })?;
-            position.z = z + agl;
-        }
+        let position = place_above_ground(&at, self.position, self.above_terrain, ground)?;
         let path = base_dir.join(&self.file);
         let frames = load_frames(&path)?;
         if let Some(f) = self.frame {
@@ -243,11 +230,10 @@ impl VoxelDesc {
                 ));
             }
         }
-        let (right, down, fwd) = attitude_basis(self.heading, self.pitch, self.roll);
         let mut inst = VoxelInstance::new(
             &name,
             frames.into_iter().map(Arc::new).collect(),
-            DMat3::from_cols(right, fwd, -down),
+            rotation,
             position,
             self.voxel_size,
         );
@@ -276,9 +262,7 @@ pub fn build_all(
         .iter()
         .enumerate()
         .map(|(i, d)| {
-            d.build(i, base_dir, |p| {
-                crate::cpu::query::terrain_point_below(terrain, p).map(|g| g.z)
-            })
+            d.build(i, base_dir, |p| terrain.point_below(p).map(|g| g.z))
         })
         .collect()
 }
