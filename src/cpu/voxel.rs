@@ -66,30 +66,8 @@ fn inv(d: f64) -> f64 {
 /// Hierarchical DDA: first occupied voxel of `b` along `o + t d` with `t` in `[t_min, t_max]`
 /// (`o`, `d` in voxel units).
 pub fn dda(b: &Bricks, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<VoxHit> {
-    let dims = DVec3::new(b.dims[0] as f64, b.dims[1] as f64, b.dims[2] as f64);
     let iv = DVec3::new(inv(d.x), inv(d.y), inv(d.z));
-    let ta = (DVec3::ZERO - o) * iv;
-    let tb = (dims - o) * iv;
-    let lo = ta.min(tb);
-    let hi = ta.max(tb);
-    let mut axis = 0;
-    let mut t0 = lo.x;
-    if lo.y > t0 {
-        t0 = lo.y;
-        axis = 1;
-    }
-    if lo.z > t0 {
-        t0 = lo.z;
-        axis = 2;
-    }
-    let t1 = hi.x.min(hi.y).min(hi.z).min(t_max);
-    if t0 < t_min {
-        t0 = t_min;
-        axis = 3;
-    }
-    if t0 > t1 {
-        return None;
-    }
+    let (t0, t1, mut axis) = clip_to_box(b, o, iv, t_min, t_max)?;
     let step = [d.x, d.y, d.z].map(|v| if v >= 0.0 { 1i64 } else { -1 });
     let oct = crate::voxel::skip::octant([d.x, d.y, d.z]);
     let bd = b.brick_dims.map(|v| v as i64);
@@ -142,40 +120,13 @@ pub fn dda(b: &Bricks, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<Vox
         };
         let lo = [0, 1, 2].map(|a| base[a] - if step[a] > 0 { 0 } else { ext });
         let hi = [0, 1, 2].map(|a| base[a] + size + if step[a] > 0 { ext } else { 0 });
-        // Leave the cube through its face of exit (x before y before z on ties).
-        let mut t_exit = BIG;
-        let mut exit_axis = 0;
-        for a in 0..3 {
-            let edge = if step[a] > 0 { hi[a] } else { lo[a] };
-            let te = if iv[a] == BIG {
-                BIG
-            } else {
-                (edge as f64 - o[a]) * iv[a]
-            };
-            if te < t_exit {
-                t_exit = te;
-                exit_axis = a;
-            }
-        }
+        let (t_exit, exit_axis) = exit_face(o, iv, step, lo, hi);
         t = t_exit;
         axis = exit_axis;
         if t > t1 {
             return None;
         }
-        // The voxel beyond the exit face; along the other axes, the one the exit point lies
-        // in (clamped into the cube).
-        let q = o + d * t;
-        let next = [0, 1, 2].map(|a| {
-            if a == exit_axis {
-                if step[a] > 0 {
-                    hi[a]
-                } else {
-                    lo[a] - 1
-                }
-            } else {
-                (q[a].floor() as i64).clamp(lo[a], hi[a] - 1)
-            }
-        });
+        let next = beyond_exit(o + d * t, exit_axis, step, lo, hi);
         let next_brick = next.map(|c| c.div_euclid(s));
         if level == 0 && next_brick == brick {
             cell = next;
@@ -187,6 +138,81 @@ pub fn dda(b: &Bricks, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<Vox
             }
         }
     }
+}
+
+/// The ray `o + t d` (`iv` = 1/d per axis) clipped to the model box and to `[t_min, t_max]`:
+/// entry and exit distances and the entry axis (3 = it starts at `t_min`, inside), or `None`
+/// when it misses.
+#[inline]
+fn clip_to_box(
+    b: &Bricks,
+    o: DVec3,
+    iv: DVec3,
+    t_min: f64,
+    t_max: f64,
+) -> Option<(f64, f64, usize)> {
+    let dims = DVec3::new(b.dims[0] as f64, b.dims[1] as f64, b.dims[2] as f64);
+    let ta = (DVec3::ZERO - o) * iv;
+    let tb = (dims - o) * iv;
+    let lo = ta.min(tb);
+    let hi = ta.max(tb);
+    let mut axis = 0;
+    let mut t0 = lo.x;
+    if lo.y > t0 {
+        t0 = lo.y;
+        axis = 1;
+    }
+    if lo.z > t0 {
+        t0 = lo.z;
+        axis = 2;
+    }
+    let t1 = hi.x.min(hi.y).min(hi.z).min(t_max);
+    if t0 < t_min {
+        t0 = t_min;
+        axis = 3;
+    }
+    if t0 > t1 {
+        return None;
+    }
+    Some((t0, t1, axis))
+}
+
+/// Where the ray leaves the cube `[lo, hi)` through its face of exit (x before y before z on
+/// ties): the distance and the exit axis.
+#[inline]
+fn exit_face(o: DVec3, iv: DVec3, step: [i64; 3], lo: [i64; 3], hi: [i64; 3]) -> (f64, usize) {
+    let mut t_exit = BIG;
+    let mut exit_axis = 0;
+    for a in 0..3 {
+        let edge = if step[a] > 0 { hi[a] } else { lo[a] };
+        let te = if iv[a] == BIG {
+            BIG
+        } else {
+            (edge as f64 - o[a]) * iv[a]
+        };
+        if te < t_exit {
+            t_exit = te;
+            exit_axis = a;
+        }
+    }
+    (t_exit, exit_axis)
+}
+
+/// The voxel beyond the exit face of the cube `[lo, hi)` at the exit point `q`; along the
+/// other axes, the one the exit point lies in (clamped into the cube).
+#[inline]
+fn beyond_exit(q: DVec3, exit_axis: usize, step: [i64; 3], lo: [i64; 3], hi: [i64; 3]) -> [i64; 3] {
+    [0, 1, 2].map(|a| {
+        if a == exit_axis {
+            if step[a] > 0 {
+                hi[a]
+            } else {
+                lo[a] - 1
+            }
+        } else {
+            (q[a].floor() as i64).clamp(lo[a], hi[a] - 1)
+        }
+    })
 }
 
 /// The oracle: slab test of the ray against every occupied voxel of `m`, nearest entry.

@@ -156,6 +156,26 @@ impl VolumeDesc {
             .unwrap_or_else(|| format!("volumes[{index}]"));
         let field = |f: &str| format!("volume {name:?}: {f}");
         let rotation = checked_attitude(&field, self.heading, self.pitch, self.roll)?;
+        self.check_settings(&field)?;
+        let grid = self.load_grid(base_dir, &field)?;
+        let transfer = self.transfer_function(&field)?;
+        let ext = DVec3::from(grid.extent());
+        let corner = self.corner(ext, rotation, ground, &field)?;
+        let shell = self.shell_box(ext, &field)?;
+        Ok(Volume::new(
+            name,
+            grid,
+            transfer,
+            corner,
+            rotation,
+            self.render,
+            self.material,
+            shell,
+        ))
+    }
+
+    /// The data range, the render settings and the material in range.
+    fn check_settings(&self, field: &dyn Fn(&str) -> String) -> Result<()> {
         if let Some(r) = self.range {
             check_finite(&field("range"), &r)?;
             if r[1] <= r[0] {
@@ -192,6 +212,12 @@ impl VolumeDesc {
                 format!("must be in 0..=10000, got {}", m.shininess),
             ));
         }
+        Ok(())
+    }
+
+    /// The density grid: loaded from `source` (relative to `base_dir`) or generated from
+    /// `procedural`, with `voxel_size` overriding its spacing.
+    fn load_grid(&self, base_dir: &Path, field: &dyn Fn(&str) -> String) -> Result<DensityGrid> {
         let mut grid = match (&self.source, &self.procedural) {
             (Some(_), Some(_)) | (None, None) => {
                 return Err(Error::invalid(
@@ -226,6 +252,11 @@ impl VolumeDesc {
             }
             grid.spacing = v;
         }
+        Ok(grid)
+    }
+
+    /// The transfer function: a preset or explicit points, with the opacity unit.
+    fn transfer_function(&self, field: &dyn Fn(&str) -> String) -> Result<TransferFunction> {
         let transfer = match (&self.transfer, &self.transfer_points) {
             (Some(_), Some(_)) | (None, None) => {
                 return Err(Error::invalid(
@@ -245,7 +276,18 @@ impl VolumeDesc {
             ..transfer
         };
         transfer.validate(&field("transfer_points"))?;
-        let ext = DVec3::from(grid.extent());
+        Ok(transfer)
+    }
+
+    /// World position of the box corner at voxel (0, 0, 0) for a box of `ext` metres turned
+    /// by `rotation`: from `position` (the bottom face's centre), lifted `above_terrain`.
+    fn corner(
+        &self,
+        ext: DVec3,
+        rotation: DMat3,
+        ground: impl Fn(DVec3) -> Option<f64>,
+        field: &dyn Fn(&str) -> String,
+    ) -> Result<DVec3> {
         let pos = self
             .position
             .ok_or_else(|| Error::invalid(field("position"), "is required"))?;
@@ -261,8 +303,17 @@ impl VolumeDesc {
             })?;
             pos.z = g + a;
         }
-        let corner = pos - rotation * DVec3::new(ext.x / 2.0, ext.y / 2.0, 0.0);
-        let shell = match self.shell {
+        Ok(pos - rotation * DVec3::new(ext.x / 2.0, ext.y / 2.0, 0.0))
+    }
+
+    /// The bounding shell in the volume frame (metres from the corner of a box of `ext`
+    /// metres): centre, radii.
+    fn shell_box(
+        &self,
+        ext: DVec3,
+        field: &dyn Fn(&str) -> String,
+    ) -> Result<Option<(DVec3, DVec3)>> {
+        Ok(match self.shell {
             None => None,
             Some(sh) => {
                 check_finite(&field("shell.centre"), &sh.centre)?;
@@ -274,10 +325,7 @@ impl VolumeDesc {
                 }
                 Some((ext / 2.0 + DVec3::from(sh.centre), DVec3::from(sh.radii)))
             }
-        };
-        Ok(Volume::new(
-            name, grid, transfer, corner, rotation, *s, *m, shell,
-        ))
+        })
     }
 }
 

@@ -298,6 +298,46 @@ fn finish(
 /// Parses the header at the start of `bytes`.
 fn header(path: &Path, bytes: &[u8]) -> Result<Header> {
     let fmt = |m: String| Error::format(path, m);
+    let (lines, len) = header_lines(path, bytes)?;
+    let f = Fields::read(path, &lines)?;
+    let kind = f.kind.ok_or_else(|| fmt("header has no `type`".into()))?;
+    if f.dimension != Some(3) {
+        return Err(fmt(format!(
+            "only 3-D scalar volumes are supported (dimension: {:?})",
+            f.dimension
+        )));
+    }
+    let sizes = f.sizes.ok_or_else(|| fmt("header has no `sizes`".into()))?;
+    let sizes: [u64; 3] = sizes
+        .try_into()
+        .map_err(|s: Vec<u64>| fmt(format!("`sizes` has {} entries, 3 expected", s.len())))?;
+    let dims = super::check_dims(&path.display().to_string(), sizes)?;
+    let spacing = spacing(path, &f.space, f.units_mm, f.directions, f.spacings)?;
+    let gzip = match f.encoding.as_str() {
+        "raw" => false,
+        "gzip" | "gz" => true,
+        e => {
+            return Err(fmt(format!(
+                "encoding {e:?} is not supported (use raw or gzip)"
+            )))
+        }
+    };
+    Ok(Header {
+        len,
+        kind,
+        dims,
+        spacing,
+        gzip,
+        big_endian: f.big_endian,
+        data_file: f.data_file,
+        byte_skip: f.byte_skip,
+    })
+}
+
+/// Checks the magic and splits the header into its lines (the magic line first), up to the
+/// first empty line; also returns the header's length in bytes, the empty line included.
+fn header_lines(path: &Path, bytes: &[u8]) -> Result<(Vec<String>, u64)> {
+    let fmt = |m: String| Error::format(path, m);
     let magic = bytes.get(..8).unwrap_or(&[]);
     if !(magic.starts_with(b"NRRD000") && (b'1'..=b'5').contains(&magic[7])) {
         return Err(fmt(
@@ -334,47 +374,73 @@ fn header(path: &Path, bytes: &[u8]) -> Result<Header> {
             return Err(fmt("header has more than 1000 lines".into()));
         }
     }
-    let mut kind = None;
-    let mut dimension = None;
-    let mut sizes: Option<Vec<u64>> = None;
-    let mut encoding = "raw".to_string();
-    let mut big_endian = false;
-    let mut spacings: Option<Vec<f64>> = None;
-    let mut directions: Option<Vec<[f64; 3]>> = None;
-    let mut space = String::new();
-    let mut units_mm = false;
-    let mut data_file = None;
-    let mut byte_skip = 0u64;
-    for line in lines.iter().skip(1) {
-        if line.starts_with('#') {
-            continue;
-        }
-        let Some((key, val)) = line.split_once(':') else {
-            return Err(fmt(format!("header line {line:?} is not `field: value`")));
+    Ok((lines, pos as u64))
+}
+
+/// The header's fields as written, before they are checked against each other.
+#[derive(Default)]
+struct Fields {
+    kind: Option<Kind>,
+    dimension: Option<u32>,
+    sizes: Option<Vec<u64>>,
+    encoding: String,
+    big_endian: bool,
+    spacings: Option<Vec<f64>>,
+    directions: Option<Vec<[f64; 3]>>,
+    space: String,
+    units_mm: bool,
+    data_file: Option<String>,
+    byte_skip: u64,
+}
+
+impl Fields {
+    /// The fields of the header `lines` after the magic line (comments and `key:=value`
+    /// pairs skipped; unknown fields ignored).
+    fn read(path: &Path, lines: &[String]) -> Result<Fields> {
+        let mut f = Fields {
+            encoding: "raw".to_string(),
+            ..Fields::default()
         };
-        // `key:=value` lines are key/value pairs, not fields.
-        if val.starts_with('=') {
-            continue;
+        for line in lines.iter().skip(1) {
+            if line.starts_with('#') {
+                continue;
+            }
+            let Some((key, val)) = line.split_once(':') else {
+                return Err(Error::format(
+                    path,
+                    format!("header line {line:?} is not `field: value`"),
+                ));
+            };
+            // `key:=value` lines are key/value pairs, not fields.
+            if val.starts_with('=') {
+                continue;
+            }
+            f.set(path, key.trim(), val.trim())?;
         }
-        let val = val.trim();
-        match key.trim() {
+        Ok(f)
+    }
+
+    /// One `key: value` field.
+    fn set(&mut self, path: &Path, key: &str, val: &str) -> Result<()> {
+        let fmt = |m: String| Error::format(path, m);
+        match key {
             "type" => {
-                kind =
+                self.kind =
                     Some(Kind::parse(val).ok_or_else(|| fmt(format!("unsupported type {val:?}")))?)
             }
-            "dimension" => dimension = val.parse::<u32>().ok(),
+            "dimension" => self.dimension = val.parse::<u32>().ok(),
             "sizes" => {
-                sizes = Some(
+                self.sizes = Some(
                     val.split_whitespace()
                         .map(|s| s.parse().ok())
                         .collect::<Option<_>>()
                         .ok_or_else(|| fmt(format!("sizes {val:?} are not integers")))?,
                 )
             }
-            "encoding" => encoding = val.to_string(),
-            "endian" => big_endian = val == "big",
+            "encoding" => self.encoding = val.to_string(),
+            "endian" => self.big_endian = val == "big",
             "spacings" => {
-                spacings = Some(
+                self.spacings = Some(
                     val.split_whitespace()
                         .map(|s| s.parse().ok())
                         .collect::<Option<_>>()
@@ -382,41 +448,43 @@ fn header(path: &Path, bytes: &[u8]) -> Result<Header> {
                 )
             }
             "space directions" => {
-                directions = Some(
+                self.directions = Some(
                     val.split_whitespace()
                         .map(vector)
                         .collect::<Option<_>>()
                         .ok_or_else(|| fmt(format!("space directions {val:?} are not (x,y,z)")))?,
                 )
             }
-            "space" => space = val.to_string(),
-            "space units" => units_mm = val.contains("mm"),
-            "data file" | "datafile" => data_file = Some(val.to_string()),
+            "space" => self.space = val.to_string(),
+            "space units" => self.units_mm = val.contains("mm"),
+            "data file" | "datafile" => self.data_file = Some(val.to_string()),
             "byte skip" | "byteskip" => {
-                byte_skip = val.parse().map_err(|_| {
+                self.byte_skip = val.parse().map_err(|_| {
                     fmt(format!("byte skip {val:?} is not a count (-1 unsupported)"))
                 })?
             }
             _ => {}
         }
+        Ok(())
     }
-    let kind = kind.ok_or_else(|| fmt("header has no `type`".into()))?;
-    if dimension != Some(3) {
-        return Err(fmt(format!(
-            "only 3-D scalar volumes are supported (dimension: {dimension:?})"
-        )));
-    }
-    let sizes = sizes.ok_or_else(|| fmt("header has no `sizes`".into()))?;
-    let sizes: [u64; 3] = sizes
-        .try_into()
-        .map_err(|s: Vec<u64>| fmt(format!("`sizes` has {} entries, 3 expected", s.len())))?;
-    let dims = super::check_dims(&path.display().to_string(), sizes)?;
+}
+
+/// Sample spacing in metres: the lengths of the (axis-aligned) `space directions`, else the
+/// `spacings`, else 1 unit; millimetres when `space` is an anatomical one or the units say mm.
+fn spacing(
+    path: &Path,
+    space: &str,
+    units_mm: bool,
+    directions: Option<Vec<[f64; 3]>>,
+    spacings: Option<Vec<f64>>,
+) -> Result<[f64; 3]> {
+    let fmt = |m: String| Error::format(path, m);
     let anatomical = space.contains("anterior")
         || space.contains("posterior")
         || space.contains("scanner")
         || space.contains("3D-");
     let to_m = if units_mm || anatomical { 1e-3 } else { 1.0 };
-    let spacing: [f64; 3] = if let Some(d) = directions {
+    Ok(if let Some(d) = directions {
         let d: [[f64; 3]; 3] = d
             .try_into()
             .map_err(|_| fmt("`space directions` needs three vectors".into()))?;
@@ -436,24 +504,5 @@ fn header(path: &Path, bytes: &[u8]) -> Result<Header> {
         s.map(|v| if v.is_finite() { v * to_m } else { to_m })
     } else {
         [to_m; 3]
-    };
-    let gzip = match encoding.as_str() {
-        "raw" => false,
-        "gzip" | "gz" => true,
-        e => {
-            return Err(fmt(format!(
-                "encoding {e:?} is not supported (use raw or gzip)"
-            )))
-        }
-    };
-    Ok(Header {
-        len: pos as u64,
-        kind,
-        dims,
-        spacing,
-        gzip,
-        big_endian,
-        data_file,
-        byte_skip,
     })
 }

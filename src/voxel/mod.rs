@@ -152,19 +152,7 @@ impl VoxelModel {
     /// distances of its jumps (`skip`).
     pub fn bricks(&self) -> Bricks {
         let bd = self.dims.map(|d| d.div_ceil(BRICK));
-        let mut table = vec![EMPTY_BRICK; bd.iter().map(|&d| d as usize).product()];
-        let mut pool: Vec<u8> = Vec::new();
-        for v in &self.voxels {
-            let b = v.pos.map(|c| c / BRICK);
-            let bi = (b[0] + bd[0] * (b[1] + bd[1] * b[2])) as usize;
-            if table[bi] == EMPTY_BRICK {
-                table[bi] = (pool.len() / BRICK_VOXELS) as u32;
-                pool.resize(pool.len() + BRICK_VOXELS, 0);
-            }
-            let l = v.pos.map(|c| c % BRICK);
-            pool[table[bi] as usize * BRICK_VOXELS
-                + (l[0] + BRICK * (l[1] + BRICK * l[2])) as usize] = v.index;
-        }
+        let (table, pool) = self.brick_pool(bd);
         let occupied: Vec<bool> = table.iter().map(|&b| b != EMPTY_BRICK).collect();
         let brick_skip = skip::chebyshev(bd.map(|d| d as usize), &occupied, skip::BRICK_SKIP_CAP);
         let symmetric_gap = skip::brick_gaps(bd, &table, &pool, &brick_skip);
@@ -177,83 +165,7 @@ impl VoxelModel {
             .collect();
         let cells: u64 = self.dims.iter().map(|&d| d as u64).product();
         if cells <= skip::DENSE_LIMIT {
-            let [dx, dy, _] = self.dims.map(|d| d as usize);
-            let occupied: Vec<bool> = self.dense().iter().map(|&i| i != 0).collect();
-            // Per pool voxel inside the model, its index in the dense grid.
-            let mut dense_index = vec![u32::MAX; pool.len()];
-            for (bi, &block) in table.iter().enumerate() {
-                if block == EMPTY_BRICK {
-                    continue;
-                }
-                let b = [
-                    bi % bd[0] as usize,
-                    (bi / bd[0] as usize) % bd[1] as usize,
-                    bi / (bd[0] * bd[1]) as usize,
-                ];
-                for li in 0..BRICK_VOXELS {
-                    let l = [li % 8, (li / 8) % 8, li / 64];
-                    let p: [usize; 3] = std::array::from_fn(|a| b[a] * BRICK as usize + l[a]);
-                    if (0..3).all(|a| p[a] < self.dims[a] as usize) {
-                        dense_index[block as usize * BRICK_VOXELS + li] =
-                            (p[0] + dx * (p[1] + dy * p[2])) as u32;
-                    }
-                }
-            }
-            // Per empty brick and octant, its corner voxel facing away from the octant (the
-            // last one inside the model).
-            let corner = |bi: usize, oct: usize| -> usize {
-                let b = [
-                    bi % bd[0] as usize,
-                    (bi / bd[0] as usize) % bd[1] as usize,
-                    bi / (bd[0] * bd[1]) as usize,
-                ];
-                let p: [usize; 3] = std::array::from_fn(|a| {
-                    let lo = b[a] * BRICK as usize;
-                    if oct >> a & 1 != 0 {
-                        lo
-                    } else {
-                        (lo + BRICK as usize - 1).min(self.dims[a] as usize - 1)
-                    }
-                });
-                p[0] + dx * (p[1] + dy * p[2])
-            };
-            let octant = |oct: usize| -> (Vec<u8>, Vec<u16>) {
-                let f = skip::octant_cubes(
-                    self.dims.map(|d| d as usize),
-                    &occupied,
-                    oct,
-                    skip::GAP_CUBE_CAP,
-                );
-                let codes = dense_index
-                    .iter()
-                    .map(|&k| {
-                        if k == u32::MAX {
-                            1
-                        } else {
-                            f[k as usize].min(skip::VOXEL_SKIP_CAP)
-                        }
-                    })
-                    .collect();
-                // The brick's box grown by g - 1 voxels towards the octant is the cube of
-                // side 8 + g - 1 at that corner.
-                let gaps = (0..table.len())
-                    .map(|bi| {
-                        if table[bi] != EMPTY_BRICK {
-                            return 0;
-                        }
-                        let side = f[corner(bi, oct)] as u16;
-                        (side + 1)
-                            .saturating_sub(BRICK as u16)
-                            .max(symmetric_gap[bi])
-                    })
-                    .collect();
-                (codes, gaps)
-            };
-            let octants: Vec<(Vec<u8>, Vec<u16>)> = if cells <= skip::PARALLEL_LIMIT {
-                (0..8).into_par_iter().map(octant).collect()
-            } else {
-                (0..8).map(octant).collect()
-            };
+            let octants = self.octant_skips(bd, &table, pool.len(), &symmetric_gap, cells);
             for (i, w) in pool_jump.iter_mut().enumerate() {
                 *w = (0..8).fold(0, |w, oct| {
                     w | (octants[oct].0[i] as u32) << (JUMP_BITS * oct as u32)
@@ -273,6 +185,137 @@ impl VoxelModel {
             brick_gap,
         }
     }
+
+    /// The brick table (`bd` bricks) and the pool of occupied bricks' blocks, in the order
+    /// the voxels first reach them.
+    fn brick_pool(&self, bd: [u32; 3]) -> (Vec<u32>, Vec<u8>) {
+        let mut table = vec![EMPTY_BRICK; bd.iter().map(|&d| d as usize).product()];
+        let mut pool: Vec<u8> = Vec::new();
+        for v in &self.voxels {
+            let b = v.pos.map(|c| c / BRICK);
+            let bi = (b[0] + bd[0] * (b[1] + bd[1] * b[2])) as usize;
+            if table[bi] == EMPTY_BRICK {
+                table[bi] = (pool.len() / BRICK_VOXELS) as u32;
+                pool.resize(pool.len() + BRICK_VOXELS, 0);
+            }
+            let l = v.pos.map(|c| c % BRICK);
+            pool[table[bi] as usize * BRICK_VOXELS
+                + (l[0] + BRICK * (l[1] + BRICK * l[2])) as usize] = v.index;
+        }
+        (table, pool)
+    }
+
+    /// Per octant of ray directions, from the octant cubes on the dense grid: the jump code
+    /// of each pool voxel and the one-sided gap of each brick (in parallel over the octants
+    /// up to [`skip::PARALLEL_LIMIT`] cells).
+    fn octant_skips(
+        &self,
+        bd: [u32; 3],
+        table: &[u32],
+        pool_len: usize,
+        symmetric_gap: &[u16],
+        cells: u64,
+    ) -> Vec<(Vec<u8>, Vec<u16>)> {
+        let occupied: Vec<bool> = self.dense().iter().map(|&i| i != 0).collect();
+        let dense_index = self.dense_index(bd, table, pool_len);
+        let octant = |oct: usize| {
+            self.octant_skip(oct, bd, table, &occupied, &dense_index, symmetric_gap)
+        };
+        if cells <= skip::PARALLEL_LIMIT {
+            (0..8).into_par_iter().map(octant).collect()
+        } else {
+            (0..8).map(octant).collect()
+        }
+    }
+
+    /// Per pool voxel inside the model, its index in the dense grid (`u32::MAX` outside).
+    fn dense_index(&self, bd: [u32; 3], table: &[u32], pool_len: usize) -> Vec<u32> {
+        let [dx, dy, _] = self.dims.map(|d| d as usize);
+        let mut dense_index = vec![u32::MAX; pool_len];
+        for (bi, &block) in table.iter().enumerate() {
+            if block == EMPTY_BRICK {
+                continue;
+            }
+            let b = brick_coords(bd, bi);
+            for li in 0..BRICK_VOXELS {
+                let l = [li % 8, (li / 8) % 8, li / 64];
+                let p: [usize; 3] = std::array::from_fn(|a| b[a] * BRICK as usize + l[a]);
+                if (0..3).all(|a| p[a] < self.dims[a] as usize) {
+                    dense_index[block as usize * BRICK_VOXELS + li] =
+                        (p[0] + dx * (p[1] + dy * p[2])) as u32;
+                }
+            }
+        }
+        dense_index
+    }
+
+    /// Octant `oct`'s jump codes per pool voxel and gaps per brick (at least the symmetric
+    /// ones).
+    fn octant_skip(
+        &self,
+        oct: usize,
+        bd: [u32; 3],
+        table: &[u32],
+        occupied: &[bool],
+        dense_index: &[u32],
+        symmetric_gap: &[u16],
+    ) -> (Vec<u8>, Vec<u16>) {
+        let f = skip::octant_cubes(
+            self.dims.map(|d| d as usize),
+            occupied,
+            oct,
+            skip::GAP_CUBE_CAP,
+        );
+        let codes = dense_index
+            .iter()
+            .map(|&k| {
+                if k == u32::MAX {
+                    1
+                } else {
+                    f[k as usize].min(skip::VOXEL_SKIP_CAP)
+                }
+            })
+            .collect();
+        // The brick's box grown by g - 1 voxels towards the octant is the cube of
+        // side 8 + g - 1 at that corner.
+        let gaps = (0..table.len())
+            .map(|bi| {
+                if table[bi] != EMPTY_BRICK {
+                    return 0;
+                }
+                let side = f[self.brick_corner(bd, bi, oct)] as u16;
+                (side + 1)
+                    .saturating_sub(BRICK as u16)
+                    .max(symmetric_gap[bi])
+            })
+            .collect();
+        (codes, gaps)
+    }
+
+    /// Dense-grid index of brick `bi`'s corner voxel facing away from octant `oct` (the last
+    /// one inside the model).
+    fn brick_corner(&self, bd: [u32; 3], bi: usize, oct: usize) -> usize {
+        let [dx, dy, _] = self.dims.map(|d| d as usize);
+        let b = brick_coords(bd, bi);
+        let p: [usize; 3] = std::array::from_fn(|a| {
+            let lo = b[a] * BRICK as usize;
+            if oct >> a & 1 != 0 {
+                lo
+            } else {
+                (lo + BRICK as usize - 1).min(self.dims[a] as usize - 1)
+            }
+        });
+        p[0] + dx * (p[1] + dy * p[2])
+    }
+}
+
+/// Brick coordinates of brick index `bi` in a grid of `bd` bricks.
+fn brick_coords(bd: [u32; 3], bi: usize) -> [usize; 3] {
+    [
+        bi % bd[0] as usize,
+        (bi / bd[0] as usize) % bd[1] as usize,
+        bi / (bd[0] * bd[1]) as usize,
+    ]
 }
 
 /// Two-level occupancy: per brick of [`BRICK`]³ voxels, the index of its block in `pool`

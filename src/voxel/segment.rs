@@ -150,6 +150,20 @@ impl<'a> Cursor<'a> {
     }
 }
 
+/// The header of a segment file, read up to the segment data.
+struct Header {
+    dims: [u32; 3],
+    extra_sizes: Vec<u8>,
+    /// Bytes of extra attributes per voxel.
+    stride: usize,
+    palette: Vec<[u8; 4]>,
+    offsets: Vec<u32>,
+    /// Bytes of segment data.
+    len: usize,
+    /// Where the segment data starts in the file.
+    base: usize,
+}
+
 /// Decodes segment-format bytes; `path` names the file in errors.
 pub fn decode(bytes: &[u8], path: &Path) -> Result<VoxelModel> {
     let mut c = Cursor {
@@ -157,9 +171,61 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<VoxelModel> {
         pos: 0,
         path,
     };
+    let h = read_header(&mut c)?;
+    let dims = h.dims;
+    // Each record takes at least one byte of segment data.
+    fileio::check_alloc(
+        format!(
+            "{} ({}x{}x{} voxels)",
+            path.display(),
+            dims[0],
+            dims[1],
+            dims[2]
+        ),
+        super::model_memory(dims, (h.len / (1 + h.stride)) as u64),
+    )?;
+    let mut voxels = Vec::new();
+    let mut extra = Vec::new();
+    // End of the previous column's segment (relative): segments do not overlap.
+    let mut next_free = 0usize;
+    for (col, &off) in h.offsets.iter().enumerate() {
+        if off == EMPTY {
+            continue;
+        }
+        if off as usize >= h.len {
+            return Err(c.err(format!(
+                "column {col}: offset {off} is past the segment data ({} bytes)",
+                h.len
+            )));
+        }
+        if (off as usize) < next_free {
+            return Err(c.err(format!(
+                "column {col}: its segment at offset {off} overlaps the previous column's (ending at {next_free}); segments are stored in column order, each once"
+            )));
+        }
+        c.pos = h.base + off as usize;
+        let (x, y) = (
+            (col % dims[0] as usize) as u32,
+            (col / dims[0] as usize) as u32,
+        );
+        read_segment(&mut c, &h, [x, y], &mut voxels, &mut extra)?;
+        next_free = c.pos - h.base;
+    }
+    Ok(VoxelModel {
+        dims,
+        palette: h.palette,
+        voxels,
+        extra_sizes: h.extra_sizes,
+        extra,
+    })
+}
+
+/// Magic, version, attribute count, model size, attribute sizes, palette, segment offsets
+/// and the length of the segment data, which must be the rest of the file.
+fn read_header(c: &mut Cursor) -> Result<Header> {
     if c.take(8, "magic")? != MAGIC {
         return Err(Error::format(
-            path,
+            c.path,
             "not a relief segment file: it does not start with RLFVSEG",
         ));
     }
@@ -171,7 +237,7 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<VoxelModel> {
     }
     let attrs = c.u16("attribute count")? as usize;
     let dims = [c.u32("dx")?, c.u32("dy")?, c.u32("dz")?];
-    super::check_dims(&path.display().to_string(), dims)?;
+    super::check_dims(&c.path.display().to_string(), dims)?;
     let extra_sizes = c.take(attrs, "attribute sizes")?.to_vec();
     if extra_sizes.contains(&0) {
         return Err(c.err("an extra attribute declares 0 bytes"));
@@ -190,92 +256,71 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<VoxelModel> {
         .collect();
     let len = c.u32("segment data length")? as usize;
     let base = c.pos;
-    if len != bytes.len() - base {
+    if len != c.d.len() - base {
         return Err(c.err(format!(
             "the header declares {len} bytes of segment data, the file has {}",
-            bytes.len() - base
+            c.d.len() - base
         )));
     }
-    // Each record takes at least one byte of segment data.
-    fileio::check_alloc(
-        format!(
-            "{} ({}x{}x{} voxels)",
-            path.display(),
-            dims[0],
-            dims[1],
-            dims[2]
-        ),
-        super::model_memory(dims, (len / (1 + stride)) as u64),
-    )?;
-    let mut voxels = Vec::new();
-    let mut extra = Vec::new();
-    // End of the previous column's segment (relative): segments do not overlap.
-    let mut next_free = 0usize;
-    for (col, &off) in offsets.iter().enumerate() {
-        if off == EMPTY {
-            continue;
+    Ok(Header {
+        dims,
+        extra_sizes,
+        stride,
+        palette,
+        offsets,
+        len,
+        base,
+    })
+}
+
+/// The segment of column `(x, y)` at the cursor: its runs' voxels and their extra attributes
+/// appended to `voxels` and `extra`; the cursor is left after the segment.
+fn read_segment(
+    c: &mut Cursor,
+    h: &Header,
+    [x, y]: [u32; 2],
+    voxels: &mut Vec<Voxel>,
+    extra: &mut Vec<u8>,
+) -> Result<()> {
+    let (dims, stride) = (h.dims, h.stride);
+    let mut z: u64 = 0;
+    let mut runs = 0;
+    loop {
+        let f = c.varint("free count")?;
+        let n = c.varint("occupied count")?;
+        if n == 0 {
+            break;
         }
-        if off as usize >= len {
+        runs += 1;
+        z += f as u64;
+        if z + n as u64 > dims[2] as u64 {
             return Err(c.err(format!(
-                "column {col}: offset {off} is past the segment data ({len} bytes)"
+                "column ({x}, {y}): runs reach z = {}, the model is {} high",
+                z + n as u64,
+                dims[2]
             )));
         }
-        if (off as usize) < next_free {
-            return Err(c.err(format!(
-                "column {col}: its segment at offset {off} overlaps the previous column's (ending at {next_free}); segments are stored in column order, each once"
-            )));
-        }
-        c.pos = base + off as usize;
-        let (x, y) = (
-            (col % dims[0] as usize) as u32,
-            (col / dims[0] as usize) as u32,
-        );
-        let mut z: u64 = 0;
-        let mut runs = 0;
-        loop {
-            let f = c.varint("free count")?;
-            let n = c.varint("occupied count")?;
-            if n == 0 {
-                break;
-            }
-            runs += 1;
-            z += f as u64;
-            if z + n as u64 > dims[2] as u64 {
+        let recs = c.take(n as usize * (1 + stride), "voxel records")?;
+        for (k, r) in recs.chunks_exact(1 + stride).enumerate() {
+            if r[0] == 0 {
                 return Err(c.err(format!(
-                    "column ({x}, {y}): runs reach z = {}, the model is {} high",
-                    z + n as u64,
-                    dims[2]
+                    "column ({x}, {y}): occupied voxel with palette index 0"
                 )));
             }
-            let recs = c.take(n as usize * (1 + stride), "voxel records")?;
-            for (k, r) in recs.chunks_exact(1 + stride).enumerate() {
-                if r[0] == 0 {
-                    return Err(c.err(format!(
-                        "column ({x}, {y}): occupied voxel with palette index 0"
-                    )));
-                }
-                voxels.push(Voxel {
-                    pos: [x, y, (z + k as u64) as u32],
-                    index: r[0],
-                });
-                extra.extend_from_slice(&r[1..]);
-            }
-            z += n as u64;
+            voxels.push(Voxel {
+                pos: [x, y, (z + k as u64) as u32],
+                index: r[0],
+            });
+            extra.extend_from_slice(&r[1..]);
         }
-        if runs == 0 {
-            return Err(c.err(format!(
-                "column ({x}, {y}) is stored but empty (empty segments are not stored)"
-            )));
-        }
-        next_free = c.pos - base;
+        z += n as u64;
     }
-    Ok(VoxelModel {
-        dims,
-        palette,
-        voxels,
-        extra_sizes,
-        extra,
-    })
+    if runs == 0 {
+        return Err(c.err(format!(
+            "column ({x}, {y}) is stored but empty (empty segments are not stored)"
+        )));
+    }
+    Ok(())
 }
 
 /// Writes a model to `path` atomically ([`fileio::write_atomic`]: nothing half-written is

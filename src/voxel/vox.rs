@@ -129,6 +129,120 @@ fn rotation(r: u8) -> Option<[[i32; 3]; 3]> {
     Some(m)
 }
 
+/// The `MAIN` chunk's header: skips its content and narrows the reader to its children.
+fn enter_main(r: &mut Reader) -> Result<()> {
+    let id = r.bytes(4, "MAIN chunk id")?;
+    if id != b"MAIN" {
+        return Err(r.err("the first chunk must be MAIN"));
+    }
+    let content = r.count("MAIN content size", 1)?;
+    let children = r.count("MAIN children size", 1)?;
+    if content + children > r.end - r.pos {
+        return Err(r.err(format!(
+            "MAIN claims {content} + {children} bytes of content and children, the file holds {} after its header (truncated file?)",
+            r.end - r.pos
+        )));
+    }
+    r.bytes(content, "MAIN content")?;
+    r.end = r.pos + children;
+    Ok(())
+}
+
+/// A `SIZE` chunk starting at byte `at`: the next model's size, 1..=256 per side.
+fn read_size(r: &mut Reader, at: usize) -> Result<[u32; 3]> {
+    let s = [r.i32("SIZE x")?, r.i32("SIZE y")?, r.i32("SIZE z")?];
+    if s.iter().any(|&v| !(1..=256).contains(&v)) {
+        return Err(Error::format(
+            r.path,
+            format!("malformed .vox at byte {at}: model size {s:?} must be 1..=256 per side"),
+        ));
+    }
+    Ok(s.map(|v| v as u32))
+}
+
+/// An `nTRN` chunk: the node id and its transform (frame 0's `_r` and `_t`).
+fn read_transform(r: &mut Reader) -> Result<(i32, Node)> {
+    let node = r.i32("node id")?;
+    r.dict()?;
+    let child = r.i32("child id")?;
+    r.i32("reserved id")?;
+    r.i32("layer id")?;
+    let frames = r.count("frame count", 4)?;
+    let mut rot = rotation(4).expect("identity");
+    let mut t = [0i64; 3];
+    if frames >= 1 {
+        let f = r.dict()?;
+        if let Some(s) = f.get("_r") {
+            rot = s
+                .trim()
+                .parse::<u8>()
+                .ok()
+                .and_then(rotation)
+                .ok_or_else(|| r.err(format!("node {node}: bad rotation _r {s:?}")))?;
+        }
+        if let Some(s) = f.get("_t") {
+            t = translation(r, node, s)?;
+        }
+    }
+    let transform = Node::Transform {
+        child,
+        rotation: rot,
+        translation: t,
+    };
+    Ok((node, transform))
+}
+
+/// An `nTRN` frame's translation `_t`: three integers of at most 2^20 in magnitude.
+fn translation(r: &Reader, node: i32, s: &str) -> Result<[i64; 3]> {
+    let v: Vec<i64> = s
+        .split_whitespace()
+        .map(|x| x.parse::<i64>())
+        .collect::<std::result::Result<_, _>>()
+        .map_err(|_| r.err(format!("node {node}: bad translation _t {s:?}")))?;
+    if v.len() != 3 || v.iter().any(|x| x.abs() > 1 << 20) {
+        return Err(r.err(format!("node {node}: bad translation _t {s:?}")));
+    }
+    Ok([v[0], v[1], v[2]])
+}
+
+/// An `nGRP` chunk: the node id and its children.
+fn read_group(r: &mut Reader) -> Result<(i32, Node)> {
+    let node = r.i32("node id")?;
+    r.dict()?;
+    let k = r.count("group child count", 4)?;
+    let children = (0..k)
+        .map(|_| r.i32("child id"))
+        .collect::<Result<Vec<_>>>()?;
+    Ok((node, Node::Group { children }))
+}
+
+/// An `nSHP` chunk: the node id and its models with their frame keys `_f`.
+fn read_shape(r: &mut Reader) -> Result<(i32, Node)> {
+    let node = r.i32("node id")?;
+    r.dict()?;
+    let k = r.count("shape model count", 8)?;
+    if k == 0 {
+        return Err(r.err(format!("node {node}: shape lists no model")));
+    }
+    let mut models = Vec::with_capacity(k);
+    for i in 0..k {
+        let id = r.i32("model id")?;
+        let d = r.dict()?;
+        let f = match d.get("_f") {
+            Some(s) => s
+                .trim()
+                .parse::<u32>()
+                .map_err(|_| r.err(format!("node {node}: bad frame _f {s:?}")))?,
+            None => i as u32,
+        };
+        if id < 0 {
+            return Err(r.err(format!("node {node}: model id {id}")));
+        }
+        models.push((id as u32, f));
+    }
+    Ok((node, Node::Shape { models }))
+}
+
 impl VoxFile {
     /// Reads and parses a `.vox` file.
     pub fn load(path: &Path) -> Result<VoxFile> {
@@ -151,9 +265,21 @@ impl VoxFile {
             ));
         }
         let version = r.i32("version")?;
-        let mut out = VoxFile {
+        let mut out = VoxFile::empty(path, version as u32);
+        enter_main(&mut r)?;
+        let mut size: Option<[u32; 3]> = None;
+        while r.pos < r.end {
+            out.read_chunk(&mut r, &mut size)?;
+        }
+        out.check_models()?;
+        Ok(out)
+    }
+
+    /// A file with no model yet and the neutral grey ramp as its palette.
+    fn empty(path: &Path, version: u32) -> VoxFile {
+        VoxFile {
             path: path.to_path_buf(),
-            version: version as u32,
+            version,
             models: Vec::new(),
             palette: (0..256u32)
                 .map(|i| {
@@ -163,178 +289,111 @@ impl VoxFile {
                 .collect(),
             has_palette: false,
             nodes: HashMap::new(),
-        };
-        let id = r.bytes(4, "MAIN chunk id")?;
-        if id != b"MAIN" {
-            return Err(r.err("the first chunk must be MAIN"));
         }
-        let content = r.count("MAIN content size", 1)?;
-        let children = r.count("MAIN children size", 1)?;
-        if content + children > r.end - r.pos {
-            return Err(r.err(format!(
-                "MAIN claims {content} + {children} bytes of content and children, the file holds {} after its header (truncated file?)",
-                r.end - r.pos
-            )));
+    }
+
+    /// One child chunk of `MAIN`: its header, then its content by kind (unknown kinds are
+    /// skipped); leaves the reader after the chunk's children.
+    fn read_chunk(&mut self, r: &mut Reader, size: &mut Option<[u32; 3]>) -> Result<()> {
+        let at = r.pos;
+        let id: [u8; 4] = r.bytes(4, "chunk id")?.try_into().expect("4 bytes");
+        let n = r.count("chunk content size", 1)?;
+        let m = r.count("chunk children size", 1)?;
+        if n + m > r.end - r.pos {
+            return Err(r.err("chunk runs past its parent"));
         }
-        r.bytes(content, "MAIN content")?;
-        r.end = r.pos + children;
-        let mut size: Option<[u32; 3]> = None;
-        while r.pos < r.end {
-            let at = r.pos;
-            let id: [u8; 4] = r.bytes(4, "chunk id")?.try_into().expect("4 bytes");
-            let n = r.count("chunk content size", 1)?;
-            let m = r.count("chunk children size", 1)?;
-            if n + m > r.end - r.pos {
-                return Err(r.err("chunk runs past its parent"));
+        let next = r.pos + n + m;
+        let parent_end = r.end;
+        r.end = r.pos + n;
+        match &id {
+            b"SIZE" => *size = Some(read_size(r, at)?),
+            b"XYZI" => {
+                let s = size
+                    .take()
+                    .ok_or_else(|| r.err("XYZI without a SIZE before it"))?;
+                self.read_xyzi(r, s)?;
             }
-            let next = r.pos + n + m;
-            let parent_end = r.end;
-            r.end = r.pos + n;
-            match &id {
-                b"SIZE" => {
-                    let s = [r.i32("SIZE x")?, r.i32("SIZE y")?, r.i32("SIZE z")?];
-                    if s.iter().any(|&v| !(1..=256).contains(&v)) {
-                        return Err(Error::format(
-                            path,
-                            format!("malformed .vox at byte {at}: model size {s:?} must be 1..=256 per side"),
-                        ));
-                    }
-                    size = Some(s.map(|v| v as u32));
-                }
-                b"XYZI" => {
-                    let s = size
-                        .take()
-                        .ok_or_else(|| r.err("XYZI without a SIZE before it"))?;
-                    let k = r.count("voxel count", 4)?;
-                    let raw = r.bytes(4 * k, "voxels")?;
-                    let mut voxels = Vec::with_capacity(k);
-                    for v in raw.chunks_exact(4) {
-                        if (0..3).any(|a| v[a] as u32 >= s[a]) || v[3] == 0 {
-                            return Err(Error::format(
-                                path,
-                                format!(
-                                    "malformed .vox: model {} has voxel {:?} outside its {}x{}x{} size or with colour index 0",
-                                    out.models.len(),
-                                    &v[..3],
-                                    s[0],
-                                    s[1],
-                                    s[2]
-                                ),
-                            ));
-                        }
-                        voxels.push([v[0], v[1], v[2], v[3]]);
-                    }
-                    out.models.push(RawModel { size: s, voxels });
-                }
-                b"RGBA" => {
-                    let p = r.bytes(1024, "RGBA palette")?;
-                    // Entry i of the chunk is the colour of index i + 1.
-                    for i in 1..256 {
-                        out.palette[i].copy_from_slice(&p[4 * (i - 1)..4 * i]);
-                    }
-                    out.has_palette = true;
-                }
-                b"nTRN" => {
-                    let node = r.i32("node id")?;
-                    r.dict()?;
-                    let child = r.i32("child id")?;
-                    r.i32("reserved id")?;
-                    r.i32("layer id")?;
-                    let frames = r.count("frame count", 4)?;
-                    let mut rot = rotation(4).expect("identity");
-                    let mut t = [0i64; 3];
-                    if frames >= 1 {
-                        let f = r.dict()?;
-                        if let Some(s) = f.get("_r") {
-                            rot = s.trim().parse::<u8>().ok().and_then(rotation).ok_or_else(
-                                || r.err(format!("node {node}: bad rotation _r {s:?}")),
-                            )?;
-                        }
-                        if let Some(s) = f.get("_t") {
-                            let v: Vec<i64> = s
-                                .split_whitespace()
-                                .map(|x| x.parse::<i64>())
-                                .collect::<std::result::Result<_, _>>()
-                                .map_err(|_| {
-                                    r.err(format!("node {node}: bad translation _t {s:?}"))
-                                })?;
-                            if v.len() != 3 || v.iter().any(|x| x.abs() > 1 << 20) {
-                                return Err(r.err(format!("node {node}: bad translation _t {s:?}")));
-                            }
-                            t = [v[0], v[1], v[2]];
-                        }
-                    }
-                    out.nodes.insert(
-                        node,
-                        Node::Transform {
-                            child,
-                            rotation: rot,
-                            translation: t,
-                        },
-                    );
-                }
-                b"nGRP" => {
-                    let node = r.i32("node id")?;
-                    r.dict()?;
-                    let k = r.count("group child count", 4)?;
-                    let children = (0..k)
-                        .map(|_| r.i32("child id"))
-                        .collect::<Result<Vec<_>>>()?;
-                    out.nodes.insert(node, Node::Group { children });
-                }
-                b"nSHP" => {
-                    let node = r.i32("node id")?;
-                    r.dict()?;
-                    let k = r.count("shape model count", 8)?;
-                    if k == 0 {
-                        return Err(r.err(format!("node {node}: shape lists no model")));
-                    }
-                    let mut models = Vec::with_capacity(k);
-                    for i in 0..k {
-                        let id = r.i32("model id")?;
-                        let d = r.dict()?;
-                        let f = match d.get("_f") {
-                            Some(s) => s
-                                .trim()
-                                .parse::<u32>()
-                                .map_err(|_| r.err(format!("node {node}: bad frame _f {s:?}")))?,
-                            None => i as u32,
-                        };
-                        if id < 0 {
-                            return Err(r.err(format!("node {node}: model id {id}")));
-                        }
-                        models.push((id as u32, f));
-                    }
-                    out.nodes.insert(node, Node::Shape { models });
-                }
-                _ => {}
+            b"RGBA" => self.read_rgba(r)?,
+            b"nTRN" => {
+                let (node, transform) = read_transform(r)?;
+                self.nodes.insert(node, transform);
             }
-            r.end = parent_end;
-            r.pos = next;
+            b"nGRP" => {
+                let (node, group) = read_group(r)?;
+                self.nodes.insert(node, group);
+            }
+            b"nSHP" => {
+                let (node, shape) = read_shape(r)?;
+                self.nodes.insert(node, shape);
+            }
+            _ => {}
         }
-        if out.models.is_empty() {
+        r.end = parent_end;
+        r.pos = next;
+        Ok(())
+    }
+
+    /// An `XYZI` chunk: the voxels of the model whose `SIZE` came before it.
+    fn read_xyzi(&mut self, r: &mut Reader, s: [u32; 3]) -> Result<()> {
+        let k = r.count("voxel count", 4)?;
+        let raw = r.bytes(4 * k, "voxels")?;
+        let mut voxels = Vec::with_capacity(k);
+        for v in raw.chunks_exact(4) {
+            if (0..3).any(|a| v[a] as u32 >= s[a]) || v[3] == 0 {
+                return Err(Error::format(
+                    r.path,
+                    format!(
+                        "malformed .vox: model {} has voxel {:?} outside its {}x{}x{} size or with colour index 0",
+                        self.models.len(),
+                        &v[..3],
+                        s[0],
+                        s[1],
+                        s[2]
+                    ),
+                ));
+            }
+            voxels.push([v[0], v[1], v[2], v[3]]);
+        }
+        self.models.push(RawModel { size: s, voxels });
+        Ok(())
+    }
+
+    /// An `RGBA` chunk: the palette.
+    fn read_rgba(&mut self, r: &mut Reader) -> Result<()> {
+        let p = r.bytes(1024, "RGBA palette")?;
+        // Entry i of the chunk is the colour of index i + 1.
+        for i in 1..256 {
+            self.palette[i].copy_from_slice(&p[4 * (i - 1)..4 * i]);
+        }
+        self.has_palette = true;
+        Ok(())
+    }
+
+    /// The final check: at least one model, and every shape names a model of the file.
+    fn check_models(&self) -> Result<()> {
+        if self.models.is_empty() {
             return Err(Error::format(
-                path,
+                &self.path,
                 "the .vox file holds no model (no XYZI chunk)",
             ));
         }
-        for n in out.nodes.values() {
+        for n in self.nodes.values() {
             if let Node::Shape { models } = n {
                 if let Some((id, _)) = models
                     .iter()
-                    .find(|(id, _)| *id as usize >= out.models.len())
+                    .find(|(id, _)| *id as usize >= self.models.len())
                 {
                     return Err(Error::format(
-                        path,
+                        &self.path,
                         format!(
                             "malformed .vox: a shape names model {id}, the file has {}",
-                            out.models.len()
+                            self.models.len()
                         ),
                     ));
                 }
             }
         }
-        Ok(out)
+        Ok(())
     }
 
     /// Voxels per model, in file order.
@@ -343,7 +402,7 @@ impl VoxFile {
     }
 
     /// Shapes placed by the scene graph: (models with frame keys, rotation, translation).
-    fn placements(&self) -> Result<Vec<(Vec<(u32, u32)>, [[i32; 3]; 3], [i64; 3])>> {
+    fn placements(&self) -> Result<Vec<Placement>> {
         let mut out = Vec::new();
         let ident = rotation(4).expect("identity");
         // (node, rotation, translation, depth)
@@ -401,30 +460,8 @@ impl VoxFile {
 
     /// The file's animation frames as models sharing one box (one frame for a still file).
     pub fn frames(&self) -> Result<Vec<VoxelModel>> {
-        let what = self.path.display().to_string();
         if self.nodes.is_empty() {
-            let grids = self.models.iter().fold(0u64, |acc, m| {
-                acc.saturating_add(super::model_memory(m.size, m.voxels.len() as u64))
-            });
-            fileio::check_alloc(
-                format!("{} ({} model(s))", self.path.display(), self.models.len()),
-                grids,
-            )?;
-            return self
-                .models
-                .iter()
-                .map(|m| {
-                    let voxels = m
-                        .voxels
-                        .iter()
-                        .map(|v| Voxel {
-                            pos: [v[0] as u32, v[1] as u32, v[2] as u32],
-                            index: v[3],
-                        })
-                        .collect();
-                    VoxelModel::new(&what, m.size, self.palette.clone(), voxels)
-                })
-                .collect();
+            return self.model_frames();
         }
         let shapes = self.placements()?;
         let frames = shapes
@@ -433,8 +470,7 @@ impl VoxFile {
             .max()
             .unwrap_or(1)
             .min(1024);
-        // Each shape's models sorted by frame key; the model shown at frame k is the last whose
-        // key is ≤ k (else the first).
+        // Each shape's models sorted by frame key.
         let sorted: Vec<Vec<(u32, u32)>> = shapes
             .iter()
             .map(|(ms, _, _)| {
@@ -443,18 +479,44 @@ impl VoxFile {
                 s
             })
             .collect();
-        let shown = |s: &[(u32, u32)], k: usize| -> Option<u32> {
-            s.iter()
-                .rev()
-                .find(|(_, f)| *f as usize <= k)
-                .or(s.first())
-                .map(|m| m.0)
-        };
-        // The composed voxels, counted before they are built.
+        self.check_composed(&sorted, frames as usize)?;
+        let cells = self.compose(&shapes, &sorted, frames as usize);
+        self.frames_from_cells(cells)
+    }
+
+    /// Without a scene graph: one frame per model, each in its own box.
+    fn model_frames(&self) -> Result<Vec<VoxelModel>> {
+        let what = self.path.display().to_string();
+        let grids = self.models.iter().fold(0u64, |acc, m| {
+            acc.saturating_add(super::model_memory(m.size, m.voxels.len() as u64))
+        });
+        fileio::check_alloc(
+            format!("{} ({} model(s))", self.path.display(), self.models.len()),
+            grids,
+        )?;
+        self.models
+            .iter()
+            .map(|m| {
+                let voxels = m
+                    .voxels
+                    .iter()
+                    .map(|v| Voxel {
+                        pos: [v[0] as u32, v[1] as u32, v[2] as u32],
+                        index: v[3],
+                    })
+                    .collect();
+                VoxelModel::new(&what, m.size, self.palette.clone(), voxels)
+            })
+            .collect()
+    }
+
+    /// The composed voxels of all frames, counted against the memory budget before they are
+    /// built.
+    fn check_composed(&self, sorted: &[Vec<(u32, u32)>], frames: usize) -> Result<()> {
         let mut total: u64 = 0;
-        for k in 0..frames as usize {
-            for s in &sorted {
-                if let Some(id) = shown(s, k) {
+        for k in 0..frames {
+            for s in sorted {
+                if let Some(id) = shown_model(s, k) {
                     total += self.models[id as usize].voxels.len() as u64;
                 }
             }
@@ -464,11 +526,23 @@ impl VoxFile {
                 total.saturating_mul(64),
             )?;
         }
-        // World cells per frame.
-        let mut cells: Vec<Vec<([i64; 3], u8)>> = vec![Vec::new(); frames as usize];
+        Ok(())
+    }
+
+    /// World cells (lattice position, palette index) per frame: each placed shape's model
+    /// shown at that frame, its voxel centres rotated and translated.
+    fn compose(
+        &self,
+        shapes: &[Placement],
+        sorted: &[Vec<(u32, u32)>],
+        frames: usize,
+    ) -> Vec<Vec<([i64; 3], u8)>> {
+        let mut cells: Vec<Vec<([i64; 3], u8)>> = vec![Vec::new(); frames];
         for (k, cell) in cells.iter_mut().enumerate() {
-            for ((_, rot, t), s) in shapes.iter().zip(&sorted) {
-                let Some(id) = shown(s, k) else { continue };
+            for ((_, rot, t), s) in shapes.iter().zip(sorted) {
+                let Some(id) = shown_model(s, k) else {
+                    continue;
+                };
                 let m = &self.models[id as usize];
                 let half = m.size.map(|s| (s / 2) as i64);
                 for v in &m.voxels {
@@ -482,6 +556,13 @@ impl VoxFile {
                 }
             }
         }
+        cells
+    }
+
+    /// The frames' models in the cells' shared bounding box, checked against the size limits
+    /// and the memory budget.
+    fn frames_from_cells(&self, cells: Vec<Vec<([i64; 3], u8)>>) -> Result<Vec<VoxelModel>> {
+        let what = self.path.display().to_string();
         let mut lo = [i64::MAX; 3];
         let mut hi = [i64::MIN; 3];
         for (p, _) in cells.iter().flatten() {
@@ -523,4 +604,17 @@ impl VoxFile {
             })
             .collect()
     }
+}
+
+/// A shape placed by the scene graph: (models with frame keys, rotation, translation).
+type Placement = (Vec<(u32, u32)>, [[i32; 3]; 3], [i64; 3]);
+
+/// The model a shape shows at frame `k`, from its models sorted by frame key: the last whose
+/// key is ≤ k (else the first).
+fn shown_model(s: &[(u32, u32)], k: usize) -> Option<u32> {
+    s.iter()
+        .rev()
+        .find(|(_, f)| *f as usize <= k)
+        .or(s.first())
+        .map(|m| m.0)
 }
