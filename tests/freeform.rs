@@ -3,12 +3,15 @@
 
 mod common;
 
-use common::{gpu, gpu_lock, save_failure_image, terrain_from_fn, terrains, Rng};
+use common::{
+    gpu, gpu_lock, read_json, save_failure_image, save_failure_images, settings, terrain_from_fn,
+    terrains, Rng,
+};
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 use relief::cpu::freeform::{self as cff, Surface, CPU_LEVELS};
 use relief::freeform::{FreeForm, Quadric};
-use relief::gpu::{FrameOutput, RenderSettings, TerrainRenderer, TraceMode};
+use relief::gpu::{FrameOutput, TerrainRenderer};
 use relief::scene::{Camera, Pose, Scene};
 use relief::terrain::Terrain;
 use std::path::Path;
@@ -19,15 +22,6 @@ fn objects_from_toml(objects: &str, terrain: &Terrain) -> relief::Result<Vec<Fre
     let text = format!("[terrain.procedural]\nsize = 2\n[camera]\nposition = [0.0, 0.0, 100.0]\n[fog]\nvisibility = 0.0\n{objects}");
     let scene = Scene::parse(&text, Path::new("objects.toml"))?;
     scene.free_forms(terrain)
-}
-
-fn settings(shadows: bool) -> RenderSettings {
-    RenderSettings {
-        mode: TraceMode::Pyramid,
-        shadows,
-        tile_prepass: true,
-        max_steps: 4096,
-    }
 }
 
 fn render(
@@ -46,7 +40,7 @@ fn render(
     let mut r = TerrainRenderer::new(g, terrain).expect("renderer");
     r.set_objects(g, objects).expect("objects upload");
     Some(
-        r.capture(g, terrain, &desc, cam, &settings(shadows))
+        r.capture(g, terrain, &desc, cam, &settings(shadows, true))
             .expect("capture"),
     )
 }
@@ -849,7 +843,7 @@ fn gpu_matches_cpu_oracle_on_the_airfield_demo() {
             r.set_objects(g, &objects).unwrap();
         }
         let out = r
-            .capture(g, &terrain, &scene.desc, &cam, &settings(true))
+            .capture(g, &terrain, &scene.desc, &cam, &settings(true, true))
             .unwrap();
         let n = 320 * 240;
         let pixels = oracle_agreement(&terrain, &objects, &cam, &out);
@@ -1143,9 +1137,7 @@ fn cli_renders_the_airfield_and_refuses_a_bad_object_before_writing() {
         out.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let meta: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("frame_0000.json")).unwrap())
-            .unwrap();
+    let meta = read_json(&out.join("frame_0000.json"));
     assert_eq!(meta["free_forms"], 56);
     assert!(
         meta["free_form_pixels"].as_u64().unwrap() > 300,
@@ -1180,7 +1172,7 @@ fn a_frame_after_another_equals_a_frame_from_a_fresh_renderer() {
     let fresh = {
         let mut r = TerrainRenderer::new(g, &terrain).unwrap();
         r.set_objects(g, &objects).unwrap();
-        r.capture(g, &terrain, &scene.desc, &b, &settings(true))
+        r.capture(g, &terrain, &scene.desc, &b, &settings(true, true))
             .unwrap()
     };
     let shadowed = fresh.flags.iter().filter(|&&f| f & 2 != 0).count();
@@ -1188,10 +1180,10 @@ fn a_frame_after_another_equals_a_frame_from_a_fresh_renderer() {
     let mut r = TerrainRenderer::new(g, &terrain).unwrap();
     r.set_objects(g, &objects).unwrap();
     for before in [true, false] {
-        r.capture(g, &terrain, &scene.desc, &a, &settings(before))
+        r.capture(g, &terrain, &scene.desc, &a, &settings(before, true))
             .unwrap();
         let after = r
-            .capture(g, &terrain, &scene.desc, &b, &settings(true))
+            .capture(g, &terrain, &scene.desc, &b, &settings(true, true))
             .unwrap();
         let differ = (0..fresh.flags.len())
             .filter(|&i| {
@@ -1201,7 +1193,7 @@ fn a_frame_after_another_equals_a_frame_from_a_fresh_renderer() {
             })
             .count();
         if differ > 0 {
-            let p = save_failure_image("frame-after-frame", 160, 120, &after.rgba);
+            let p = save_failure_images("frame-after-frame", 160, 120, &after.rgba, &fresh.rgba);
             panic!(
                 "{differ} pixels differ from a fresh renderer's frame (previous frame with shadows: {before}); image {}",
                 p.display()

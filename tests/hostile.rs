@@ -1308,9 +1308,7 @@ fn hostile_corpus_is_checked_in_and_small() {
 // CLI replay
 
 fn relief_cmd() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_relief"));
-    c.env("NODEVICE_SELECT", "1").current_dir(project_dir());
-    c
+    common::relief_command(&[], &[])
 }
 
 /// Runs `relief args` with the address space limited to 2 GiB (loaders that allocate what a

@@ -5,12 +5,14 @@
 
 mod common;
 
-use common::{gpu, gpu_lock, relief_cli, synthetic_scene, temp_dir, terrain_from_fn};
+use common::{
+    gpu, gpu_lock, read_json, relief_cli, settings, synthetic_scene, temp_dir, terrain_from_fn,
+};
 use glam::{DVec3, DVec4};
 use rayon::prelude::*;
 use relief::cpu;
 use relief::display::DisplayConfig;
-use relief::gpu::{RenderSettings, TerrainRenderer, TraceMode};
+use relief::gpu::TerrainRenderer;
 use relief::scene::{Camera, Pose, Scene};
 use relief::terrain::{geotiff, hgt, Terrain};
 use std::path::{Path, PathBuf};
@@ -601,9 +603,7 @@ fn world_from_grid_rebuilds_the_surface_from_the_files_heights_at_vertical_scale
         let out = dir.join("out");
         let o = relief(&["render", &s(&dir.join("vs.toml")), "--out", &s(&out)]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let meta: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(out.join("frame_0000.json")).unwrap())
-                .unwrap();
+        let meta = read_json(&out.join("frame_0000.json"));
         let rows = &meta["terrain"]["world_from_grid"];
         let mut mj = [[0.0; 4]; 4];
         for (r, row) in mj.iter_mut().enumerate() {
@@ -700,12 +700,7 @@ fn without_walls_the_gpu_agrees_with_the_cpu() {
         160,
         120,
     );
-    let settings = RenderSettings {
-        mode: TraceMode::Pyramid,
-        shadows: false,
-        tile_prepass: true,
-        max_steps: 4096,
-    };
+    let settings = settings(false, true);
     let cpu_depth = |t: &Terrain| -> Vec<Option<f64>> {
         (0..160 * 120)
             .into_par_iter()

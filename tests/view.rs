@@ -5,19 +5,12 @@
 
 mod common;
 
-use common::{project_dir, terrains};
+use common::{project_dir, relief_command, temp_dir, terrains};
 use relief::app::view::motion::{self, Controls, Mode, Motion};
 use relief::app::view::{present, stats};
 use std::io::BufRead;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Child, Command, Output, Stdio};
-
-fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("relief-view-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
 
 fn s(p: &Path) -> String {
     p.display().to_string()
@@ -85,17 +78,9 @@ fn window_env() -> Option<(Xvfb, std::sync::MutexGuard<'static, ()>)> {
 }
 
 fn relief(args: &[&str], display: Option<&str>, envs: &[(&str, &str)]) -> Output {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_relief"));
-    c.args(args)
-        .env("NODEVICE_SELECT", "1")
-        .env_remove("WAYLAND_DISPLAY")
-        .current_dir(project_dir());
-    match display {
-        Some(d) => c.env("DISPLAY", d),
-        None => c.env_remove("DISPLAY"),
-    };
-    for (k, v) in envs {
-        c.env(k, v);
+    let mut c = relief_command(args, envs);
+    if let Some(d) = display {
+        c.env("DISPLAY", d);
     }
     c.output().expect("the relief binary runs")
 }
@@ -134,12 +119,8 @@ fn assert_matches(name: &str, actual: &Path, expected: &Path) {
     let (a, e) = (load_rgb(actual), load_rgb(expected));
     let err = mean_error(&a, &e);
     if err > 1.0 / 255.0 {
-        let p = common::save_failure_image(
-            name,
-            a.width(),
-            a.height(),
-            &image::DynamicImage::ImageRgb8(a.clone()).to_rgba8(),
-        );
+        let rgba = |i: &image::RgbImage| image::DynamicImage::ImageRgb8(i.clone()).to_rgba8();
+        let p = common::save_failure_images(name, a.width(), a.height(), &rgba(&a), &rgba(&e));
         panic!(
             "{name}: {} differs from {} by a mean {:.4} (> 1/255); saved {}",
             actual.display(),

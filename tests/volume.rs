@@ -3,11 +3,14 @@
 
 mod common;
 
-use common::{gpu, gpu_lock, save_failure_image, terrain_from_fn, terrains};
+use common::{
+    gpu, gpu_lock, read_json, rgba_of, save_failure_image, save_failure_images, settings,
+    terrain_from_fn, terrains,
+};
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 use relief::cpu::volume::{composite_sorted, integrate, VolumeLight};
-use relief::gpu::{FrameOutput, RenderSettings, TerrainRenderer, TraceMode};
+use relief::gpu::{FrameOutput, TerrainRenderer};
 use relief::scene::{Camera, Scene, SceneDesc};
 use relief::terrain::Terrain;
 use relief::volume::desc::VolumeMaterial;
@@ -49,15 +52,6 @@ fn steady_around(p: DVec3, radius: f64, path: impl Fn(DVec3) -> f64) -> bool {
         let a = k as f64 * std::f64::consts::FRAC_PI_4;
         (path(p + DVec3::new(a.cos(), a.sin(), 0.0) * radius) - at).abs() < 1e-6
     })
-}
-
-fn settings() -> RenderSettings {
-    RenderSettings {
-        mode: TraceMode::Pyramid,
-        shadows: true,
-        tile_prepass: true,
-        max_steps: 4096,
-    }
 }
 
 #[test]
@@ -367,9 +361,9 @@ fn render_pair(
     r.set_objects(g, objects).unwrap();
     r.set_volumes(g, volumes).unwrap();
     r.set_volumes_hidden(true);
-    let under = r.capture(g, terrain, desc, cam, &settings()).unwrap();
+    let under = r.capture(g, terrain, desc, cam, &settings(true, true)).unwrap();
     r.set_volumes_hidden(false);
-    let out = r.capture(g, terrain, desc, cam, &settings()).unwrap();
+    let out = r.capture(g, terrain, desc, cam, &settings(true, true)).unwrap();
     let rays = r.read_ray_table(g).unwrap();
     Some((under, out, rays))
 }
@@ -450,9 +444,7 @@ fn gpu_volume_matches_the_cpu_reference_on_the_brain_with_two_transfer_functions
             "{tf}: the volume covers only {touched} pixels"
         );
         if mean >= 1.0 || max >= 4 {
-            let p = save_failure_image(&format!("brain-{tf}"), 160, 120, &out.rgba);
-            let exp: Vec<u8> = cpu.iter().flat_map(|c| [c[0], c[1], c[2], 255]).collect();
-            save_failure_image(&format!("brain-{tf}-expected"), 160, 120, &exp);
+            let p = save_failure_images(&format!("brain-{tf}"), 160, 120, &out.rgba, &rgba_of(&cpu));
             panic!(
                 "{tf}: mean {mean:.3}/255 (< 1 required), max {max}/255 (< 4 required); {}",
                 p.display()
@@ -477,7 +469,7 @@ fn render_variants(
             .iter()
             .map(|s| {
                 r.set_volume_settings(g, *s);
-                r.capture(g, terrain, desc, cam, &settings()).unwrap()
+                r.capture(g, terrain, desc, cam, &settings(true, true)).unwrap()
             })
             .collect(),
     )
@@ -810,9 +802,7 @@ fn several_volumes_composite_back_to_front_like_the_cpu_reference() {
         "the view misses the volumes ({touched}, {overlap})"
     );
     if mean >= 1.0 || max >= 4 {
-        let p = save_failure_image("volumes-three", 160, 120, &out.rgba);
-        let exp: Vec<u8> = cpu.iter().flat_map(|c| [c[0], c[1], c[2], 255]).collect();
-        save_failure_image("volumes-three-expected", 160, 120, &exp);
+        let p = save_failure_images("volumes-three", 160, 120, &out.rgba, &rgba_of(&cpu));
         panic!(
             "mean {mean:.3}/255 (< 1 required), max {max}/255 (< 4 required); {}",
             p.display()
@@ -949,9 +939,7 @@ fn cli_renders_the_brain_and_refuses_a_bad_volume_before_writing() {
         out.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let meta: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("frame_0000.json")).unwrap())
-            .unwrap();
+    let meta = read_json(&out.join("frame_0000.json"));
     assert_eq!(meta["volumes"], 1);
     assert!(
         meta["volume_pixels"].as_u64().unwrap() > 1000,
@@ -1031,7 +1019,7 @@ fn a_tight_shell_changes_nothing_and_saves_segments() {
     let rays = {
         let g = gpu().unwrap();
         let mut rr = TerrainRenderer::new(g, &terrain).unwrap();
-        rr.capture(g, &terrain, &scene.desc, &cam, &settings())
+        rr.capture(g, &terrain, &scene.desc, &cam, &settings(true, true))
             .unwrap();
         rr.read_ray_table(g).unwrap()
     };
@@ -1394,7 +1382,7 @@ fn clouds_shadow_the_ground_like_the_cpu_reference_and_only_darken_it() {
     r.set_volumes(g, &vols).unwrap();
     r.set_volumes_hidden(true);
     let with = r
-        .capture(g, &terrain, &scene.desc, &cam, &settings())
+        .capture(g, &terrain, &scene.desc, &cam, &settings(true, true))
         .unwrap();
     let rays = r.read_ray_table(g).unwrap();
     assert_eq!(with.volume_sun.len(), (w * h) as usize);
@@ -1437,7 +1425,7 @@ fn clouds_shadow_the_ground_like_the_cpu_reference_and_only_darken_it() {
     r.set_volumes(g, &unshadowed).unwrap();
     r.set_volumes_hidden(true);
     let without = r
-        .capture(g, &terrain, &scene.desc, &cam, &settings())
+        .capture(g, &terrain, &scene.desc, &cam, &settings(true, true))
         .unwrap();
     assert!(without.volume_sun.is_empty());
     let (mut brighter, mut changed_unshadowed, mut darker) = (0, 0, 0);

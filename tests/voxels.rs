@@ -3,10 +3,10 @@
 
 mod common;
 
-use common::{gpu, gpu_lock, save_failure_image, terrain_from_fn, terrains, Rng};
+use common::{gpu, gpu_lock, save_failure_image, settings, terrain_from_fn, terrains, Rng};
 use glam::{DMat3, DVec3};
 use relief::cpu::voxel::{brute_force, dda, VoxelScene};
-use relief::gpu::{RenderSettings, TerrainRenderer, TraceMode};
+use relief::gpu::TerrainRenderer;
 use relief::scene::{Camera, Pose};
 use relief::voxel::vox::VoxFile;
 use relief::voxel::{segment, Bricks, Voxel, VoxelInstance, VoxelModel};
@@ -338,15 +338,6 @@ fn instance(file: &str, pos: DVec3, heading: f64, voxel_size: f64) -> VoxelInsta
     )
 }
 
-fn settings(shadows: bool) -> RenderSettings {
-    RenderSettings {
-        mode: TraceMode::Pyramid,
-        shadows,
-        tile_prepass: true,
-        max_steps: 4096,
-    }
-}
-
 #[test]
 fn gpu_voxel_depth_matches_the_cpu_dda() {
     let _l = gpu_lock();
@@ -392,7 +383,7 @@ fn gpu_voxel_depth_matches_the_cpu_dda() {
     let mut r = TerrainRenderer::new(g, &terrain).unwrap();
     r.set_voxels(g, &models).unwrap();
     let out = r
-        .capture(g, &terrain, &desc, &cam, &settings(true))
+        .capture(g, &terrain, &desc, &cam, &settings(true, true))
         .unwrap();
     let mut agree = 0;
     let mut voxel_pixels = 0;
@@ -464,7 +455,7 @@ fn gpu_voxel_shadows_fall_where_the_cpu_says() {
     let mut r = TerrainRenderer::new(g, &terrain).unwrap();
     r.set_voxels(g, &models).unwrap();
     let out = r
-        .capture(g, &terrain, &desc, &cam, &settings(true))
+        .capture(g, &terrain, &desc, &cam, &settings(true, true))
         .unwrap();
     let (mut agree, mut cpu_shadow, mut n) = (0, 0, 0);
     for k in 0..(w * h) as usize {
@@ -619,7 +610,7 @@ fn animated_models_show_the_frame_of_the_scene_time_on_gpu_and_cpu() {
     for time in [0.0, 0.15, 0.25] {
         r.set_time(time);
         let out = r
-            .capture(g, &terrain, &desc, &cam, &settings(false))
+            .capture(g, &terrain, &desc, &cam, &settings(false, true))
             .unwrap();
         let mut agree = 0;
         for k in 0..(w * h) as usize {
@@ -1159,7 +1150,7 @@ fn gpu_voxel_depth_through_a_distortion_table_matches_the_cpu_dda() {
         .unwrap();
     r.set_voxels(g, &models).unwrap();
     let out = r
-        .capture(g, &terrain, &desc, &cam, &settings(false))
+        .capture(g, &terrain, &desc, &cam, &settings(false, true))
         .unwrap();
     let table = r.read_ray_table(g).unwrap();
     let (mut agree, mut n, mut voxel_pixels) = (0, 0, 0);

@@ -68,13 +68,81 @@ pub fn terrain_from_fn(n: usize, spacing: f64, f: impl Fn(f64, f64) -> f64) -> T
     Terrain::new(field, frame, 1.0).unwrap()
 }
 
-/// Writes `-actual` PNGs for a failed image test into `target/test-output/`.
+/// Writes `{name}-actual.png` (RGBA) for a failed image test into `target/test-output/` and
+/// returns its path; for tests whose reference is not an image (a depth oracle), pair it with
+/// [`save_failure_mask`].
 pub fn save_failure_image(name: &str, width: u32, height: u32, rgba: &[u8]) -> PathBuf {
     let dir = project_dir().join("target").join("test-output");
     std::fs::create_dir_all(&dir).unwrap();
     let p = dir.join(format!("{name}-actual.png"));
     relief::app::capture::write_png(&p, width, height, rgba).unwrap();
     p
+}
+
+/// For a failed comparison of two RGBA images: writes `{name}-actual.png`,
+/// `{name}-expected.png` and `{name}-diff.png` (per channel |actual − expected| × 8, opaque)
+/// into `target/test-output/`; returns the path of the diff.
+pub fn save_failure_images(
+    name: &str,
+    width: u32,
+    height: u32,
+    actual: &[u8],
+    expected: &[u8],
+) -> PathBuf {
+    save_failure_image(name, width, height, actual);
+    save_failure_image(&format!("{name}-expected"), width, height, expected);
+    let diff: Vec<u8> = actual
+        .chunks_exact(4)
+        .zip(expected.chunks_exact(4))
+        .flat_map(|(a, e)| {
+            let d = |c: usize| a[c].abs_diff(e[c]).saturating_mul(8);
+            [d(0), d(1), d(2), 255]
+        })
+        .collect();
+    let p = project_dir().join("target").join("test-output").join(format!("{name}-diff.png"));
+    relief::app::capture::write_png(&p, width, height, &diff).unwrap();
+    p
+}
+
+/// Writes `{name}-diff.png`: the pixels that disagree with a non-image oracle (a CPU depth,
+/// an analytic answer) in white on black, beside [`save_failure_image`]'s `-actual`.
+pub fn save_failure_mask(name: &str, width: u32, height: u32, bad: &[(u32, u32)]) -> PathBuf {
+    let mut m = vec![0u8; (width * height * 4) as usize];
+    for px in m.chunks_exact_mut(4) {
+        px[3] = 255;
+    }
+    for &(x, y) in bad.iter().filter(|&&(x, y)| x < width && y < height) {
+        let k = 4 * (y * width + x) as usize;
+        m[k..k + 3].fill(255);
+    }
+    let dir = project_dir().join("target").join("test-output");
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = dir.join(format!("{name}-diff.png"));
+    relief::app::capture::write_png(&p, width, height, &m).unwrap();
+    p
+}
+
+/// RGBA bytes of an RGB image list of `[r, g, b]` (alpha 255), for the savers above.
+pub fn rgba_of(rgb: &[[u8; 3]]) -> Vec<u8> {
+    rgb.iter().flat_map(|c| [c[0], c[1], c[2], 255]).collect()
+}
+
+/// The product's render settings for GPU tests: pyramid traversal, 4096 steps, with the
+/// given shadow and tile pre-pass switches.
+pub fn settings(shadows: bool, tile_prepass: bool) -> relief::gpu::RenderSettings {
+    relief::gpu::RenderSettings {
+        mode: relief::gpu::TraceMode::Pyramid,
+        shadows,
+        tile_prepass,
+        max_steps: 4096,
+    }
+}
+
+/// The frame JSON (`frame_NNNN.json`, `verify.json`, …) at `path`, parsed.
+pub fn read_json(path: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
 
 /// Small deterministic RNG (xorshift64*) so tests need no extra crate.
@@ -107,8 +175,9 @@ pub fn temp_dir(name: &str) -> PathBuf {
     d
 }
 
-/// Runs the `relief` binary from the project directory with `envs` set (no display).
-pub fn relief_cli(args: &[&str], envs: &[(&str, &str)]) -> std::process::Output {
+/// The `relief` binary as a command run from the project directory, with `envs` set, Mesa's
+/// device-select chatter off and no display (set `DISPLAY` on it for window tests).
+pub fn relief_command(args: &[&str], envs: &[(&str, &str)]) -> std::process::Command {
     let mut c = std::process::Command::new(env!("CARGO_BIN_EXE_relief"));
     c.args(args)
         .env("NODEVICE_SELECT", "1")
@@ -118,7 +187,12 @@ pub fn relief_cli(args: &[&str], envs: &[(&str, &str)]) -> std::process::Output 
     for (k, v) in envs {
         c.env(k, v);
     }
-    c.output().expect("the relief binary runs")
+    c
+}
+
+/// Runs the `relief` binary (see [`relief_command`]) and returns its output.
+pub fn relief_cli(args: &[&str], envs: &[(&str, &str)]) -> std::process::Output {
+    relief_command(args, envs).output().expect("the relief binary runs")
 }
 
 /// The adapters of a software machine a test can ask for by `WGPU_BACKEND`: `vulkan`
