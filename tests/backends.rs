@@ -65,13 +65,7 @@ fn volumes_on_gl_equal_volumes_on_vulkan() {
             "{name}: the GL frame is mostly black"
         );
         if mean >= 1.0 || p99 >= 4 {
-            let p = common::save_failure_images(
-                &format!("backends-{name}-gl"),
-                160,
-                120,
-                &gl,
-                &vk,
-            );
+            let p = common::save_failure_images(&format!("backends-{name}-gl"), 160, 120, &gl, &vk);
             panic!(
                 "{name}: GL differs from Vulkan: mean {mean:.3}/255 (< 1), p99 {p99}/255 (< 4); {}",
                 p.display()

@@ -3,22 +3,16 @@
 
 mod common;
 
-use common::{gpu, gpu_lock, save_failure_image, synthetic_scene, terrain_from_fn, terrains};
+use common::{
+    gpu, gpu_lock, save_failure_image, save_failure_mask, settings, synthetic_scene,
+    terrain_from_fn, terrains,
+};
 use glam::DVec3;
 use rayon::prelude::*;
 use relief::cpu;
 use relief::gpu::{FrameOutput, RenderSettings, TerrainRenderer, TraceMode};
 use relief::scene::{Camera, Pose, Scene, SceneDesc};
 use relief::terrain::Terrain;
-
-fn settings(shadows: bool, tile_prepass: bool) -> RenderSettings {
-    RenderSettings {
-        mode: TraceMode::Pyramid,
-        shadows,
-        tile_prepass,
-        max_steps: 4096,
-    }
-}
 
 fn render(
     terrain: &Terrain,
@@ -43,7 +37,8 @@ fn luminance(rgba: &[u8], k: usize) -> f64 {
 }
 
 /// Compares GPU depth with the f64 CPU traversal on every pixel; returns the disagreeing pixels.
-fn compare_with_cpu(terrain: &Terrain, cam: &Camera, out: &FrameOutput) -> Vec<String> {
+/// Pixels whose GPU depth disagrees with the CPU oracle: (x, y, what).
+fn compare_with_cpu(terrain: &Terrain, cam: &Camera, out: &FrameOutput) -> Vec<(u32, u32, String)> {
     let (w, h) = (out.width, out.height);
     let cpu_t: Vec<Option<f64>> = (0..w * h)
         .into_par_iter()
@@ -67,11 +62,8 @@ fn compare_with_cpu(terrain: &Terrain, cam: &Camera, out: &FrameOutput) -> Vec<S
             _ => false,
         };
         if !ok {
-            bad.push(format!(
-                "({}, {}): gpu {g} cpu {c:?}",
-                k as u32 % w,
-                k as u32 / w
-            ));
+            let (x, y) = (k as u32 % w, k as u32 / w);
+            bad.push((x, y, format!("({x}, {y}): gpu {g} cpu {c:?}")));
         }
     }
     bad
@@ -127,11 +119,13 @@ fn gpu_depth_matches_cpu_oracle_on_real_dem_from_three_viewpoints() {
         let frac = 1.0 - bad.len() as f64 / (320.0 * 240.0);
         if frac < 0.995 {
             let p = save_failure_image(&format!("gpu-vs-cpu-{name}"), 320, 240, &out.rgba);
+            let xy: Vec<(u32, u32)> = bad.iter().map(|b| (b.0, b.1)).collect();
+            save_failure_mask(&format!("gpu-vs-cpu-{name}"), 320, 240, &xy);
             panic!(
-                "{name}: {:.3}% of pixels agree (need 99.5%); image {}; first disagreeing pixels:\n{}",
+                "{name}: {:.3}% of pixels agree (need 99.5%); image {} and -diff beside it; first disagreeing pixels:\n{}",
                 frac * 100.0,
                 p.display(),
-                bad.iter().take(40).cloned().collect::<Vec<_>>().join("\n")
+                bad.iter().take(40).map(|b| b.2.clone()).collect::<Vec<_>>().join("\n")
             );
         }
         eprintln!(

@@ -204,8 +204,10 @@ struct SourceFile {
 }
 
 fn module_of(rel: &Path) -> Vec<String> {
-    let mut parts: Vec<String> =
-        rel.iter().map(|p| p.to_string_lossy().into_owned()).collect();
+    let mut parts: Vec<String> = rel
+        .iter()
+        .map(|p| p.to_string_lossy().into_owned())
+        .collect();
     let last = parts.pop().unwrap();
     match last.as_str() {
         "lib.rs" | "mod.rs" => {}
@@ -312,14 +314,22 @@ fn parse(root: &Path, file: &Path) -> SourceFile {
                 let mut paths = Vec::new();
                 use_tree(&toks, &mut i, Vec::new(), &mut paths);
                 for segments in paths {
-                    refs.push(PathRef { module: here.clone(), segments, reexport, line });
+                    refs.push(PathRef {
+                        module: here.clone(),
+                        segments,
+                        reexport,
+                        line,
+                    });
                 }
             }
             Tok::Ident(w) if w == "fn" => {
                 if let Some(name) = toks.get(i + 1).and_then(|t| ident(&t.0)) {
                     let top = fns.is_empty() && depth == mods.last().unwrap().1;
                     if top {
-                        items.entry(here.clone()).or_default().insert(name.to_string());
+                        items
+                            .entry(here.clone())
+                            .or_default()
+                            .insert(name.to_string());
                     }
                     pending_fn = Some((name.to_string(), line));
                 }
@@ -333,7 +343,10 @@ fn parse(root: &Path, file: &Path) -> SourceFile {
                     && depth == mods.last().unwrap().1 =>
             {
                 if let Some(name) = toks.get(i + 1).and_then(|t| ident(&t.0)) {
-                    items.entry(here.clone()).or_default().insert(name.to_string());
+                    items
+                        .entry(here.clone())
+                        .or_default()
+                        .insert(name.to_string());
                     if w == "mod" && toks.get(i + 2).map(|t| &t.0) == Some(&Tok::Open) {
                         let mut m = here.clone();
                         m.push(name.to_string());
@@ -348,7 +361,11 @@ fn parse(root: &Path, file: &Path) -> SourceFile {
                     && toks.get(i + 1).map(|t| &t.0) == Some(&Tok::Colons)
                     && !(i > 0 && toks[i - 1].0 == Tok::Colons) =>
             {
-                let mut segments = vec![if w == "relief" { "crate".to_string() } else { w.clone() }];
+                let mut segments = vec![if w == "relief" {
+                    "crate".to_string()
+                } else {
+                    w.clone()
+                }];
                 let mut j = i + 1;
                 while toks.get(j).map(|t| &t.0) == Some(&Tok::Colons) {
                     match toks.get(j + 1).and_then(|t| ident(&t.0)) {
@@ -357,7 +374,12 @@ fn parse(root: &Path, file: &Path) -> SourceFile {
                     }
                     j += 2;
                 }
-                refs.push(PathRef { module: here.clone(), segments, reexport: false, line });
+                refs.push(PathRef {
+                    module: here.clone(),
+                    segments,
+                    reexport: false,
+                    line,
+                });
                 i = j;
             }
             _ => i += 1,
@@ -371,7 +393,15 @@ fn parse(root: &Path, file: &Path) -> SourceFile {
             }
         }
     }
-    SourceFile { rel, module, lines: src.lines().count(), refs, items, inline_mods, functions }
+    SourceFile {
+        rel,
+        module,
+        lines: src.lines().count(),
+        refs,
+        items,
+        inline_mods,
+        functions,
+    }
 }
 
 struct Crate {
@@ -465,7 +495,9 @@ impl Crate {
             return Some(file);
         }
         for r in f.refs.iter().filter(|r| r.reexport && r.module == module) {
-            let Some(target) = self.absolute(r) else { continue };
+            let Some(target) = self.absolute(r) else {
+                continue;
+            };
             if target.last() == Some(name) {
                 if let Some(t) = self.resolve(&target, seen) {
                     return Some(t);
@@ -488,7 +520,9 @@ impl Crate {
         let mut edges = BTreeMap::new();
         for (k, f) in self.files.iter().enumerate() {
             for r in f.refs.iter().filter(|r| !r.reexport) {
-                let Some(abs) = self.absolute(r) else { continue };
+                let Some(abs) = self.absolute(r) else {
+                    continue;
+                };
                 if let Some(t) = self.resolve(&abs, &mut BTreeSet::new()) {
                     if t != k {
                         edges.entry((k, t)).or_insert(r.line);
@@ -505,9 +539,16 @@ impl Crate {
         if room.is_empty() {
             return Ok(u32::MAX); // lib.rs: the crate root declares every room.
         }
-        LAYERS.iter().find(|(r, _)| *r == room).map(|(_, l)| *l).ok_or_else(|| {
-            format!("{}: room `{room}` is not in tests/layers.rs LAYERS; give it a layer", f.rel)
-        })
+        LAYERS
+            .iter()
+            .find(|(r, _)| *r == room)
+            .map(|(_, l)| *l)
+            .ok_or_else(|| {
+                format!(
+                    "{}: room `{room}` is not in tests/layers.rs LAYERS; give it a layer",
+                    f.rel
+                )
+            })
     }
 }
 
@@ -531,7 +572,11 @@ fn imports_point_down_the_layers() {
         }
     }
     bad.dedup();
-    assert!(bad.is_empty(), "imports pointing up the layers:\n{}", bad.join("\n"));
+    assert!(
+        bad.is_empty(),
+        "imports pointing up the layers:\n{}",
+        bad.join("\n")
+    );
 }
 
 #[test]
@@ -555,7 +600,11 @@ fn no_import_cycle_between_files() {
         }
         bad.push(lines.join("\n"));
     }
-    assert!(bad.is_empty(), "import cycles between files of src/:\n{}", bad.join("\n"));
+    assert!(
+        bad.is_empty(),
+        "import cycles between files of src/:\n{}",
+        bad.join("\n")
+    );
 }
 
 /// Strongly connected components (Tarjan, iterative).
@@ -614,7 +663,11 @@ fn files_and_functions_stay_small() {
     let mut fns: Vec<_> = c
         .files
         .iter()
-        .flat_map(|f| f.functions.iter().map(move |(n, l, len)| (*len, format!("{}:{l} {n}", f.rel))))
+        .flat_map(|f| {
+            f.functions
+                .iter()
+                .map(move |(n, l, len)| (*len, format!("{}:{l} {n}", f.rel)))
+        })
         .collect();
     fns.sort_by(|a, b| b.cmp(a));
     println!("longest files:");
@@ -644,15 +697,30 @@ fn the_checker_finds_cycles_and_upward_imports() {
     std::fs::create_dir_all(src.join("terrain")).unwrap();
     std::fs::create_dir_all(src.join("cpu")).unwrap();
     let write = |p: &str, s: &str| std::fs::write(src.join(p), s).unwrap();
-    write("terrain/mod.rs", "mod a;\npub use a::Height;\nuse crate::cpu::query; // up\n");
-    write("terrain/a.rs", "/* use crate::cpu::x; */ pub struct Height; use super::b::B;\n");
-    write("terrain/b.rs", "pub struct B; fn f() { let s = \"crate::cpu::x\"; super::Height; }\n");
+    write(
+        "terrain/mod.rs",
+        "mod a;\npub use a::Height;\nuse crate::cpu::query; // up\n",
+    );
+    write(
+        "terrain/a.rs",
+        "/* use crate::cpu::x; */ pub struct Height; use super::b::B;\n",
+    );
+    write(
+        "terrain/b.rs",
+        "pub struct B; fn f() { let s = \"crate::cpu::x\"; super::Height; }\n",
+    );
     write("cpu/mod.rs", "pub mod query;\n");
     write("cpu/query.rs", "use crate::terrain::Height;\n");
-    let mut paths: Vec<PathBuf> = ["terrain/mod.rs", "terrain/a.rs", "terrain/b.rs", "cpu/mod.rs", "cpu/query.rs"]
-        .iter()
-        .map(|p| src.join(p))
-        .collect();
+    let mut paths: Vec<PathBuf> = [
+        "terrain/mod.rs",
+        "terrain/a.rs",
+        "terrain/b.rs",
+        "cpu/mod.rs",
+        "cpu/query.rs",
+    ]
+    .iter()
+    .map(|p| src.join(p))
+    .collect();
     paths.sort();
     let files: Vec<SourceFile> = paths.iter().map(|p| parse(&src, p)).collect();
     let mut module_file = BTreeMap::new();
@@ -667,18 +735,39 @@ fn the_checker_finds_cycles_and_upward_imports() {
         .collect();
     let e = |a: &str, b: &str| (a.to_string(), b.to_string());
     // The re-export resolves to a.rs; comments and strings are not imports.
-    assert!(named.contains(&e("src/cpu/query.rs", "src/terrain/a.rs")), "{named:?}");
-    assert!(named.contains(&e("src/terrain/mod.rs", "src/cpu/query.rs")), "{named:?}");
-    assert!(named.contains(&e("src/terrain/a.rs", "src/terrain/b.rs")), "{named:?}");
-    assert!(named.contains(&e("src/terrain/b.rs", "src/terrain/a.rs")), "{named:?}");
-    assert!(!named.contains(&e("src/terrain/a.rs", "src/cpu/mod.rs")), "{named:?}");
-    assert!(!named.iter().any(|(a, _)| a == "src/cpu/mod.rs"), "{named:?}");
+    assert!(
+        named.contains(&e("src/cpu/query.rs", "src/terrain/a.rs")),
+        "{named:?}"
+    );
+    assert!(
+        named.contains(&e("src/terrain/mod.rs", "src/cpu/query.rs")),
+        "{named:?}"
+    );
+    assert!(
+        named.contains(&e("src/terrain/a.rs", "src/terrain/b.rs")),
+        "{named:?}"
+    );
+    assert!(
+        named.contains(&e("src/terrain/b.rs", "src/terrain/a.rs")),
+        "{named:?}"
+    );
+    assert!(
+        !named.contains(&e("src/terrain/a.rs", "src/cpu/mod.rs")),
+        "{named:?}"
+    );
+    assert!(
+        !named.iter().any(|(a, _)| a == "src/cpu/mod.rs"),
+        "{named:?}"
+    );
     let mut adj = vec![Vec::new(); c.files.len()];
     for &(a, b) in c.edges().keys() {
         adj[a].push(b);
     }
     assert!(tarjan(&adj).iter().any(|s| s.len() == 2));
-    let up = c.edges().keys().any(|&(a, b)| c.layer(b).unwrap() > c.layer(a).unwrap());
+    let up = c
+        .edges()
+        .keys()
+        .any(|&(a, b)| c.layer(b).unwrap() > c.layer(a).unwrap());
     assert!(up, "terrain/mod.rs → cpu/query.rs points up");
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -361,9 +361,13 @@ fn render_pair(
     r.set_objects(g, objects).unwrap();
     r.set_volumes(g, volumes).unwrap();
     r.set_volumes_hidden(true);
-    let under = r.capture(g, terrain, desc, cam, &settings(true, true)).unwrap();
+    let under = r
+        .capture(g, terrain, desc, cam, &settings(true, true))
+        .unwrap();
     r.set_volumes_hidden(false);
-    let out = r.capture(g, terrain, desc, cam, &settings(true, true)).unwrap();
+    let out = r
+        .capture(g, terrain, desc, cam, &settings(true, true))
+        .unwrap();
     let rays = r.read_ray_table(g).unwrap();
     Some((under, out, rays))
 }
@@ -444,7 +448,8 @@ fn gpu_volume_matches_the_cpu_reference_on_the_brain_with_two_transfer_functions
             "{tf}: the volume covers only {touched} pixels"
         );
         if mean >= 1.0 || max >= 4 {
-            let p = save_failure_images(&format!("brain-{tf}"), 160, 120, &out.rgba, &rgba_of(&cpu));
+            let p =
+                save_failure_images(&format!("brain-{tf}"), 160, 120, &out.rgba, &rgba_of(&cpu));
             panic!(
                 "{tf}: mean {mean:.3}/255 (< 1 required), max {max}/255 (< 4 required); {}",
                 p.display()
@@ -469,7 +474,8 @@ fn render_variants(
             .iter()
             .map(|s| {
                 r.set_volume_settings(g, *s);
-                r.capture(g, terrain, desc, cam, &settings(true, true)).unwrap()
+                r.capture(g, terrain, desc, cam, &settings(true, true))
+                    .unwrap()
             })
             .collect(),
     )

@@ -16,8 +16,8 @@ pub use geotiff::Drape;
 pub use heightfield::{GeoRef, Heightfield};
 pub use pyramid::MaxPyramid;
 
-pub use desc::{HeightSource, TerrainDesc};
 use crate::{Error, Result};
+pub use desc::{HeightSource, TerrainDesc};
 use glam::{DMat4, DVec3, DVec4};
 use std::path::Path;
 

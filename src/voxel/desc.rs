@@ -261,8 +261,6 @@ pub fn build_all(
     descs
         .iter()
         .enumerate()
-        .map(|(i, d)| {
-            d.build(i, base_dir, |p| terrain.point_below(p).map(|g| g.z))
-        })
+        .map(|(i, d)| d.build(i, base_dir, |p| terrain.point_below(p).map(|g| g.z)))
         .collect()
 }

@@ -218,9 +218,8 @@ impl VoxelModel {
     ) -> Vec<(Vec<u8>, Vec<u16>)> {
         let occupied: Vec<bool> = self.dense().iter().map(|&i| i != 0).collect();
         let dense_index = self.dense_index(bd, table, pool_len);
-        let octant = |oct: usize| {
-            self.octant_skip(oct, bd, table, &occupied, &dense_index, symmetric_gap)
-        };
+        let octant =
+            |oct: usize| self.octant_skip(oct, bd, table, &occupied, &dense_index, symmetric_gap);
         if cells <= skip::PARALLEL_LIMIT {
             (0..8).into_par_iter().map(octant).collect()
         } else {

@@ -99,7 +99,10 @@ pub fn save_failure_images(
             [d(0), d(1), d(2), 255]
         })
         .collect();
-    let p = project_dir().join("target").join("test-output").join(format!("{name}-diff.png"));
+    let p = project_dir()
+        .join("target")
+        .join("test-output")
+        .join(format!("{name}-diff.png"));
     relief::app::capture::write_png(&p, width, height, &diff).unwrap();
     p
 }
@@ -140,8 +143,7 @@ pub fn settings(shadows: bool, tile_prepass: bool) -> relief::gpu::RenderSetting
 
 /// The frame JSON (`frame_NNNN.json`, `verify.json`, …) at `path`, parsed.
 pub fn read_json(path: &Path) -> serde_json::Value {
-    let text = std::fs::read_to_string(path)
-        .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
 
@@ -192,7 +194,9 @@ pub fn relief_command(args: &[&str], envs: &[(&str, &str)]) -> std::process::Com
 
 /// Runs the `relief` binary (see [`relief_command`]) and returns its output.
 pub fn relief_cli(args: &[&str], envs: &[(&str, &str)]) -> std::process::Output {
-    relief_command(args, envs).output().expect("the relief binary runs")
+    relief_command(args, envs)
+        .output()
+        .expect("the relief binary runs")
 }
 
 /// The adapters of a software machine a test can ask for by `WGPU_BACKEND`: `vulkan`
