@@ -28,7 +28,7 @@ pub struct GpuOptions {
     /// [`crate::gpu::TerrainRenderer`] is built.
     pub kernels: KernelChoice,
     /// Profiling aid: submit and wait after every sub-pass and log its time (info level); see
-    /// [`Gpu::trace_lap`]. It serialises the frame, so frame times taken with it on are not
+    /// `Gpu::trace_lap`. It serialises the frame, so frame times taken with it on are not
     /// comparable with those taken without.
     pub trace_passes: bool,
 }

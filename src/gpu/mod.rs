@@ -17,7 +17,7 @@
 //! then the copies to the readback buffers when capturing. The warp test pattern replaces
 //! passes 2–9.
 //!
-//! Files (no two import each other; `renderer` is the only one that knows every pass):
+//! Files (their imports form no cycle; `renderer` is the only one that knows every pass):
 //! * `device` — [`Gpu`]: adapter and device, [`GpuOptions`] (kernel path, pass tracing),
 //!   [`ParamSpace`] of the parameter blocks;
 //! * `util` — bind-group and pipeline helpers, screen textures, full-screen draws, readback;
@@ -47,19 +47,19 @@ pub mod frame;
 pub mod objects;
 pub mod pattern;
 pub mod pyramid;
-pub mod readback;
+pub(crate) mod readback;
 pub mod renderer;
 pub mod shade;
 pub mod shaders;
 pub mod specialise;
-pub mod table;
-pub mod targets;
-pub mod terrain_passes;
+pub(crate) mod table;
+pub(crate) mod targets;
+pub(crate) mod terrain_passes;
 pub mod types;
 pub mod uniforms;
-pub mod util;
+pub(crate) mod util;
 pub mod variants;
-pub mod volume_set;
+pub(crate) mod volume_set;
 pub mod volumes;
 pub mod voxels;
 
