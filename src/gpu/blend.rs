@@ -2,8 +2,8 @@
 //! back multiplied by each pixel's blend factor (`shaders/blend.wgsl`; CPU reference
 //! [`crate::display::blend`]).
 
-use super::renderer::{
-    float_texture_entry, fullscreen_pipeline, screen_texture, target_state, uniform_entry,
+use super::util::{
+    buf, float_texture_entry, fullscreen_pipeline, screen_texture, target_state, uniform_entry,
 };
 use super::{shaders, Gpu};
 use crate::display::blend::{Blend, ChannelBlend};
@@ -146,7 +146,7 @@ impl BlendPass {
             label: Some("blend"),
             layout: &self.bgl,
             entries: &[
-                super::renderer::buf(0, &self.ub),
+                buf(0, &self.ub),
                 wgpu::BindGroupEntry {
                     binding: 1,
                     resource: wgpu::BindingResource::TextureView(&view),

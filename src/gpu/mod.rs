@@ -1,304 +1,70 @@
 //! GPU layer (wgpu): device selection, the terrain renderer's passes and readback.
 //!
-//! Passes per frame: ray generation (compute, writes the ray table) → tile pre-pass
-//! (fragment, one fragment per 8x8 tile) → cast (fragment, full screen, writes the G-buffer)
-//! → shade (fragment, full screen: lighting, shadow rays, fog, sky) → copy to readback
-//! buffers when capturing.
+//! Passes per frame, in order (optional ones only when the scene has what they draw):
+//! 1. ray generation (compute or fragment, [`KernelChoice`]; from a distortion table with a
+//!    display): the ray table;
+//! 2. tile pre-pass (fragment, one fragment per 8x8 tile): where each tile's rays start;
+//! 3. terrain cast (fragment, full screen: pyramid traversal or fixed-step march): the G-buffer;
+//! 4. free forms: binning (compute, per 16x16 bin) and cast (fragment, quads over the bins);
+//! 5. voxel models: cast (fragment, over the rectangles the models cover);
+//! 6. voxel and free-form shadow rays (fragment, same rectangles and bins);
+//! 7. volume sun (fragment): the sun's transmittance through the volumes at the surfaces;
+//! 8. shade (fragment, full screen: lighting, shadow rays, fog, sky), its variant chosen by
+//!    compile-time features;
+//! 9. volumes: one integration pass per volume, then the composite pass over the shaded image;
+//! 10. edge blend (fragment) of a display channel;
+//!
+//! then the copies to the readback buffers when capturing. The warp test pattern replaces
+//! passes 2–9.
+//!
+//! Files (their imports form no cycle; `renderer` is the only one that knows every pass):
+//! * `device` — [`Gpu`]: adapter and device, [`GpuOptions`] (kernel path, pass tracing),
+//!   [`ParamSpace`] of the parameter blocks;
+//! * `util` — bind-group and pipeline helpers, screen textures, full-screen draws, readback;
+//! * `types` — the `#[repr(C)]` Pod structs mirroring the WGSL structs;
+//! * `uniforms` — the `Frame` and `RayGen` parameter blocks filled in on the CPU;
+//! * `frame` — [`RenderSettings`], [`Stage`], [`PassTimes`], [`FrameOutput`];
+//! * `pyramid` — the square maximum pyramid the GPU reads and its dilation;
+//! * `variants` — compile-time switches of the passes and where the free-form tables live;
+//! * `shaders` — the WGSL sources composed per pass and variant (`shaders/*.wgsl`);
+//! * `specialise` — pipelines built per switch combination;
+//! * `shade` — the shade pass's pipelines;
+//! * `terrain_passes` — terrain data and the ray-generation, tile, cast and shade pipelines;
+//! * `table` — ray generation from a distortion table;
+//! * `objects` — free-form binning, cast and shadow passes;
+//! * `voxels` — voxel-model cast and shadow passes;
+//! * `volumes` — the volume, volume-sun and composite passes of one volume;
+//! * `volume_set` — a scene's volumes as one set;
+//! * `pattern` — the warp test pattern;
+//! * `blend` — the edge blend;
+//! * `targets` — the size-dependent targets and bind groups;
+//! * `readback` — captured targets read back and decoded;
+//! * `renderer` — [`TerrainRenderer`]: holds the passes and records a frame.
 
 pub mod blend;
+pub mod device;
+pub mod frame;
 pub mod objects;
 pub mod pattern;
+pub mod pyramid;
+pub(crate) mod readback;
 pub mod renderer;
 pub mod shade;
 pub mod shaders;
 pub mod specialise;
+pub(crate) mod table;
+pub(crate) mod targets;
+pub(crate) mod terrain_passes;
 pub mod types;
+pub mod uniforms;
+pub(crate) mod util;
+pub mod variants;
+pub(crate) mod volume_set;
 pub mod volumes;
 pub mod voxels;
 
-pub use renderer::{
-    FrameOutput, KernelPath, PassTimes, RenderSettings, Stage, TerrainRenderer, TraceMode,
-    MAX_VOLUMES,
-};
-
-use crate::{Error, Result};
-
-/// A wgpu device and queue with the adapter they came from.
-pub struct Gpu {
-    /// The instance the adapter came from (for wgpu's resource report).
-    pub instance: wgpu::Instance,
-    pub device: wgpu::Device,
-    pub queue: wgpu::Queue,
-    pub info: wgpu::AdapterInfo,
-    pub limits: wgpu::Limits,
-    /// What a downlevel (GL, GLES) adapter can do; full on Vulkan, Metal and DX12.
-    pub downlevel: wgpu::DownlevelFlags,
-    /// How the passes' parameter blocks are bound on this adapter.
-    pub params: ParamSpace,
-}
-
-/// Where the passes' parameter blocks (`Frame`, `RayGen`, `Volume`, the free-form tables
-/// that fit, ...: `var<uniform>` in the WGSL sources) live on an adapter.
-///
-/// Mesa's lavapipe (seen on 22.3) inlines the current values of uniform buffers into a
-/// pipeline's shader and compiles a new variant every time a bind group holding one is set
-/// in a command buffer, without freeing the previous variant: each frame JIT-compiles its
-/// passes again (hundreds of ms) and leaks the code (about 3.5 MB a frame). Read-only
-/// storage buffers are never inlined, so on lavapipe the blocks are bound as storage; the
-/// WGSL struct layouts are the same in both address spaces (uniform only adds alignment
-/// rules the structs already meet). Every other adapter keeps uniform buffers.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ParamSpace {
-    Uniform,
-    Storage,
-}
-
-impl ParamSpace {
-    /// Storage on lavapipe (Vulkan on a CPU device), uniform elsewhere.
-    pub fn for_adapter(info: &wgpu::AdapterInfo) -> ParamSpace {
-        if info.backend == wgpu::Backend::Vulkan && info.device_type == wgpu::DeviceType::Cpu {
-            ParamSpace::Storage
-        } else {
-            ParamSpace::Uniform
-        }
-    }
-
-    /// The buffer binding type of a parameter block.
-    pub fn binding_type(self) -> wgpu::BufferBindingType {
-        match self {
-            ParamSpace::Uniform => wgpu::BufferBindingType::Uniform,
-            ParamSpace::Storage => wgpu::BufferBindingType::Storage { read_only: true },
-        }
-    }
-
-    /// The WGSL source with its `var<uniform>` declarations in this space.
-    pub fn wgsl(self, src: &str) -> String {
-        match self {
-            ParamSpace::Uniform => src.to_string(),
-            ParamSpace::Storage => src.replace("var<uniform>", "var<storage, read>"),
-        }
-    }
-
-    /// The alignment of dynamic offsets into a buffer of parameter blocks.
-    pub fn offset_alignment(self, limits: &wgpu::Limits) -> u32 {
-        match self {
-            ParamSpace::Uniform => limits.min_uniform_buffer_offset_alignment,
-            ParamSpace::Storage => limits.min_storage_buffer_offset_alignment,
-        }
-    }
-}
-
-/// Buffer usages of a parameter block: bindable in either space, written by the queue.
-pub const PARAM_USAGE: wgpu::BufferUsages = wgpu::BufferUsages::UNIFORM
-    .union(wgpu::BufferUsages::STORAGE)
-    .union(wgpu::BufferUsages::COPY_DST);
-
-/// A shader module from WGSL `src`, its parameter blocks declared in `space`.
-pub(crate) fn shader_module(
-    dev: &wgpu::Device,
-    space: ParamSpace,
-    label: &str,
-    src: &str,
-) -> wgpu::ShaderModule {
-    dev.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some(label),
-        source: wgpu::ShaderSource::Wgsl(space.wgsl(src).into()),
-    })
-}
-
-impl Gpu {
-    /// Opens a device. Honors `WGPU_BACKEND` (vulkan, gl, ...) and `WGPU_ADAPTER_NAME`
-    /// (substring of the adapter name); otherwise takes wgpu's default adapter, which on a
-    /// machine without a GPU is Mesa's lavapipe (Vulkan) or llvmpipe (GL).
-    pub fn new() -> Result<Gpu> {
-        pollster::block_on(Self::new_async())
-    }
-
-    async fn new_async() -> Result<Gpu> {
-        let instance =
-            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
-        Self::open(&instance, None, wgpu::Features::empty()).await
-    }
-
-    /// Opens a device on an adapter that can present to `surface` (same adapter choice as
-    /// [`Gpu::new`] otherwise), with the `optional` features the adapter has (the window uses
-    /// timestamp queries where they exist).
-    pub fn for_surface(
-        instance: &wgpu::Instance,
-        surface: &wgpu::Surface<'_>,
-        optional: wgpu::Features,
-    ) -> Result<Gpu> {
-        pollster::block_on(Self::open(instance, Some(surface), optional))
-    }
-
-    async fn open(
-        instance: &wgpu::Instance,
-        surface: Option<&wgpu::Surface<'_>>,
-        optional: wgpu::Features,
-    ) -> Result<Gpu> {
-        let adapter = match std::env::var("WGPU_ADAPTER_NAME") {
-            Ok(want) => {
-                let want = want.to_lowercase();
-                let adapters = instance.enumerate_adapters(wgpu::Backends::all()).await;
-                let names: Vec<String> = adapters.iter().map(|a| a.get_info().name).collect();
-                adapters
-                    .into_iter()
-                    .filter(|a| surface.is_none_or(|s| a.is_surface_supported(s)))
-                    .find(|a| a.get_info().name.to_lowercase().contains(&want))
-                    .ok_or_else(|| {
-                        Error::Gpu(format!(
-                            "WGPU_ADAPTER_NAME={want} matches no adapter; available: {names:?}"
-                        ))
-                    })?
-            }
-            Err(_) => instance
-                .request_adapter(&wgpu::RequestAdapterOptions {
-                    power_preference: wgpu::PowerPreference::from_env()
-                        .unwrap_or(wgpu::PowerPreference::HighPerformance),
-                    compatible_surface: surface,
-                    ..Default::default()
-                })
-                .await
-                .map_err(|e| match surface {
-                    Some(_) => Error::Gpu(format!(
-                        "no graphics adapter can present to this window ({e}); on X11 the \
-                         screen needs 24-bit colour (Xvfb: -screen 0 1280x1024x24)"
-                    )),
-                    None => Error::Gpu(format!(
-                        "no graphics adapter found ({e}); install Mesa's software drivers \
-                         (Debian: mesa-vulkan-drivers libvulkan1, or libegl-mesa0 for GL)"
-                    )),
-                })?,
-        };
-        let info = adapter.get_info();
-        log::info!(
-            "adapter: {} ({:?}, {:?})",
-            info.name,
-            info.backend,
-            info.device_type
-        );
-        let alimits = adapter.limits();
-        // Ask for what the adapter has where terrains need it: big storage buffers.
-        let limits = wgpu::Limits {
-            max_storage_buffer_binding_size: alimits.max_storage_buffer_binding_size,
-            max_buffer_size: alimits.max_buffer_size,
-            max_texture_dimension_2d: alimits.max_texture_dimension_2d,
-            max_texture_dimension_3d: alimits.max_texture_dimension_3d,
-            // The shade pass with free forms reads six storage buffers.
-            max_storage_buffers_per_shader_stage: alimits.max_storage_buffers_per_shader_stage,
-            // Free-form tables live in uniform buffers where they fit (`objects::FfTables`).
-            max_uniform_buffer_binding_size: alimits.max_uniform_buffer_binding_size,
-            ..wgpu::Limits::downlevel_defaults()
-        };
-        let (device, queue) = adapter
-            .request_device(&wgpu::DeviceDescriptor {
-                label: Some("relief"),
-                required_features: adapter.features() & optional,
-                required_limits: limits.clone(),
-                experimental_features: wgpu::ExperimentalFeatures::disabled(),
-                memory_hints: wgpu::MemoryHints::Performance,
-                trace: wgpu::Trace::Off,
-            })
-            .await
-            .map_err(|e| Error::Gpu(format!("cannot open a device on {}: {e}", info.name)))?;
-        let params = ParamSpace::for_adapter(&info);
-        log::debug!("parameter blocks: {params:?}");
-        Ok(Gpu {
-            instance: instance.clone(),
-            device,
-            queue,
-            params,
-            info,
-            limits,
-            downlevel: adapter.get_downlevel_capabilities().flags,
-        })
-    }
-
-    /// Live wgpu objects per kind (wgpu-core's registry report: buffers, textures, bind
-    /// groups, pipelines, ...), in a fixed order; `None` where wgpu has no report.
-    pub fn resource_counts(&self) -> Option<Vec<(&'static str, usize)>> {
-        let r = self.instance.generate_report()?;
-        let h = &r.hub;
-        let kept =
-            |n: &'static str, c: &wgpu::wgc::registry::RegistryReport| (n, c.num_kept_from_user);
-        Some(vec![
-            kept("devices", &h.devices),
-            kept("queues", &h.queues),
-            kept("pipeline_layouts", &h.pipeline_layouts),
-            kept("shader_modules", &h.shader_modules),
-            kept("bind_group_layouts", &h.bind_group_layouts),
-            kept("bind_groups", &h.bind_groups),
-            kept("command_encoders", &h.command_encoders),
-            kept("command_buffers", &h.command_buffers),
-            kept("render_pipelines", &h.render_pipelines),
-            kept("compute_pipelines", &h.compute_pipelines),
-            kept("query_sets", &h.query_sets),
-            kept("buffers", &h.buffers),
-            kept("textures", &h.textures),
-            kept("texture_views", &h.texture_views),
-            kept("samplers", &h.samplers),
-        ])
-    }
-
-    /// Runs `f`, which creates GPU resources, and turns the out-of-memory and validation
-    /// errors wgpu reports meanwhile (fatal by default) into an error naming `what`.
-    pub fn scoped<T>(&self, what: &str, f: impl FnOnce() -> Result<T>) -> Result<T> {
-        let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
-        let invalid = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let made = f();
-        let errors = [
-            pollster::block_on(invalid.pop()),
-            pollster::block_on(oom.pop()),
-        ];
-        match errors.into_iter().flatten().next() {
-            Some(e) => Err(Error::Limit {
-                what: what.to_string(),
-                msg: format!(
-                    "the adapter {} could not allocate it ({e}); use a smaller size",
-                    self.info.name
-                ),
-            }),
-            None => made,
-        }
-    }
-
-    /// "name (backend)" for logs and metadata.
-    pub fn describe(&self) -> String {
-        format!("{} ({:?})", self.info.name, self.info.backend)
-    }
-
-    /// Profiling aid: with `RELIEF_TRACE_PASSES` set, submits what `enc` holds, waits for it
-    /// and logs the time as sub-pass `what` (info level). It serialises the frame, so frame
-    /// times taken with it on are not comparable with those taken without.
-    pub(crate) fn trace_lap(&self, enc: &mut wgpu::CommandEncoder, what: &str) {
-        static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-        if !*ON.get_or_init(|| std::env::var_os("RELIEF_TRACE_PASSES").is_some()) {
-            return;
-        }
-        let start = std::time::Instant::now();
-        let done = std::mem::replace(enc, self.device.create_command_encoder(&Default::default()));
-        self.queue.submit([done.finish()]);
-        match self.wait() {
-            Ok(()) => log::info!("  {what}: {:.1} ms", start.elapsed().as_secs_f64() * 1e3),
-            Err(e) => log::warn!("  {what}: {e}"),
-        }
-    }
-
-    /// Waits for all submitted work. The GL backend gives up an indefinite wait after a few
-    /// seconds, so long frames are waited for in a loop.
-    pub fn wait(&self) -> Result<()> {
-        for _ in 0..120 {
-            match self.device.poll(wgpu::PollType::Wait {
-                submission_index: None,
-                timeout: Some(std::time::Duration::from_secs(5)),
-            }) {
-                Ok(_) => return Ok(()),
-                Err(wgpu::PollError::Timeout) => continue,
-                Err(e) => return Err(Error::Gpu(format!("waiting for the GPU: {e}"))),
-            }
-        }
-        Err(Error::Gpu(
-            "the GPU did not finish within 10 minutes".into(),
-        ))
-    }
-}
+pub(crate) use device::shader_module;
+pub use device::{Gpu, GpuOptions, KernelChoice, KernelPath, ParamSpace, PARAM_USAGE};
+pub use frame::{FrameOutput, PassTimes, RenderSettings, Stage, TraceMode};
+pub use renderer::TerrainRenderer;
+pub use volume_set::MAX_VOLUMES;

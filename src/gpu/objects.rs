@@ -3,82 +3,25 @@
 //! shadow passes (fragment, one per object kind, drawn as quads over runs of bins that list
 //! objects of that kind) and the shade pipeline that knows free forms.
 
-use super::renderer::{
-    buf, float_texture_entry, pipeline_layout, render_pipeline, screen_texture, storage_entry,
-    target_state, uint_texture_entry, uniform_entry, view,
-};
 use super::shade::{shade_pipelines, ShadePipelines};
+use super::shaders::wgsl_u32;
 use super::types::{FfNodeGpu, FfObjectGpu};
-use super::{shaders, Gpu};
+use super::util::{
+    buf, check_buffer_limit, float_texture_entry, pipeline_layout, render_pipeline, screen_texture,
+    storage_entry, target_state, uint_texture_entry, uniform_entry, view,
+};
+use super::{shaders, Gpu, PARAM_USAGE};
 use crate::freeform::FreeForm;
 use crate::{Error, Result};
 use wgpu::util::DeviceExt;
 
-/// Bin side in pixels (WGSL `FF_BIN`).
+pub use super::variants::FfTables;
+
+/// Bin side in pixels (WGSL `FF_BIN` in `ff_consts.wgsl`, checked at compile time).
 pub const BIN: u32 = 16;
+const _: () = assert!(wgsl_u32(shaders::FF_CONSTS, "FF_BIN") == BIN);
 /// Object indices stored per bin and list; a fuller bin falls back to testing every object.
 pub const BIN_CAPACITY: u32 = 255;
-
-/// Where the free-form records ([`FfObjectGpu`]) and quadrics ([`FfNodeGpu`]) live on the GPU.
-///
-/// Uniform buffers where the scene fits the adapter's uniform-binding size (64 KiB on Mesa and
-/// most GPUs: 455 objects, 1365 quadrics): Mesa's CPU adapters load a uniform at a per-pixel
-/// index as one gather, but a storage-buffer load as a loop over the SIMD lanes with an
-/// execution-mask and a bounds branch per component (gallivm's `emit_load_mem`), and an object
-/// record is 36 components. Measured on the airfield (GL/llvmpipe, 1280x720, A/B of per-pass
-/// minimums): binning, casts and shadow passes 35 → 29 ms. Larger scenes use storage buffers,
-/// with the same code.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum FfTables {
-    /// Uniform arrays of exactly these many objects and nodes (the WGSL array sizes).
-    Uniform { objects: u32, nodes: u32 },
-    /// Runtime-sized storage arrays.
-    Storage,
-}
-
-impl FfTables {
-    /// Uniform buffers if `objects` records and `nodes` quadrics fit in `max_uniform` bytes
-    /// each, else storage buffers.
-    pub fn choose(objects: usize, nodes: usize, max_uniform: u64) -> FfTables {
-        let fits = |n: usize, size: usize| n >= 1 && (n * size) as u64 <= max_uniform;
-        if fits(objects, std::mem::size_of::<FfObjectGpu>())
-            && fits(nodes, std::mem::size_of::<FfNodeGpu>())
-        {
-            FfTables::Uniform {
-                objects: objects as u32,
-                nodes: nodes as u32,
-            }
-        } else {
-            FfTables::Storage
-        }
-    }
-
-    fn uniform(&self) -> bool {
-        matches!(self, FfTables::Uniform { .. })
-    }
-
-    /// Storage buffers the most demanding free-form stage binds: the shade pass (heights,
-    /// pyramid, drape), plus the object records where they are not in a uniform buffer,
-    /// plus the frame block and uniform-sized tables where parameter blocks are storage.
-    fn storage_buffers(&self, space: super::ParamSpace) -> u32 {
-        let params_in_storage = space == super::ParamSpace::Storage;
-        3 + u32::from(!self.uniform() || params_in_storage) + u32::from(params_in_storage)
-    }
-
-    /// Bind-group-layout entry of table `binding` (6: objects, 7: nodes).
-    fn entry(
-        &self,
-        space: super::ParamSpace,
-        binding: u32,
-        vis: wgpu::ShaderStages,
-    ) -> wgpu::BindGroupLayoutEntry {
-        if self.uniform() {
-            uniform_entry(space, binding, vis)
-        } else {
-            storage_entry(binding, vis, true)
-        }
-    }
-}
 
 /// GPU records of the free forms: one [`FfObjectGpu`] per object, the nodes of all
 /// perturbation trees one after the other.
@@ -133,6 +76,202 @@ pub fn pack(objects: &[FreeForm]) -> (Vec<FfObjectGpu>, Vec<FfNodeGpu>) {
     (recs, nodes)
 }
 
+/// Refuses more objects than the shaders address, and adapters without storage buffers in
+/// vertex shaders (the passes draw their bins from one).
+fn check_objects(gpu: &Gpu, objects: &[FreeForm]) -> Result<()> {
+    if objects.len() > crate::freeform::MAX_OBJECTS {
+        return Err(Error::Limit {
+            what: "free forms".into(),
+            msg: format!(
+                "{} objects, at most {}",
+                objects.len(),
+                crate::freeform::MAX_OBJECTS
+            ),
+        });
+    }
+    if !gpu.downlevel.contains(wgpu::DownlevelFlags::VERTEX_STORAGE) {
+        return Err(Error::Limit {
+            what: "storage buffers in vertex shaders".into(),
+            msg: format!(
+                "the free-form passes draw their bins from a storage buffer, which {} does \
+                 not allow in vertex shaders; render the scene without [[objects]] or on \
+                 another adapter (WGPU_BACKEND=vulkan)",
+                gpu.info.name
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// Where the object tables of `recs` and `nodes` live on this adapter (uniform buffers only if
+/// `allow_uniform`), refusing tables over its storage-buffer limits.
+fn choose_tables(
+    gpu: &Gpu,
+    recs: &[FfObjectGpu],
+    nodes: &[FfNodeGpu],
+    allow_uniform: bool,
+) -> Result<FfTables> {
+    check_buffer_limit(gpu, "free-form records", (recs.len() * 144) as u64)?;
+    check_buffer_limit(gpu, "free-form quadrics", (nodes.len() * 48) as u64)?;
+    let tables = FfTables::choose(
+        recs.len(),
+        nodes.len(),
+        if allow_uniform {
+            gpu.limits.max_uniform_buffer_binding_size
+        } else {
+            0
+        },
+    );
+    log::debug!("free-form tables: {tables:?}");
+    let need = tables.storage_buffers(gpu.params);
+    let have = gpu.limits.max_storage_buffers_per_shader_stage;
+    if have < need {
+        return Err(Error::Limit {
+            what: "storage buffers per shader stage".into(),
+            msg: format!(
+                "free forms need {need}, the adapter {} allows {have}; render the scene without [[objects]]",
+                gpu.info.name
+            ),
+        });
+    }
+    Ok(tables)
+}
+
+/// Bind-group layouts of the binning pass, the cast and shadow passes, and the shade pass.
+fn object_layouts(gpu: &Gpu, tables: FfTables) -> [wgpu::BindGroupLayout; 3] {
+    let dev = &gpu.device;
+    let cs = wgpu::ShaderStages::COMPUTE;
+    let fs = wgpu::ShaderStages::FRAGMENT;
+    let vfs = wgpu::ShaderStages::VERTEX_FRAGMENT;
+    let bin_bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("free-form bins"),
+        entries: &[
+            uniform_entry(gpu.params, 0, cs),
+            uint_texture_entry(3, cs),
+            uint_texture_entry(4, cs),
+            tables.entry(gpu.params, 6, cs),
+            storage_entry(8, cs, false),
+        ],
+    });
+    let cast_bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("free-form cast"),
+        entries: &[
+            uniform_entry(gpu.params, 0, vfs),
+            uint_texture_entry(3, fs),
+            uint_texture_entry(4, fs),
+            tables.entry(gpu.params, 6, fs),
+            tables.entry(gpu.params, 7, fs),
+            storage_entry(8, vfs, true),
+        ],
+    });
+    let shade_bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("shade with free forms"),
+        entries: &[
+            uniform_entry(gpu.params, 0, fs),
+            storage_entry(1, fs, true),
+            storage_entry(2, fs, true),
+            uint_texture_entry(3, fs),
+            uint_texture_entry(4, fs),
+            storage_entry(5, fs, true),
+            tables.entry(gpu.params, 6, fs),
+            uint_texture_entry(9, fs),
+            float_texture_entry(19, fs, wgpu::TextureViewDimension::D2),
+        ],
+    });
+    [bin_bgl, cast_bgl, shade_bgl]
+}
+
+/// The binning pass's pipelines: primary and shadow lists.
+fn bin_pipelines(
+    gpu: &Gpu,
+    tables: FfTables,
+    bin_bgl: &wgpu::BindGroupLayout,
+) -> [wgpu::ComputePipeline; 2] {
+    let dev = &gpu.device;
+    let bin_mod = super::shader_module(dev, gpu.params, "ff_bin.wgsl", &shaders::ff_bin(tables));
+    let compute = |entry: &str| {
+        dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(entry),
+            layout: Some(&pipeline_layout(dev, bin_bgl)),
+            module: &bin_mod,
+            entry_point: Some(entry),
+            compilation_options: Default::default(),
+            cache: None,
+        })
+    };
+    let bin_primary = compute("cs_bin_primary");
+    let bin_shadow = compute("cs_bin_shadow");
+    [bin_primary, bin_shadow]
+}
+
+/// Pipelines drawn over the bins, [plain, perturbed] each: the casts, their pass-through
+/// draws and the shadow passes; `small`: see [`shaders::freeform`].
+#[allow(clippy::type_complexity)]
+fn binned_pipelines(
+    gpu: &Gpu,
+    tables: FfTables,
+    small: bool,
+    cast_bgl: &wgpu::BindGroupLayout,
+) -> (
+    [wgpu::RenderPipeline; 2],
+    [wgpu::RenderPipeline; 2],
+    [wgpu::RenderPipeline; 2],
+) {
+    let dev = &gpu.device;
+    let module = |label: &str, src: String| super::shader_module(dev, gpu.params, label, &src);
+    let cast_mod = module("objects.wgsl", shaders::objects(small, tables));
+    let shadow_mod = module("ff_shadow.wgsl", shaders::ff_shadow(small, tables));
+    // One pass per list and object kind, drawn as a quad per bin with such objects.
+    let binned = |m: &wgpu::ShaderModule, entries: [&str; 2], format| {
+        render_pipeline(
+            dev,
+            entries[1],
+            m,
+            entries,
+            cast_bgl,
+            &[Some(target_state(format))],
+            None,
+        )
+    };
+    let g = wgpu::TextureFormat::Rgba32Uint;
+    let cast = [
+        binned(&cast_mod, ["vs_bins_primary_plain", "fs_objects_plain"], g),
+        binned(
+            &cast_mod,
+            ["vs_bins_primary_general", "fs_objects_general"],
+            g,
+        ),
+    ];
+    // With both kinds, each cast pass also copies its input through over the bins only the
+    // other kind lists (see `encode_cast`).
+    let copy_through = [
+        binned(
+            &cast_mod,
+            ["vs_bins_primary_general_only", "fs_copy_gbuffer"],
+            g,
+        ),
+        binned(
+            &cast_mod,
+            ["vs_bins_primary_plain_only", "fs_copy_gbuffer"],
+            g,
+        ),
+    ];
+    let r = wgpu::TextureFormat::R32Uint;
+    let shadow = [
+        binned(
+            &shadow_mod,
+            ["vs_bins_shadow_plain", "fs_ff_shadow_plain"],
+            r,
+        ),
+        binned(
+            &shadow_mod,
+            ["vs_bins_shadow_general", "fs_ff_shadow_general"],
+            r,
+        ),
+    ];
+    (cast, copy_through, shadow)
+}
+
 /// Object buffers and the pipelines that use them.
 pub(crate) struct ObjectPasses {
     pub count: u32,
@@ -177,54 +316,12 @@ impl ObjectPasses {
     /// Uploads `objects` and builds their pipelines; `allow_uniform`: tables in uniform
     /// buffers where they fit (else always storage buffers).
     pub fn new(gpu: &Gpu, objects: &[FreeForm], allow_uniform: bool) -> Result<ObjectPasses> {
-        let dev = &gpu.device;
-        if objects.len() > crate::freeform::MAX_OBJECTS {
-            return Err(Error::Limit {
-                what: "free forms".into(),
-                msg: format!(
-                    "{} objects, at most {}",
-                    objects.len(),
-                    crate::freeform::MAX_OBJECTS
-                ),
-            });
-        }
-        if !gpu.downlevel.contains(wgpu::DownlevelFlags::VERTEX_STORAGE) {
-            return Err(Error::Limit {
-                what: "storage buffers in vertex shaders".into(),
-                msg: format!(
-                    "the free-form passes draw their bins from a storage buffer, which {} does \
-                     not allow in vertex shaders; render the scene without [[objects]] or on \
-                     another adapter (WGPU_BACKEND=vulkan)",
-                    gpu.info.name
-                ),
-            });
-        }
+        check_objects(gpu, objects)?;
         let (recs, nodes) = pack(objects);
-        super::renderer::check_buffer_limit(gpu, "free-form records", (recs.len() * 144) as u64)?;
-        super::renderer::check_buffer_limit(gpu, "free-form quadrics", (nodes.len() * 48) as u64)?;
-        let tables = FfTables::choose(
-            recs.len(),
-            nodes.len(),
-            if allow_uniform {
-                gpu.limits.max_uniform_buffer_binding_size
-            } else {
-                0
-            },
-        );
-        log::debug!("free-form tables: {tables:?}");
-        let need = tables.storage_buffers(gpu.params);
-        let have = gpu.limits.max_storage_buffers_per_shader_stage;
-        if have < need {
-            return Err(Error::Limit {
-                what: "storage buffers per shader stage".into(),
-                msg: format!(
-                    "free forms need {need}, the adapter {} allows {have}; render the scene without [[objects]]",
-                    gpu.info.name
-                ),
-            });
-        }
+        let tables = choose_tables(gpu, &recs, &nodes, allow_uniform)?;
+        let dev = &gpu.device;
         let usage = if tables.uniform() {
-            super::PARAM_USAGE
+            PARAM_USAGE
         } else {
             wgpu::BufferUsages::STORAGE
         };
@@ -238,113 +335,14 @@ impl ObjectPasses {
             contents: bytemuck::cast_slice(&nodes),
             usage,
         });
-        let cs = wgpu::ShaderStages::COMPUTE;
-        let fs = wgpu::ShaderStages::FRAGMENT;
-        let vfs = wgpu::ShaderStages::VERTEX_FRAGMENT;
-        let bin_bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("free-form bins"),
-            entries: &[
-                uniform_entry(gpu.params, 0, cs),
-                uint_texture_entry(3, cs),
-                uint_texture_entry(4, cs),
-                tables.entry(gpu.params, 6, cs),
-                storage_entry(8, cs, false),
-            ],
-        });
-        let cast_bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("free-form cast"),
-            entries: &[
-                uniform_entry(gpu.params, 0, vfs),
-                uint_texture_entry(3, fs),
-                uint_texture_entry(4, fs),
-                tables.entry(gpu.params, 6, fs),
-                tables.entry(gpu.params, 7, fs),
-                storage_entry(8, vfs, true),
-            ],
-        });
-        let shade_bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("shade with free forms"),
-            entries: &[
-                uniform_entry(gpu.params, 0, fs),
-                storage_entry(1, fs, true),
-                storage_entry(2, fs, true),
-                uint_texture_entry(3, fs),
-                uint_texture_entry(4, fs),
-                storage_entry(5, fs, true),
-                tables.entry(gpu.params, 6, fs),
-                uint_texture_entry(9, fs),
-                float_texture_entry(19, fs, wgpu::TextureViewDimension::D2),
-            ],
-        });
-        let module = |label: &str, src: String| super::shader_module(dev, gpu.params, label, &src);
-        let bin_mod = module("ff_bin.wgsl", shaders::ff_bin(tables));
+        let [bin_bgl, cast_bgl, shade_bgl] = object_layouts(gpu, tables);
         // Perturbed objects of at most FF_RAY_NODES nodes (every one in the demo) keep their
         // node data per ray in the interval search.
         let small = objects
             .iter()
             .all(|o| o.nodes.len() <= shaders::FF_RAY_NODES);
-        let cast_mod = module("objects.wgsl", shaders::objects(small, tables));
-        let shadow_mod = module("ff_shadow.wgsl", shaders::ff_shadow(small, tables));
-        let compute = |entry: &str| {
-            dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(entry),
-                layout: Some(&pipeline_layout(dev, &bin_bgl)),
-                module: &bin_mod,
-                entry_point: Some(entry),
-                compilation_options: Default::default(),
-                cache: None,
-            })
-        };
-        let bin_primary = compute("cs_bin_primary");
-        let bin_shadow = compute("cs_bin_shadow");
-        // One pass per list and object kind, drawn as a quad per bin with such objects.
-        let binned = |m: &wgpu::ShaderModule, entries: [&str; 2], format| {
-            render_pipeline(
-                dev,
-                entries[1],
-                m,
-                entries,
-                &cast_bgl,
-                &[Some(target_state(format))],
-                None,
-            )
-        };
-        let g = wgpu::TextureFormat::Rgba32Uint;
-        let cast = [
-            binned(&cast_mod, ["vs_bins_primary_plain", "fs_objects_plain"], g),
-            binned(
-                &cast_mod,
-                ["vs_bins_primary_general", "fs_objects_general"],
-                g,
-            ),
-        ];
-        // With both kinds, each cast pass also copies its input through over the bins only the
-        // other kind lists (see `encode_cast`).
-        let copy_through = [
-            binned(
-                &cast_mod,
-                ["vs_bins_primary_general_only", "fs_copy_gbuffer"],
-                g,
-            ),
-            binned(
-                &cast_mod,
-                ["vs_bins_primary_plain_only", "fs_copy_gbuffer"],
-                g,
-            ),
-        ];
-        let r = wgpu::TextureFormat::R32Uint;
-        let shadow = [
-            binned(
-                &shadow_mod,
-                ["vs_bins_shadow_plain", "fs_ff_shadow_plain"],
-                r,
-            ),
-            binned(
-                &shadow_mod,
-                ["vs_bins_shadow_general", "fs_ff_shadow_general"],
-                r,
-            ),
-        ];
+        let [bin_primary, bin_shadow] = bin_pipelines(gpu, tables, &bin_bgl);
+        let (cast, copy_through, shadow) = binned_pipelines(gpu, tables, small, &cast_bgl);
         let plain = objects.iter().filter(|o| o.nodes.len() == 1).count() as u32;
         let shade = shade_pipelines(
             gpu.params,
@@ -383,7 +381,7 @@ impl ObjectPasses {
         let dev = &gpu.device;
         let bins = [width.div_ceil(BIN), height.div_ceil(BIN)];
         let bytes = 2 * bins[0] as u64 * bins[1] as u64 * (BIN_CAPACITY as u64 + 1) * 4;
-        super::renderer::check_buffer_limit(gpu, "free-form bins", bytes)?;
+        check_buffer_limit(gpu, "free-form bins", bytes)?;
         let bins_buf = dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some("free-form bins"),
             size: bytes,

@@ -3,7 +3,9 @@
 //! [`crate::display::pattern`]). It replaces the tile, cast and shade passes while set, so the
 //! terrain passes carry none of its code.
 
-use super::renderer::{fullscreen_pipeline, target_state, uint_texture_entry, uniform_entry};
+use super::util::{
+    encode_fullscreen, fullscreen_pipeline, target_state, uint_texture_entry, uniform_entry,
+};
 use super::{shaders, Gpu};
 use crate::display::pattern::PatternParams;
 
@@ -80,12 +82,6 @@ impl PatternPass {
                 },
             ],
         });
-        super::TerrainRenderer::encode_fullscreen(
-            enc,
-            "pattern",
-            &self.pipeline,
-            &bg,
-            &[colour, data],
-        );
+        encode_fullscreen(enc, "pattern", &self.pipeline, &bg, &[colour, data]);
     }
 }

@@ -1,10 +1,8 @@
 //! WGSL sources. One file per pass; shared code lives in included files that are prepended
-//! here (WGSL has no include directive).
+//! here (WGSL has no include directive), after the pass's compile-time switches
+//! ([`super::variants`]).
 
-use super::objects::FfTables;
-use super::shade::ShadeFeatures;
-use super::specialise::Switches;
-use super::volumes::VolumeSwitches;
+use super::variants::{FfTables, ShadeFeatures, Switches, VolumeSwitches};
 
 const FRAME: &str = include_str!("shaders/frame.wgsl");
 const FULLSCREEN: &str = include_str!("shaders/fullscreen.wgsl");
@@ -13,6 +11,10 @@ const GBUFFER: &str = include_str!("shaders/gbuffer.wgsl");
 const RAY_TABLE: &str = include_str!("shaders/ray_table.wgsl");
 const FREEFORM: &str = include_str!("shaders/freeform.wgsl");
 const FF_BINS: &str = include_str!("shaders/ff_bins.wgsl");
+/// Constants shared by the binning pass and the passes reading its lists (`FF_BIN`,
+/// `FF_OVERFLOW`).
+pub const FF_CONSTS: &str = include_str!("shaders/ff_consts.wgsl");
+const SRGB: &str = include_str!("shaders/srgb.wgsl");
 const HAZE: &str = include_str!("shaders/haze.wgsl");
 const VOXEL_DDA: &str = include_str!("shaders/voxel_dda.wgsl");
 const VOLUME_TYPES: &str = include_str!("shaders/volume_types.wgsl");
@@ -57,6 +59,7 @@ pub fn shade(f: ShadeFeatures) -> String {
         RAY_TABLE,
         TRAVERSE,
         GBUFFER,
+        SRGB,
         HAZE,
         include_str!("shaders/shade.wgsl"),
         include_str!("shaders/shade_terrain_only.wgsl"),
@@ -75,6 +78,7 @@ pub fn shade_objects(f: ShadeFeatures, tables: FfTables) -> String {
         TRAVERSE,
         GBUFFER,
         &freeform(false, tables),
+        SRGB,
         HAZE,
         include_str!("shaders/shade.wgsl"),
         include_str!("shaders/shade_objects.wgsl"),
@@ -112,6 +116,7 @@ pub fn ff_bin(tables: FfTables) -> String {
         FRAME,
         RAY_TABLE,
         &freeform(false, tables),
+        FF_CONSTS,
         include_str!("shaders/ff_bin.wgsl"),
     ]
     .concat()
@@ -125,6 +130,7 @@ pub fn ff_shadow(small: bool, tables: FfTables) -> String {
         FULLSCREEN,
         RAY_TABLE,
         &freeform(small, tables),
+        FF_CONSTS,
         FF_BINS,
         include_str!("shaders/ff_shadow.wgsl"),
     ]
@@ -139,6 +145,7 @@ pub fn objects(small: bool, tables: FfTables) -> String {
         FULLSCREEN,
         RAY_TABLE,
         &freeform(small, tables),
+        FF_CONSTS,
         FF_BINS,
         include_str!("shaders/objects.wgsl"),
     ]
@@ -153,6 +160,7 @@ pub fn volume(sw: VolumeSwitches) -> String {
         FRAME,
         FULLSCREEN,
         RAY_TABLE,
+        SRGB,
         HAZE,
         VOLUME_TYPES,
         include_str!("shaders/volume.wgsl"),
@@ -167,6 +175,7 @@ pub fn volume_composite(count: u32) -> String {
         &format!("const VOL_COUNT: u32 = {count}u;\n"),
         FRAME,
         FULLSCREEN,
+        SRGB,
         HAZE,
         include_str!("shaders/volume_composite.wgsl"),
     ]
@@ -212,6 +221,56 @@ pub fn blend() -> String {
     [FULLSCREEN, include_str!("shaders/blend.wgsl")].concat()
 }
 
+/// The window's present pass (fragment): the colour target or a debug view of the data target
+/// to the swap-chain image, with the text overlay.
+pub fn present() -> String {
+    [FULLSCREEN, SRGB, include_str!("shaders/present.wgsl")].concat()
+}
+
+/// The value of `const NAME: u32 = <decimal>u;` in WGSL `src`, evaluated at compile time to tie
+/// a Rust constant to its WGSL twin (`const _: () = assert!(wgsl_u32(..) == RUST_CONST);`).
+/// Panics (a compile error in a constant) when `src` has no such line.
+pub const fn wgsl_u32(src: &str, name: &str) -> u32 {
+    const fn starts_with(s: &[u8], at: usize, p: &[u8]) -> bool {
+        if at + p.len() > s.len() {
+            return false;
+        }
+        let mut k = 0;
+        while k < p.len() {
+            if s[at + k] != p[k] {
+                return false;
+            }
+            k += 1;
+        }
+        true
+    }
+    let (s, n) = (src.as_bytes(), name.as_bytes());
+    let mut i = 0;
+    while i < s.len() {
+        let at_line = i == 0 || s[i - 1] == b'\n';
+        let mut j = i + 6;
+        if at_line
+            && starts_with(s, i, b"const ")
+            && starts_with(s, j, n)
+            && starts_with(s, j + n.len(), b": u32 = ")
+        {
+            j += n.len() + 8;
+            let mut v: u32 = 0;
+            let mut digits = 0;
+            while j < s.len() && s[j].is_ascii_digit() {
+                v = v * 10 + (s[j] - b'0') as u32;
+                j += 1;
+                digits += 1;
+            }
+            if digits > 0 && j < s.len() && s[j] == b'u' {
+                return v;
+            }
+        }
+        i += 1;
+    }
+    panic!("no `const NAME: u32 = <decimal>u;` line for the name in the WGSL source")
+}
+
 /// Every composed pass source with its name, for validation.
 pub fn all() -> Vec<(&'static str, String)> {
     const UNIFORM: FfTables = FfTables::Uniform {
@@ -251,5 +310,6 @@ pub fn all() -> Vec<(&'static str, String)> {
         ("blend", blend()),
         ("voxels", voxels(2)),
         ("pattern", pattern()),
+        ("present", present()),
     ]
 }

@@ -12,25 +12,14 @@
 //! (Constants in the source rather than pipeline `override`s: one source per variant is what
 //! the naga validation test checks, and every variant is a complete, valid module.)
 
-use super::renderer::render_pipeline;
+use super::util::render_pipeline;
+use super::ParamSpace;
 
-/// A set of compile-time switches of one pass.
-pub trait Switches: Copy + Eq + std::fmt::Debug {
-    /// WGSL `const` declarations of the switches, to prepend to the pass source.
-    fn wgsl_constants(&self) -> String;
-}
-
-/// `const NAME: bool = value;` lines.
-pub fn wgsl_bools(switches: &[(&str, bool)]) -> String {
-    switches
-        .iter()
-        .map(|(name, on)| format!("const {name}: bool = {on};\n"))
-        .collect()
-}
+pub use super::variants::{wgsl_bools, Switches};
 
 /// The pipelines of one full-screen fragment pass, one per switch combination used so far.
 pub struct SpecialisedPipelines<S: Switches> {
-    space: super::ParamSpace,
+    space: ParamSpace,
     label: &'static str,
     source: Box<dyn Fn(S) -> String + Send + Sync>,
     entry: &'static str,
@@ -44,7 +33,7 @@ impl<S: Switches> SpecialisedPipelines<S> {
     /// stage, parameter blocks in `space`), bind-group layout `bgl`, colour `targets`; none
     /// built yet.
     pub fn new(
-        space: super::ParamSpace,
+        space: ParamSpace,
         label: &'static str,
         source: impl Fn(S) -> String + Send + Sync + 'static,
         entry: &'static str,

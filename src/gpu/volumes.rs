@@ -7,17 +7,19 @@
 //! * composite ([`CompositePass`]): the layers sorted per pixel by the medium's depth and
 //!   composited over the shaded image.
 
-use super::renderer::{
-    buf, float_texture_entry, fullscreen_pipeline, screen_texture, storage_entry, target_state,
-    uint_texture_entry, uniform_entry, view,
-};
-use super::specialise::{wgsl_bools, SpecialisedPipelines, Switches};
+use super::specialise::SpecialisedPipelines;
 use super::types::VolumeUniforms;
-use super::{shaders, Gpu};
+use super::util::{
+    buf, check_buffer_limit, float_texture_entry, fullscreen_pipeline, padded_row, screen_texture,
+    storage_entry, target_state, uint_texture_entry, uniform_entry, view,
+};
+use super::{shaders, Gpu, PARAM_USAGE};
 use crate::volume::transfer::TABLE_SIZE;
 use crate::volume::Volume;
 use crate::{Error, Result};
 use wgpu::util::DeviceExt;
+
+pub use super::variants::VolumeSwitches;
 
 /// Format of the per-pixel statistics target (samples taken, segments passed, f32 bits of the
 /// medium's depth).
@@ -313,9 +315,7 @@ impl CompositePass {
         });
         let stats_rb = dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some("volume statistics readback"),
-            size: super::renderer::padded_row(width * 16) as u64
-                * height as u64
-                * self.count as u64,
+            size: padded_row(width * 16) as u64 * height as u64 * self.count as u64,
             usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
             mapped_at_creation: false,
         });
@@ -343,73 +343,12 @@ fn table_bytes(v: &Volume) -> Vec<u8> {
 }
 
 impl VolumePass {
+    /// Uploads `volume` (texture with its mip levels, shadow grids, transfer table, brick
+    /// occupancy) and makes its pass; the pipelines are built on first use.
     pub fn new(gpu: &Gpu, volume: &Volume) -> Result<VolumePass> {
+        check_volume_limits(gpu, volume)?;
         let dev = &gpu.device;
-        let max3 = gpu.limits.max_texture_dimension_3d;
-        let dims = volume.grid.dims;
-        if dims.iter().any(|&d| d > max3) {
-            return Err(Error::Limit {
-                what: format!("volume {:?}", volume.name),
-                msg: format!(
-                    "{}x{}x{} voxels; the adapter {} allows {max3} per side of a 3-D texture: \
-                     downsample the volume",
-                    dims[0], dims[1], dims[2], gpu.info.name
-                ),
-            });
-        }
-        let bytes: u64 = volume
-            .texture
-            .levels
-            .iter()
-            .map(|l| l.texels.len() as u64 * 4)
-            .sum();
-        if bytes > 2 << 30 {
-            return Err(Error::Limit {
-                what: format!("volume {:?}", volume.name),
-                msg: format!("{bytes} bytes of texture; at most 2 GiB"),
-            });
-        }
-        super::renderer::check_buffer_limit(
-            gpu,
-            "volume brick grid",
-            volume.occupancy.len() as u64 * 4,
-        )?;
-        let tex = dev.create_texture(&wgpu::TextureDescriptor {
-            label: Some("volume"),
-            size: wgpu::Extent3d {
-                width: dims[0],
-                height: dims[1],
-                depth_or_array_layers: dims[2],
-            },
-            mip_level_count: volume.texture.levels.len() as u32,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D3,
-            format: wgpu::TextureFormat::Rgba8Unorm,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-            view_formats: &[],
-        });
-        for (i, l) in volume.texture.levels.iter().enumerate() {
-            gpu.queue.write_texture(
-                wgpu::TexelCopyTextureInfo {
-                    texture: &tex,
-                    mip_level: i as u32,
-                    origin: wgpu::Origin3d::ZERO,
-                    aspect: wgpu::TextureAspect::All,
-                },
-                bytemuck::cast_slice(&l.texels),
-                wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(l.dims[0] * 4),
-                    rows_per_image: Some(l.dims[1]),
-                },
-                wgpu::Extent3d {
-                    width: l.dims[0],
-                    height: l.dims[1],
-                    depth_or_array_layers: l.dims[2],
-                },
-            );
-        }
-        let view = tex.create_view(&Default::default());
+        let view = upload_texture(gpu, volume).create_view(&Default::default());
         let shadow = shadow_texture(gpu, volume, |sh| sh.lit_data());
         let shadow_view = shadow.create_view(&Default::default());
         let surface_shadow = shadow_texture(gpu, volume, |sh| &sh.data);
@@ -430,7 +369,7 @@ impl VolumePass {
         let table = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("transfer table"),
             contents: &table_bytes(volume),
-            usage: super::PARAM_USAGE,
+            usage: PARAM_USAGE,
         });
         let bricks = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("volume bricks"),
@@ -440,30 +379,10 @@ impl VolumePass {
         let uniforms = dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some("volume uniforms"),
             size: std::mem::size_of::<VolumeUniforms>() as u64,
-            usage: super::PARAM_USAGE,
+            usage: PARAM_USAGE,
             mapped_at_creation: false,
         });
-        let fs = wgpu::ShaderStages::FRAGMENT;
-        let bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("volume"),
-            entries: &[
-                uniform_entry(gpu.params, 0, fs),
-                uint_texture_entry(3, fs),
-                uint_texture_entry(11, fs),
-                float_texture_entry(12, fs, wgpu::TextureViewDimension::D3),
-                uniform_entry(gpu.params, 14, fs),
-                storage_entry(15, fs, true),
-                uniform_entry(gpu.params, 16, fs),
-                filterable_3d_entry(17),
-                sampler_entry(18),
-                wgpu::BindGroupLayoutEntry {
-                    binding: 20,
-                    visibility: fs,
-                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::NonFiltering),
-                    count: None,
-                },
-            ],
-        });
+        let bgl = volume_layout(gpu);
         let pipelines = SpecialisedPipelines::new(
             gpu.params,
             "volume",
@@ -506,12 +425,16 @@ impl VolumePass {
         );
     }
 
-    /// The pipeline for the volume's current sampling switches, built on first use.
-    pub fn pipeline(&mut self, gpu: &Gpu) -> &wgpu::RenderPipeline {
-        let i = self
-            .pipelines
-            .prepare(&gpu.device, VolumeSwitches::on(&self.volume, &gpu.info));
-        self.pipelines.get(i)
+    /// Builds the pipeline for the volume's current sampling switches unless it exists;
+    /// returns its index for [`VolumePass::pipeline`].
+    pub fn prepare(&mut self, gpu: &Gpu) -> usize {
+        self.pipelines
+            .prepare(&gpu.device, VolumeSwitches::on(&self.volume, &gpu.info))
+    }
+
+    /// A pipeline [`VolumePass::prepare`] returned the index of.
+    pub fn pipeline(&self, index: usize) -> &wgpu::RenderPipeline {
+        self.pipelines.get(index)
     }
 
     /// Uploads the per-frame uniforms for an eye at world position `eye`.
@@ -591,6 +514,103 @@ impl VolumePass {
     }
 }
 
+/// Refuses a volume over the adapter's 3-D texture or storage-buffer limits or 2 GiB of texture.
+fn check_volume_limits(gpu: &Gpu, volume: &Volume) -> Result<()> {
+    let max3 = gpu.limits.max_texture_dimension_3d;
+    let dims = volume.grid.dims;
+    if dims.iter().any(|&d| d > max3) {
+        return Err(Error::Limit {
+            what: format!("volume {:?}", volume.name),
+            msg: format!(
+                "{}x{}x{} voxels; the adapter {} allows {max3} per side of a 3-D texture: \
+                 downsample the volume",
+                dims[0], dims[1], dims[2], gpu.info.name
+            ),
+        });
+    }
+    let bytes: u64 = volume
+        .texture
+        .levels
+        .iter()
+        .map(|l| l.texels.len() as u64 * 4)
+        .sum();
+    if bytes > 2 << 30 {
+        return Err(Error::Limit {
+            what: format!("volume {:?}", volume.name),
+            msg: format!("{bytes} bytes of texture; at most 2 GiB"),
+        });
+    }
+    check_buffer_limit(gpu, "volume brick grid", volume.occupancy.len() as u64 * 4)?;
+    Ok(())
+}
+
+/// The volume's RGBA8 3-D texture with every mip level written.
+fn upload_texture(gpu: &Gpu, volume: &Volume) -> wgpu::Texture {
+    let dims = volume.grid.dims;
+    let tex = gpu.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("volume"),
+        size: wgpu::Extent3d {
+            width: dims[0],
+            height: dims[1],
+            depth_or_array_layers: dims[2],
+        },
+        mip_level_count: volume.texture.levels.len() as u32,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D3,
+        format: wgpu::TextureFormat::Rgba8Unorm,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    for (i, l) in volume.texture.levels.iter().enumerate() {
+        gpu.queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture: &tex,
+                mip_level: i as u32,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            bytemuck::cast_slice(&l.texels),
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(l.dims[0] * 4),
+                rows_per_image: Some(l.dims[1]),
+            },
+            wgpu::Extent3d {
+                width: l.dims[0],
+                height: l.dims[1],
+                depth_or_array_layers: l.dims[2],
+            },
+        );
+    }
+    tex
+}
+
+/// The volume pass's bind-group layout.
+fn volume_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
+    let fs = wgpu::ShaderStages::FRAGMENT;
+    gpu.device
+        .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("volume"),
+            entries: &[
+                uniform_entry(gpu.params, 0, fs),
+                uint_texture_entry(3, fs),
+                uint_texture_entry(11, fs),
+                float_texture_entry(12, fs, wgpu::TextureViewDimension::D3),
+                uniform_entry(gpu.params, 14, fs),
+                storage_entry(15, fs, true),
+                uniform_entry(gpu.params, 16, fs),
+                filterable_3d_entry(17),
+                sampler_entry(18),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 20,
+                    visibility: fs,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::NonFiltering),
+                    count: None,
+                },
+            ],
+        })
+}
+
 /// A shadow texture of `volume`: the transmittance bytes `grid` picks, or one fully lit texel.
 fn shadow_texture(
     gpu: &Gpu,
@@ -640,92 +660,6 @@ fn write_shadow(gpu: &Gpu, tex: &wgpu::Texture, dims: [u32; 3], data: &[u8]) {
             depth_or_array_layers: dims[2],
         },
     );
-}
-
-/// The volume pass's compile-time switches (see [`super::specialise`] for why).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct VolumeSwitches {
-    /// Empty-space skipping through the brick occupancy.
-    pub skip: bool,
-    /// Early ray termination.
-    pub termination: bool,
-    /// Jittered sample positions.
-    pub jitter: bool,
-    /// Mip level from the pixel footprint.
-    pub mipmaps: bool,
-    /// Rays start at an ellipsoid shell.
-    pub shell: bool,
-    /// 1-bit slice masks (the 4-D function's `w` slices) instead of densities.
-    pub slices: bool,
-    /// Self-shadowing: samples lit with the sun's transmittance (`volume::shadow`).
-    pub shadow: bool,
-    /// Mip texels read through a nearest sampler instead of `textureLoad` (on GL: llvmpipe's
-    /// GL path fetches with one level for a whole SIMD block; 1.5x the volume pass there).
-    pub sampled_fetch: bool,
-}
-
-impl VolumeSwitches {
-    /// Every switch on.
-    pub const ALL: VolumeSwitches = VolumeSwitches {
-        skip: true,
-        termination: true,
-        jitter: true,
-        mipmaps: true,
-        shell: true,
-        slices: true,
-        shadow: true,
-        sampled_fetch: true,
-    };
-    /// Every switch off.
-    pub const NONE: VolumeSwitches = VolumeSwitches {
-        skip: false,
-        termination: false,
-        jitter: false,
-        mipmaps: false,
-        shell: false,
-        slices: false,
-        shadow: false,
-        sampled_fetch: false,
-    };
-
-    /// The switches volume `v` renders with (`sampled_fetch` off: see [`VolumeSwitches::on`]).
-    pub fn of(v: &Volume) -> VolumeSwitches {
-        let s = &v.settings;
-        VolumeSwitches {
-            skip: s.skip,
-            termination: s.early_termination,
-            jitter: s.jitter,
-            mipmaps: s.mipmaps,
-            shell: v.shell.is_some(),
-            slices: v.grid.slices > 0,
-            shadow: v.sun_shadow.is_some(),
-            sampled_fetch: false,
-        }
-    }
-
-    /// The switches volume `v` renders with on the adapter `info`: texels of the mip levels
-    /// sampled on GL, loaded elsewhere.
-    pub fn on(v: &Volume, info: &wgpu::AdapterInfo) -> VolumeSwitches {
-        VolumeSwitches {
-            sampled_fetch: v.settings.mipmaps && info.backend == wgpu::Backend::Gl,
-            ..VolumeSwitches::of(v)
-        }
-    }
-}
-
-impl Switches for VolumeSwitches {
-    fn wgsl_constants(&self) -> String {
-        wgsl_bools(&[
-            ("SKIP", self.skip),
-            ("TERMINATION", self.termination),
-            ("JITTER", self.jitter),
-            ("MIPMAPS", self.mipmaps),
-            ("SHELL", self.shell),
-            ("SLICES", self.slices),
-            ("SHADOW", self.shadow),
-            ("SAMPLED_FETCH", self.sampled_fetch),
-        ])
-    }
 }
 
 /// The uniform block for `v` seen from world position `eye`.

@@ -9,12 +9,12 @@
 //! models its mask names (a record per rectangle in `draws`, bound by dynamic offset), a
 //! rectangle of one model by the `_one` entry points.
 
-use super::renderer::{
+use super::types::{VoxDrawGpu, VoxInstanceGpu};
+use super::util::{
     buf, fullscreen_pipeline_with, screen_texture, storage_entry, target_state, uint_texture_entry,
     uniform_entry, view,
 };
-use super::types::{VoxDrawGpu, VoxInstanceGpu};
-use super::{shaders, Gpu};
+use super::{shaders, Gpu, PARAM_USAGE};
 use crate::cpu::voxel::InstanceRect;
 use crate::voxel::{VoxelInstance, VoxelModel, BRICK_VOXELS, EMPTY_BRICK};
 use crate::{Error, Result};
@@ -45,97 +45,85 @@ struct FrameRef {
     palette: u32,
 }
 
-/// Uploaded voxel data and the pipelines.
-pub(crate) struct VoxelPasses {
-    instances: Vec<VoxelInstance>,
-    /// Boxes the screen rectangles come from (`cpu::voxel::cover_boxes`), once per upload.
-    cover: Vec<Vec<[glam::DVec3; 2]>>,
+/// Refuses more instances than the shaders address, and adapters with fewer than the two
+/// storage buffers the passes read.
+fn check_instances(gpu: &Gpu, instances: &[VoxelInstance]) -> Result<()> {
+    if instances.len() > crate::voxel::desc::MAX_INSTANCES {
+        return Err(Error::Limit {
+            what: "voxel models".into(),
+            msg: format!(
+                "{} placed, at most {}",
+                instances.len(),
+                crate::voxel::desc::MAX_INSTANCES
+            ),
+        });
+    }
+    let have = gpu.limits.max_storage_buffers_per_shader_stage;
+    if have < 2 {
+        return Err(Error::Limit {
+            what: "storage buffers per shader stage".into(),
+            msg: format!(
+                "voxel models need 2, the adapter {} allows {have}; render the scene without [[voxels]]",
+                gpu.info.name
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// Refuses a storage buffer of `bytes` over the adapter's limits.
+fn check_storage(gpu: &Gpu, what: &str, bytes: u64) -> Result<()> {
+    let limit = gpu
+        .limits
+        .max_storage_buffer_binding_size
+        .min(gpu.limits.max_buffer_size);
+    if bytes > limit {
+        return Err(Error::Limit {
+            what: what.to_string(),
+            msg: format!(
+                "{bytes} bytes needed, the adapter {} allows {limit} bytes per storage buffer; use smaller voxel models or fewer animation frames",
+                gpu.info.name
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// Bytes of the brick tables of every distinct frame of the instances' models.
+fn brick_table_bytes(instances: &[VoxelInstance]) -> u64 {
+    let mut unique = std::collections::HashSet::new();
+    instances
+        .iter()
+        .flat_map(|i| &i.frames)
+        .filter(|f| unique.insert(Arc::as_ptr(f)))
+        .map(|f| {
+            f.dims
+                .iter()
+                .map(|&d| d.div_ceil(crate::voxel::BRICK) as u64)
+                .product::<u64>()
+                * 4
+                * 8
+        })
+        .sum()
+}
+
+/// The voxel data as the passes read it, before the tables' entries point into the pool.
+struct Packed {
+    table: Vec<u32>,
+    pool: Vec<u32>,
+    palette: Vec<u32>,
+    /// Per instance, where each of its frames lies.
     frames: Vec<Vec<FrameRef>>,
-    instance_buf: wgpu::Buffer,
-    /// One `VoxDrawGpu` per drawn rectangle, `draw_stride` bytes apart: the cast's first,
-    /// then the shadow pass's (`slots` each).
-    draws: wgpu::Buffer,
-    draw_stride: u64,
-    /// Brick tables, then the brick pool (`vox_data`).
-    data: wgpu::Buffer,
-    palette: wgpu::Buffer,
-    bgl: wgpu::BindGroupLayout,
-    /// Entry points for rectangles of several instances, and of one (`_one`).
-    cast: wgpu::RenderPipeline,
-    cast_one: wgpu::RenderPipeline,
-    shadow: wgpu::RenderPipeline,
-    shadow_one: wgpu::RenderPipeline,
 }
 
-/// Size-dependent resources.
-pub(crate) struct VoxelTargets {
-    /// The copy of the G-buffer's rectangles the passes read.
-    gbuffer_copy: wgpu::Texture,
-    bg: wgpu::BindGroup,
-}
-
-impl VoxelPasses {
-    pub fn new(gpu: &Gpu, instances: &[VoxelInstance]) -> Result<VoxelPasses> {
-        let dev = &gpu.device;
-        if instances.len() > crate::voxel::desc::MAX_INSTANCES {
-            return Err(Error::Limit {
-                what: "voxel models".into(),
-                msg: format!(
-                    "{} placed, at most {}",
-                    instances.len(),
-                    crate::voxel::desc::MAX_INSTANCES
-                ),
-            });
-        }
-        let have = gpu.limits.max_storage_buffers_per_shader_stage;
-        if have < 2 {
-            return Err(Error::Limit {
-                what: "storage buffers per shader stage".into(),
-                msg: format!(
-                    "voxel models need 2, the adapter {} allows {have}; render the scene without [[voxels]]",
-                    gpu.info.name
-                ),
-            });
-        }
-        let limit = gpu
-            .limits
-            .max_storage_buffer_binding_size
-            .min(gpu.limits.max_buffer_size);
-        let check = |what: &str, bytes: u64| -> Result<()> {
-            if bytes > limit {
-                return Err(Error::Limit {
-                    what: what.to_string(),
-                    msg: format!(
-                        "{bytes} bytes needed, the adapter {} allows {limit} bytes per storage buffer; use smaller voxel models or fewer animation frames",
-                        gpu.info.name
-                    ),
-                });
-            }
-            Ok(())
-        };
-        // Brick tables first, from the sizes alone (before anything large is built).
-        let mut unique = std::collections::HashSet::new();
-        let table_bytes: u64 = instances
-            .iter()
-            .flat_map(|i| &i.frames)
-            .filter(|f| unique.insert(Arc::as_ptr(f)))
-            .map(|f| {
-                f.dims
-                    .iter()
-                    .map(|&d| d.div_ceil(crate::voxel::BRICK) as u64)
-                    .product::<u64>()
-                    * 4
-                    * 8
-            })
-            .sum();
-        check("voxel brick tables", table_bytes)?;
+impl Packed {
+    fn new(instances: &[VoxelInstance]) -> Packed {
         // Brick tables first, then the pool (`vox_data` in voxel_dda.wgsl). A frame has a table
         // per octant of ray directions; an entry is its block's word address in the same
         // buffer, or VOX_EMPTY_BIT | the brick's gap in voxels towards the octant
         // (`Bricks::brick_gap`). A block holds for each octant the brick's 512 4-bit voxel
         // codes (0 = occupied, else the octant's cube side, `Bricks::pool_jump`; 8 a word),
         // then the palette indices (4 a word).
-        let built = std::time::Instant::now();
         let mut table: Vec<u32> = Vec::new();
         let mut pool: Vec<u32> = Vec::new();
         let mut palette: Vec<u32> = Vec::new();
@@ -188,41 +176,32 @@ impl VoxelPasses {
             }
             frames.push(refs);
         }
-        let data_bytes = (table.len() + pool.len()) as u64 * 4;
-        check("voxel brick tables and pool", data_bytes)?;
-        let pool_base = table.len() as u32;
-        let mut data = table;
-        for e in data.iter_mut().filter(|e| **e & EMPTY_BIT == 0) {
-            *e = pool_base + *e * BLOCK_WORDS as u32;
+        Packed {
+            table,
+            pool,
+            palette,
+            frames,
         }
-        data.extend(pool);
-        let bytes = data_bytes + palette.len() as u64 * 4;
-        let storage = wgpu::BufferUsages::STORAGE;
-        let init = |label: &str, contents: &[u8], usage| {
-            dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents,
-                usage,
-            })
-        };
-        let data = init("voxel bricks", bytemuck::cast_slice(&data), storage);
-        let palette = init("voxel palettes", bytemuck::cast_slice(&palette), storage);
-        let instance_buf = dev.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("voxel instances"),
-            size: (instances.len().max(1) * std::mem::size_of::<VoxInstanceGpu>()) as u64,
-            usage: super::PARAM_USAGE,
-            mapped_at_creation: false,
-        });
-        let draw_stride = (std::mem::size_of::<VoxDrawGpu>() as u64)
-            .next_multiple_of(gpu.params.offset_alignment(&gpu.limits) as u64);
-        let draws = dev.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("voxel draws"),
-            size: draw_stride * 2 * crate::cpu::voxel::max_rects(instances.len()) as u64,
-            usage: super::PARAM_USAGE,
-            mapped_at_creation: false,
-        });
-        let fs = wgpu::ShaderStages::FRAGMENT;
-        let bgl = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+    }
+}
+
+/// `vox_data`: the brick tables, their entries turned into word addresses of the blocks,
+/// then the pool.
+fn join_tables_and_pool(table: Vec<u32>, pool: Vec<u32>) -> Vec<u32> {
+    let pool_base = table.len() as u32;
+    let mut data = table;
+    for e in data.iter_mut().filter(|e| **e & EMPTY_BIT == 0) {
+        *e = pool_base + *e * BLOCK_WORDS as u32;
+    }
+    data.extend(pool);
+    data
+}
+
+/// The voxel passes' bind-group layout.
+fn voxel_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
+    let fs = wgpu::ShaderStages::FRAGMENT;
+    gpu.device
+        .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("voxels"),
             entries: &[
                 uniform_entry(gpu.params, 0, fs),
@@ -244,7 +223,83 @@ impl VoxelPasses {
                     count: None,
                 },
             ],
+        })
+}
+
+/// Uploaded voxel data and the pipelines.
+pub(crate) struct VoxelPasses {
+    instances: Vec<VoxelInstance>,
+    /// Boxes the screen rectangles come from (`cpu::voxel::cover_boxes`), once per upload.
+    cover: Vec<Vec<[glam::DVec3; 2]>>,
+    frames: Vec<Vec<FrameRef>>,
+    instance_buf: wgpu::Buffer,
+    /// One `VoxDrawGpu` per drawn rectangle, `draw_stride` bytes apart: the cast's first,
+    /// then the shadow pass's (`slots` each).
+    draws: wgpu::Buffer,
+    draw_stride: u64,
+    /// Brick tables, then the brick pool (`vox_data`).
+    data: wgpu::Buffer,
+    palette: wgpu::Buffer,
+    bgl: wgpu::BindGroupLayout,
+    /// Entry points for rectangles of several instances, and of one (`_one`).
+    cast: wgpu::RenderPipeline,
+    cast_one: wgpu::RenderPipeline,
+    shadow: wgpu::RenderPipeline,
+    shadow_one: wgpu::RenderPipeline,
+}
+
+/// Size-dependent resources.
+pub(crate) struct VoxelTargets {
+    /// The copy of the G-buffer's rectangles the passes read.
+    gbuffer_copy: wgpu::Texture,
+    bg: wgpu::BindGroup,
+}
+
+impl VoxelPasses {
+    /// Uploads the brick tables, pool and palettes of the `instances`' models (each frame of
+    /// a model once) and builds the pipelines.
+    pub fn new(gpu: &Gpu, instances: &[VoxelInstance]) -> Result<VoxelPasses> {
+        check_instances(gpu, instances)?;
+        // Brick tables first, from the sizes alone (before anything large is built).
+        check_storage(gpu, "voxel brick tables", brick_table_bytes(instances))?;
+        let built = std::time::Instant::now();
+        let packed = Packed::new(instances);
+        let data_bytes = (packed.table.len() + packed.pool.len()) as u64 * 4;
+        check_storage(gpu, "voxel brick tables and pool", data_bytes)?;
+        let bytes = data_bytes + packed.palette.len() as u64 * 4;
+        let Packed {
+            table,
+            pool,
+            palette,
+            frames,
+        } = packed;
+        let data = join_tables_and_pool(table, pool);
+        let dev = &gpu.device;
+        let storage = wgpu::BufferUsages::STORAGE;
+        let init = |label: &str, contents: &[u8], usage| {
+            dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage,
+            })
+        };
+        let data = init("voxel bricks", bytemuck::cast_slice(&data), storage);
+        let palette = init("voxel palettes", bytemuck::cast_slice(&palette), storage);
+        let instance_buf = dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("voxel instances"),
+            size: (instances.len().max(1) * std::mem::size_of::<VoxInstanceGpu>()) as u64,
+            usage: PARAM_USAGE,
+            mapped_at_creation: false,
         });
+        let draw_stride = (std::mem::size_of::<VoxDrawGpu>() as u64)
+            .next_multiple_of(gpu.params.offset_alignment(&gpu.limits) as u64);
+        let draws = dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("voxel draws"),
+            size: draw_stride * 2 * crate::cpu::voxel::max_rects(instances.len()) as u64,
+            usage: PARAM_USAGE,
+            mapped_at_creation: false,
+        });
+        let bgl = voxel_layout(gpu);
         let module = super::shader_module(
             dev,
             gpu.params,

@@ -10,11 +10,7 @@ const TEXT_WORDS: usize = 24 * 4;
 
 /// WGSL source of the present pass (with the shared full-screen vertex stage).
 pub fn present_shader() -> String {
-    [
-        include_str!("../../gpu/shaders/fullscreen.wgsl"),
-        include_str!("../../gpu/shaders/present.wgsl"),
-    ]
-    .concat()
+    crate::gpu::shaders::present()
 }
 
 /// Mirrors WGSL `Present` in `present.wgsl`.

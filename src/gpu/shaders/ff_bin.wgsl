@@ -12,9 +12,7 @@
 @group(0) @binding(4) var gbuffer: texture_2d<u32>;
 @group(0) @binding(8) var<storage, read_write> ff_bins_out: array<u32>;
 
-// Keep in step with ff_bins.wgsl.
-const FF_BIN: u32 = 16u;
-const FF_OVERFLOW: u32 = 0xffffffffu;
+// FF_BIN, FF_OVERFLOW: ff_consts.wgsl (prepended).
 const NOT_ONE: u32 = 0xffffffffu;
 
 // Pixel k of a walk around the border of the bin [p0, last] (k < 2 * (width + height); the

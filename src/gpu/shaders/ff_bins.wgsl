@@ -8,9 +8,7 @@
 
 @group(0) @binding(8) var<storage, read> ff_bins: array<u32>;
 
-// Keep in step with ff_bin.wgsl.
-const FF_BIN: u32 = 16u;
-const FF_OVERFLOW: u32 = 0xffffffffu;
+// FF_BIN, FF_OVERFLOW: ff_consts.wgsl (prepended).
 const FF_NONE: u32 = 0xffffffffu;
 
 fn ff_bin_base(px: vec2<u32>, list: u32) -> u32 {

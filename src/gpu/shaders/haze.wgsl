@@ -1,14 +1,5 @@
-// Shared by the shade and volume passes: sRGB transfer, the local (base-plane) frame and
-// aerial perspective.
-
-fn srgb_encode(c: vec3<f32>) -> vec3<f32> {
-    let x = clamp(c, vec3<f32>(0.0), vec3<f32>(1.0));
-    return select(1.055 * pow(x, vec3<f32>(1.0 / 2.4)) - 0.055, 12.92 * x, x <= vec3<f32>(0.0031308));
-}
-
-fn srgb_decode(c: vec3<f32>) -> vec3<f32> {
-    return select(pow((c + 0.055) / 1.055, vec3<f32>(2.4)), c / 12.92, c <= vec3<f32>(0.04045));
-}
+// Shared by the shade and volume passes: the local (base-plane) frame and aerial perspective.
+// The sRGB transfer functions they also use are in srgb.wgsl (prepended before this file).
 
 fn to_local(d: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(dot(frame.local_from_world_0.xyz, d), dot(frame.local_from_world_1.xyz, d), dot(frame.local_from_world_2.xyz, d));

@@ -1,6 +1,6 @@
 // Present pass of the window (`relief view`): copies the renderer's colour target (sRGB-encoded
 // Rgba8Unorm) to the swap-chain image, or shows a debug view of the data target, and draws the
-// text overlay with a built-in 5x7 bitmap font. Prepended: fullscreen.wgsl.
+// text overlay with a built-in 5x7 bitmap font. Prepended: fullscreen.wgsl, srgb.wgsl.
 
 // Mirrors `PresentUniforms` in src/app/view/present.rs.
 struct Present {
@@ -24,10 +24,6 @@ struct Present {
 // A glyph is 5x7 pixels in a 6x9 cell (one pixel of space right, one above and below).
 const CELL_W: u32 = 6u;
 const CELL_H: u32 = 9u;
-
-fn srgb_decode_p(c: vec3<f32>) -> vec3<f32> {
-    return select(pow((c + 0.055) / 1.055, vec3<f32>(2.4)), c / 12.92, c <= vec3<f32>(0.04045));
-}
 
 // Blue → cyan → green → yellow → red for x in 0..1 (display values).
 fn heat(x: f32) -> vec3<f32> {
@@ -109,7 +105,7 @@ fn fs_present(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
         c = mix(c * 0.3, vec3<f32>(1.0), o);
     }
     if (pr.mode.y != 0u) {
-        c = srgb_decode_p(c);
+        c = srgb_decode(c);
     }
     return vec4<f32>(c, 1.0);
 }

@@ -1,0 +1,249 @@
+//! The terrain's own passes: its data uploaded once (heights, square maximum pyramid and its
+//! dilation, drape, the `Frame` and `RayGen` parameter blocks) and the pipelines of ray
+//! generation (compute or fragment), the tile pre-pass, the cast (pyramid or march) and the
+//! terrain-only shade pass.
+
+use super::device::KernelPath;
+use super::pyramid::{dilate_square_pyramid, square_pyramid};
+use super::shade::{shade_pipelines, ShadePipelines};
+use super::types::{FrameUniforms, RayGenUniforms, MAX_LEVELS};
+use super::util::{
+    check_buffer_limit, float_texture_entry, fullscreen_pipeline, pipeline_layout, storage_entry,
+    target_state, uint_texture_entry, uniform_entry,
+};
+use super::{shaders, Gpu, PARAM_USAGE};
+use crate::terrain::Terrain;
+use crate::{Error, Result};
+use wgpu::util::DeviceExt;
+
+/// The terrain on the GPU and the frame's parameter blocks.
+pub(crate) struct TerrainData {
+    pub heights: wgpu::Buffer,
+    pub pyramid: wgpu::Buffer,
+    pub dilated: wgpu::Buffer,
+    /// Side of the square pyramid's level 0 ([`square_pyramid`]).
+    pub pyramid_side: u32,
+    pub drape: wgpu::Buffer,
+    /// The terrain has a draped image (a shade-pipeline constant).
+    pub has_drape: bool,
+    pub frame_ub: wgpu::Buffer,
+    pub raygen_ub: wgpu::Buffer,
+}
+
+impl TerrainData {
+    /// Checks the terrain against the shaders' and the adapter's limits and uploads it.
+    pub fn upload(gpu: &Gpu, terrain: &Terrain) -> Result<TerrainData> {
+        let dev = &gpu.device;
+        if terrain.pyramid.levels.len() > MAX_LEVELS {
+            return Err(Error::Limit {
+                what: "terrain size".into(),
+                msg: format!(
+                    "{}x{} samples need {} pyramid levels, the shaders address {MAX_LEVELS} (at most {} cells per side)",
+                    terrain.field.width,
+                    terrain.field.height,
+                    terrain.pyramid.levels.len(),
+                    1u32 << (MAX_LEVELS - 1)
+                ),
+            });
+        }
+        check_buffer_limit(gpu, "height table", terrain.field.heights.len() as u64 * 4)?;
+        let (pyramid_data, pyramid_side) = square_pyramid(terrain);
+        check_buffer_limit(gpu, "maximum pyramid", pyramid_data.len() as u64 * 4)?;
+        let storage = |label: &str, contents: &[u8]| {
+            dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage: wgpu::BufferUsages::STORAGE,
+            })
+        };
+        let heights = storage("heights", bytemuck::cast_slice(&terrain.field.heights));
+        let pyramid = storage("max pyramid", bytemuck::cast_slice(&pyramid_data));
+        let dilated_data = dilate_square_pyramid(&pyramid_data, pyramid_side);
+        let dilated = storage("dilated max pyramid", bytemuck::cast_slice(&dilated_data));
+        let drape_words: Vec<u32> = match &terrain.drape {
+            Some((d, _)) => {
+                check_buffer_limit(gpu, "drape image", d.rgba.len() as u64)?;
+                d.rgba
+                    .chunks_exact(4)
+                    .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+                    .collect()
+            }
+            None => vec![0],
+        };
+        let drape = storage("drape", bytemuck::cast_slice(&drape_words));
+        let block = |label: &str, size: usize| {
+            dev.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: size as u64,
+                usage: PARAM_USAGE,
+                mapped_at_creation: false,
+            })
+        };
+        Ok(TerrainData {
+            heights,
+            pyramid,
+            dilated,
+            pyramid_side,
+            drape,
+            has_drape: terrain.drape.is_some(),
+            frame_ub: block("frame uniforms", std::mem::size_of::<FrameUniforms>()),
+            raygen_ub: block("raygen uniforms", std::mem::size_of::<RayGenUniforms>()),
+        })
+    }
+}
+
+/// Bind-group layouts of the terrain passes.
+pub(crate) struct TerrainLayouts {
+    pub raygen: wgpu::BindGroupLayout,
+    pub tile: wgpu::BindGroupLayout,
+    pub cast: wgpu::BindGroupLayout,
+    pub shade: wgpu::BindGroupLayout,
+}
+
+impl TerrainLayouts {
+    /// The layouts; ray generation writes a storage texture on the compute path.
+    fn new(gpu: &Gpu, raygen_compute: bool) -> TerrainLayouts {
+        let dev = &gpu.device;
+        let cs = wgpu::ShaderStages::COMPUTE;
+        let fs = wgpu::ShaderStages::FRAGMENT;
+        let layout = |label, entries: &[wgpu::BindGroupLayoutEntry]| {
+            dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some(label),
+                entries,
+            })
+        };
+        let raygen = layout(
+            "raygen",
+            &if raygen_compute {
+                vec![
+                    uniform_entry(gpu.params, 0, cs),
+                    wgpu::BindGroupLayoutEntry {
+                        binding: 1,
+                        visibility: cs,
+                        ty: wgpu::BindingType::StorageTexture {
+                            access: wgpu::StorageTextureAccess::WriteOnly,
+                            format: wgpu::TextureFormat::Rgba32Uint,
+                            view_dimension: wgpu::TextureViewDimension::D2,
+                        },
+                        count: None,
+                    },
+                ]
+            } else {
+                vec![uniform_entry(gpu.params, 0, fs)]
+            },
+        );
+        let uint_texture = |binding| uint_texture_entry(binding, fs);
+        let common = [
+            uniform_entry(gpu.params, 0, fs),
+            storage_entry(1, fs, true),
+            storage_entry(2, fs, true),
+            uint_texture(3),
+        ];
+        let mut tile_entries = common.to_vec();
+        tile_entries.push(storage_entry(4, fs, true));
+        let tile = layout("tile", &tile_entries);
+        let mut cast_entries = common.to_vec();
+        cast_entries.push(uint_texture(4));
+        let cast = layout("cast", &cast_entries);
+        let mut shade_entries = cast_entries.clone();
+        shade_entries.push(storage_entry(5, fs, true));
+        shade_entries.push(float_texture_entry(19, fs, wgpu::TextureViewDimension::D2));
+        let shade = layout("shade", &shade_entries);
+        TerrainLayouts {
+            raygen,
+            tile,
+            cast,
+            shade,
+        }
+    }
+}
+
+/// The ray-generation pass in the form that suits the adapter.
+pub(crate) enum RayGen {
+    Compute(wgpu::ComputePipeline),
+    Fragment(wgpu::RenderPipeline),
+}
+
+/// Terrain data on the GPU and the pipelines that render it.
+pub(crate) struct TerrainPasses {
+    pub data: TerrainData,
+    pub bgl: TerrainLayouts,
+    pub raygen: RayGen,
+    pub tile: wgpu::RenderPipeline,
+    pub cast: wgpu::RenderPipeline,
+    pub march: wgpu::RenderPipeline,
+    /// Terrain-only shade pipelines (with free forms, `ObjectPasses` has its own).
+    pub shade: ShadePipelines,
+    /// Kept for the distortion-table pipelines (`TableMode`).
+    pub raygen_mod: wgpu::ShaderModule,
+    pub tile_mod: wgpu::ShaderModule,
+}
+
+impl TerrainPasses {
+    /// Uploads the terrain (heights, pyramid, drape) and builds the pipelines, ray generation
+    /// on the `kernels` path.
+    pub fn new(gpu: &Gpu, terrain: &Terrain, kernels: KernelPath) -> Result<TerrainPasses> {
+        let data = TerrainData::upload(gpu, terrain)?;
+        let raygen_compute = kernels == KernelPath::Compute;
+        let bgl = TerrainLayouts::new(gpu, raygen_compute);
+        let dev = &gpu.device;
+        let module = |label: &str, src: String| super::shader_module(dev, gpu.params, label, &src);
+        let raygen_mod = module("raygen.wgsl", shaders::raygen());
+        let tile_mod = module("tile.wgsl", shaders::tile());
+        let cast_mod = module("cast.wgsl", shaders::cast());
+        let fullscreen = |label: &str,
+                          m: &wgpu::ShaderModule,
+                          entry: &str,
+                          bgl: &wgpu::BindGroupLayout,
+                          format| {
+            fullscreen_pipeline(dev, label, m, entry, bgl, &[Some(target_state(format))])
+        };
+        let tile = fullscreen(
+            "tile",
+            &tile_mod,
+            "fs_tile",
+            &bgl.tile,
+            wgpu::TextureFormat::Rg32Uint,
+        );
+        let raygen = if raygen_compute {
+            RayGen::Compute(
+                dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some("raygen"),
+                    layout: Some(&pipeline_layout(dev, &bgl.raygen)),
+                    module: &raygen_mod,
+                    entry_point: Some("cs_raygen"),
+                    compilation_options: Default::default(),
+                    cache: None,
+                }),
+            )
+        } else {
+            RayGen::Fragment(fullscreen(
+                "raygen",
+                &raygen_mod,
+                "fs_raygen",
+                &bgl.raygen,
+                wgpu::TextureFormat::Rgba32Uint,
+            ))
+        };
+        let g = wgpu::TextureFormat::Rgba32Uint;
+        let cast = fullscreen("cast", &cast_mod, "fs_cast", &bgl.cast, g);
+        let march = fullscreen("march", &cast_mod, "fs_cast_march", &bgl.cast, g);
+        let shade = shade_pipelines(gpu.params, "shade", shaders::shade, bgl.shade.clone());
+        Ok(TerrainPasses {
+            data,
+            bgl,
+            raygen,
+            tile,
+            cast,
+            march,
+            shade,
+            raygen_mod,
+            tile_mod,
+        })
+    }
+
+    /// Ray generation is a compute dispatch (it writes the ray table as a storage texture).
+    pub fn raygen_is_compute(&self) -> bool {
+        matches!(self.raygen, RayGen::Compute(_))
+    }
+}
