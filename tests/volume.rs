@@ -382,6 +382,18 @@ fn cpu_image(
     under: &FrameOutput,
     rays: &[[f32; 4]],
 ) -> Vec<[u8; 3]> {
+    cpu_image_and_undecided(volumes, light, cam, under, rays).0
+}
+
+/// [`cpu_image`] and, per pixel, whether a slice-mask sample on its ray is undecided at f32
+/// precision ([`relief::cpu::volume::VolumeResult::undecided`]).
+fn cpu_image_and_undecided(
+    volumes: &[&Volume],
+    light: &VolumeLight,
+    cam: &Camera,
+    under: &FrameOutput,
+    rays: &[[f32; 4]],
+) -> (Vec<[u8; 3]>, Vec<bool>) {
     let w = cam.width;
     (0..rays.len())
         .into_par_iter()
@@ -389,7 +401,7 @@ fn cpu_image(
             let e = rays[k];
             let u = &under.rgba[4 * k..4 * k + 3];
             if e[3] < 0.0 {
-                return [u[0], u[1], u[2]];
+                return ([u[0], u[1], u[2]], false);
             }
             let dir = DVec3::new(e[0] as f64, e[1] as f64, e[2] as f64);
             let depth = under.depth[k] as f64;
@@ -403,9 +415,10 @@ fn cpu_image(
                 .iter()
                 .map(|v| integrate(v, light, cam.pose.position, dir, e[3] as f64, t_max, px))
                 .collect();
-            composite_sorted(&results, [u[0], u[1], u[2]])
+            let undecided = results.iter().any(|r| r.undecided > 0);
+            (composite_sorted(&results, [u[0], u[1], u[2]]), undecided)
         })
-        .collect()
+        .unzip()
 }
 
 /// Mean and max absolute difference per channel (in 1/255 units) and the pixels the volume
@@ -1194,14 +1207,29 @@ fn gpu_matches_the_cpu_reference_on_the_4d_function_slices() {
     let Some((under, out, rays)) = render_pair(&terrain, &scene.desc, &cam, &vols, &[]) else {
         return;
     };
-    let cpu = cpu_image(&[&vols[0]], &light, &cam, &under, &rays);
-    let (mean, max, touched) = compare(&out.rgba, &cpu, &under.rgba);
+    let (cpu, undecided) = cpu_image_and_undecided(&[&vols[0]], &light, &cam, &under, &rays);
+    // The mean is over every pixel; the maximum leaves out the pixels where a mask sample lies
+    // within f32 precision of a face between voxels with other bits (the GPU may read either
+    // voxel there: a binary mask looked up at the nearest voxel is discontinuous).
+    let (mean, _, touched) = compare(&out.rgba, &cpu, &under.rgba);
+    let max = (0..cpu.len())
+        .filter(|&k| !undecided[k])
+        .flat_map(|k| (0..3).map(move |ch| (k, ch)))
+        .map(|(k, ch)| out.rgba[4 * k + ch].abs_diff(cpu[k][ch]))
+        .max()
+        .unwrap_or(0);
+    let n_undecided = undecided.iter().filter(|&&u| u).count();
     eprintln!(
-        "4-D slices: mean |GPU − CPU| {mean:.3}/255, max {max}/255 over {touched} volume pixels"
+        "4-D slices: mean |GPU − CPU| {mean:.3}/255 over all pixels, max {max}/255 over {touched} volume pixels less {n_undecided} undecided at f32 precision"
     );
-    assert!(touched > 2000, "the volume covers only {touched} pixels");
+    // About one sample in 200 falls that close to a face between different masks here, and a
+    // ray takes about 200: some 17% of the pixels. The maximum still covers over 2000 pixels.
+    assert!(
+        touched - n_undecided > 2000 && n_undecided * 4 <= touched,
+        "{touched} volume pixels, {n_undecided} of them undecided: too few decided pixels to test"
+    );
     if mean >= 1.0 || max >= 4 {
-        let p = save_failure_image("function4d", 128, 96, &out.rgba);
+        let p = save_failure_images("function4d", 128, 96, &out.rgba, &rgba_of(&cpu));
         panic!("mean {mean:.3}/255, max {max}/255; {}", p.display());
     }
 }
