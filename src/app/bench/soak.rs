@@ -1,4 +1,4 @@
-//! `relief bench --soak`: a long headless run that watches for leaks and stalls.
+//! `relief bench soak`: a long headless run that watches for leaks and stalls.
 //!
 //! Renders N frames of a scene the way `relief render` does (camera along the scene's path,
 //! every pass timed, colour and data read back; no files written) and records after each
@@ -8,22 +8,22 @@
 //! A leak shows as a slope of kilobytes per frame; objects created per frame and never
 //! dropped show as counts that differ.
 
-use super::view::stats::percentile;
+use super::report::{BenchReport, Figures};
+use super::timing::scene_at_size;
+use crate::app::figures::percentile;
 use crate::gpu::{Gpu, RenderSettings};
+use crate::world::World;
 use crate::Result;
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
 
-/// The soak run's results (`relief bench --soak --json`).
+// The soak run's statistics, where they have always been found.
+pub use crate::app::figures::{resident_kib, slope, window};
+
+/// What `relief bench soak` measures (the report's `details`).
 #[derive(Clone, Debug, Serialize)]
-pub struct SoakReport {
-    pub adapter: String,
-    pub backend: String,
-    pub scene: String,
-    pub width: u32,
-    pub height: u32,
-    pub frames: u32,
+pub struct SoakBench {
     /// Resident set size after each frame (KiB; empty where the OS does not say).
     pub rss_kib: Vec<u64>,
     /// First and last frame (inclusive, exclusive) of the window the slope is fitted over.
@@ -41,39 +41,6 @@ pub struct SoakReport {
     pub frame_ms_max: f64,
 }
 
-/// The process's resident set size in KiB (Linux: `VmRSS` of `/proc/self/status`).
-pub fn resident_kib() -> Option<u64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmRSS:"))?;
-    line.split_whitespace().nth(1)?.parse().ok()
-}
-
-/// Least-squares slope of `y` over `x = 0, 1, 2, ...` (0 for fewer than two points).
-pub fn slope(y: &[f64]) -> f64 {
-    let n = y.len() as f64;
-    if y.len() < 2 {
-        return 0.0;
-    }
-    let mx = (n - 1.0) / 2.0;
-    let my = y.iter().sum::<f64>() / n;
-    let (mut sxy, mut sxx) = (0.0, 0.0);
-    for (i, v) in y.iter().enumerate() {
-        let dx = i as f64 - mx;
-        sxy += dx * (v - my);
-        sxx += dx * dx;
-    }
-    sxy / sxx
-}
-
-/// The frame window the slope is fitted over: 100..500, shrunk for shorter runs.
-pub fn window(frames: u32) -> [u32; 2] {
-    if frames >= 500 {
-        [100, 500]
-    } else {
-        [frames / 5, frames]
-    }
-}
-
 fn counts(gpu: &Gpu) -> Vec<(String, usize)> {
     gpu.resource_counts()
         .unwrap_or_default()
@@ -83,20 +50,11 @@ fn counts(gpu: &Gpu) -> Vec<(String, usize)> {
 }
 
 /// Renders `frames` frames of `scene_path` at `size` and reports memory and frame times.
-pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<SoakReport> {
-    let mut scene = crate::scene::Scene::load(scene_path)?;
-    scene.desc.output.width = size.0;
-    scene.desc.output.height = size.1;
-    scene.desc.validate()?;
-    let terrain = scene.load_terrain()?;
-    let objects = scene.free_forms(&terrain)?;
-    let volumes = scene.volumes(&terrain)?;
-    let voxels = scene.voxel_models(&terrain)?;
+pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<BenchReport> {
+    let scene = scene_at_size(scene_path, size)?;
+    let world = World::load(&scene)?;
     let gpu = Gpu::new()?;
-    let mut renderer = crate::gpu::TerrainRenderer::new(&gpu, &terrain)?;
-    renderer.set_objects(&gpu, &objects)?;
-    renderer.set_volumes(&gpu, &volumes)?;
-    renderer.set_voxels(&gpu, &voxels)?;
+    let mut renderer = crate::app::upload::renderer(&gpu, &world)?;
     let settings = RenderSettings::from_scene(&scene.desc);
     let fps = scene.desc.path.as_ref().map_or(30.0, |p| p.fps);
     let [w0, w1] = window(frames);
@@ -111,9 +69,9 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<SoakRepor
             end_counts = counts(&gpu);
         }
         let start = Instant::now();
-        let cam = scene.camera(frame, &terrain);
+        let cam = scene.camera(frame, &world.terrain);
         renderer.set_time(frame as f64 / fps);
-        let out = renderer.capture(&gpu, &terrain, &scene.desc, &cam, &settings)?;
+        let out = renderer.capture(&gpu, &world.terrain, &scene.desc, &cam, &settings)?;
         std::hint::black_box(&out.rgba);
         times.push(start.elapsed().as_secs_f64() * 1e3);
         if let Some(kib) = resident_kib() {
@@ -136,13 +94,7 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<SoakRepor
         .iter()
         .map(|&k| k as f64)
         .collect();
-    Ok(SoakReport {
-        adapter: gpu.info.name.clone(),
-        backend: format!("{:?}", gpu.info.backend),
-        scene: scene_path.display().to_string(),
-        width: size.0,
-        height: size.1,
-        frames,
+    let details = SoakBench {
         rss_slope_kib_per_frame: slope(&fitted),
         rss_kib: rss,
         window: [w0, w1],
@@ -152,45 +104,42 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<SoakRepor
         frame_ms_p50: percentile(&times, 50.0).unwrap_or(0.0),
         frame_ms_p99: percentile(&times, 99.0).unwrap_or(0.0),
         frame_ms_max: times.iter().copied().fold(0.0, f64::max),
-    })
+    };
+    report(&details, &gpu, scene_path, size, frames)
 }
 
-/// Prints the report as a few lines of text.
-pub fn print(r: &SoakReport) {
-    println!(
-        "relief bench --soak on {} at {}x{}, {} frames, {} ({})",
-        r.scene, r.width, r.height, r.frames, r.adapter, r.backend
-    );
-    let first = r.rss_kib.first().copied().unwrap_or(0);
-    let last = r.rss_kib.last().copied().unwrap_or(0);
-    println!(
-        "  RSS {:.1} MiB after the first frame, {:.1} MiB after the last; slope over frames {}..{}: {:.2} KiB/frame",
-        first as f64 / 1024.0,
-        last as f64 / 1024.0,
-        r.window[0],
-        r.window[1],
-        r.rss_slope_kib_per_frame
-    );
-    let changed: Vec<String> = r
-        .resources_start
-        .iter()
-        .zip(&r.resources_end)
+fn report(
+    b: &SoakBench,
+    gpu: &Gpu,
+    scene: &Path,
+    size: (u32, u32),
+    frames: u32,
+) -> Result<BenchReport> {
+    let mut r = BenchReport::new("soak", gpu, scene, size, frames, b)?;
+    let mib = |k: Option<&u64>| k.copied().unwrap_or(0) as f64 / 1024.0;
+    r.summary = Figures::default()
+        .with("rss_first_mib", mib(b.rss_kib.first()))
+        .with("rss_last_mib", mib(b.rss_kib.last()))
+        .with("rss_slope_kib_per_frame", b.rss_slope_kib_per_frame)
+        .with("frame_ms_p50", b.frame_ms_p50)
+        .with("frame_ms_p99", b.frame_ms_p99)
+        .with("frame_ms_max", b.frame_ms_max);
+    let changed: Vec<String> = (b.resources_start.iter().zip(&b.resources_end))
         .filter(|(a, b)| a.1 != b.1)
         .map(|(a, b)| format!("{} {} -> {}", a.0, a.1, b.1))
         .collect();
-    let total: usize = r.resources_end.iter().map(|(_, n)| n).sum();
-    println!(
-        "  wgpu objects at frames {} and {}: {}",
-        r.window[0],
-        r.window[1],
-        if changed.is_empty() {
-            format!("unchanged ({total} live)")
-        } else {
-            changed.join(", ")
-        }
-    );
-    println!(
-        "  frame time p50 {:.2} ms, p99 {:.2} ms, max {:.2} ms",
-        r.frame_ms_p50, r.frame_ms_p99, r.frame_ms_max
-    );
+    let total: usize = b.resources_end.iter().map(|(_, n)| n).sum();
+    let [w0, w1] = b.window;
+    r.notes = vec![
+        format!("RSS slope fitted over frames {w0}..{w1}"),
+        format!(
+            "wgpu objects at frames {w0} and {w1}: {}",
+            if changed.is_empty() {
+                format!("unchanged ({total} live)")
+            } else {
+                changed.join(", ")
+            }
+        ),
+    ];
+    Ok(r)
 }
