@@ -121,10 +121,10 @@ pub struct RenderJob {
     #[arg(long, default_value_t = 1)]
     pub frames: u32,
     /// First frame number.
-    #[arg(long = "first", default_value_t = 0)]
+    #[arg(long = "first", value_name = "FIRST", default_value_t = 0)]
     pub first_frame: u32,
     /// Output directory.
-    #[arg(long = "out", default_value = "out")]
+    #[arg(long = "out", value_name = "OUT", default_value = "out")]
     pub out_dir: PathBuf,
     #[command(flatten)]
     pub toggles: RenderToggles,

@@ -7,29 +7,40 @@ use std::path::{Path, PathBuf};
 /// The scene `relief` renders when run without a command.
 pub const DEFAULT_SCENE: &str = "terrains/alps.toml";
 
-/// Finds the shipped file `relative` (such as [`DEFAULT_SCENE`]): in the current directory,
-/// next to the executable, then two levels above it (cargo's `target/<profile>/relief` in a
-/// source tree). The error lists the places searched and says to pass a scene file.
+/// Finds the shipped file `relative` (such as [`DEFAULT_SCENE`]): in the current directory
+/// (returned as `relative` itself), next to the executable, then two levels above it (cargo's
+/// `target/<profile>/relief` in a source tree). The error lists the places searched and says to
+/// pass a scene file.
 pub fn find_shipped(relative: &str) -> Result<PathBuf> {
-    let mut places = vec![PathBuf::from(relative)];
-    if let Ok(exe) = std::env::current_exe() {
-        let dir = exe.parent();
-        places.extend(dir.map(|d| d.join(relative)));
-        let tree = dir.and_then(Path::parent).and_then(Path::parent);
-        places.extend(tree.map(|d| d.join(relative)));
+    if Path::new(relative).is_file() {
+        return Ok(PathBuf::from(relative));
     }
-    if let Some(found) = places.iter().find(|p| p.is_file()) {
-        return Ok(found.clone());
+    let mut searched: Vec<PathBuf> = Vec::new();
+    let cwd =
+        std::env::current_dir().map_or_else(|_| PathBuf::from(relative), |d| d.join(relative));
+    searched.push(cwd);
+    if let Some(dir) = std::env::current_exe()
+        .ok()
+        .and_then(|e| e.parent().map(Path::to_path_buf))
+    {
+        let tree = dir
+            .parent()
+            .and_then(Path::parent)
+            .map(|d| d.join(relative));
+        for place in [Some(dir.join(relative)), tree].into_iter().flatten() {
+            if place.is_file() {
+                return Ok(place);
+            }
+            if !searched.contains(&place) {
+                searched.push(place);
+            }
+        }
     }
-    // The first place as the absolute path it stands for.
-    if let Ok(cwd) = std::env::current_dir() {
-        places[0] = cwd.join(relative);
-    }
-    let searched: Vec<String> = places.iter().map(|p| p.display().to_string()).collect();
+    let searched: Vec<String> = searched.iter().map(|p| p.display().to_string()).collect();
     Err(Error::invalid(
         "scene",
         format!(
-            "no scene file given, and the default {relative} is in none of the places searched ({}): pass a scene file, e.g. `relief render SCENE.toml`",
+            "no scene file given, and the default {relative} is in none of the places searched ({}): pass a scene file as the command's SCENE argument",
             searched.join(", ")
         ),
     ))

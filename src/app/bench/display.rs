@@ -2,7 +2,7 @@
 //! same lens): ray-table regeneration and the direct-mode frame against a pinhole frame of the
 //! same size and scene.
 
-use super::report::{BenchReport, Figures, Row};
+use super::table::{Figures, Row, RunInfo, Table};
 use crate::display::DisplayConfig;
 use crate::gpu::{Gpu, RenderSettings, Stage, TerrainRenderer};
 use crate::scene::Scene;
@@ -33,7 +33,7 @@ pub fn run(
     channel: usize,
     size: (u32, u32),
     frames: u32,
-) -> Result<BenchReport> {
+) -> Result<(RunInfo, DisplayBench)> {
     let cfg = DisplayConfig::load(config)?;
     let ch = crate::app::channel::channel(&cfg, &config.display().to_string(), channel)?;
     if frames == 0 {
@@ -84,18 +84,25 @@ pub fn run(
         pinhole_frame_ms,
         direct_over_pinhole: direct_frame_ms / pinhole_frame_ms,
     };
-    let mut r = BenchReport::new("display", &gpu, scene_path, size, frames, &details)?;
-    let row = |ms: f64| Figures::default().with("frame_ms", ms);
-    r.rows = vec![
-        Row::new("direct (ray table)", row(direct_frame_ms)),
-        Row::new("pinhole", row(pinhole_frame_ms)),
-    ];
-    r.summary = Figures::default()
-        .with("table_ms", table_ms)
-        .with("direct_over_pinhole", details.direct_over_pinhole);
-    r.notes = vec![format!(
-        "{} channel {channel} \"{}\" at {}x{}, a new table every frame (the eye moves)",
-        details.config, ch.name, size.0, size.1
-    )];
-    Ok(r)
+    Ok((RunInfo::new(&gpu, scene_path, size, frames), details))
+}
+
+impl DisplayBench {
+    /// The direct and pinhole frames as rows, the table pass and the ratio as the summary.
+    pub fn table(&self) -> Table {
+        let row = |ms: f64| Figures::default().with("frame_ms", ms);
+        Table {
+            rows: vec![
+                Row::new("direct (ray table)", row(self.direct_frame_ms)),
+                Row::new("pinhole", row(self.pinhole_frame_ms)),
+            ],
+            summary: Figures::default()
+                .with("table_ms", self.table_ms)
+                .with("direct_over_pinhole", self.direct_over_pinhole),
+            notes: vec![format!(
+                "{} channel {}, its lens at the benchmark's size; a new table every frame (the eye moves)",
+                self.config, self.channel
+            )],
+        }
+    }
 }

@@ -2,7 +2,7 @@
 //! scene's objects against terrain only, then 10, 100 and 1000 generated objects in the view
 //! and spread over the whole terrain.
 
-use super::report::{BenchReport, Figures, Row};
+use super::table::{Figures, Row, RunInfo, Table};
 use super::timing::{median_frame_ms, scene_at_size};
 use crate::app::figures::median;
 use crate::freeform::FreeForm;
@@ -191,7 +191,7 @@ impl Bench<'_> {
 
 /// Runs the free-form benchmark on `scene_path` (its `[[objects]]`), then with 10, 100 and
 /// 1000 generated objects.
-pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<BenchReport> {
+pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo, FreeFormBench)> {
     let scene = scene_at_size(scene_path, size)?;
     let world = World::load(&scene)?;
     let (terrain, objects) = (&world.terrain, &world.objects);
@@ -221,43 +221,47 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<BenchRepo
         spread_ratio: spread.last().map_or(0.0, |l| l.1) / spread[0].1,
         spread,
     };
-    report(&details, &gpu, scene_path, size, frames)
+    Ok((RunInfo::new(&gpu, scene_path, size, frames), details))
 }
 
-fn report(
-    b: &FreeFormBench,
-    gpu: &Gpu,
-    scene: &Path,
-    size: (u32, u32),
-    frames: u32,
-) -> Result<BenchReport> {
-    let mut r = BenchReport::new("freeforms", gpu, scene, size, frames, b)?;
-    let row = |name: String, objects: usize, ms: f64| {
-        Row::new(
-            name,
-            Figures::default()
-                .with("objects", objects as f64)
-                .with("frame_ms", ms),
-        )
-    };
-    r.rows = vec![
-        row("terrain only".into(), 0, b.terrain_only_ms),
-        row("scene's free forms".into(), b.objects, b.with_free_forms_ms),
-    ];
-    for (label, series) in [("in view", &b.scaling), ("spread", &b.spread)] {
-        for &(n, ms) in series {
-            r.rows.push(row(format!("{n} generated, {label}"), n, ms));
+impl FreeFormBench {
+    /// One row per frame time measured, the ratios as the summary.
+    pub fn table(&self) -> Table {
+        let row = |name: String, objects: usize, ms: f64| {
+            Row::new(
+                name,
+                Figures::default()
+                    .with("objects", objects as f64)
+                    .with("frame_ms", ms),
+            )
+        };
+        let mut rows = vec![
+            row("terrain only".into(), 0, self.terrain_only_ms),
+            row(
+                "scene's free forms".into(),
+                self.objects,
+                self.with_free_forms_ms,
+            ),
+        ];
+        for (label, series) in [("in view", &self.scaling), ("spread", &self.spread)] {
+            for &(n, ms) in series {
+                rows.push(row(format!("{n} generated, {label}"), n, ms));
+            }
+        }
+        let summary = Figures::default()
+            .with("quadrics", self.quadrics as f64)
+            .with("ratio", self.ratio)
+            .with("scaling_ratio", self.scaling_ratio)
+            .with("spread_ratio", self.spread_ratio);
+        let notes = vec![
+            "terrain only and with the scene's free forms: medians of single frames, interleaved"
+                .into(),
+            "in view: 150 m - 4 km ahead; spread: uniformly over the terrain".into(),
+        ];
+        Table {
+            rows,
+            summary,
+            notes,
         }
     }
-    r.summary = Figures::default()
-        .with("quadrics", b.quadrics as f64)
-        .with("ratio", b.ratio)
-        .with("scaling_ratio", b.scaling_ratio)
-        .with("spread_ratio", b.spread_ratio);
-    r.notes = vec![
-        "terrain only and with the scene's free forms: medians of single frames, interleaved"
-            .into(),
-        "in view: 150 m - 4 km ahead; spread: uniformly over the terrain".into(),
-    ];
-    Ok(r)
 }

@@ -10,6 +10,7 @@
 //! * [`display`]: a display channel's table regeneration and direct frame vs pinhole;
 //! * [`soak`]: a long run watching memory, wgpu objects and frame times;
 //! * [`report`]: the report, its JSON and its printed form;
+//! * [`table`]: what every report has: the run, rows of figures, summary, notes;
 //! * [`timing`]: the scene at the benchmark's size, frame timing.
 
 pub mod display;
@@ -17,12 +18,14 @@ pub mod freeforms;
 pub mod primary;
 pub mod report;
 pub mod soak;
+pub mod table;
 pub mod terrain;
 pub mod timing;
 pub mod volume;
 pub mod voxels;
 
-pub use report::BenchReport;
+pub use report::{BenchReport, Details};
+pub use table::{Figures, Row, RunInfo, Table};
 
 use super::args::parse_size;
 use crate::{Error, Result};
@@ -161,18 +164,38 @@ impl BenchCommand {
     /// Runs the mode on `scene`.
     pub fn run(&self, scene: &Path) -> Result<BenchReport> {
         let (size, frames) = (self.args().size, self.frames()?);
-        match self {
+        let (run, details) = match self {
             BenchCommand::Terrain { dump_rays, .. } => {
-                terrain::run(scene, size, frames, dump_rays.as_deref())
+                let (run, d) = terrain::run(scene, size, frames, dump_rays.as_deref())?;
+                (run, Details::Terrain(d))
             }
-            BenchCommand::Primary { .. } => primary::run(scene, size, frames),
-            BenchCommand::Freeforms { .. } => freeforms::run(scene, size, frames),
-            BenchCommand::Volume { .. } => volume::run(scene, size, frames),
-            BenchCommand::Voxels { .. } => voxels::run(scene, size, frames),
+            BenchCommand::Primary { .. } => {
+                let (run, d) = primary::run(scene, size, frames)?;
+                (run, Details::Primary(d))
+            }
+            BenchCommand::Freeforms { .. } => {
+                let (run, d) = freeforms::run(scene, size, frames)?;
+                (run, Details::FreeForms(d))
+            }
+            BenchCommand::Volume { .. } => {
+                let (run, d) = volume::run(scene, size, frames)?;
+                (run, Details::Volume(d))
+            }
+            BenchCommand::Voxels { .. } => {
+                let (run, d) = voxels::run(scene, size, frames)?;
+                (run, Details::Voxels(d))
+            }
             BenchCommand::Display {
                 display, channel, ..
-            } => display::run(scene, display, *channel, size, frames),
-            BenchCommand::Soak { .. } => soak::run(scene, size, frames),
-        }
+            } => {
+                let (run, d) = display::run(scene, display, *channel, size, frames)?;
+                (run, Details::Display(d))
+            }
+            BenchCommand::Soak { .. } => {
+                let (run, d) = soak::run(scene, size, frames)?;
+                (run, Details::Soak(d))
+            }
+        };
+        Ok(BenchReport::new(run, details))
     }
 }

@@ -2,7 +2,7 @@
 //! pre-pass), for scripts that alternate relief with another renderer
 //! (`benches/embree_compare.py`) so that this machine's slow spells fall on both.
 
-use super::report::{BenchReport, Figures, Row};
+use super::table::{Figures, Row, RunInfo, Table};
 use super::terrain::product_settings;
 use super::timing::{median_frame_ms, scene_at_size};
 use crate::gpu::{Gpu, Stage, TerrainRenderer};
@@ -19,7 +19,7 @@ pub struct PrimaryTiming {
 }
 
 /// Times the primary rays of `scene_path` at `size` (`frames` timed frames), nothing else.
-pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<BenchReport> {
+pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo, PrimaryTiming)> {
     let scene = scene_at_size(scene_path, size)?;
     let terrain = scene.load_terrain()?;
     let gpu = Gpu::new()?;
@@ -42,10 +42,18 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<BenchRepo
         primary_ms,
         rays_per_second: (size.0 * size.1) as f64 / (primary_ms * 1e-3),
     };
-    let mut r = BenchReport::new("primary", &gpu, scene_path, size, frames, &details)?;
-    let figures = Figures::default()
-        .with("primary_ms", details.primary_ms)
-        .with("rays_per_second", details.rays_per_second);
-    r.rows = vec![Row::new("pyramid+tiles", figures)];
-    Ok(r)
+    Ok((RunInfo::new(&gpu, scene_path, size, frames), details))
+}
+
+impl PrimaryTiming {
+    /// One row: the product configuration.
+    pub fn table(&self) -> Table {
+        let figures = Figures::default()
+            .with("primary_ms", self.primary_ms)
+            .with("rays_per_second", self.rays_per_second);
+        Table {
+            rows: vec![Row::new("pyramid+tiles", figures)],
+            ..Table::default()
+        }
+    }
 }

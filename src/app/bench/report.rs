@@ -11,50 +11,57 @@
 //!
 //! `rows` are the measured configurations (the same figures in every row, a table when
 //! printed), `summary` the headline figures, `notes` what is not a number, `details` the
-//! mode's whole result ([`super::terrain::TerrainBench`], [`super::soak::SoakBench`], …).
+//! mode's whole result ([`Details`]).
 
-use crate::gpu::Gpu;
+use super::display::DisplayBench;
+use super::freeforms::FreeFormBench;
+use super::primary::PrimaryTiming;
+use super::soak::SoakBench;
+use super::table::{RunInfo, Table};
+use super::terrain::TerrainBench;
+use super::volume::VolumeBench;
+use super::voxels::VoxelBench;
 use crate::{Error, Result};
-use serde::{Serialize, Serializer};
+use serde::Serialize;
 use std::fmt;
-use std::path::Path;
 
-/// Named figures in a fixed order (a JSON object in that order).
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct Figures(pub Vec<(String, f64)>);
-
-impl Figures {
-    /// `self` with `name` = `value` appended.
-    pub fn with(mut self, name: &str, value: f64) -> Figures {
-        self.0.push((name.to_string(), value));
-        self
-    }
-
-    /// The figure called `name`.
-    pub fn get(&self, name: &str) -> Option<f64> {
-        self.0.iter().find(|(n, _)| n == name).map(|(_, v)| *v)
-    }
-}
-
-impl Serialize for Figures {
-    fn serialize<S: Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
-        s.collect_map(self.0.iter().map(|(k, v)| (k, v)))
-    }
-}
-
-/// One measured configuration.
+/// A mode's whole result.
 #[derive(Clone, Debug, Serialize)]
-pub struct Row {
-    pub name: String,
-    #[serde(flatten)]
-    pub figures: Figures,
+#[serde(untagged)]
+pub enum Details {
+    Terrain(TerrainBench),
+    Primary(PrimaryTiming),
+    FreeForms(FreeFormBench),
+    Volume(VolumeBench),
+    Voxels(VoxelBench),
+    Display(DisplayBench),
+    Soak(SoakBench),
 }
 
-impl Row {
-    pub fn new(name: impl Into<String>, figures: Figures) -> Row {
-        Row {
-            name: name.into(),
-            figures,
+impl Details {
+    /// The mode's name (the report's `bench`).
+    pub fn mode(&self) -> &'static str {
+        match self {
+            Details::Terrain(_) => "terrain",
+            Details::Primary(_) => "primary",
+            Details::FreeForms(_) => "freeforms",
+            Details::Volume(_) => "volume",
+            Details::Voxels(_) => "voxels",
+            Details::Display(_) => "display",
+            Details::Soak(_) => "soak",
+        }
+    }
+
+    /// The result in the shape every report shares.
+    pub fn table(&self) -> Table {
+        match self {
+            Details::Terrain(d) => d.table(),
+            Details::Primary(d) => d.table(),
+            Details::FreeForms(d) => d.table(),
+            Details::Volume(d) => d.table(),
+            Details::Voxels(d) => d.table(),
+            Details::Display(d) => d.table(),
+            Details::Soak(d) => d.table(),
         }
     }
 }
@@ -63,50 +70,24 @@ impl Row {
 #[derive(Clone, Debug, Serialize)]
 pub struct BenchReport {
     /// The mode: `terrain`, `primary`, `freeforms`, `volume`, `voxels`, `display` or `soak`.
-    pub bench: String,
-    pub adapter: String,
-    pub backend: String,
-    pub scene: String,
-    pub width: u32,
-    pub height: u32,
-    /// Timed frames per configuration.
-    pub frames: u32,
-    /// The measured configurations, the same figures in each.
-    pub rows: Vec<Row>,
-    /// Headline figures (ratios, totals).
-    pub summary: Figures,
-    /// What is not a figure.
-    pub notes: Vec<String>,
+    pub bench: &'static str,
+    #[serde(flatten)]
+    pub run: RunInfo,
+    #[serde(flatten)]
+    pub table: Table,
     /// The mode's own result in full.
-    pub details: serde_json::Value,
+    pub details: Details,
 }
 
 impl BenchReport {
-    /// A report of mode `bench` on `gpu`'s adapter with the mode's whole result `details`;
-    /// rows, summary and notes empty.
-    pub fn new(
-        bench: &str,
-        gpu: &Gpu,
-        scene: &Path,
-        size: (u32, u32),
-        frames: u32,
-        details: &impl Serialize,
-    ) -> Result<BenchReport> {
-        let details = serde_json::to_value(details)
-            .map_err(|e| Error::invalid(format!("bench {bench}"), format!("report: {e}")))?;
-        Ok(BenchReport {
-            bench: bench.to_string(),
-            adapter: gpu.info.name.clone(),
-            backend: format!("{:?}", gpu.info.backend),
-            scene: scene.display().to_string(),
-            width: size.0,
-            height: size.1,
-            frames,
-            rows: Vec::new(),
-            summary: Figures::default(),
-            notes: Vec::new(),
+    /// The report of a run with result `details`.
+    pub fn new(run: RunInfo, details: Details) -> BenchReport {
+        BenchReport {
+            bench: details.mode(),
+            run,
+            table: details.table(),
             details,
-        })
+        }
     }
 
     /// The report as one pretty-printed JSON object.
@@ -134,36 +115,23 @@ pub fn number(v: f64) -> String {
 
 impl fmt::Display for BenchReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let r = &self.run;
         writeln!(
             f,
             "relief bench {}: {} at {}x{}, {} frames; adapter {} ({})",
-            self.bench,
-            self.scene,
-            self.width,
-            self.height,
-            self.frames,
-            self.adapter,
-            self.backend
+            self.bench, r.scene, r.width, r.height, r.frames, r.adapter, r.backend
         )?;
-        if let Some(first) = self.rows.first() {
+        let t = &self.table;
+        if let Some(first) = t.rows.first() {
             let columns: Vec<&str> = first.figures.0.iter().map(|(k, _)| k.as_str()).collect();
-            let cells: Vec<Vec<String>> = (self.rows.iter())
+            let cells: Vec<Vec<String>> = (t.rows.iter())
                 .map(|r| r.figures.0.iter().map(|(_, v)| number(*v)).collect())
                 .collect();
-            let name_w = self
-                .rows
-                .iter()
-                .map(|r| r.name.len())
-                .max()
-                .unwrap_or(0)
-                .max(13);
+            let name_w = t.rows.iter().map(|r| r.name.len()).fold(13, usize::max);
             let widths: Vec<usize> = (columns.iter().enumerate())
                 .map(|(i, c)| {
-                    cells
-                        .iter()
-                        .filter_map(|r| r.get(i))
-                        .map(String::len)
-                        .fold(c.len(), usize::max)
+                    let cells = cells.iter().filter_map(|r| r.get(i));
+                    cells.map(String::len).fold(c.len(), usize::max)
                 })
                 .collect();
             write!(f, "{:<name_w$}", "configuration")?;
@@ -171,18 +139,18 @@ impl fmt::Display for BenchReport {
                 write!(f, "  {c:>w$}")?;
             }
             writeln!(f)?;
-            for (r, row) in self.rows.iter().zip(&cells) {
-                write!(f, "{:<name_w$}", r.name)?;
-                for (v, w) in row.iter().zip(&widths) {
+            for (row, values) in t.rows.iter().zip(&cells) {
+                write!(f, "{:<name_w$}", row.name)?;
+                for (v, w) in values.iter().zip(&widths) {
                     write!(f, "  {v:>w$}")?;
                 }
                 writeln!(f)?;
             }
         }
-        for (k, v) in &self.summary.0 {
+        for (k, v) in &t.summary.0 {
             writeln!(f, "{k}: {}", number(*v))?;
         }
-        for n in &self.notes {
+        for n in &t.notes {
             writeln!(f, "{n}")?;
         }
         Ok(())

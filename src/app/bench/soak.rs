@@ -8,7 +8,7 @@
 //! A leak shows as a slope of kilobytes per frame; objects created per frame and never
 //! dropped show as counts that differ.
 
-use super::report::{BenchReport, Figures};
+use super::table::{Figures, RunInfo, Table};
 use super::timing::scene_at_size;
 use crate::app::figures::percentile;
 use crate::gpu::{Gpu, RenderSettings};
@@ -50,7 +50,7 @@ fn counts(gpu: &Gpu) -> Vec<(String, usize)> {
 }
 
 /// Renders `frames` frames of `scene_path` at `size` and reports memory and frame times.
-pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<BenchReport> {
+pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo, SoakBench)> {
     let scene = scene_at_size(scene_path, size)?;
     let world = World::load(&scene)?;
     let gpu = Gpu::new()?;
@@ -105,41 +105,41 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<BenchRepo
         frame_ms_p99: percentile(&times, 99.0).unwrap_or(0.0),
         frame_ms_max: times.iter().copied().fold(0.0, f64::max),
     };
-    report(&details, &gpu, scene_path, size, frames)
+    Ok((RunInfo::new(&gpu, scene_path, size, frames), details))
 }
 
-fn report(
-    b: &SoakBench,
-    gpu: &Gpu,
-    scene: &Path,
-    size: (u32, u32),
-    frames: u32,
-) -> Result<BenchReport> {
-    let mut r = BenchReport::new("soak", gpu, scene, size, frames, b)?;
-    let mib = |k: Option<&u64>| k.copied().unwrap_or(0) as f64 / 1024.0;
-    r.summary = Figures::default()
-        .with("rss_first_mib", mib(b.rss_kib.first()))
-        .with("rss_last_mib", mib(b.rss_kib.last()))
-        .with("rss_slope_kib_per_frame", b.rss_slope_kib_per_frame)
-        .with("frame_ms_p50", b.frame_ms_p50)
-        .with("frame_ms_p99", b.frame_ms_p99)
-        .with("frame_ms_max", b.frame_ms_max);
-    let changed: Vec<String> = (b.resources_start.iter().zip(&b.resources_end))
-        .filter(|(a, b)| a.1 != b.1)
-        .map(|(a, b)| format!("{} {} -> {}", a.0, a.1, b.1))
-        .collect();
-    let total: usize = b.resources_end.iter().map(|(_, n)| n).sum();
-    let [w0, w1] = b.window;
-    r.notes = vec![
-        format!("RSS slope fitted over frames {w0}..{w1}"),
-        format!(
-            "wgpu objects at frames {w0} and {w1}: {}",
-            if changed.is_empty() {
-                format!("unchanged ({total} live)")
-            } else {
-                changed.join(", ")
-            }
-        ),
-    ];
-    Ok(r)
+impl SoakBench {
+    /// No rows: memory and frame times as the summary, the window and wgpu's objects as notes.
+    pub fn table(&self) -> Table {
+        let mib = |k: Option<&u64>| k.copied().unwrap_or(0) as f64 / 1024.0;
+        let summary = Figures::default()
+            .with("rss_first_mib", mib(self.rss_kib.first()))
+            .with("rss_last_mib", mib(self.rss_kib.last()))
+            .with("rss_slope_kib_per_frame", self.rss_slope_kib_per_frame)
+            .with("frame_ms_p50", self.frame_ms_p50)
+            .with("frame_ms_p99", self.frame_ms_p99)
+            .with("frame_ms_max", self.frame_ms_max);
+        let changed: Vec<String> = (self.resources_start.iter().zip(&self.resources_end))
+            .filter(|(a, b)| a.1 != b.1)
+            .map(|(a, b)| format!("{} {} -> {}", a.0, a.1, b.1))
+            .collect();
+        let total: usize = self.resources_end.iter().map(|(_, n)| n).sum();
+        let [w0, w1] = self.window;
+        let notes = vec![
+            format!("RSS slope fitted over frames {w0}..{w1}"),
+            format!(
+                "wgpu objects at frames {w0} and {w1}: {}",
+                if changed.is_empty() {
+                    format!("unchanged ({total} live)")
+                } else {
+                    changed.join(", ")
+                }
+            ),
+        ];
+        Table {
+            rows: Vec::new(),
+            summary,
+            notes,
+        }
+    }
 }

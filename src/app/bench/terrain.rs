@@ -4,7 +4,7 @@
 //! measured against the f64 CPU traversal on a grid of sample pixels. `--dump-rays` writes the
 //! rays and depths for outside comparisons (`benches/embree_compare.py`).
 
-use super::report::{BenchReport, Figures, Row};
+use super::table::{Figures, Row, RunInfo, Table};
 use super::timing::{median_frame_ms, scene_at_size};
 use crate::cpu;
 use crate::gpu::{FrameOutput, Gpu, RenderSettings, Stage, TerrainRenderer, TraceMode};
@@ -222,7 +222,7 @@ pub fn run(
     size: (u32, u32),
     frames: u32,
     dump: Option<&Path>,
-) -> Result<BenchReport> {
+) -> Result<(RunInfo, TerrainBench)> {
     let scene = scene_at_size(scene_path, size)?;
     let terrain = scene.load_terrain()?;
     let t = Instant::now();
@@ -262,37 +262,39 @@ pub fn run(
         pyramid_build_ms,
         configs,
     };
-    report(&details, &gpu, scene_path, size, frames)
+    Ok((RunInfo::new(&gpu, scene_path, size, frames), details))
 }
 
-fn report(
-    b: &TerrainBench,
-    gpu: &Gpu,
-    scene: &Path,
-    size: (u32, u32),
-    frames: u32,
-) -> Result<BenchReport> {
-    let mut r = BenchReport::new("terrain", gpu, scene, size, frames, b)?;
-    r.rows = (b.configs.iter())
-        .map(|c| {
-            let figures = Figures::default()
-                .with("primary_ms", c.primary_ms)
-                .with("rays_per_second", c.rays_per_second)
-                .with("frame_ms", c.frame_ms)
-                .with("steps_per_ray", c.mean_steps_per_ray)
-                .with("patch_tests_per_ray", c.mean_patch_tests_per_ray)
-                .with("depth_error_median", c.depth_error.median_rel)
-                .with("depth_error_p99", c.depth_error.p99_rel)
-                .with("class_mismatches", c.depth_error.class_mismatches as f64);
-            Row::new(&c.name, figures)
-        })
-        .collect();
-    r.summary = Figures::default()
-        .with("speedup_vs_march", b.speedup_vs_march)
-        .with("step_ratio_vs_march", b.step_ratio_vs_march)
-        .with("tile_prepass_speedup", b.tile_prepass_speedup)
-        .with("pyramid_build_ms", b.pyramid_build_ms);
-    Ok(r)
+impl TerrainBench {
+    /// The configurations as rows, the ratios as the summary.
+    pub fn table(&self) -> Table {
+        let rows = (self.configs.iter())
+            .map(|c| {
+                let figures = Figures::default()
+                    .with("primary_ms", c.primary_ms)
+                    .with("rays_per_second", c.rays_per_second)
+                    .with("frame_ms", c.frame_ms)
+                    .with("steps_per_ray", c.mean_steps_per_ray)
+                    .with("patch_tests_per_ray", c.mean_patch_tests_per_ray)
+                    .with("depth_error_median", c.depth_error.median_rel)
+                    .with("depth_error_p99", c.depth_error.p99_rel)
+                    .with("class_mismatches", c.depth_error.class_mismatches as f64);
+                Row::new(&c.name, figures)
+            })
+            .collect();
+        let summary = Figures::default()
+            .with("speedup_vs_march", self.speedup_vs_march)
+            .with("step_ratio_vs_march", self.step_ratio_vs_march)
+            .with("tile_prepass_speedup", self.tile_prepass_speedup)
+            .with("pyramid_build_ms", self.pyramid_build_ms);
+        Table {
+            rows,
+            summary,
+            notes: vec![
+                "depth error: relative, against the f64 CPU traversal on every 8th pixel".into(),
+            ],
+        }
+    }
 }
 
 /// Writes, for outside comparisons (benches/embree_compare.py): `rays.f32` (per pixel: origin

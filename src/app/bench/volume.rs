@@ -1,7 +1,7 @@
 //! `relief bench volume`: the density-volume pass with empty-space skipping and early ray
 //! termination against plain marching of the same lattice, measured in the same run.
 
-use super::report::{BenchReport, Figures, Row};
+use super::table::{Figures, Row, RunInfo, Table};
 use super::timing::{median_frame_ms, scene_at_size};
 use crate::gpu::{Gpu, RenderSettings, Stage, TerrainRenderer};
 use crate::scene::{Camera, Scene};
@@ -143,7 +143,7 @@ impl Bench<'_> {
 }
 
 /// Runs the benchmark on the scene's (first) volume at `size`.
-pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<BenchReport> {
+pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo, VolumeBench)> {
     let scene = scene_at_size(scene_path, size)?;
     let world = World::load(&scene)?;
     let volume = world.volumes.first().ok_or_else(|| {
@@ -180,37 +180,37 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<BenchRepo
         speedup: runs[0].volume_ms / runs[3].volume_ms,
         runs,
     };
-    report(&details, &gpu, scene_path, size, frames)
+    Ok((RunInfo::new(&gpu, scene_path, size, frames), details))
 }
 
-fn report(
-    b: &VolumeBench,
-    gpu: &Gpu,
-    scene: &Path,
-    size: (u32, u32),
-    frames: u32,
-) -> Result<BenchReport> {
-    let mut r = BenchReport::new("volume", gpu, scene, size, frames, b)?;
-    r.rows = (b.runs.iter())
-        .map(|run| {
-            let figures = Figures::default()
-                .with("frame_ms", run.frame_ms)
-                .with("volume_ms", run.volume_ms)
-                .with("samples", run.samples as f64)
-                .with("samples_per_s", run.samples_per_s)
-                .with("lattice_per_s", run.lattice_per_s);
-            Row::new(&run.name, figures)
-        })
-        .collect();
-    r.summary = Figures::default()
-        .with("no_volume_frame_ms", b.no_volume_frame_ms)
-        .with("lattice_points", b.lattice_points as f64)
-        .with("hidden_fraction", b.hidden_fraction)
-        .with("speedup", b.speedup);
-    let [x, y, z] = b.voxels;
-    r.notes = vec![
-        format!("volume {:?}: {x}x{y}x{z} voxels", b.volume),
-        "speedup: plain marching's volume pass over skipping + termination's".into(),
-    ];
-    Ok(r)
+impl VolumeBench {
+    /// One row per sampling configuration, the speedup as the summary.
+    pub fn table(&self) -> Table {
+        let rows = (self.runs.iter())
+            .map(|run| {
+                let figures = Figures::default()
+                    .with("frame_ms", run.frame_ms)
+                    .with("volume_ms", run.volume_ms)
+                    .with("samples", run.samples as f64)
+                    .with("samples_per_s", run.samples_per_s)
+                    .with("lattice_per_s", run.lattice_per_s);
+                Row::new(&run.name, figures)
+            })
+            .collect();
+        let summary = Figures::default()
+            .with("no_volume_frame_ms", self.no_volume_frame_ms)
+            .with("lattice_points", self.lattice_points as f64)
+            .with("hidden_fraction", self.hidden_fraction)
+            .with("speedup", self.speedup);
+        let [x, y, z] = self.voxels;
+        let notes = vec![
+            format!("volume {:?}: {x}x{y}x{z} voxels", self.volume),
+            "speedup: plain marching's volume pass over skipping + termination's".into(),
+        ];
+        Table {
+            rows,
+            summary,
+            notes,
+        }
+    }
 }

@@ -1,7 +1,7 @@
 //! `relief bench voxels`: voxel models against terrain only: each `[[voxels]]` model alone
 //! filling the view, and the simplified-voxel paper's two model sizes at one voxel per pixel.
 
-use super::report::{BenchReport, Figures, Row};
+use super::table::{Figures, Row, RunInfo, Table};
 use super::timing::{median_frame_ms, scene_at_size};
 use crate::app::figures::median;
 use crate::gpu::{Gpu, RenderSettings, Stage, TerrainRenderer};
@@ -157,7 +157,7 @@ impl Bench<'_> {
 }
 
 /// Runs the benchmark on the `[[voxels]]` models of `scene_path` at `size`.
-pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<BenchReport> {
+pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo, VoxelBench)> {
     let scene = scene_at_size(scene_path, size)?;
     let world = World::load(&scene)?;
     let models = &world.voxels;
@@ -202,36 +202,35 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<BenchRepo
         fill,
         paper,
     };
-    report(&details, &gpu, scene_path, size, frames)
+    Ok((RunInfo::new(&gpu, scene_path, size, frames), details))
 }
 
-fn report(
-    b: &VoxelBench,
-    gpu: &Gpu,
-    scene: &Path,
-    size: (u32, u32),
-    frames: u32,
-) -> Result<BenchReport> {
-    let mut r = BenchReport::new("voxels", gpu, scene, size, frames, b)?;
-    let row = |set: &str, v: &VoxelRun| {
-        let figures = Figures::default()
-            .with("instances", v.instances as f64)
-            .with("voxels", v.voxels as f64)
-            .with("voxel_pixels", v.voxel_pixels as f64)
-            .with("steps_per_pixel", v.mean_steps)
-            .with("cast_ms", v.cast_ms)
-            .with("shadow_ms", v.shadow_ms)
-            .with("frame_ms", v.frame_ms)
-            .with("frame_vs_terrain_only", v.frame_ms / b.terrain_only_ms);
-        Row::new(format!("{set}: {}", v.name), figures)
-    };
-    r.rows = (b.fill.iter().map(|v| row("fill", v)))
-        .chain(b.paper.iter().map(|v| row("paper", v)))
-        .collect();
-    r.summary = Figures::default().with("terrain_only_ms", b.terrain_only_ms);
-    r.notes = vec![
-        "fill: each model alone, scaled to fill the view".into(),
-        format!("paper: the simplified-voxel paper's sizes (seed 000: {PAPER_SMALL} voxels at 355 fps, {PAPER_LARGE} at 63 fps), one voxel per pixel 60 m ahead"),
-    ];
-    Ok(r)
+impl VoxelBench {
+    /// One row per set of models measured, terrain only as the summary.
+    pub fn table(&self) -> Table {
+        let row = |set: &str, v: &VoxelRun| {
+            let figures = Figures::default()
+                .with("instances", v.instances as f64)
+                .with("voxels", v.voxels as f64)
+                .with("voxel_pixels", v.voxel_pixels as f64)
+                .with("steps_per_pixel", v.mean_steps)
+                .with("cast_ms", v.cast_ms)
+                .with("shadow_ms", v.shadow_ms)
+                .with("frame_ms", v.frame_ms)
+                .with("frame_vs_terrain_only", v.frame_ms / self.terrain_only_ms);
+            Row::new(format!("{set}: {}", v.name), figures)
+        };
+        let rows = (self.fill.iter().map(|v| row("fill", v)))
+            .chain(self.paper.iter().map(|v| row("paper", v)))
+            .collect();
+        let notes = vec![
+            "fill: each model alone, scaled to fill the view".into(),
+            format!("paper: the simplified-voxel paper's sizes (seed 000: {PAPER_SMALL} voxels at 355 fps, {PAPER_LARGE} at 63 fps), one voxel per pixel 60 m ahead"),
+        ];
+        Table {
+            rows,
+            summary: Figures::default().with("terrain_only_ms", self.terrain_only_ms),
+            notes,
+        }
+    }
 }
