@@ -105,7 +105,7 @@ pub fn number(v: f64) -> String {
         "-".into()
     } else if v.fract() == 0.0 && a < 1e9 {
         format!("{v:.0}")
-    } else if !v.is_finite() || a >= 1e5 || a < 1e-3 {
+    } else if !(1e-3..1e5).contains(&a) {
         format!("{v:.3e}")
     } else {
         let decimals = (3 - a.log10().floor() as i32).clamp(0, 6) as usize;
