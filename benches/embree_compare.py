@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """relief vs Embree on the same primary rays (not part of `cargo test`).
 
-Runs `relief bench --json --dump-rays DIR` (1280x720 view of the real DEM by default), builds a
-triangle mesh of the same height grid (2 triangles per cell) for Embree through Open3D's
+Runs `relief bench terrain --json --dump-rays DIR` (1280x720 view of the real DEM by default),
+builds a triangle mesh of the same height grid (2 triangles per cell) for Embree through Open3D's
 RaycastingScene, casts the same rays on all CPU threads, and prints both rays/s and their depth
 agreement. Triangles differ from relief's bilinear patches by up to the cell's twist, so depths
 are compared with a tolerance that reflects the triangulation (1% relative).
@@ -32,7 +32,7 @@ subprocess.run(["cargo", "build", "--release", "--quiet"], cwd=root, check=True)
 exe = os.path.join(root, "target", "release", "relief")
 with tempfile.TemporaryDirectory() as d:
     env = dict(os.environ, NODEVICE_SELECT="1", RUST_LOG="warn")
-    out = subprocess.run([exe, "bench", args.scene, "--size", args.size, "--frames", str(args.frames), "--json", "--dump-rays", d],
+    out = subprocess.run([exe, "bench", "terrain", args.scene, "--size", args.size, "--frames", str(args.frames), "--json", "--dump-rays", d],
                          check=True, capture_output=True, text=True, env=env).stdout
     report = json.loads(out)
     grid = json.load(open(os.path.join(d, "grid.json")))
@@ -54,12 +54,13 @@ scene.add_triangles(o3d.core.Tensor(verts), o3d.core.Tensor(tris))
 scene.cast_rays(o3d.core.Tensor(rays[:16]))  # builds the BVH
 build_s = time.perf_counter() - t0
 rt = o3d.core.Tensor(rays)
-# Alternate: relief's primary-ray median over --frames, then the median of --repeats Embree casts.
+# Alternate: relief's primary-ray median over --frames (`bench primary`), then the median of
+# --repeats Embree casts.
 rounds = []
 for r in range(args.rounds):
-    out = subprocess.run([exe, "bench", args.scene, "--size", args.size, "--frames", str(args.frames),
-                          "--primary-only", "--json"], check=True, capture_output=True, text=True, env=env).stdout
-    relief_rps = json.loads(out)["rays_per_second"]
+    out = subprocess.run([exe, "bench", "primary", args.scene, "--size", args.size, "--frames", str(args.frames),
+                          "--json"], check=True, capture_output=True, text=True, env=env).stdout
+    relief_rps = json.loads(out)["details"]["rays_per_second"]
     times = []
     for _ in range(args.repeats):
         t0 = time.perf_counter()
@@ -79,7 +80,7 @@ relief_med = float(np.median([a for a, _ in rounds]))
 embree_med = float(np.median([b for _, b in rounds]))
 ratios = [a / b for a, b in rounds]
 print(f"rays: {n} ({args.size}), scene {args.scene}")
-pt = next(c for c in report["configs"] if c["name"] == "pyramid+tiles")
+pt = next(c for c in report["details"]["configs"] if c["name"] == "pyramid+tiles")
 print(f"relief  ({report['adapter']}, {report['backend']}): {relief_med / 1e6:.2f} M rays/s "
       f"(median of {args.rounds} rounds; {pt['mean_steps_per_ray']:.1f} steps/ray)")
 print(f"Embree  (Open3D {o3d.__version__}, {os.cpu_count()} threads): {embree_med / 1e6:.2f} M rays/s "

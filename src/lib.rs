@@ -11,6 +11,8 @@
 //! * [`volume`]: density volumes (NRRD, raw, procedural), transfer functions, brick grid.
 //! * [`voxel`]: coloured voxel models (`.vox` import, segment format, brick grid, scene tables).
 //! * [`display`]: curved-screen display model (screen, projectors, eye) for pre-distortion.
+//! * [`world`]: a scene's world loaded on the CPU (terrain and pyramid, free forms, volumes,
+//!   voxel models), ready for the renderers.
 //! * [`gpu`]: wgpu passes (ray generation, tile pre-pass, terrain cast + shade) and readback.
 //! * [`app`]: headless capture, benchmark and command-line front end.
 //! * [`fileio`]: bounded reads (memory budget, declared vs actual sizes) and atomic writes.
@@ -27,5 +29,6 @@ pub mod scene;
 pub mod terrain;
 pub mod volume;
 pub mod voxel;
+pub mod world;
 
 pub use error::{Error, Result};

@@ -223,9 +223,9 @@ fn query_without_a_question_fails() {
 #[test]
 fn voxel_bench_without_voxel_models_is_refused() {
     let alps = s(&terrains().join("alps.toml"));
-    let o = relief(&["bench", "--voxels", &alps]);
+    let o = relief(&["bench", "voxels", &alps]);
     assert_fails(
-        "bench --voxels alps",
+        "bench voxels alps",
         &o,
         &["alps.toml", "no [[voxels]] model"],
     );

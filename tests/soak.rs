@@ -1,4 +1,4 @@
-//! Long runs: `relief bench --soak` on each software adapter as a child process. Before the
+//! Long runs: `relief bench soak` on each software adapter as a child process. Before the
 //! fix, lavapipe grew about 3.5 MB a frame (it compiled every pass again each frame with the
 //! uniform values inlined, and kept the code); the bound here is 4 KiB a frame.
 
@@ -16,7 +16,7 @@ fn soak_keeps_memory_and_wgpu_objects_flat_on_every_adapter() {
         let o = relief_cli(
             &[
                 "bench",
-                "--soak",
+                "soak",
                 "terrains/alps.toml",
                 "--size",
                 "160x120",
@@ -29,24 +29,25 @@ fn soak_keeps_memory_and_wgpu_objects_flat_on_every_adapter() {
         let stdout = String::from_utf8_lossy(&o.stdout);
         assert!(
             o.status.success(),
-            "{backend}: relief bench --soak failed: {}",
+            "{backend}: relief bench soak failed: {}",
             String::from_utf8_lossy(&o.stderr)
         );
         let r: serde_json::Value = serde_json::from_str(&stdout).expect("one JSON object");
-        let slope = r["rss_slope_kib_per_frame"].as_f64().unwrap();
-        let rss = r["rss_kib"].as_array().unwrap();
+        let d = &r["details"];
+        let slope = d["rss_slope_kib_per_frame"].as_f64().unwrap();
+        let rss = d["rss_kib"].as_array().unwrap();
         eprintln!(
             "{backend} ({}): RSS {} -> {} KiB, slope {slope:.3} KiB/frame, frame p50 {:.2} ms p99 {:.2} ms max {:.2} ms",
-            r["adapter"], rss[0], rss[rss.len() - 1], r["frame_ms_p50"].as_f64().unwrap(),
-            r["frame_ms_p99"].as_f64().unwrap(), r["frame_ms_max"].as_f64().unwrap()
+            r["adapter"], rss[0], rss[rss.len() - 1], d["frame_ms_p50"].as_f64().unwrap(),
+            d["frame_ms_p99"].as_f64().unwrap(), d["frame_ms_max"].as_f64().unwrap()
         );
         assert_eq!(rss.len(), 600, "{backend}: one RSS figure per frame");
-        assert_eq!(r["window"], serde_json::json!([100, 500]));
+        assert_eq!(d["window"], serde_json::json!([100, 500]));
         assert!(
             slope < MAX_SLOPE_KIB,
             "{backend}: RSS grows {slope:.1} KiB per frame (< {MAX_SLOPE_KIB} required)"
         );
-        let (a, b) = (&r["resources_start"], &r["resources_end"]);
+        let (a, b) = (&d["resources_start"], &d["resources_end"]);
         assert!(
             a.as_array().is_some_and(|v| !v.is_empty()),
             "{backend}: no wgpu report"

@@ -1,106 +1,22 @@
-//! Headless frame capture: `frame_NNNN.png`, `depth_NNNN.tiff` (f32 ray distance, +inf sky)
-//! and `frame_NNNN.json` (camera model, terrain mapping, timings, adapter).
-//! Files are written atomically ([`crate::fileio::write_atomic`]: a temporary file renamed when
-//! complete, removed on any error), so nothing is left half-written.
+//! `relief render`: headless frame capture, `frame_NNNN.png`, `depth_NNNN.tiff` (f32 ray
+//! distance, +inf sky) and `frame_NNNN.json` (camera model, terrain mapping, timings,
+//! adapter), through the scene's pinhole camera, a display channel's distortion table (direct
+//! or two-pass) or as a dome master. The files are written by [`super::output`].
 
+use super::args::{parse_size, parse_vec, RenderToggles};
+use super::output::{frame_paths, write_frame_files};
+use super::two_pass::{render_two_pass, view_points, TwoPass};
+use crate::display::blend::ChannelBlend;
 use crate::gpu::{FrameOutput, Gpu, RenderSettings, TerrainRenderer};
 use crate::scene::{Camera, Scene};
 use crate::terrain::Terrain;
+use crate::world::World;
 use crate::{fileio, Error, Result};
 use serde_json::json;
 use std::path::{Path, PathBuf};
 
-/// Writes an sRGB RGBA8 image as PNG (atomically).
-pub fn write_png(path: &Path, width: u32, height: u32, rgba: &[u8]) -> Result<()> {
-    fileio::write_atomic(path, |f| encode_png(f, width, height, rgba))
-}
-
-/// Encodes an sRGB RGBA8 image as PNG into `f`.
-fn encode_png(f: &mut fileio::AtomicFile, width: u32, height: u32, rgba: &[u8]) -> Result<()> {
-    if rgba.len() as u64 != width as u64 * height as u64 * 4 {
-        return Err(Error::invalid(
-            "image",
-            format!(
-                "{} bytes do not make a {width}x{height} RGBA image",
-                rgba.len()
-            ),
-        ));
-    }
-    let path = f.target().to_path_buf();
-    image::write_buffer_with_format(
-        f,
-        rgba,
-        width,
-        height,
-        image::ExtendedColorType::Rgba8,
-        image::ImageFormat::Png,
-    )
-    .map_err(|e| Error::format(path, format!("writing PNG: {e}")))
-}
-
-/// Writes a single-channel f32 TIFF (the depth image), atomically.
-pub fn write_depth_tiff(path: &Path, width: u32, height: u32, depth: &[f32]) -> Result<()> {
-    fileio::write_atomic(path, |f| encode_depth_tiff(f, width, height, depth))
-}
-
-fn encode_depth_tiff(
-    f: &mut fileio::AtomicFile,
-    width: u32,
-    height: u32,
-    depth: &[f32],
-) -> Result<()> {
-    let path = f.target().to_path_buf();
-    let mut enc = tiff::encoder::TiffEncoder::new(f)
-        .map_err(|e| Error::format(&path, format!("writing TIFF: {e}")))?;
-    enc.write_image::<tiff::encoder::colortype::Gray32Float>(width, height, depth)
-        .map_err(|e| Error::format(&path, format!("writing TIFF: {e}")))
-}
-
-/// Writes a JSON value (pretty-printed), atomically.
-pub fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
-    fileio::write_atomic(path, |f| encode_json(f, value))
-}
-
-fn encode_json(f: &mut fileio::AtomicFile, value: &impl serde::Serialize) -> Result<()> {
-    let path = f.target().to_path_buf();
-    serde_json::to_writer_pretty(&mut *f, value)
-        .map_err(|e| Error::format(path, format!("writing JSON: {e}")))
-}
-
-/// Writes a frame's PNG, depth TIFF and JSON all or nothing: all three are written and flushed
-/// to temporary files before any is renamed into place ([`fileio::commit_all`]).
-pub fn write_frame_files(
-    png: &Path,
-    tif: &Path,
-    json: &Path,
-    out: &FrameOutput,
-    meta: &serde_json::Value,
-) -> Result<()> {
-    let mut a = fileio::AtomicFile::create(png)?;
-    encode_png(&mut a, out.width, out.height, &out.rgba)?;
-    let mut b = fileio::AtomicFile::create(tif)?;
-    encode_depth_tiff(&mut b, out.width, out.height, &out.depth)?;
-    let mut c = fileio::AtomicFile::create(json)?;
-    encode_json(&mut c, meta)?;
-    fileio::commit_all(vec![a, b, c])
-}
-
-/// Reads a depth TIFF written by [`write_depth_tiff`].
-pub fn read_depth_tiff(path: &Path) -> Result<(u32, u32, Vec<f32>)> {
-    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-    let mut dec = tiff::decoder::Decoder::new(std::io::BufReader::new(file))
-        .map_err(|e| Error::format(path, format!("{e}")))?;
-    let (w, h) = dec
-        .dimensions()
-        .map_err(|e| Error::format(path, format!("{e}")))?;
-    match dec
-        .read_image()
-        .map_err(|e| Error::format(path, format!("{e}")))?
-    {
-        tiff::decoder::DecodingResult::F32(v) => Ok((w, h, v)),
-        _ => Err(Error::format(path, "not an f32 depth image")),
-    }
-}
+// The writers lived here before `output`; their paths stay.
+pub use super::output::{read_depth_tiff, write_depth_tiff, write_json, write_png};
 
 fn mat_rows(m: glam::DMat4) -> Vec<[f64; 4]> {
     let t = m.transpose();
@@ -193,36 +109,64 @@ pub fn frame_metadata(
     })
 }
 
-/// Options of a headless render run.
-#[derive(Clone, Debug)]
+/// Options of a headless render run (`relief render`).
+#[derive(Clone, Debug, clap::Args)]
 pub struct RenderJob {
+    /// Scene file (TOML).
     pub scene: PathBuf,
+    /// Output size WxH (overrides [output]).
+    #[arg(long, value_parser = parse_size)]
     pub size: Option<(u32, u32)>,
+    /// Number of frames (along the scene's [path] if it has one).
+    #[arg(long, default_value_t = 1)]
     pub frames: u32,
+    /// First frame number.
+    #[arg(long = "first", value_name = "FIRST", default_value_t = 0)]
     pub first_frame: u32,
+    /// Output directory.
+    #[arg(long = "out", value_name = "OUT", default_value = "out")]
     pub out_dir: PathBuf,
-    pub shadows: Option<bool>,
-    pub tile_prepass: Option<bool>,
-    /// Render through a distortion table: display config, channel index, eye override.
-    pub display: Option<DisplayJob>,
-    /// Render the warp test pattern ([`crate::display::pattern`], circles around the camera's
-    /// forward direction) instead of the scene.
+    #[command(flatten)]
+    pub toggles: RenderToggles,
+    #[command(flatten)]
+    pub display: DisplayArgs,
+    /// Render the warp test pattern (5° azimuth/elevation grid, horizon, 10° circles around
+    /// the view direction) instead of the scene.
+    #[arg(long)]
     pub pattern: bool,
-    /// Render a dome master of this field of view (degrees) instead of a pinhole image:
-    /// an angular fisheye around the vehicle's up axis ([`crate::display::dome_master`]).
+    /// Render a square dome master (angular fisheye of this many degrees, 180 for a
+    /// hemisphere; zenith at the centre, forward at the bottom) instead of a pinhole view.
+    #[arg(long, conflicts_with = "display")]
     pub dome_master: Option<f64>,
 }
 
-/// The display part of a render job.
-#[derive(Clone, Debug)]
-pub struct DisplayJob {
-    pub config: PathBuf,
+/// The display part of a render job: render through a distortion table.
+#[derive(Clone, Debug, Default, clap::Args)]
+pub struct DisplayArgs {
+    /// Render through a curved-screen distortion table (display config TOML).
+    #[arg(long)]
+    pub display: Option<PathBuf>,
+    /// Channel (projector) of the display config.
+    #[arg(long, default_value_t = 0)]
     pub channel: usize,
-    /// Eye point in the display frame; the config's eye when `None`.
+    /// Eye point X,Y,Z in the display frame (overrides the config's eye).
+    #[arg(long, value_parser = parse_vec::<3>, allow_hyphen_values = true)]
     pub eye: Option<[f64; 3]>,
-    /// Two-pass mode: render planar (or cube) images from the eye and warp them through the
-    /// table (bilinear), as conventional warping software does; for comparison with direct.
+    /// With --display: two-pass mode (planar/cube images warped bilinearly through the
+    /// table) instead of direct ray casting, for comparison.
+    #[arg(long, requires = "display")]
     pub two_pass: bool,
+}
+
+/// How frames are projected when not through the scene's pinhole camera.
+#[derive(Default)]
+struct Projection {
+    /// The frame metadata's `display` (null for the pinhole camera).
+    meta: serde_json::Value,
+    /// Two-pass mode blends after its CPU warp (direct mode on the GPU).
+    blend_after_warp: Option<ChannelBlend>,
+    /// Two-pass mode: the intermediate faces and the projector pixels' directions.
+    two_pass: Option<TwoPass>,
 }
 
 /// Renders `job.frames` frames and writes them to `job.out_dir`; returns the file paths.
@@ -233,137 +177,30 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
         scene.desc.output.height = h;
         scene.desc.validate()?;
     }
-    if job.frames == 0 || job.frames > 100_000 {
-        return Err(Error::invalid(
-            "--frames",
-            format!("must be 1..=100000, got {}", job.frames),
-        ));
-    }
-    // The last frame number must exist: `--first` + `--frames` − 1 within u32.
-    let last_frame = job.first_frame.checked_add(job.frames - 1).ok_or_else(|| {
-        Error::invalid(
-            "--first",
-            format!(
-                "{} with --frames {} runs past the largest frame number {}: lower --first or --frames",
-                job.first_frame,
-                job.frames,
-                u32::MAX
-            ),
-        )
-    })?;
-    let terrain = scene.load_terrain()?;
-    let objects = scene.free_forms(&terrain)?;
-    let volumes = scene.volumes(&terrain)?;
-    let voxels = scene.voxel_models(&terrain)?;
+    let last_frame = last_frame(job)?;
+    let world = World::load(&scene)?;
     let gpu = Gpu::new()?;
     log::info!("adapter: {}", gpu.describe());
-    let mut renderer = TerrainRenderer::new(&gpu, &terrain)?;
-    renderer.set_objects(&gpu, &objects)?;
-    renderer.set_volumes(&gpu, &volumes)?;
-    renderer.set_voxels(&gpu, &voxels)?;
-    let fps = scene.desc.path.as_ref().map_or(30.0, |p| p.fps);
-    let mut blend_after_warp = None;
-    let mut display_meta = serde_json::Value::Null;
-    // Two-pass mode: intermediate faces and the projector pixels' display-frame directions.
-    let mut two_pass: Option<(Vec<super::verify::Face>, Vec<Option<glam::DVec3>>)> = None;
-    if let Some(d) = &job.display {
-        if job.size.is_some() {
-            return Err(Error::invalid(
-                "--size",
-                "a distortion table renders at the projector's resolution; drop --size",
-            ));
-        }
-        let cfg = crate::display::DisplayConfig::load(&d.config)?;
-        let channel = cfg.channels.get(d.channel).ok_or_else(|| {
-            Error::invalid(
-                "--channel",
-                format!(
-                    "{} has {} channel(s), asked for index {}",
-                    d.config.display(),
-                    cfg.channels.len(),
-                    d.channel
-                ),
-            )
-        })?;
-        let p = channel.projector;
-        let points = cfg.channel_points(d.channel)?;
-        let lit = points.points.iter().filter(|p| p.is_some()).count();
-        if lit == 0 {
-            return Err(Error::invalid(
-                format!("{} channel {}", d.config.display(), d.channel),
-                "no projector pixel reaches the screen",
-            ));
-        }
-        let eye = glam::DVec3::from(d.eye.unwrap_or(cfg.eye.position));
-        renderer.set_display(&gpu, &points, eye)?;
-        if let Some(v) = channel.view {
-            renderer.set_view_offset(v.matrix());
-        }
-        // Direct mode blends on the GPU; two-pass mode after its CPU warp (below).
-        let blend = crate::display::blend::ChannelBlend::new(&cfg, d.channel);
-        if d.two_pass {
-            blend_after_warp = blend;
-        } else {
-            renderer.set_blend(&gpu, blend.as_ref())?;
-        }
-        let mut mode = json!("direct: one ray per projector pixel");
-        if d.two_pass {
-            let dirs: Vec<_> = points
-                .points
-                .iter()
-                .map(|s| s.and_then(|s| (s - eye).try_normalize()))
-                .map(|d| d.map(|d| channel.view.map_or(d, |v| v.matrix() * d)))
-                .collect();
-            let faces = super::verify::two_pass_faces(p.width, &dirs)?;
-            mode = json!(format!(
-                "two-pass: {} pinhole image(s) of {}x{} from the eye, warped bilinearly through the table",
-                faces.len(),
-                faces[0].width,
-                faces[0].height
-            ));
-            two_pass = Some((faces, dirs));
-        }
-        scene.desc.output.width = p.width;
-        scene.desc.output.height = p.height;
-        display_meta = json!({
-            "config": d.config.display().to_string(),
-            "channel": d.channel,
-            "channel_name": channel.name,
-            "eye_display_frame": eye.to_array(),
-            "pixels_on_screen": lit,
-            "mode": mode,
-            "model": "per-pixel ray = world_from_display * normalize(screen_point(pixel) - eye); world_from_display maps display x, y, z to the camera's right, forward, up",
-        });
+    let mut renderer = super::upload::renderer(&gpu, &world)?;
+    let mut projection = Projection::default();
+    if let Some(config) = &job.display.display {
+        projection = through_channel(job, config, &gpu, &mut renderer, &mut scene)?;
     }
     if let Some(fov) = job.dome_master {
-        crate::display::dome_master::check_fov("--dome-master", fov)?;
-        if job.display.is_some() {
-            return Err(Error::invalid(
-                "--dome-master",
-                "renders the fulldome master itself; drop --display (use `relief warp apply` to \
-                 warp a dome master into a projector channel)",
-            ));
-        }
-        let o = &mut scene.desc.output;
-        let size = o.width.min(o.height);
-        (o.width, o.height) = (size, size);
-        let points = super::verify::view_points(size, size, |x, y| {
-            crate::display::dome_master::direction(x, y, size, fov)
-        });
-        renderer.set_display(&gpu, &points, glam::DVec3::ZERO)?;
-        display_meta = json!({
-            "mode": format!("dome master: {fov}° angular fisheye, {size}x{size}"),
-            "model": "zenith (vehicle up) at the centre, vehicle forward at the bottom, right to the right; radius proportional to the angle from the zenith",
-        });
+        projection = dome_master(job, fov, &gpu, &mut renderer, &mut scene)?;
     }
     let mut settings = RenderSettings::from_scene(&scene.desc);
-    if let Some(s) = job.shadows {
-        settings.shadows = s;
-    }
-    if let Some(t) = job.tile_prepass {
-        settings.tile_prepass = t;
-    }
+    job.toggles.apply(&mut settings);
     std::fs::create_dir_all(&job.out_dir).map_err(|e| Error::io(&job.out_dir, e))?;
+    let frames = Frames {
+        job,
+        gpu: &gpu,
+        scene: &scene,
+        terrain: &world.terrain,
+        settings: &settings,
+        projection: &projection,
+        fps: scene.desc.path.as_ref().map_or(30.0, |p| p.fps),
+    };
     let mut written = Vec::new();
     for frame in job.first_frame..=last_frame {
         // An error names the frame and what is kept: every earlier frame is complete.
@@ -381,47 +218,175 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
                 },
             )
         };
-        let cam = scene.camera(frame, &terrain);
-        renderer.set_time(frame as f64 / fps);
-        if job.pattern {
+        written.extend(frames.render(&mut renderer, frame).map_err(at)?);
+    }
+    Ok(written)
+}
+
+/// The last frame number, after checking `--frames` and that `--first` + `--frames` − 1 fits.
+fn last_frame(job: &RenderJob) -> Result<u32> {
+    if job.frames == 0 || job.frames > 100_000 {
+        return Err(Error::invalid(
+            "--frames",
+            format!("must be 1..=100000, got {}", job.frames),
+        ));
+    }
+    job.first_frame.checked_add(job.frames - 1).ok_or_else(|| {
+        Error::invalid(
+            "--first",
+            format!(
+                "{} with --frames {} runs past the largest frame number {}: lower --first or --frames",
+                job.first_frame,
+                job.frames,
+                u32::MAX
+            ),
+        )
+    })
+}
+
+/// Sets `renderer` up to render through channel `job.display.channel` of the display config
+/// `config` (at the projector's resolution), direct or two-pass.
+fn through_channel(
+    job: &RenderJob,
+    config: &Path,
+    gpu: &Gpu,
+    renderer: &mut TerrainRenderer,
+    scene: &mut Scene,
+) -> Result<Projection> {
+    let d = &job.display;
+    if job.size.is_some() {
+        return Err(Error::invalid(
+            "--size",
+            "a distortion table renders at the projector's resolution; drop --size",
+        ));
+    }
+    let cfg = crate::display::DisplayConfig::load(config)?;
+    let channel = super::channel::channel(&cfg, &config.display().to_string(), d.channel)?;
+    let p = channel.projector;
+    let points = cfg.channel_points(d.channel)?;
+    let lit = points.points.iter().filter(|p| p.is_some()).count();
+    if lit == 0 {
+        return Err(Error::invalid(
+            format!("{} channel {}", config.display(), d.channel),
+            "no projector pixel reaches the screen",
+        ));
+    }
+    let eye = glam::DVec3::from(d.eye.unwrap_or(cfg.eye.position));
+    renderer.set_display(gpu, &points, eye)?;
+    if let Some(v) = channel.view {
+        renderer.set_view_offset(v.matrix());
+    }
+    // Direct mode blends on the GPU; two-pass mode after its CPU warp.
+    let blend = ChannelBlend::new(&cfg, d.channel);
+    let mut projection = Projection::default();
+    if d.two_pass {
+        projection.blend_after_warp = blend;
+    } else {
+        renderer.set_blend(gpu, blend.as_ref())?;
+    }
+    let mut mode = json!("direct: one ray per projector pixel");
+    if d.two_pass {
+        let two_pass = TwoPass::new(&points, eye, channel.view.map(|v| v.matrix()))?;
+        mode = json!(two_pass.describe());
+        projection.two_pass = Some(two_pass);
+    }
+    scene.desc.output.width = p.width;
+    scene.desc.output.height = p.height;
+    projection.meta = json!({
+        "config": config.display().to_string(),
+        "channel": d.channel,
+        "channel_name": channel.name,
+        "eye_display_frame": eye.to_array(),
+        "pixels_on_screen": lit,
+        "mode": mode,
+        "model": "per-pixel ray = world_from_display * normalize(screen_point(pixel) - eye); world_from_display maps display x, y, z to the camera's right, forward, up",
+    });
+    Ok(projection)
+}
+
+/// Sets `renderer` up to render a square dome master of `fov` degrees.
+fn dome_master(
+    job: &RenderJob,
+    fov: f64,
+    gpu: &Gpu,
+    renderer: &mut TerrainRenderer,
+    scene: &mut Scene,
+) -> Result<Projection> {
+    crate::display::dome_master::check_fov("--dome-master", fov)?;
+    if job.display.display.is_some() {
+        return Err(Error::invalid(
+            "--dome-master",
+            "renders the fulldome master itself; drop --display (use `relief warp apply` to \
+             warp a dome master into a projector channel)",
+        ));
+    }
+    let o = &mut scene.desc.output;
+    let size = o.width.min(o.height);
+    (o.width, o.height) = (size, size);
+    let points = view_points(size, size, |x, y| {
+        crate::display::dome_master::direction(x, y, size, fov)
+    });
+    renderer.set_display(gpu, &points, glam::DVec3::ZERO)?;
+    Ok(Projection {
+        meta: json!({
+            "mode": format!("dome master: {fov}° angular fisheye, {size}x{size}"),
+            "model": "zenith (vehicle up) at the centre, vehicle forward at the bottom, right to the right; radius proportional to the angle from the zenith",
+        }),
+        ..Projection::default()
+    })
+}
+
+/// What every frame of a run shares.
+struct Frames<'a> {
+    job: &'a RenderJob,
+    gpu: &'a Gpu,
+    scene: &'a Scene,
+    terrain: &'a Terrain,
+    settings: &'a RenderSettings,
+    projection: &'a Projection,
+    fps: f64,
+}
+
+impl Frames<'_> {
+    /// Renders frame `frame` and writes its three files (none of them when one cannot be).
+    fn render(&self, renderer: &mut TerrainRenderer, frame: u32) -> Result<[PathBuf; 3]> {
+        let (gpu, scene, terrain, settings) = (self.gpu, self.scene, self.terrain, self.settings);
+        let cam = scene.camera(frame, terrain);
+        renderer.set_time(frame as f64 / self.fps);
+        if self.job.pattern {
             let params = crate::display::pattern::PatternParams::grid(cam.basis().2);
-            renderer.set_pattern(&gpu, Some(params));
+            renderer.set_pattern(gpu, Some(params));
         }
-        let mut out = match &two_pass {
-            Some((faces, dirs)) => super::verify::render_two_pass(
-                &gpu,
-                &mut renderer,
-                &terrain,
+        let mut out = match &self.projection.two_pass {
+            Some(tp) => render_two_pass(
+                gpu,
+                renderer,
+                terrain,
                 &scene.desc,
                 cam.pose,
-                &settings,
-                faces,
-                dirs,
+                settings,
+                &tp.faces,
+                &tp.dirs,
                 cam.width,
                 cam.height,
-            )
-            .map_err(at)?,
-            None => renderer
-                .capture(&gpu, &terrain, &scene.desc, &cam, &settings)
-                .map_err(at)?,
+            )?,
+            None => renderer.capture(gpu, terrain, &scene.desc, &cam, settings)?,
         };
-        if let Some(b) = &blend_after_warp {
+        if let Some(b) = &self.projection.blend_after_warp {
             b.apply_rgba8(&mut out.rgba);
         }
-        let png = job.out_dir.join(format!("frame_{frame:04}.png"));
-        let tif = job.out_dir.join(format!("depth_{frame:04}.tiff"));
-        let meta = job.out_dir.join(format!("frame_{frame:04}.json"));
+        let [png, tif, meta] = frame_paths(&self.job.out_dir, frame as u64);
         // None of the frame's files is written when one of them cannot be.
         for p in [&png, &tif, &meta] {
-            fileio::check_writable_target(p).map_err(at)?;
+            fileio::check_writable_target(p)?;
         }
-        let mut m = frame_metadata(&gpu, &scene, &terrain, &cam, &settings, frame, &out);
-        if !display_meta.is_null() {
-            m["display"] = display_meta.clone();
+        let mut m = frame_metadata(gpu, scene, terrain, &cam, settings, frame, &out);
+        if !self.projection.meta.is_null() {
+            m["display"] = self.projection.meta.clone();
             m["camera"]["model"] =
                 json!("distortion-table (see display); the pinhole intrinsics do not apply");
         }
-        write_frame_files(&png, &tif, &meta, &out, &m).map_err(at)?;
+        write_frame_files(&png, &tif, &meta, &out, &m)?;
         log::info!(
             "frame {frame}: raygen {:.1} ms, tile {:.1} ms, cast {:.1} ms, free forms {:.1} ms, voxels {:.1} ms, voxel shadows {:.1} ms, shade {:.1} ms, volume shadows {:.1} ms, volume {:.1} ms -> {}",
             out.times.raygen_ms,
@@ -435,7 +400,6 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
             out.times.volume_ms,
             png.display()
         );
-        written.extend([png, tif, meta]);
+        Ok([png, tif, meta])
     }
-    Ok(written)
 }

@@ -1,10 +1,36 @@
-//! Application layer: headless capture, benchmark, command line.
+//! Application layer: the commands of the `relief` binary over the library, one room a file.
+//!
+//! * [`args`]: command-line value parsers and the render toggles several commands share;
+//! * [`bench`]: `relief bench MODE`: the benchmark modes, one report and JSON schema for all;
+//! * [`capture`]: `relief render`: headless frames (pinhole, display channel, dome master);
+//! * [`channel`]: a display configuration's channel by index, with the error that says so;
+//! * [`figures`]: median, percentile, slope, memory window, resident set size;
+//! * [`output`]: the file writers (PNG, depth TIFF, JSON, a frame's files all or nothing);
+//! * [`pattern_rig`]: the warp test pattern rendered through ray tables;
+//! * [`sampling`]: bilinear sampling of RGBA8 images;
+//! * [`scenes`]: the demo scenes in `terrains/`, found at run time;
+//! * [`two_pass`]: two-pass warping (`render --two-pass`) and the virtual views it builds on;
+//! * [`upload`]: a [`crate::world::World`] put on the GPU (a renderer holding it);
+//! * [`verify`]: `relief warp verify`: the closed-loop check of a display configuration;
+//! * [`view`]: `relief view`: the window, its frame loop, motion and statistics;
+//! * [`voxels`]: `relief voxels convert`: voxel models to the segment format;
+//! * [`warp`]: `relief warp inspect|apply|export`: warp files and dome masters.
 
+pub mod args;
 pub mod bench;
 pub mod capture;
-pub mod soak;
+pub mod channel;
+pub mod figures;
+pub mod output;
+pub mod pattern_rig;
+pub mod sampling;
+pub mod scenes;
+pub mod two_pass;
+pub mod upload;
 pub mod verify;
 pub mod view;
-pub mod volumes;
 pub mod voxels;
 pub mod warp;
+
+// `relief bench soak` was `app::soak`; its statistics are still found there.
+pub use bench::soak;

@@ -1,5 +1,5 @@
-//! `relief warp verify`: the closed-loop check of a display configuration, and the two-pass
-//! (planar/cube image + bilinear warp) comparison mode.
+//! `relief warp verify`: the closed-loop check of a display configuration, with the two-pass
+//! comparison ([`super::two_pass`]).
 //!
 //! Closed loop: the GPU renders the test pattern ([`crate::display::pattern`]) through each
 //! channel's ray table. For every pixel of an eye view (equidistant fisheye around the
@@ -12,224 +12,26 @@
 //! the undistorted reference. Sharpness: a grating in elevation at a median 0.4 cycles per
 //! projector pixel; the contrast retained is the least-squares slope of the measured values
 //! against the exact ones (1 = nothing lost).
-//!
-//! Two-pass mode renders a pinhole image around the channel (or a cube when the channel spans
-//! more than 65° from its axis) at about the table's pixel density, then warps it into the
-//! projector image through the table with bilinear filtering, as conventional warping
-//! software does.
 
-use crate::cpu::distortion::{projector_coord, ScreenPoints};
+use super::output::{write_json, write_png};
+pub use super::pattern_rig::{PatternRig, PatternView};
+use super::sampling::{quantise, sample_rgba8};
+use super::two_pass::{two_pass_faces, view_basis, view_points, warp_faces};
+use crate::cpu::distortion::{projector_coord, screen_points, ScreenPoints};
+use crate::display::blend::ChannelBlend;
 use crate::display::pattern::{pattern_colour, PatternParams};
 use crate::display::{DisplayConfig, Projector, Screen};
-use crate::gpu::{FrameOutput, Gpu, RenderSettings, TerrainRenderer};
-use crate::scene::{Camera, Pose, Scene, SceneDesc};
-use crate::terrain::{Heightfield, Terrain, TerrainFrame};
+use crate::gpu::Gpu;
 use crate::{Error, Result};
 use glam::DVec3;
 use rayon::prelude::*;
 use serde::Serialize;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 const ARCMIN: f64 = std::f64::consts::PI / (180.0 * 60.0);
 
 /// Median local grating frequency in the projector image (cycles per pixel).
 pub const GRATING_CYCLES_PER_PIXEL: f64 = 0.4;
-
-/// Right, down, forward basis of a view looking along `fwd` (image up = display +z, or
-/// display +y when looking nearly straight up or down).
-pub fn view_basis(fwd: DVec3) -> (DVec3, DVec3, DVec3) {
-    let fwd = fwd.normalize();
-    let up = if fwd.z.abs() < 0.9 {
-        DVec3::Z
-    } else {
-        DVec3::Y
-    };
-    let right = fwd.cross(up).normalize();
-    let down = fwd.cross(right);
-    (right, down, fwd)
-}
-
-/// One planar image of the two-pass intermediate: a pinhole view along `fwd` covering
-/// `tan_x`, `tan_y` (half extents of the image plane at unit distance).
-#[derive(Clone, Copy, Debug)]
-pub struct Face {
-    pub right: DVec3,
-    pub down: DVec3,
-    pub fwd: DVec3,
-    pub tan_x: f64,
-    pub tan_y: f64,
-    pub width: u32,
-    pub height: u32,
-}
-
-impl Face {
-    /// Unit direction through image point (x, y) (pixel centres at +0.5).
-    pub fn dir(&self, x: f64, y: f64) -> DVec3 {
-        let a = (x / self.width as f64 * 2.0 - 1.0) * self.tan_x;
-        let b = (y / self.height as f64 * 2.0 - 1.0) * self.tan_y;
-        (self.fwd + self.right * a + self.down * b).normalize()
-    }
-
-    /// Image point of direction `d`, `None` outside the image.
-    pub fn coord(&self, d: DVec3) -> Option<(f64, f64)> {
-        let z = d.dot(self.fwd);
-        if z <= 1e-9 {
-            return None;
-        }
-        let a = d.dot(self.right) / z / self.tan_x;
-        let b = d.dot(self.down) / z / self.tan_y;
-        (a.abs() <= 1.0 && b.abs() <= 1.0).then_some((
-            (a + 1.0) * 0.5 * self.width as f64,
-            (b + 1.0) * 0.5 * self.height as f64,
-        ))
-    }
-
-    /// The face's pixels as virtual screen points (unit directions from an eye at the origin).
-    pub fn points(&self) -> ScreenPoints {
-        view_points(self.width, self.height, |x, y| Some(self.dir(x, y)))
-    }
-}
-
-/// Virtual "screen points" of a view seen from the origin: per pixel centre the direction
-/// `dir(x, y)`; rendering them with the eye at the origin casts exactly those directions.
-pub fn view_points(
-    width: u32,
-    height: u32,
-    dir: impl Fn(f64, f64) -> Option<DVec3> + Sync,
-) -> ScreenPoints {
-    let points = (0..width * height)
-        .into_par_iter()
-        .map(|k| dir((k % width) as f64 + 0.5, (k / width) as f64 + 0.5))
-        .collect();
-    ScreenPoints {
-        width,
-        height,
-        points,
-    }
-}
-
-/// Median angle between horizontally and vertically neighbouring table directions (radians).
-pub fn median_pitch(width: u32, dirs: &[Option<DVec3>]) -> f64 {
-    let w = width as usize;
-    let mut a: Vec<f64> = (0..dirs.len())
-        .filter_map(|k| {
-            let d = dirs[k]?;
-            let r = (k % w + 1 < w).then(|| dirs[k + 1]).flatten();
-            let b = dirs.get(k + w).copied().flatten();
-            let v: Vec<f64> = [r, b]
-                .iter()
-                .flatten()
-                .map(|n| d.angle_between(*n))
-                .collect();
-            (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
-        })
-        .collect();
-    if a.is_empty() {
-        return 0.0;
-    }
-    a.sort_by(f64::total_cmp);
-    a[a.len() / 2]
-}
-
-/// The intermediate images of two-pass warping for a channel whose table holds `dirs`
-/// (display frame): one pinhole image around the channel's axis when every ray lies within
-/// 65° of it, a cube otherwise; centre pixel pitch = the table's median pitch.
-pub fn two_pass_faces(width: u32, dirs: &[Option<DVec3>]) -> Result<Vec<Face>> {
-    let lit: Vec<DVec3> = dirs.iter().flatten().copied().collect();
-    let pitch = median_pitch(width, dirs);
-    if lit.is_empty() || pitch <= 0.0 {
-        return Err(Error::invalid("two-pass", "the channel shows no screen"));
-    }
-    let sum: DVec3 = lit.iter().sum();
-    let axis = sum.try_normalize().unwrap_or(DVec3::Y);
-    let max_angle = lit
-        .iter()
-        .map(|d| d.angle_between(axis))
-        .fold(0.0, f64::max);
-    let cap = |n: f64| -> Result<u32> {
-        if n > 4096.0 {
-            Err(Error::Limit {
-                what: "two-pass intermediate image".into(),
-                msg: format!("{n:.0} pixels wide at the table's density; the limit is 4096"),
-            })
-        } else {
-            Ok(n.max(2.0) as u32)
-        }
-    };
-    if max_angle < 65f64.to_radians() {
-        let (right, down, fwd) = view_basis(axis);
-        let (mut tx, mut ty) = (0.0f64, 0.0f64);
-        for d in &lit {
-            let z = d.dot(fwd);
-            tx = tx.max((d.dot(right) / z).abs());
-            ty = ty.max((d.dot(down) / z).abs());
-        }
-        // Two pixels of guard band around the channel.
-        let (tx, ty) = (tx + 2.0 * pitch, ty + 2.0 * pitch);
-        return Ok(vec![Face {
-            right,
-            down,
-            fwd,
-            tan_x: tx,
-            tan_y: ty,
-            width: cap((2.0 * tx / pitch).ceil())?,
-            height: cap((2.0 * ty / pitch).ceil())?,
-        }]);
-    }
-    let n = cap((2.0 / pitch).ceil())?;
-    let t = 1.0 + 4.0 / n as f64;
-    let size = n + 4;
-    Ok([
-        DVec3::X,
-        DVec3::NEG_X,
-        DVec3::Y,
-        DVec3::NEG_Y,
-        DVec3::Z,
-        DVec3::NEG_Z,
-    ]
-    .iter()
-    .map(|&f| {
-        let (right, down, fwd) = view_basis(f);
-        Face {
-            right,
-            down,
-            fwd,
-            tan_x: t,
-            tan_y: t,
-            width: size,
-            height: size,
-        }
-    })
-    .collect())
-}
-
-/// Bilinear sample of an RGBA8 image at image point (x, y) (pixel centres at +0.5), edges
-/// clamped; values 0..1.
-pub fn sample_rgba8(rgba: &[u8], width: u32, height: u32, x: f64, y: f64) -> [f64; 3] {
-    let (w, h) = (width as i64, height as i64);
-    let (fx, fy) = (x - 0.5, y - 0.5);
-    let (x0, y0) = (fx.floor(), fy.floor());
-    let (ax, ay) = (fx - x0, fy - y0);
-    let px = |i: i64, j: i64| -> [f64; 3] {
-        let (i, j) = (i.clamp(0, w - 1), j.clamp(0, h - 1));
-        let k = ((j * w + i) * 4) as usize;
-        [
-            rgba[k] as f64 / 255.0,
-            rgba[k + 1] as f64 / 255.0,
-            rgba[k + 2] as f64 / 255.0,
-        ]
-    };
-    let (x0, y0) = (x0 as i64, y0 as i64);
-    let (a, b, c, d) = (
-        px(x0, y0),
-        px(x0 + 1, y0),
-        px(x0, y0 + 1),
-        px(x0 + 1, y0 + 1),
-    );
-    std::array::from_fn(|i| {
-        (a[i] * (1.0 - ax) + b[i] * ax) * (1.0 - ay) + (c[i] * (1.0 - ax) + d[i] * ax) * ay
-    })
-}
 
 /// Bilinear interpolation of a GPU ray table's directions at image point (x, y); `None` unless
 /// all four neighbouring pixels show screen.
@@ -253,31 +55,6 @@ pub fn sample_table(table: &[[f32; 4]], width: u32, height: u32, x: f64, y: f64)
     ((a * (1.0 - ax) + b * ax) * (1.0 - ay) + (c * (1.0 - ax) + d * ax) * ay).try_normalize()
 }
 
-fn quantise(c: [f64; 3]) -> [u8; 4] {
-    let q = |v: f64| (v.clamp(0.0, 1.0) * 255.0).round() as u8;
-    [q(c[0]), q(c[1]), q(c[2]), 255]
-}
-
-/// Warps rendered faces into a projector image: per pixel with a display-frame direction, the
-/// bilinear sample of the face that holds it (the face it is most central in); black where the
-/// pixel shows no screen.
-pub fn warp_faces(faces: &[(Face, Vec<u8>)], dirs: &[Option<DVec3>]) -> Vec<u8> {
-    dirs.par_iter()
-        .flat_map_iter(|d| {
-            let px = d
-                .and_then(|d| {
-                    let (f, img) = faces
-                        .iter()
-                        .max_by(|a, b| d.dot(a.0.fwd).total_cmp(&d.dot(b.0.fwd)))?;
-                    let (x, y) = f.coord(d)?;
-                    Some(quantise(sample_rgba8(img, f.width, f.height, x, y)))
-                })
-                .unwrap_or([0, 0, 0, 255]);
-            px.into_iter()
-        })
-        .collect()
-}
-
 /// Least-squares slope of `got` against `want` (the contrast retained when `want` is the exact
 /// signal); `None` without variation.
 pub fn contrast_slope(pairs: &[(f64, f64)]) -> Option<f64> {
@@ -294,90 +71,6 @@ pub fn contrast_slope(pairs: &[(f64, f64)]) -> Option<f64> {
         den += (w - mw) * (w - mw);
     }
     (den > 1e-12).then(|| num / den)
-}
-
-/// Renders the test pattern through virtual or real ray tables (no terrain is cast).
-pub struct PatternRig {
-    terrain: Terrain,
-    scene: SceneDesc,
-    renderer: TerrainRenderer,
-}
-
-/// A view rendered by a [`PatternRig`]: the grid, the grating and the GPU ray table.
-pub struct PatternView {
-    pub width: u32,
-    pub height: u32,
-    pub grid: Vec<u8>,
-    pub grating: Vec<u8>,
-    pub table: Vec<[f32; 4]>,
-}
-
-impl PatternRig {
-    pub fn new(gpu: &Gpu) -> Result<PatternRig> {
-        let field = Heightfield::from_samples_with_voids(
-            "pattern",
-            2,
-            2,
-            vec![Some(0.0); 4],
-            [1.0, 1.0],
-            None,
-        )?;
-        let frame = TerrainFrame {
-            origin: DVec3::ZERO,
-            axis_x: DVec3::X,
-            axis_y: DVec3::Y,
-            normal: DVec3::Z,
-            spacing: [1.0, 1.0],
-        };
-        let terrain = Terrain::new(field, frame, 1.0)?;
-        let scene = Scene::parse(
-            "[terrain.procedural]\nsize = 2\n[camera]\nposition = [0.5, 0.5, 100.0]\n",
-            Path::new("pattern.toml"),
-        )?
-        .desc;
-        let renderer = TerrainRenderer::new(gpu, &terrain)?;
-        Ok(PatternRig {
-            terrain,
-            scene,
-            renderer,
-        })
-    }
-
-    /// Renders grid and grating through the table of `points` seen from `eye` (vehicle
-    /// attitude zero: world = display frame).
-    pub fn render(
-        &mut self,
-        gpu: &Gpu,
-        points: &ScreenPoints,
-        eye: DVec3,
-        grid: &PatternParams,
-        grating: &PatternParams,
-    ) -> Result<PatternView> {
-        self.renderer.set_display(gpu, points, eye)?;
-        let pose = Pose {
-            position: DVec3::new(0.5, 0.5, 100.0),
-            heading: 0.0,
-            pitch: 0.0,
-            roll: 0.0,
-            fov: 60.0,
-        };
-        let cam = Camera::new(pose, points.width, points.height);
-        let settings = RenderSettings::from_scene(&self.scene);
-        let mut shot = |p: &PatternParams| -> Result<FrameOutput> {
-            self.renderer.set_pattern(gpu, Some(*p));
-            self.renderer
-                .capture(gpu, &self.terrain, &self.scene, &cam, &settings)
-        };
-        let g = shot(grid)?;
-        let r = shot(grating)?;
-        Ok(PatternView {
-            width: points.width,
-            height: points.height,
-            grid: g.rgba,
-            grating: r.rgba,
-            table: self.renderer.read_ray_table(gpu)?,
-        })
-    }
 }
 
 /// The eye view of a verification: an equidistant fisheye from the eye around `axis` out to
@@ -469,18 +162,24 @@ pub struct VerifyImages {
     pub frames: Vec<ChannelFrames>,
 }
 
-/// What to verify.
-#[derive(Clone, Debug)]
+/// What to verify (the options of `relief warp verify`).
+#[derive(Clone, Debug, clap::Args)]
 pub struct VerifyOptions {
-    /// Channel indices (all when empty).
+    /// Only this channel (default: all).
+    #[arg(long = "channel", action = clap::ArgAction::Set, value_name = "CHANNEL")]
     pub channels: Vec<usize>,
-    /// Eye in the display frame (the config's when `None`).
+    /// Eye in the display frame (the config's when not given).
+    #[arg(long, value_parser = super::args::parse_dvec3, allow_hyphen_values = true)]
     pub eye: Option<DVec3>,
-    /// Eye-view image size.
+    /// Eye-view (fisheye) image size.
+    #[arg(long, value_parser = super::args::parse_size, default_value = "480x480")]
     pub size: (u32, u32),
+    /// Skip the two-pass comparison.
+    #[arg(long = "no-two-pass", action = clap::ArgAction::SetFalse)]
     pub two_pass: bool,
-    /// Eye the ray tables are generated for, when it differs from the viewer's (head-tracking
-    /// lag); `None` = the viewer's eye.
+    /// Generate the tables for this eye instead (display frame): the error a stale
+    /// head-tracked table leaves.
+    #[arg(long, value_parser = super::args::parse_dvec3, allow_hyphen_values = true)]
     pub table_eye: Option<DVec3>,
 }
 
@@ -504,21 +203,116 @@ pub fn verify(
     name: &str,
     opts: &VerifyOptions,
 ) -> Result<(VerifyReport, VerifyImages)> {
+    let chans = checked_channels(cfg, name, opts)?;
+    let eye = opts.eye.unwrap_or(DVec3::from(cfg.eye.position));
+    let table_eye = opts.table_eye.unwrap_or(eye);
+    let points: Vec<ScreenPoints> = chans
+        .iter()
+        .map(|&c| screen_points(&cfg.screen, &cfg.channels[c].projector))
+        .collect();
+    let view = eye_view(&points, eye, opts.size, name)?;
+    let axis = DVec3::from(view.axis);
+    let grating_f = grating_frequency(&points, eye, name)?;
+    let patterns = Patterns {
+        grid: PatternParams::grid(axis),
+        grating: PatternParams {
+            boresight: axis,
+            grating: grating_f,
+        },
+    };
+    let shots = render_channels(gpu, rig, cfg, &chans, &points, table_eye, &patterns, opts)?;
+
+    // The undistorted reference: the eye view rendered directly.
+    let (ew, eh) = opts.size;
+    let eye_pts = view_points(ew, eh, |x, y| view.dir(x, y));
+    let reference = rig.render(
+        gpu,
+        &eye_pts,
+        DVec3::ZERO,
+        &patterns.grid,
+        &patterns.grating,
+    )?;
+
+    let landed = land_eye_pixels(cfg, &chans, eye, &eye_pts, &shots.views);
+    let sums: Vec<f64> = landed.iter().filter_map(|l| l.1).collect();
+    let blend_sum = (!sums.is_empty()).then(|| {
+        [
+            sums.iter().copied().fold(f64::INFINITY, f64::min),
+            sums.iter().sum::<f64>() / sums.len() as f64,
+            sums.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        ]
+    });
+    let tally = close_loop(
+        &eye_pts,
+        &landed,
+        &shots,
+        &reference,
+        chans.len(),
+        opts.two_pass,
+    );
+    if tally.covered == 0 {
+        return Err(Error::invalid(
+            name,
+            "no eye pixel sees screen lit by a projector: check the eye position and the channels",
+        ));
+    }
+    let Shots {
+        views,
+        two,
+        mut figures,
+    } = shots;
+    for (f, (cnt, sum, max)) in figures.iter_mut().zip(&tally.per) {
+        f.eye_pixels = *cnt;
+        f.mean_error_arcmin = if *cnt > 0 { sum / *cnt as f64 } else { 0.0 };
+        f.max_error_arcmin = *max;
+    }
+    let covered = tally.covered as f64;
+    let report = VerifyReport {
+        config: name.to_string(),
+        eye: eye.to_array(),
+        eye_view: view,
+        covered_pixels: tally.covered,
+        uncovered_pixels: tally.uncovered,
+        mean_error_arcmin: tally.sum_err / covered,
+        max_error_arcmin: tally.max_err,
+        grating_cycles_per_radian: grating_f,
+        seen_contrast_direct: contrast_slope(&tally.seen_pairs).unwrap_or(0.0),
+        seen_contrast_two_pass: opts
+            .two_pass
+            .then(|| contrast_slope(&tally.seen_pairs_two).unwrap_or(0.0)),
+        grid_mean_abs_diff: tally.grid_diff / covered,
+        grid_mean_abs_diff_two_pass: opts.two_pass.then(|| tally.grid_diff_two / covered),
+        overlap_pixels: sums.len(),
+        blend_sum,
+        channels: figures,
+    };
+    let mut two_iter = two.into_iter();
+    let frames = views
+        .into_iter()
+        .map(|v| {
+            let t = two_iter.next().map(|(g, _)| g);
+            (v.width, v.height, v.grid, t)
+        })
+        .collect();
+    let images = VerifyImages {
+        as_seen: tally.as_seen,
+        reference: reference.grid,
+        diff: tally.diff,
+        as_seen_two_pass: tally.as_seen_two,
+        frames,
+    };
+    Ok((report, images))
+}
+
+/// The channels to verify (all when none are asked for), after checking the request.
+fn checked_channels(cfg: &DisplayConfig, name: &str, opts: &VerifyOptions) -> Result<Vec<usize>> {
     let chans: Vec<usize> = if opts.channels.is_empty() {
         (0..cfg.channels.len()).collect()
     } else {
         opts.channels.clone()
     };
     for &c in &chans {
-        if c >= cfg.channels.len() {
-            return Err(Error::invalid(
-                "--channel",
-                format!(
-                    "{name} has {} channel(s), asked for index {c}",
-                    cfg.channels.len()
-                ),
-            ));
-        }
+        super::channel::channel(cfg, name, c)?;
     }
     let (ew, eh) = opts.size;
     if !(8..=4096).contains(&ew) || !(8..=4096).contains(&eh) {
@@ -534,13 +328,11 @@ pub fn verify(
              the model the warp was measured against",
         ));
     }
-    let eye = opts.eye.unwrap_or(DVec3::from(cfg.eye.position));
-    let table_eye = opts.table_eye.unwrap_or(eye);
-    let points: Vec<ScreenPoints> = chans
-        .iter()
-        .map(|&c| crate::cpu::distortion::screen_points(&cfg.screen, &cfg.channels[c].projector))
-        .collect();
-    // The eye view covers every screen point the channels light.
+    Ok(chans)
+}
+
+/// The eye view that covers every screen point the channels light.
+fn eye_view(points: &[ScreenPoints], eye: DVec3, size: (u32, u32), name: &str) -> Result<EyeView> {
     let dirs: Vec<DVec3> = points
         .iter()
         .flat_map(|p| p.points.iter().step_by(3).flatten())
@@ -561,15 +353,19 @@ pub fn verify(
         .iter()
         .map(|d| d.angle_between(axis))
         .fold(0.0, f64::max);
-    let view = EyeView {
+    Ok(EyeView {
         axis: axis.to_array(),
         radius_deg: (radius.to_degrees() + 1.0).min(180.0),
-        width: ew,
-        height: eh,
-    };
-    // Grating frequency: median 0.4 cycles per projector pixel along the elevation gradient.
+        width: size.0,
+        height: size.1,
+    })
+}
+
+/// Grating frequency (cycles per radian of elevation): a median 0.4 cycles per projector pixel
+/// along the elevation gradient.
+fn grating_frequency(points: &[ScreenPoints], eye: DVec3, name: &str) -> Result<f64> {
     let mut grads: Vec<f64> = Vec::new();
-    for p in &points {
+    for p in points {
         let w = p.width as usize;
         let el = |k: usize| -> Option<f64> {
             let d = (p.points[k]? - eye).normalize();
@@ -589,20 +385,50 @@ pub fn verify(
     if grad <= 0.0 {
         return Err(Error::invalid(name, "degenerate projector geometry"));
     }
-    let grating_f = GRATING_CYCLES_PER_PIXEL / grad;
-    let grid = PatternParams::grid(axis);
-    let grating = PatternParams {
-        boresight: axis,
-        grating: grating_f,
-    };
-    let exact = |d: DVec3| pattern_colour(d, 0.0, &grating)[0];
+    Ok(GRATING_CYCLES_PER_PIXEL / grad)
+}
 
-    // Direct renders of every channel, and the two-pass images.
-    let mut views = Vec::new();
-    let mut two = Vec::new();
-    let mut figures = Vec::new();
+/// The two test patterns: the grid (what is seen) and the grating (sharpness).
+struct Patterns {
+    grid: PatternParams,
+    grating: PatternParams,
+}
+
+/// Every channel rendered: the direct views, the two-pass grid and grating images, and the
+/// figures known before the loop is closed.
+struct Shots {
+    views: Vec<PatternView>,
+    two: Vec<(Vec<u8>, Vec<u8>)>,
+    figures: Vec<ChannelFigures>,
+}
+
+/// Renders each channel directly through its table (and two-pass, when asked) and measures the
+/// grating contrast kept in the projector image.
+#[allow(clippy::too_many_arguments)]
+fn render_channels(
+    gpu: &Gpu,
+    rig: &mut PatternRig,
+    cfg: &DisplayConfig,
+    chans: &[usize],
+    points: &[ScreenPoints],
+    table_eye: DVec3,
+    patterns: &Patterns,
+    opts: &VerifyOptions,
+) -> Result<Shots> {
+    let exact = |d: DVec3| pattern_colour(d, 0.0, &patterns.grating)[0];
+    let mut shots = Shots {
+        views: Vec::new(),
+        two: Vec::new(),
+        figures: Vec::new(),
+    };
     for (i, &c) in chans.iter().enumerate() {
-        let v = rig.render(gpu, &points[i], table_eye, &grid, &grating)?;
+        let v = rig.render(
+            gpu,
+            &points[i],
+            table_eye,
+            &patterns.grid,
+            &patterns.grating,
+        )?;
         let tdirs: Vec<Option<DVec3>> = v
             .table
             .iter()
@@ -616,30 +442,17 @@ pub fn verify(
         let contrast_direct = contrast_slope(&pairs).unwrap_or(0.0);
         let (mut contrast_two, mut inter) = (None, None);
         if opts.two_pass {
-            let faces = two_pass_faces(v.width, &tdirs)?;
-            let mut grid_faces = Vec::new();
-            let mut grating_faces = Vec::new();
-            for f in &faces {
-                let fv = rig.render(gpu, &f.points(), DVec3::ZERO, &grid, &grating)?;
-                grid_faces.push((*f, fv.grid));
-                grating_faces.push((*f, fv.grating));
-            }
-            let g2 = warp_faces(&grid_faces, &tdirs);
-            let r2 = warp_faces(&grating_faces, &tdirs);
+            let (g2, r2, intermediate) = render_two_pass_channel(gpu, rig, &v, &tdirs, patterns)?;
             let pairs: Vec<(f64, f64)> = tdirs
                 .iter()
                 .enumerate()
                 .filter_map(|(k, d)| Some((exact((*d)?), r2[k * 4] as f64 / 255.0)))
                 .collect();
             contrast_two = contrast_slope(&pairs);
-            inter = Some(if faces.len() == 1 {
-                format!("planar {}x{}", faces[0].width, faces[0].height)
-            } else {
-                format!("cube 6x{}x{}", faces[0].width, faces[0].height)
-            });
-            two.push((g2, r2));
+            inter = Some(intermediate);
+            shots.two.push((g2, r2));
         }
-        figures.push(ChannelFigures {
+        shots.figures.push(ChannelFigures {
             channel: c,
             name: cfg.channels[c].name.clone(),
             eye_pixels: 0,
@@ -649,24 +462,62 @@ pub fn verify(
             contrast_two_pass: contrast_two,
             two_pass_intermediate: inter,
         });
-        views.push(v);
+        shots.views.push(v);
     }
+    Ok(shots)
+}
 
-    // The undistorted reference: the eye view rendered directly.
-    let eye_pts = view_points(ew, eh, |x, y| view.dir(x, y));
-    let reference = rig.render(gpu, &eye_pts, DVec3::ZERO, &grid, &grating)?;
+/// The channel's grid and grating as two-pass warping makes them from its table's directions
+/// `tdirs`, and the intermediate ("planar WxH" or "cube 6xNxN").
+fn render_two_pass_channel(
+    gpu: &Gpu,
+    rig: &mut PatternRig,
+    v: &PatternView,
+    tdirs: &[Option<DVec3>],
+    patterns: &Patterns,
+) -> Result<(Vec<u8>, Vec<u8>, String)> {
+    let faces = two_pass_faces(v.width, tdirs)?;
+    let mut grid_faces = Vec::new();
+    let mut grating_faces = Vec::new();
+    for f in &faces {
+        let fv = rig.render(
+            gpu,
+            &f.points(),
+            DVec3::ZERO,
+            &patterns.grid,
+            &patterns.grating,
+        )?;
+        grid_faces.push((*f, fv.grid));
+        grating_faces.push((*f, fv.grating));
+    }
+    let g2 = warp_faces(&grid_faces, tdirs);
+    let r2 = warp_faces(&grating_faces, tdirs);
+    let intermediate = if faces.len() == 1 {
+        format!("planar {}x{}", faces[0].width, faces[0].height)
+    } else {
+        format!("cube 6x{}x{}", faces[0].width, faces[0].height)
+    };
+    Ok((g2, r2, intermediate))
+}
 
-    // Close the loop per eye pixel.
+/// Per eye pixel: where it lands, where several channels light its screen point the sum of
+/// their blend light weights, and (when the channels blend) the light they add up to.
+type Landed = (Landing, Option<f64>, Option<[f64; 3]>);
+
+/// Per eye pixel: the landing in the channel that holds the point deepest; where several
+/// channels light the point, the sum of their blend light weights; and, when the channels
+/// blend, the light they add up to there: (Σ w_i · value_i^γ)^(1/γ).
+fn land_eye_pixels(
+    cfg: &DisplayConfig,
+    chans: &[usize],
+    eye: DVec3,
+    eye_pts: &ScreenPoints,
+    views: &[PatternView],
+) -> Vec<Landed> {
     let projectors: Vec<Projector> = chans.iter().map(|&c| cfg.channels[c].projector).collect();
-    let blends: Vec<_> = chans
-        .iter()
-        .map(|&c| crate::display::blend::ChannelBlend::new(cfg, c))
-        .collect();
-    // Per eye pixel: the landing in the channel that holds the point deepest; where several
-    // channels light the point, the sum of their blend light weights; and, when the channels
-    // blend, the light they add up to there: (Σ w_i · value_i^γ)^(1/γ).
+    let blends: Vec<_> = chans.iter().map(|&c| ChannelBlend::new(cfg, c)).collect();
     let blended = blends.iter().any(|b| b.is_some());
-    let landed: Vec<(Landing, Option<f64>, Option<[f64; 3]>)> = (0..ew * eh)
+    (0..eye_pts.width * eye_pts.height)
         .into_par_iter()
         .map(|k| {
             let Some(s) = eye_pts.points[k as usize].and_then(|e| cfg.screen.seen_from(eye, e))
@@ -678,23 +529,24 @@ pub fn verify(
             let mut light = [0.0f64; 3];
             let mut gamma = 2.2;
             for (i, p) in projectors.iter().enumerate() {
-                if let Some((u, v, m)) = land(&cfg.screen, p, s) {
-                    let t = &views[i].table;
-                    if sample_table(t, p.width, p.height, u, v).is_some() {
-                        lit += 1;
-                        let w = blends[i].as_ref().map_or(1.0, |b| b.light_weight_at(u, v));
-                        weight += w;
-                        if blended {
-                            gamma = blends[i].as_ref().map_or(gamma, |b| b.blend.gamma);
-                            let c = sample_rgba8(&views[i].grid, p.width, p.height, u, v);
-                            for ch in 0..3 {
-                                light[ch] += w * c[ch].powf(gamma);
-                            }
-                        }
-                        if best.is_none_or(|b| m > b.3) {
-                            best = Some((i, u, v, m));
-                        }
+                let Some((u, v, m)) = land(&cfg.screen, p, s) else {
+                    continue;
+                };
+                if sample_table(&views[i].table, p.width, p.height, u, v).is_none() {
+                    continue;
+                }
+                lit += 1;
+                let w = blends[i].as_ref().map_or(1.0, |b| b.light_weight_at(u, v));
+                weight += w;
+                if blended {
+                    gamma = blends[i].as_ref().map_or(gamma, |b| b.blend.gamma);
+                    let c = sample_rgba8(&views[i].grid, p.width, p.height, u, v);
+                    for ch in 0..3 {
+                        light[ch] += w * c[ch].powf(gamma);
                     }
+                }
+                if best.is_none_or(|b| m > b.3) {
+                    best = Some((i, u, v, m));
                 }
             }
             (
@@ -703,124 +555,99 @@ pub fn verify(
                 (blended && lit > 0).then(|| light.map(|l| l.powf(1.0 / gamma))),
             )
         })
-        .collect();
-    let landings: Vec<Landing> = landed.iter().map(|l| l.0).collect();
-    let sums: Vec<f64> = landed.iter().filter_map(|l| l.1).collect();
-    let blend_sum = (!sums.is_empty()).then(|| {
-        [
-            sums.iter().copied().fold(f64::INFINITY, f64::min),
-            sums.iter().sum::<f64>() / sums.len() as f64,
-            sums.iter().copied().fold(f64::NEG_INFINITY, f64::max),
-        ]
-    });
-    let n = (ew * eh) as usize;
-    let mut as_seen = vec![0u8; n * 4];
-    let mut as_seen_two = opts.two_pass.then(|| vec![0u8; n * 4]);
-    let mut diff = vec![0u8; n * 4];
-    let (mut sum_err, mut max_err, mut covered, mut uncovered) = (0.0, 0.0f64, 0usize, 0usize);
-    let (mut seen_pairs, mut seen_pairs_two) = (Vec::new(), Vec::new());
-    let (mut grid_diff, mut grid_diff_two) = (0.0, 0.0);
-    let mut per: Vec<(usize, f64, f64)> = vec![(0, 0.0, 0.0); chans.len()];
+        .collect()
+}
+
+/// The eye view's images and error sums, filled pixel by pixel.
+struct Tally {
+    as_seen: Vec<u8>,
+    as_seen_two: Option<Vec<u8>>,
+    diff: Vec<u8>,
+    sum_err: f64,
+    max_err: f64,
+    covered: usize,
+    uncovered: usize,
+    seen_pairs: Vec<(f64, f64)>,
+    seen_pairs_two: Vec<(f64, f64)>,
+    grid_diff: f64,
+    grid_diff_two: f64,
+    /// Per channel: eye pixels, sum and maximum of their errors (arc-min).
+    per: Vec<(usize, f64, f64)>,
+}
+
+/// Closes the loop per eye pixel: what the eye sees there against the reference, and the
+/// angle between the eye ray and the table's ray where it lands.
+fn close_loop(
+    eye_pts: &ScreenPoints,
+    landed: &[Landed],
+    shots: &Shots,
+    reference: &PatternView,
+    channels: usize,
+    two_pass: bool,
+) -> Tally {
+    let n = (eye_pts.width * eye_pts.height) as usize;
+    let black: Vec<u8> = [0, 0, 0, 255].repeat(n);
+    let mut t = Tally {
+        as_seen: black.clone(),
+        as_seen_two: two_pass.then(|| black.clone()),
+        diff: black,
+        sum_err: 0.0,
+        max_err: 0.0,
+        covered: 0,
+        uncovered: 0,
+        seen_pairs: Vec::new(),
+        seen_pairs_two: Vec::new(),
+        grid_diff: 0.0,
+        grid_diff_two: 0.0,
+        per: vec![(0, 0.0, 0.0); channels],
+    };
+    let views = &shots.views;
     for k in 0..n {
-        for c in 0..3 {
-            diff[k * 4 + c] = 0;
-        }
-        diff[k * 4 + 3] = 255;
-        as_seen[k * 4 + 3] = 255;
-        if let Some(a) = as_seen_two.as_mut() {
-            a[k * 4 + 3] = 255;
-        }
         let Some(e) = eye_pts.points[k] else { continue };
-        let Some((i, u, v)) = landings[k] else {
-            uncovered += 1;
+        let Some((i, u, v)) = landed[k].0 else {
+            t.uncovered += 1;
             continue;
         };
         let (pw, ph) = (views[i].width, views[i].height);
-        let t = sample_table(&views[i].table, pw, ph, u, v).expect("checked when landing");
-        let err = e.angle_between(t) / ARCMIN;
-        covered += 1;
-        sum_err += err;
-        max_err = max_err.max(err);
-        per[i].0 += 1;
-        per[i].1 += err;
-        per[i].2 = per[i].2.max(err);
+        let dir = sample_table(&views[i].table, pw, ph, u, v).expect("checked when landing");
+        let err = e.angle_between(dir) / ARCMIN;
+        t.covered += 1;
+        t.sum_err += err;
+        t.max_err = t.max_err.max(err);
+        t.per[i].0 += 1;
+        t.per[i].1 += err;
+        t.per[i].2 = t.per[i].2.max(err);
         // With blends, what the eye sees is the channels' light added up.
         let seen = landed[k]
             .2
             .unwrap_or_else(|| sample_rgba8(&views[i].grid, pw, ph, u, v));
         let want = &reference.grid[k * 4..k * 4 + 3];
         let px = quantise(seen);
-        as_seen[k * 4..k * 4 + 4].copy_from_slice(&px);
+        t.as_seen[k * 4..k * 4 + 4].copy_from_slice(&px);
         let mut d = 0.0;
         for c in 0..3 {
             let delta = (px[c] as f64 - want[c] as f64).abs();
             d += delta / 3.0;
-            diff[k * 4 + c] = (delta * 4.0).min(255.0) as u8;
+            t.diff[k * 4 + c] = (delta * 4.0).min(255.0) as u8;
         }
-        grid_diff += d;
+        t.grid_diff += d;
         let ref_grating = reference.grating[k * 4] as f64 / 255.0;
-        seen_pairs.push((
+        t.seen_pairs.push((
             ref_grating,
             sample_rgba8(&views[i].grating, pw, ph, u, v)[0],
         ));
-        if let Some(a) = as_seen_two.as_mut() {
-            let (g2, r2) = &two[i];
+        if let Some(a) = t.as_seen_two.as_mut() {
+            let (g2, r2) = &shots.two[i];
             let px = quantise(sample_rgba8(g2, pw, ph, u, v));
             a[k * 4..k * 4 + 4].copy_from_slice(&px);
-            grid_diff_two += (0..3)
+            t.grid_diff_two += (0..3)
                 .map(|c| (px[c] as f64 - want[c] as f64).abs() / 3.0)
                 .sum::<f64>();
-            seen_pairs_two.push((ref_grating, sample_rgba8(r2, pw, ph, u, v)[0]));
+            t.seen_pairs_two
+                .push((ref_grating, sample_rgba8(r2, pw, ph, u, v)[0]));
         }
     }
-    if covered == 0 {
-        return Err(Error::invalid(
-            name,
-            "no eye pixel sees screen lit by a projector: check the eye position and the channels",
-        ));
-    }
-    for (f, (cnt, sum, max)) in figures.iter_mut().zip(&per) {
-        f.eye_pixels = *cnt;
-        f.mean_error_arcmin = if *cnt > 0 { sum / *cnt as f64 } else { 0.0 };
-        f.max_error_arcmin = *max;
-    }
-    let report = VerifyReport {
-        config: name.to_string(),
-        eye: eye.to_array(),
-        eye_view: view,
-        covered_pixels: covered,
-        uncovered_pixels: uncovered,
-        mean_error_arcmin: sum_err / covered as f64,
-        max_error_arcmin: max_err,
-        grating_cycles_per_radian: grating_f,
-        seen_contrast_direct: contrast_slope(&seen_pairs).unwrap_or(0.0),
-        seen_contrast_two_pass: opts
-            .two_pass
-            .then(|| contrast_slope(&seen_pairs_two).unwrap_or(0.0)),
-        grid_mean_abs_diff: grid_diff / covered as f64,
-        grid_mean_abs_diff_two_pass: opts.two_pass.then(|| grid_diff_two / covered as f64),
-        overlap_pixels: sums.len(),
-        blend_sum,
-        channels: figures,
-    };
-    let mut two_iter = two.into_iter();
-    let frames = views
-        .into_iter()
-        .map(|v| {
-            let t = two_iter.next().map(|(g, _)| g);
-            (v.width, v.height, v.grid, t)
-        })
-        .collect();
-    Ok((
-        report,
-        VerifyImages {
-            as_seen,
-            reference: reference.grid,
-            diff,
-            as_seen_two_pass: as_seen_two,
-            frames,
-        },
-    ))
+    t
 }
 
 /// A human-readable summary of a report.
@@ -874,7 +701,7 @@ pub fn run(
     config: &Path,
     opts: &VerifyOptions,
     out: &Path,
-) -> Result<(VerifyReport, Vec<std::path::PathBuf>)> {
+) -> Result<(VerifyReport, Vec<PathBuf>)> {
     let cfg = DisplayConfig::load(config)?;
     let gpu = Gpu::new()?;
     log::info!("adapter: {}", gpu.describe());
@@ -882,11 +709,10 @@ pub fn run(
     let (report, img) = verify(&gpu, &mut rig, &cfg, &config.display().to_string(), opts)?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let (w, h) = opts.size;
-    let png = super::capture::write_png;
     let mut written = Vec::new();
     let mut put = |name: String, pw: u32, ph: u32, rgba: &[u8]| -> Result<()> {
         let p = out.join(name);
-        png(&p, pw, ph, rgba)?;
+        write_png(&p, pw, ph, rgba)?;
         written.push(p);
         Ok(())
     };
@@ -903,190 +729,7 @@ pub fn run(
         }
     }
     let json = out.join("verify.json");
-    super::capture::write_json(&json, &report)?;
+    write_json(&json, &report)?;
     written.push(json);
     Ok((report, written))
-}
-
-/// Two-pass rendering of a scene for one projector: renders each intermediate face (pinhole
-/// views from the eye, rotated by the camera's attitude like the table) and warps them into
-/// the projector image through the display-frame directions `dirs` with bilinear filtering.
-/// Depth is the nearest face pixel's (approximate near silhouettes); the per-pixel statistics
-/// are zero. Leaves the renderer in table mode for the last face: call `set_display` again
-/// for direct frames.
-#[allow(clippy::too_many_arguments)]
-pub fn render_two_pass(
-    gpu: &Gpu,
-    renderer: &mut TerrainRenderer,
-    terrain: &Terrain,
-    scene: &SceneDesc,
-    pose: Pose,
-    settings: &RenderSettings,
-    faces: &[Face],
-    dirs: &[Option<DVec3>],
-    width: u32,
-    height: u32,
-) -> Result<FrameOutput> {
-    let mut rendered = Vec::new();
-    let mut depths = Vec::new();
-    let mut times = crate::gpu::PassTimes::default();
-    for f in faces {
-        renderer.set_display(gpu, &f.points(), DVec3::ZERO)?;
-        let cam = Camera::new(pose, f.width, f.height);
-        let out = renderer.capture(gpu, terrain, scene, &cam, settings)?;
-        let t = out.times;
-        times.raygen_ms += t.raygen_ms;
-        times.tile_ms += t.tile_ms;
-        times.cast_ms += t.cast_ms;
-        times.objects_ms += t.objects_ms;
-        times.voxels_ms += t.voxels_ms;
-        times.voxel_shadow_ms += t.voxel_shadow_ms;
-        times.shade_ms += t.shade_ms;
-        times.volume_shadow_ms += t.volume_shadow_ms;
-        times.volume_ms += t.volume_ms;
-        times.readback_ms += t.readback_ms;
-        rendered.push((*f, out.rgba));
-        depths.push(out.depth);
-    }
-    let start = std::time::Instant::now();
-    let rgba = warp_faces(&rendered, dirs);
-    let depth = dirs
-        .par_iter()
-        .map(|d| {
-            d.and_then(|d| {
-                let (i, (f, _)) = rendered
-                    .iter()
-                    .enumerate()
-                    .max_by(|a, b| d.dot(a.1 .0.fwd).total_cmp(&d.dot(b.1 .0.fwd)))?;
-                let (x, y) = f.coord(d)?;
-                let (px, py) = ((x as u32).min(f.width - 1), (y as u32).min(f.height - 1));
-                Some(depths[i][(py * f.width + px) as usize])
-            })
-            .unwrap_or(f32::INFINITY)
-        })
-        .collect();
-    times.readback_ms += start.elapsed().as_secs_f64() * 1e3;
-    let n = (width * height) as usize;
-    Ok(FrameOutput {
-        width,
-        height,
-        rgba,
-        depth,
-        steps: vec![0; n],
-        patch_tests: vec![0; n],
-        shadow_steps: vec![0; n],
-        flags: dirs
-            .iter()
-            .map(|d| if d.is_some() { 0 } else { 8 })
-            .collect(),
-        objects: vec![0; n],
-        volume_samples: Vec::new(),
-        volume_segments: Vec::new(),
-        volume_sun: Vec::new(),
-        times,
-    })
-}
-
-/// `relief bench --display`: ray-table regeneration and direct-mode frame time against a
-/// pinhole frame of the same size and scene.
-#[derive(Clone, Debug, Serialize)]
-pub struct DisplayBench {
-    pub adapter: String,
-    pub backend: String,
-    pub scene: String,
-    pub config: String,
-    pub channel: usize,
-    pub width: u32,
-    pub height: u32,
-    pub frames: u32,
-    /// Mean time of the table-generation pass alone (the eye moves every frame).
-    pub table_ms: f64,
-    /// Mean full frame (table, pre-pass, cast, shade) through the table.
-    pub direct_frame_ms: f64,
-    /// Mean full frame of the scene's pinhole camera at the same size.
-    pub pinhole_frame_ms: f64,
-    pub direct_over_pinhole: f64,
-}
-
-/// Runs [`DisplayBench`]: channel `channel` of `config` resized to `size` (same lens), camera
-/// of frame 0 of `scene_path`, `frames` timed frames after a warm-up.
-pub fn bench_display(
-    scene_path: &Path,
-    config: &Path,
-    channel: usize,
-    size: (u32, u32),
-    frames: u32,
-) -> Result<DisplayBench> {
-    let cfg = DisplayConfig::load(config)?;
-    let ch = cfg.channels.get(channel).ok_or_else(|| {
-        Error::invalid(
-            "--channel",
-            format!(
-                "{} has {} channel(s), asked for index {channel}",
-                config.display(),
-                cfg.channels.len()
-            ),
-        )
-    })?;
-    if frames == 0 {
-        return Err(Error::invalid("--frames", "must be at least 1"));
-    }
-    let mut p = ch.projector;
-    (p.width, p.height) = size;
-    let scene = Scene::load(scene_path)?;
-    let terrain = scene.load_terrain()?;
-    let gpu = Gpu::new()?;
-    let mut cam = scene.camera(0, &terrain);
-    (cam.width, cam.height) = size;
-    let s = RenderSettings::from_scene(&scene.desc);
-    let eye = DVec3::from(cfg.eye.position);
-    let points = crate::cpu::distortion::screen_points(&cfg.screen, &p);
-    let frame_ms = |display: bool| -> Result<(f64, f64)> {
-        let mut r = TerrainRenderer::new(&gpu, &terrain)?;
-        if display {
-            r.set_display(&gpu, &points, eye)?;
-        }
-        r.capture(&gpu, &terrain, &scene.desc, &cam, &s)?;
-        let mut table = 0.0;
-        for k in 0..frames {
-            // The head moves: a new table every frame.
-            r.set_eye(eye + DVec3::new(0.01 * k as f64, 0.0, 0.0));
-            table += r
-                .capture(&gpu, &terrain, &scene.desc, &cam, &s)?
-                .times
-                .raygen_ms;
-        }
-        gpu.wait()?;
-        let start = std::time::Instant::now();
-        for k in 0..frames {
-            r.set_eye(eye + DVec3::new(0.01 * k as f64, 0.0, 0.0));
-            r.render(
-                &gpu,
-                &terrain,
-                &scene.desc,
-                &cam,
-                &s,
-                crate::gpu::Stage::Shade,
-            )?;
-        }
-        gpu.wait()?;
-        let f = frames as f64;
-        Ok((table / f, start.elapsed().as_secs_f64() * 1e3 / f))
-    };
-    let (table_ms, direct_frame_ms) = frame_ms(true)?;
-    let (_, pinhole_frame_ms) = frame_ms(false)?;
-    Ok(DisplayBench {
-        adapter: gpu.info.name.clone(),
-        backend: format!("{:?}", gpu.info.backend),
-        scene: scene_path.display().to_string(),
-        config: config.display().to_string(),
-        channel,
-        width: size.0,
-        height: size.1,
-        frames,
-        table_ms,
-        direct_frame_ms,
-        pinhole_frame_ms,
-        direct_over_pinhole: direct_frame_ms / pinhole_frame_ms,
-    })
 }

@@ -80,16 +80,7 @@ pub fn export(
 ) -> Result<String> {
     fileio::check_writable_target(out)?;
     let cfg = DisplayConfig::load(config)?;
-    let ch = cfg.channels.get(channel).ok_or_else(|| {
-        Error::invalid(
-            "--channel",
-            format!(
-                "{} has {} channel(s), asked for index {channel}",
-                config.display(),
-                cfg.channels.len()
-            ),
-        )
-    })?;
+    let ch = super::channel::channel(&cfg, &config.display().to_string(), channel)?;
     let p = ch.projector;
     let pts = screen_points(&cfg.screen, &p);
     if is_pfm(out) {
@@ -194,16 +185,7 @@ pub fn apply_dome_master(
     crate::display::dome_master::check_fov("--fov", fov)?;
     fileio::check_writable_target(out)?;
     let cfg = DisplayConfig::load(config)?;
-    let ch = cfg.channels.get(channel).ok_or_else(|| {
-        Error::invalid(
-            "--channel",
-            format!(
-                "{} has {} channel(s), asked for index {channel}",
-                config.display(),
-                cfg.channels.len()
-            ),
-        )
-    })?;
+    let ch = super::channel::channel(&cfg, &config.display().to_string(), channel)?;
     let img = read_dome_master(input)?;
     let (w, h) = img.dimensions();
     if w != h || w < 2 {
@@ -231,7 +213,7 @@ pub fn apply_dome_master(
             continue;
         };
         covered += 1;
-        let c = super::verify::sample_rgba8(src, w, h, x, y);
+        let c = super::sampling::sample_rgba8(src, w, h, x, y);
         for i in 0..3 {
             rgba[4 * k + i] = (c[i] * 255.0).round() as u8;
         }
@@ -239,7 +221,7 @@ pub fn apply_dome_master(
     if let Some(b) = crate::display::blend::ChannelBlend::new(&cfg, channel) {
         b.apply_rgba8(&mut rgba);
     }
-    super::capture::write_png(out, p.width, p.height, &rgba)?;
+    super::output::write_png(out, p.width, p.height, &rgba)?;
     Ok(format!(
         "{}: channel {channel} ({}x{}), {lit} pixels on the screen, {covered} inside the {fov}° master{} -> {}",
         input.display(),
@@ -338,7 +320,7 @@ pub fn apply_mesh(mesh: &Path, input: &Path, size: (u32, u32), out: &Path) -> Re
                     + (f(c[2]) * (1.0 - fx) + f(c[3]) * fx) * fy
             };
             let (u, v, bright) = (lerp(|n| n.u), lerp(|n| n.v), lerp(|n| n.i));
-            let s = super::verify::sample_rgba8(
+            let s = super::sampling::sample_rgba8(
                 img.as_raw(),
                 mw,
                 mh,
@@ -351,7 +333,7 @@ pub fn apply_mesh(mesh: &Path, input: &Path, size: (u32, u32), out: &Path) -> Re
             lit += 1;
         }
     }
-    super::capture::write_png(out, w, h, &rgba)?;
+    super::output::write_png(out, w, h, &rgba)?;
     Ok(format!(
         "{}: {w}x{h} through the {nx}x{ny}-node mesh {}, {lit} pixels lit -> {}",
         input.display(),

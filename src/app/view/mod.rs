@@ -6,104 +6,151 @@
 //! its own colour target, and a present pass copies that target to the swap-chain image, so a
 //! window frame and a headless frame of the same pose hold the same pixels.
 //!
+//! Rooms:
+//! * `mod.rs`: the options ([`ViewOptions`]), the present choice and the report;
+//! * [`motion`]: path playback, free flight, aircraft; path, script and eye-feed files;
+//! * [`present`]: the present pass (shader, debug views, overlay font);
+//! * [`stats`]: per-frame statistics, the `--stats-csv` log, the summary;
+//! * `prepare`: everything loaded and checked before a window opens;
+//! * `window`: the winit application: windows, surfaces, device, events, shutdown;
+//! * `frame`: one frame: step, render, present, record; the overlay text;
+//! * `input`: controls from keys, mouse or script; the eye feed; quick-look keys;
+//! * `timer`: GPU time per frame from timestamp queries;
+//! * `grab`: `--grab`: the swap-chain image and the X server's window pixels;
+//! * `x11`: reading a window back from the X server.
+//!
 //! The window itself needs the `window` feature (on by default); [`motion`], [`stats`] and the
 //! present pass's shader and font build without it.
 
+#[cfg(feature = "window")]
+mod frame;
+#[cfg(feature = "window")]
+mod grab;
+#[cfg(feature = "window")]
+mod input;
 pub mod motion;
+#[cfg(feature = "window")]
+mod prepare;
 pub mod present;
 pub mod stats;
+#[cfg(feature = "window")]
+mod timer;
 #[cfg(feature = "window")]
 mod window;
 #[cfg(all(feature = "window", target_os = "linux"))]
 mod x11;
 
+use super::args::{parse_size, parse_vec, RenderToggles};
 use std::path::PathBuf;
 
 pub use present::present_shader;
 
-/// Options of `relief view`.
-#[derive(Clone, Debug)]
+/// Options of `relief view` (its command-line flags; see README: Window).
+#[derive(Clone, Debug, clap::Args)]
 pub struct ViewOptions {
+    /// Scene file (TOML).
     pub scene: PathBuf,
-    /// Window (and render) size; the scene's `[output]` when `None`.
+    /// Window and render size WxH (overrides [output]).
+    #[arg(long, value_parser = parse_size)]
     pub size: Option<(u32, u32)>,
-    /// Display configuration: one window per channel, each through its distortion table.
+    /// Display config: one window per channel, each through its distortion table.
+    #[arg(long)]
     pub display: Option<PathBuf>,
-    /// Only this channel of the display configuration.
+    /// Only this channel of the display config.
+    #[arg(long)]
     pub channel: Option<usize>,
-    /// Eye point in the display frame (overrides the config's eye).
+    /// Eye point X,Y,Z in the display frame (overrides the config's eye).
+    #[arg(long, value_parser = parse_vec::<3>, allow_hyphen_values = true)]
     pub eye: Option<[f64; 3]>,
-    /// Eye point per frame: a file of `x,y,z` lines, or `-` for lines on stdin.
+    /// Eye point per frame for the distortion: a file of x,y,z lines, or - for stdin.
+    #[arg(long)]
     pub eye_feed: Option<PathBuf>,
-    /// Borderless fullscreen on this monitor (channel `i` on monitor `index + i`).
+    /// Borderless fullscreen on monitor INDEX (default 0); channel i on INDEX + i.
+    #[arg(long, num_args = 0..=1, default_missing_value = "0")]
     pub fullscreen: Option<usize>,
-    /// Exit after this many frames.
+    /// Exit after N frames.
+    #[arg(long)]
     pub frames: Option<u64>,
-    /// Target frame rate (Hz); the simulation steps 1/rate per frame.
+    /// Target frame rate in Hz; the simulation steps 1/rate per frame.
+    #[arg(long, default_value_t = 60.0)]
     pub rate: f64,
-    /// How frames reach the screen.
-    pub present: PresentChoice,
+    /// Wait for vsync (FIFO present) as well as pacing frames at --rate.
+    #[arg(long, conflicts_with = "mailbox")]
+    pub vsync: bool,
+    /// Present in mailbox mode (no tearing) instead of immediate.
+    #[arg(long)]
+    pub mailbox: bool,
     /// Render frames back to back instead of pacing them at the target rate.
+    #[arg(long)]
     pub unpaced: bool,
+    /// Per-frame statistics (CPU, GPU, present interval, latency, pose) to this CSV.
+    #[arg(long)]
     pub stats_csv: Option<PathBuf>,
-    /// Starting motion mode; path playback when there is a path, free flight otherwise.
+    /// Starting motion: path, free or aircraft (default: path if there is one, else free).
+    #[arg(long, value_parser = motion::Mode::parse)]
     pub mode: Option<motion::Mode>,
-    /// Path CSV to play back instead of the scene's `[path]`.
-    pub path_csv: Option<PathBuf>,
-    /// Write the flown path (path CSV) here.
+    /// Play back this path CSV (time,x,y,alt,heading,pitch,roll) instead of the scene's [path].
+    #[arg(long)]
+    pub path: Option<PathBuf>,
+    /// Record the flown path to this CSV (same columns as --path).
+    #[arg(long)]
     pub record: Option<PathBuf>,
-    /// Aircraft control script CSV.
+    /// Aircraft control script CSV (time,throttle,pitch,roll,yaw).
+    #[arg(long)]
     pub script: Option<PathBuf>,
-    /// Start pose x, y, z (world metres), heading (degrees) instead of the scene's camera.
+    /// Start at X,Y,Z (world metres) with HEADING (degrees) instead of the scene's camera.
+    #[arg(long, value_parser = parse_vec::<4>, allow_hyphen_values = true)]
     pub start: Option<[f64; 4]>,
-    /// Free flight and aircraft stay this many metres above the terrain.
+    /// Free flight and aircraft stay at least this many metres above the terrain.
+    #[arg(long, default_value_t = 10.0)]
     pub min_agl: f64,
-    /// Write every frame's capture files (as `relief render`) here.
+    /// Write every frame's capture files (as `relief render`) to this directory.
+    #[arg(long)]
     pub capture_frames: Option<PathBuf>,
-    /// Where the screenshot key and `grab` write.
+    /// Directory for the screenshot key (P) and --grab.
+    #[arg(long, default_value = "out")]
     pub screenshot_dir: PathBuf,
-    /// At this frame, read the swap-chain image back (`surface_NNNN.png`) and, on X11, the
-    /// window's pixels from the X server (`x11_NNNN.png`).
+    /// At frame N read back the swap-chain image and, on X11, the window from the X server.
+    #[arg(long)]
     pub grab: Option<u64>,
-    /// After this frame, resize the window to W x H (debug, for tests).
-    pub resize_at: Option<(u64, u32, u32)>,
-    pub overlay: bool,
-    /// Starting debug view (V cycles colour, depth, traversal steps).
-    pub view_mode: present::ViewMode,
-    pub shadows: Option<bool>,
-    pub tile_prepass: Option<bool>,
+    /// Debug: after frame FRAME resize the window to WxH (`--resize-at 30 320x240`).
+    #[arg(long, num_args = 2, value_names = ["FRAME", "WxH"])]
+    pub resize_at: Option<Vec<String>>,
+    /// Starting view: colour, depth or steps (traversal step heat map); V cycles them.
+    #[arg(long, value_parser = present::ViewMode::parse, default_value = "colour")]
+    pub debug_view: present::ViewMode,
+    /// Start with the text overlay hidden (H toggles it).
+    #[arg(long)]
+    pub no_overlay: bool,
+    #[command(flatten)]
+    pub toggles: RenderToggles,
 }
 
 impl ViewOptions {
-    /// Defaults for `scene`, as the command line has them.
-    pub fn new(scene: PathBuf) -> ViewOptions {
-        ViewOptions {
-            scene,
-            size: None,
-            display: None,
-            channel: None,
-            eye: None,
-            eye_feed: None,
-            fullscreen: None,
-            frames: None,
-            rate: 60.0,
-            present: PresentChoice::Paced,
-            unpaced: false,
-            stats_csv: None,
-            mode: None,
-            path_csv: None,
-            record: None,
-            script: None,
-            start: None,
-            min_agl: 10.0,
-            capture_frames: None,
-            screenshot_dir: PathBuf::from("out"),
-            grab: None,
-            resize_at: None,
-            overlay: true,
-            view_mode: present::ViewMode::Colour,
-            shadows: None,
-            tile_prepass: None,
+    /// How frames reach the screen (`--vsync`, `--mailbox`, else paced).
+    pub fn present(&self) -> PresentChoice {
+        if self.vsync {
+            PresentChoice::Vsync
+        } else if self.mailbox {
+            PresentChoice::Mailbox
+        } else {
+            PresentChoice::Paced
+        }
+    }
+
+    /// `--resize-at FRAME WxH`: (frame, width, height).
+    pub fn resize_at(&self) -> crate::Result<Option<(u64, u32, u32)>> {
+        let field = |msg: String| crate::Error::invalid("--resize-at", msg);
+        match self.resize_at.as_deref() {
+            None => Ok(None),
+            Some([frame, size]) => {
+                let f: u64 = frame
+                    .parse()
+                    .map_err(|_| field(format!("`{frame}` is not a frame number")))?;
+                let (w, h) = parse_size(size).map_err(field)?;
+                Ok(Some((f, w, h)))
+            }
+            Some(_) => Err(field("needs FRAME WxH".into())),
         }
     }
 }

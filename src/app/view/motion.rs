@@ -73,6 +73,16 @@ impl Mode {
             Mode::Aircraft => "AIRCRAFT",
         }
     }
+
+    /// `path`, `free` or `aircraft` (the command line's `--mode`).
+    pub fn parse(s: &str) -> std::result::Result<Mode, String> {
+        match s {
+            "path" => Ok(Mode::Path),
+            "free" => Ok(Mode::Free),
+            "aircraft" => Ok(Mode::Aircraft),
+            _ => Err(format!("`{s}`: use path, free or aircraft")),
+        }
+    }
 }
 
 /// Control inputs sampled for one frame.

@@ -53,6 +53,16 @@ impl ViewMode {
             ViewMode::Steps => "STEPS",
         }
     }
+
+    /// `colour` (or `color`), `depth` or `steps` (the command line's `--debug-view`).
+    pub fn parse(s: &str) -> Result<ViewMode, String> {
+        match s {
+            "colour" | "color" => Ok(ViewMode::Colour),
+            "depth" => Ok(ViewMode::Depth),
+            "steps" => Ok(ViewMode::Steps),
+            _ => Err(format!("`{s}`: use colour, depth or steps")),
+        }
+    }
 }
 
 /// 5x7 glyphs, rows top to bottom, bit 4 = leftmost pixel.

@@ -1,9 +1,13 @@
 //! Per-frame statistics of the window's frame loop, the `--stats-csv` log and the summary
 //! printed at exit.
 
+use crate::app::figures::{slope, window};
 use crate::{Error, Result};
 use std::io::Write;
 use std::path::{Path, PathBuf};
+
+// The frame loop's percentiles, where they have always been found.
+pub use crate::app::figures::percentile;
 
 /// Where a frame's GPU time comes from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -60,17 +64,6 @@ pub struct FrameStat {
     pub rss_kib: u64,
 }
 
-/// Percentile (nearest rank) of unsorted values; NaNs are ignored. `None` when empty.
-pub fn percentile(values: &[f64], p: f64) -> Option<f64> {
-    let mut v: Vec<f64> = values.iter().copied().filter(|x| !x.is_nan()).collect();
-    if v.is_empty() {
-        return None;
-    }
-    v.sort_by(f64::total_cmp);
-    let rank = ((p / 100.0) * v.len() as f64).ceil().max(1.0) as usize;
-    Some(v[rank.min(v.len()) - 1])
-}
-
 /// Slots of `period_ms` missed by a frame that came `interval_ms` after the previous one.
 pub fn dropped_slots(interval_ms: f64, period_ms: f64) -> u32 {
     if period_ms <= 0.0 || interval_ms <= 1.5 * period_ms {
@@ -99,7 +92,7 @@ pub struct Summary {
     pub latency_ms_p50: f64,
     pub latency_ms_p99: f64,
     pub dropped: u64,
-    /// Frames (from, to) the RSS slope is fitted over ([`crate::app::soak::window`]).
+    /// Frames (from, to) the RSS slope is fitted over ([`crate::app::figures::window`]).
     pub rss_window: [u32; 2],
     /// Least-squares slope of the resident set size over `rss_window` (KiB per frame).
     pub rss_slope_kib_per_frame: f64,
@@ -116,7 +109,7 @@ pub fn summarize(frames: &[FrameStat]) -> Summary {
     let gpu = col(|s| s.gpu_ms, false);
     let present = col(|s| s.present_interval_ms, true);
     let lat = col(|s| s.latency_ms, false);
-    let rss_window = crate::app::soak::window(frames.len() as u32);
+    let rss_window = window(frames.len() as u32);
     let rss: Vec<f64> = frames
         .get(rss_window[0] as usize..rss_window[1] as usize)
         .unwrap_or(&[])
@@ -149,7 +142,7 @@ pub fn summarize(frames: &[FrameStat]) -> Summary {
         latency_ms_p99: p(&lat, 99.0),
         dropped: frames.iter().map(|s| s.dropped as u64).sum(),
         rss_window,
-        rss_slope_kib_per_frame: crate::app::soak::slope(&rss),
+        rss_slope_kib_per_frame: slope(&rss),
     }
 }
 

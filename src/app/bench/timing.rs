@@ -1,0 +1,49 @@
+//! What the benchmark modes share: the scene resized to the benchmark's size, and the frame
+//! timing (frame pairs, median).
+
+use crate::app::figures::median;
+use crate::gpu::{Gpu, RenderSettings, Stage, TerrainRenderer};
+use crate::scene::{Camera, Scene, SceneDesc};
+use crate::terrain::Terrain;
+use crate::Result;
+use std::path::Path;
+use std::time::Instant;
+
+/// The scene at `size` (validated again).
+pub fn scene_at_size(scene_path: &Path, size: (u32, u32)) -> Result<Scene> {
+    let mut scene = Scene::load(scene_path)?;
+    scene.desc.output.width = size.0;
+    scene.desc.output.height = size.1;
+    scene.desc.validate()?;
+    Ok(scene)
+}
+
+/// Wall-clock milliseconds per frame up to `stage` (submit to GPU idle, no readback), after
+/// one untimed frame: `frames` frames in pairs, each pair submitted back to back as a frame
+/// loop does (the CPU side of one frame overlaps the other's rendering), the median over the
+/// pairs. The median, not the mean: on a shared machine slow spells come and go, and one of
+/// them should not decide a figure.
+#[allow(clippy::too_many_arguments)]
+pub fn median_frame_ms(
+    r: &mut TerrainRenderer,
+    gpu: &Gpu,
+    terrain: &Terrain,
+    desc: &SceneDesc,
+    cam: &Camera,
+    s: &RenderSettings,
+    stage: Stage,
+    frames: u32,
+) -> Result<f64> {
+    r.render(gpu, terrain, desc, cam, s, stage)?;
+    gpu.wait()?;
+    let mut times = Vec::new();
+    for _ in 0..(frames / 2).max(1) {
+        let start = Instant::now();
+        for _ in 0..2 {
+            r.render(gpu, terrain, desc, cam, s, stage)?;
+        }
+        gpu.wait()?;
+        times.push(start.elapsed().as_secs_f64() * 1e3 / 2.0);
+    }
+    Ok(median(times))
+}

@@ -1,0 +1,15 @@
+//! Puts a [`World`] on the GPU: a renderer holding its terrain, free forms, volumes and voxel
+//! models.
+
+use crate::gpu::{Gpu, TerrainRenderer};
+use crate::world::World;
+use crate::Result;
+
+/// A renderer for `world`: its terrain, then its free forms, volumes and voxel models.
+pub fn renderer(gpu: &Gpu, world: &World) -> Result<TerrainRenderer> {
+    let mut renderer = TerrainRenderer::new(gpu, &world.terrain)?;
+    renderer.set_objects(gpu, &world.objects)?;
+    renderer.set_volumes(gpu, &world.volumes)?;
+    renderer.set_voxels(gpu, &world.voxels)?;
+    Ok(renderer)
+}
