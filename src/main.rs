@@ -22,6 +22,15 @@ struct Cli {
     /// files whose declared sizes need more are refused before anything is allocated.
     #[arg(long, global = true, value_name = "MB", value_parser = clap::value_parser!(u64).range(1..=1 << 40))]
     memory_budget: Option<u64>,
+    /// Entry points of the kernels that have both (ray generation): `compute`, `fragment`, or
+    /// `auto` (fragment on CPU adapters, whose compute runs on about one core; compute
+    /// elsewhere).
+    #[arg(long, global = true, value_name = "PATH", default_value = "auto")]
+    kernels: relief::gpu::KernelChoice,
+    /// Profiling aid: submit and wait after every sub-pass and log its time (frame times taken
+    /// with it on are not comparable with those taken without).
+    #[arg(long, global = true)]
+    trace_passes: bool,
 }
 
 #[derive(Subcommand)]
@@ -145,6 +154,10 @@ fn main() {
     if let Some(mb) = cli.memory_budget {
         relief::fileio::set_memory_budget(mb << 20);
     }
+    relief::app::gpu_options::set(relief::gpu::GpuOptions {
+        kernels: cli.kernels,
+        trace_passes: cli.trace_passes,
+    });
     if let Err(e) = run(cli) {
         eprintln!("error: {e:#}");
         std::process::exit(1);
@@ -272,7 +285,7 @@ fn warp(action: WarpAction) -> Result<()> {
 }
 
 fn adapter() -> Result<()> {
-    let gpu = relief::gpu::Gpu::new()?;
+    let gpu = relief::app::gpu_options::open()?;
     let l = &gpu.limits;
     println!(
         "{} ({:?}, {:?}, driver {} {})\n  parameter blocks: {:?}; 2-D textures up to {}, 3-D up to {}, storage buffers up to {} bytes",

@@ -179,7 +179,7 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
     }
     let last_frame = last_frame(job)?;
     let world = World::load(&scene)?;
-    let gpu = Gpu::new()?;
+    let gpu = crate::app::gpu_options::open()?;
     log::info!("adapter: {}", gpu.describe());
     let mut renderer = super::upload::renderer(&gpu, &world)?;
     let mut projection = Projection::default();

@@ -5,6 +5,7 @@
 //! * [`capture`]: `relief render`: headless frames (pinhole, display channel, dome master);
 //! * [`channel`]: a display configuration's channel by index, with the error that says so;
 //! * [`figures`]: median, percentile, slope, memory window, resident set size;
+//! * [`gpu_options`]: `--kernels` and `--trace-passes`, and the adapter opened with them;
 //! * [`output`]: the file writers (PNG, depth TIFF, JSON, a frame's files all or nothing);
 //! * [`pattern_rig`]: the warp test pattern rendered through ray tables;
 //! * [`sampling`]: bilinear sampling of RGBA8 images;
@@ -21,6 +22,7 @@ pub mod bench;
 pub mod capture;
 pub mod channel;
 pub mod figures;
+pub mod gpu_options;
 pub mod output;
 pub mod pattern_rig;
 pub mod sampling;

@@ -703,7 +703,7 @@ pub fn run(
     out: &Path,
 ) -> Result<(VerifyReport, Vec<PathBuf>)> {
     let cfg = DisplayConfig::load(config)?;
-    let gpu = Gpu::new()?;
+    let gpu = crate::app::gpu_options::open()?;
     log::info!("adapter: {}", gpu.describe());
     let mut rig = PatternRig::new(&gpu)?;
     let (report, img) = verify(&gpu, &mut rig, &cfg, &config.display().to_string(), opts)?;

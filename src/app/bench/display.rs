@@ -4,7 +4,7 @@
 
 use super::table::{Figures, Row, RunInfo, Table};
 use crate::display::DisplayConfig;
-use crate::gpu::{Gpu, RenderSettings, Stage, TerrainRenderer};
+use crate::gpu::{RenderSettings, Stage, TerrainRenderer};
 use crate::scene::Scene;
 use crate::{Error, Result};
 use glam::DVec3;
@@ -43,7 +43,7 @@ pub fn run(
     (p.width, p.height) = size;
     let scene = Scene::load(scene_path)?;
     let terrain = scene.load_terrain()?;
-    let gpu = Gpu::new()?;
+    let gpu = crate::app::gpu_options::open()?;
     let mut cam = scene.camera(0, &terrain);
     (cam.width, cam.height) = size;
     let s = RenderSettings::from_scene(&scene.desc);

@@ -195,7 +195,7 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo,
     let scene = scene_at_size(scene_path, size)?;
     let world = World::load(&scene)?;
     let (terrain, objects) = (&world.terrain, &world.objects);
-    let gpu = Gpu::new()?;
+    let gpu = crate::app::gpu_options::open()?;
     let mut renderer = TerrainRenderer::new(&gpu, terrain)?;
     let cam = scene.camera(0, terrain);
     let settings = RenderSettings::from_scene(&scene.desc);

@@ -5,7 +5,7 @@
 use super::table::{Figures, Row, RunInfo, Table};
 use super::terrain::product_settings;
 use super::timing::{median_frame_ms, scene_at_size};
-use crate::gpu::{Gpu, Stage, TerrainRenderer};
+use crate::gpu::{Stage, TerrainRenderer};
 use crate::Result;
 use serde::Serialize;
 use std::path::Path;
@@ -22,7 +22,7 @@ pub struct PrimaryTiming {
 pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo, PrimaryTiming)> {
     let scene = scene_at_size(scene_path, size)?;
     let terrain = scene.load_terrain()?;
-    let gpu = Gpu::new()?;
+    let gpu = crate::app::gpu_options::open()?;
     let mut renderer = TerrainRenderer::new(&gpu, &terrain)?;
     let cam = scene.camera(0, &terrain);
     let s = product_settings(&scene);

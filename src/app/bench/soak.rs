@@ -53,7 +53,7 @@ fn counts(gpu: &Gpu) -> Vec<(String, usize)> {
 pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo, SoakBench)> {
     let scene = scene_at_size(scene_path, size)?;
     let world = World::load(&scene)?;
-    let gpu = Gpu::new()?;
+    let gpu = crate::app::gpu_options::open()?;
     let mut renderer = crate::app::upload::renderer(&gpu, &world)?;
     let settings = RenderSettings::from_scene(&scene.desc);
     let fps = scene.desc.path.as_ref().map_or(30.0, |p| p.fps);

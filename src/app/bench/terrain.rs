@@ -228,7 +228,7 @@ pub fn run(
     let t = Instant::now();
     let _ = crate::terrain::MaxPyramid::build(&terrain.field);
     let pyramid_build_ms = t.elapsed().as_secs_f64() * 1e3;
-    let gpu = Gpu::new()?;
+    let gpu = crate::app::gpu_options::open()?;
     let mut renderer = TerrainRenderer::new(&gpu, &terrain)?;
     let cam = scene.camera(0, &terrain);
     let reference = cpu_reference(&terrain, &cam, size);

@@ -155,7 +155,7 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo,
             ),
         )
     })?;
-    let gpu = Gpu::new()?;
+    let gpu = crate::app::gpu_options::open()?;
     let mut renderer = TerrainRenderer::new(&gpu, &world.terrain)?;
     renderer.set_objects(&gpu, &world.objects)?;
     let cam = scene.camera(0, &world.terrain);

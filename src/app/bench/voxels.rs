@@ -170,7 +170,7 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo,
             ),
         ));
     }
-    let gpu = Gpu::new()?;
+    let gpu = crate::app::gpu_options::open()?;
     let mut r = TerrainRenderer::new(&gpu, &world.terrain)?;
     let cam = scene.camera(0, &world.terrain);
     let settings = RenderSettings::from_scene(&scene.desc);

@@ -30,7 +30,7 @@ use winit::window::{Fullscreen, Window, WindowId};
 pub fn run(opts: &ViewOptions) -> Result<ViewReport> {
     let prep = prepare(opts)?;
     // No adapter is an input error too: find out before opening a window.
-    drop(Gpu::new()?);
+    drop(crate::app::gpu_options::open()?);
     let event_loop = EventLoop::new().map_err(|e| {
         Error::invalid(
             "window",
@@ -175,11 +175,12 @@ impl App {
     fn start(&mut self, el: &ActiveEventLoop) -> Result<()> {
         let specs = self.window_specs();
         let windows = self.create_windows(el, &specs)?;
-        let gpu = Gpu::for_surface(
+        let mut gpu = Gpu::for_surface(
             &self.instance,
             &windows[0].1,
             wgpu::Features::TIMESTAMP_QUERY,
         )?;
+        gpu.options = crate::app::gpu_options::get();
         self.adapter = gpu.describe();
         log::info!("view adapter: {}", self.adapter);
         let mut running = Vec::new();
