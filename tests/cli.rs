@@ -2,24 +2,12 @@
 
 mod common;
 
-use common::{project_dir, terrains};
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("relief-test-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+use common::{temp_dir, terrains};
+use std::path::Path;
+use std::process::Output;
 
 fn relief(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_relief"))
-        .args(args)
-        .env("NODEVICE_SELECT", "1")
-        .current_dir(project_dir())
-        .output()
-        .expect("the relief binary runs")
+    common::relief_cli(args, &[])
 }
 
 fn text(o: &Output) -> (String, String) {

@@ -169,8 +169,7 @@ fn demo_configs_load_and_bad_configs_are_refused() {
             );
         }
     }
-    let dir = std::env::temp_dir().join(format!("relief-display-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = common::temp_dir("display");
     let good = std::fs::read_to_string(project_dir().join("distortion/dome-fisheye.toml")).unwrap();
     for (label, text, want) in [
         (
@@ -563,8 +562,7 @@ fn measured_lens_distortion_moves_the_screen_points_and_folding_models_are_refus
     let text = std::fs::read_to_string(project_dir().join("distortion/dome-5proj.toml"))
         .unwrap()
         .replace("k1 = -0.04, k2 = 0.006", "k1 = -0.9, k2 = 0.0");
-    let dir = std::env::temp_dir().join(format!("relief-test-{}-fold", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = common::temp_dir("fold");
     let path = dir.join("fold.toml");
     std::fs::write(&path, text).unwrap();
     let e = DisplayConfig::load(&path).unwrap_err().to_string();
@@ -577,9 +575,7 @@ fn measured_lens_distortion_moves_the_screen_points_and_folding_models_are_refus
 #[test]
 fn a_measured_pfm_warp_drives_the_table_like_the_model_it_came_from() {
     let _l = gpu_lock();
-    let dir = std::env::temp_dir().join(format!("relief-test-{}-pfm-warp", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = common::temp_dir("pfm-warp");
     let src = project_dir().join("distortion/dome-5proj.toml");
     // The zenith channel's geometry exported as a 3-D PFM, then used as a measured warp.
     relief::app::warp::export(&src, 4, None, &dir.join("zenith.pfm"), 8).unwrap();

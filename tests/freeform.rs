@@ -1091,17 +1091,8 @@ position = [360.0, 120.0, 0.0]
 
 #[test]
 fn cli_renders_the_airfield_and_refuses_a_bad_object_before_writing() {
-    let dir = std::env::temp_dir().join(format!("relief-test-{}-ff-cli", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    let run = |args: &[&str]| {
-        std::process::Command::new(env!("CARGO_BIN_EXE_relief"))
-            .args(args)
-            .env("NODEVICE_SELECT", "1")
-            .current_dir(common::project_dir())
-            .output()
-            .expect("the relief binary runs")
-    };
+    let dir = common::temp_dir("ff-cli");
+    let run = |args: &[&str]| common::relief_cli(args, &[]);
     // A broken object: the error names it and nothing is written.
     let bad = dir.join("bad.toml");
     let scene = std::fs::read_to_string(terrains().join("airfield.toml"))

@@ -410,17 +410,11 @@ fn cli_bench_primary_prints_its_timing_as_json() {
         return;
     }
     let run = |extra: &[&str]| {
-        std::process::Command::new(env!("CARGO_BIN_EXE_relief"))
-            .args([
-                "bench",
-                "primary",
-                terrains().join("alps.toml").to_str().unwrap(),
-            ])
-            .args(["--size", "96x64", "--frames", "2"])
-            .args(extra)
-            .env("NODEVICE_SELECT", "1")
-            .output()
-            .unwrap()
+        let alps = terrains().join("alps.toml");
+        let mut args = vec!["bench", "primary", alps.to_str().unwrap()];
+        args.extend(["--size", "96x64", "--frames", "2"]);
+        args.extend(extra);
+        common::relief_cli(&args, &[])
     };
     let out = run(&["--json"]);
     assert!(
@@ -451,22 +445,23 @@ fn cli_render_writes_png_depth_and_metadata_that_recreate_the_rays() {
     if gpu().is_none() {
         return;
     }
-    let out = std::env::temp_dir().join(format!("relief-cli-render-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&out);
-    let status = std::process::Command::new(env!("CARGO_BIN_EXE_relief"))
-        .args([
+    let out = common::temp_dir("cli-render");
+    let scene = terrains().join("alps.toml");
+    let status = common::relief_command(
+        &[
             "render",
-            terrains().join("alps.toml").to_str().unwrap(),
+            scene.to_str().unwrap(),
             "--size",
             "96x64",
             "--frames",
             "2",
             "--out",
             out.to_str().unwrap(),
-        ])
-        .env("NODEVICE_SELECT", "1")
-        .status()
-        .unwrap();
+        ],
+        &[],
+    )
+    .status()
+    .unwrap();
     assert!(status.success());
     let (_, terrain) = alps();
     for f in 0..2 {

@@ -3,21 +3,13 @@
 
 mod common;
 
-use common::{terrain_from_fn, terrains, Rng};
+use common::{temp_dir, terrain_from_fn, terrains, Rng};
 use relief::scene::{CameraPath, Keyframe, Scene};
 use relief::terrain::procedural::RidgedFbm;
 use relief::terrain::{geotiff, hgt, png16, Heightfield};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use tiff::encoder::{colortype, TiffEncoder};
 use tiff::tags::Tag;
-
-/// A fresh, empty temporary directory for one test.
-fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("relief-test-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
 
 /// Metres per degree on a sphere (the simple formula, independent of the loader's series).
 fn sphere_metres_per_degree(lat: f64) -> (f64, f64) {

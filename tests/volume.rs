@@ -886,14 +886,7 @@ fn a_volume_behind_a_free_form_is_hidden_and_one_in_front_tints_it() {
 #[test]
 fn cli_renders_the_brain_and_refuses_a_bad_volume_before_writing() {
     let dir = tmp_dir("volume-cli");
-    let run = |args: &[&str]| {
-        std::process::Command::new(env!("CARGO_BIN_EXE_relief"))
-            .args(args)
-            .env("NODEVICE_SELECT", "1")
-            .current_dir(common::project_dir())
-            .output()
-            .expect("the relief binary runs")
-    };
+    let run = |args: &[&str]| common::relief_cli(args, &[]);
     let base = std::fs::read_to_string(terrains().join("brain.toml"))
         .unwrap()
         .replace(

@@ -367,11 +367,7 @@ fn direct_mode_is_sharper_than_two_pass() {
 }
 
 fn relief(args: &[&str]) -> std::process::Output {
-    std::process::Command::new(env!("CARGO_BIN_EXE_relief"))
-        .args(args)
-        .env("NODEVICE_SELECT", "1")
-        .output()
-        .unwrap()
+    common::relief_cli(args, &[])
 }
 
 #[test]
@@ -380,8 +376,7 @@ fn cli_verify_and_two_pass_render_write_their_files_and_refuse_bad_input() {
     if gpu().is_none() {
         return;
     }
-    let dir = std::env::temp_dir().join(format!("relief-verify-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
+    let dir = common::temp_dir("verify");
     let cfg = project_dir().join("distortion/dome-moving-eye.toml");
     let out = dir.join("v");
     let o = relief(&[
@@ -451,8 +446,7 @@ fn cli_verify_and_two_pass_render_write_their_files_and_refuse_bad_input() {
 #[test]
 fn bad_mirror_domes_are_refused_by_field() {
     let good = std::fs::read_to_string(project_dir().join("distortion/mirror-dome.toml")).unwrap();
-    let dir = std::env::temp_dir().join(format!("relief-mirror-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = common::temp_dir("mirror");
     for (label, text, want) in [
         (
             "mirror outside the dome",
@@ -563,9 +557,7 @@ fn unblended_dome(dir: &std::path::Path) -> std::path::PathBuf {
 
 #[test]
 fn warp_apply_gives_each_projector_pixel_the_dome_master_colour_of_its_direction() {
-    let dir = std::env::temp_dir().join(format!("relief-test-{}-dome-master", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = common::temp_dir("dome-master");
     let master = smooth_dome_master(&dir);
     let config = unblended_dome(&dir);
     let cfg = DisplayConfig::load(&config).unwrap();
@@ -633,8 +625,7 @@ fn cli_renders_a_square_dome_master() {
     if gpu().is_none() {
         return;
     }
-    let dir = std::env::temp_dir().join(format!("relief-test-{}-dm-cli", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
+    let dir = common::temp_dir("dm-cli");
     let o = relief(&[
         "render",
         "terrains/alps.toml",
@@ -673,9 +664,7 @@ fn cli_renders_a_square_dome_master() {
 
 #[test]
 fn an_exported_bourke_mesh_warps_a_dome_master_like_the_display_model() {
-    let dir = std::env::temp_dir().join(format!("relief-test-{}-mesh-apply", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = common::temp_dir("mesh-apply");
     let master = smooth_dome_master(&dir);
     let config = unblended_dome(&dir);
     let cfg = DisplayConfig::load(&config).unwrap();
