@@ -101,7 +101,8 @@ impl Default for Sky {
 #[derive(Clone, Copy, Debug, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct Fog {
-    /// Meteorological visibility in metres (5% contrast); 0 disables fog.
+    /// Meteorological visibility in metres (Koschmieder: extinction 3.912 / visibility, a 2%
+    /// contrast threshold); 0 disables fog.
     pub visibility: f64,
     /// Linear RGB of the haze; defaults to the sky's horizon colour.
     pub colour: Option<[f32; 3]>,
