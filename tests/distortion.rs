@@ -5,10 +5,12 @@ mod common;
 
 use common::{gpu, gpu_lock, project_dir, terrains};
 use glam::DVec3;
-use relief::cpu::distortion::{ray_table, screen_points, world_from_display};
+use relief::cpu::distortion::{ray_table, world_from_display};
+use relief::display::screen_points::screen_points;
 use relief::display::{DisplayConfig, Lens, Projector, Screen};
+use relief::geom::attitude_basis;
 use relief::gpu::{RenderSettings, TerrainRenderer, TraceMode};
-use relief::scene::{attitude_basis, Camera, Scene};
+use relief::scene::{Camera, Scene};
 
 const ARCMIN: f64 = std::f64::consts::PI / (180.0 * 60.0);
 
@@ -380,7 +382,9 @@ fn gpu_edge_blend_matches_the_cpu_factor_in_direct_mode() {
         let mut others = 0;
         for j in [0usize, 2] {
             let q = cfg.channels[j].projector;
-            if let Some((u, v)) = relief::cpu::distortion::projector_coord(&cfg.screen, &q, s) {
+            if let Some((u, v)) =
+                relief::display::screen_points::projector_coord(&cfg.screen, &q, s)
+            {
                 if relief::display::blend::border_margin(u, v, q.width, q.height).is_some() {
                     let others_of_j = cfg
                         .channels

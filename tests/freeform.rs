@@ -1135,8 +1135,7 @@ fn cli_renders_the_airfield_and_refuses_a_bad_object_before_writing() {
         "{}",
         meta["free_form_pixels"]
     );
-    let (w, h, depth) =
-        relief::app::capture::read_depth_tiff(&out.join("depth_0000.tiff")).unwrap();
+    let (w, h, depth) = relief::app::output::read_depth_tiff(&out.join("depth_0000.tiff")).unwrap();
     assert_eq!((w, h), (160, 120));
     assert!(depth.iter().filter(|d| d.is_finite()).count() > 8000);
     let _ = std::fs::remove_dir_all(&dir);

@@ -374,7 +374,7 @@ fn march_baseline_agrees_with_pyramid_on_most_pixels() {
 fn oversized_data_is_refused_with_the_limit_in_the_message() {
     let _l = gpu_lock();
     let Some(g) = gpu() else { return };
-    let err = relief::gpu::renderer::check_buffer_limit(g, "height table", 1 << 40)
+    let err = relief::gpu::check_buffer_limit(g, "height table", 1 << 40)
         .unwrap_err()
         .to_string();
     assert!(
@@ -468,7 +468,7 @@ fn cli_render_writes_png_depth_and_metadata_that_recreate_the_rays() {
         let png = image::open(out.join(format!("frame_{f:04}.png"))).unwrap();
         assert_eq!((png.width(), png.height()), (96, 64));
         let (w, h, depth) =
-            relief::app::capture::read_depth_tiff(&out.join(format!("depth_{f:04}.tiff"))).unwrap();
+            relief::app::output::read_depth_tiff(&out.join(format!("depth_{f:04}.tiff"))).unwrap();
         assert_eq!((w, h), (96, 64));
         let meta: serde_json::Value = serde_json::from_str(
             &std::fs::read_to_string(out.join(format!("frame_{f:04}.json"))).unwrap(),

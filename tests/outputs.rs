@@ -60,7 +60,7 @@ fn a_render_failing_at_frame_2_keeps_frames_0_and_1_and_says_2() {
         let img = image::open(out.join(format!("frame_{n}.png"))).unwrap();
         assert_eq!((img.width(), img.height()), (32, 24));
         let (w, h, _) =
-            relief::app::capture::read_depth_tiff(&out.join(format!("depth_{n}.tiff"))).unwrap();
+            relief::app::output::read_depth_tiff(&out.join(format!("depth_{n}.tiff"))).unwrap();
         assert_eq!((w, h), (32, 24));
         let meta: serde_json::Value = serde_json::from_str(
             &std::fs::read_to_string(out.join(format!("frame_{n}.json"))).unwrap(),

@@ -38,10 +38,10 @@ fn all_shaders_validate_with_naga() {
 fn every_specialised_variant_validates_with_naga() {
     // The passes built per switch combination (gpu::specialise): every combination, not only
     // the all-on and all-off ones `all()` lists.
-    use relief::gpu::objects::FfTables;
-    use relief::gpu::shade::ShadeFeatures;
     use relief::gpu::shaders;
-    use relief::gpu::volumes::VolumeSwitches;
+    use relief::gpu::variants::FfTables;
+    use relief::gpu::variants::ShadeFeatures;
+    use relief::gpu::variants::VolumeSwitches;
     let bit = |bits: u32, k: u32| bits & (1 << k) != 0;
     for bits in 0..16 {
         let f = ShadeFeatures {
@@ -98,7 +98,7 @@ fn naga_rejects_a_broken_shader() {
 
 #[test]
 fn free_form_constants_match_the_cpu_side() {
-    let src = relief::gpu::shaders::objects(true, relief::gpu::objects::FfTables::Storage);
+    let src = relief::gpu::shaders::objects(true, relief::gpu::variants::FfTables::Storage);
     let ray_nodes = format!(
         "const FF_RAY_NODES: u32 = {}u;",
         relief::gpu::shaders::FF_RAY_NODES
@@ -145,7 +145,7 @@ fn free_form_constants_match_the_cpu_side() {
 #[test]
 fn volume_constants_match_the_cpu_side() {
     use relief::gpu::shaders;
-    use relief::gpu::volumes::VolumeSwitches;
+    use relief::gpu::variants::VolumeSwitches;
     let src = shaders::volume(VolumeSwitches::ALL);
     // The transfer table is a uniform array of VOL_TABLE entries: the buffer the renderer
     // uploads (TABLE_SIZE entries) must hold all of it.
@@ -197,9 +197,9 @@ fn voxel_constants_match_the_cpu_side() {
 fn full_screen_passes_never_discard() {
     // The full-screen passes start from LoadOp::DontCare (renderer `encode_fullscreen`): that is
     // sound only while every pixel is written, i.e. no fragment of theirs discards.
-    use relief::gpu::shade::ShadeFeatures;
     use relief::gpu::shaders;
-    use relief::gpu::volumes::VolumeSwitches;
+    use relief::gpu::variants::ShadeFeatures;
+    use relief::gpu::variants::VolumeSwitches;
     for (name, src) in [
         ("raygen", shaders::raygen()),
         ("tile", shaders::tile()),
@@ -207,7 +207,7 @@ fn full_screen_passes_never_discard() {
         ("shade", shaders::shade(ShadeFeatures::ALL)),
         (
             "shade (free forms)",
-            shaders::shade_objects(ShadeFeatures::ALL, relief::gpu::objects::FfTables::Storage),
+            shaders::shade_objects(ShadeFeatures::ALL, relief::gpu::variants::FfTables::Storage),
         ),
         ("volume", shaders::volume(VolumeSwitches::ALL)),
         ("pattern", shaders::pattern()),

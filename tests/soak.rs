@@ -61,9 +61,9 @@ fn soak_slope_fits_a_known_line() {
     // The fit itself, on exact data: 3 KiB a frame from 1000 KiB, with one frame's noise
     // cancelling around the centre.
     let y: Vec<f64> = (0..400).map(|i| 1000.0 + 3.0 * i as f64).collect();
-    assert!((relief::app::soak::slope(&y) - 3.0).abs() < 1e-9);
+    assert!((relief::app::figures::slope(&y) - 3.0).abs() < 1e-9);
     let flat = vec![5.0; 50];
-    assert_eq!(relief::app::soak::slope(&flat), 0.0);
-    assert_eq!(relief::app::soak::window(600), [100, 500]);
-    assert_eq!(relief::app::soak::window(100), [20, 100]);
+    assert_eq!(relief::app::figures::slope(&flat), 0.0);
+    assert_eq!(relief::app::figures::window(600), [100, 500]);
+    assert_eq!(relief::app::figures::window(100), [20, 100]);
 }

@@ -255,9 +255,9 @@ fn window_frames_match_headless_render() {
             &head.join(format!("frame_{n}.png")),
         );
         let (_, _, a) =
-            relief::app::capture::read_depth_tiff(&cap.join(format!("depth_{n}.tiff"))).unwrap();
+            relief::app::output::read_depth_tiff(&cap.join(format!("depth_{n}.tiff"))).unwrap();
         let (_, _, b) =
-            relief::app::capture::read_depth_tiff(&head.join(format!("depth_{n}.tiff"))).unwrap();
+            relief::app::output::read_depth_tiff(&head.join(format!("depth_{n}.tiff"))).unwrap();
         assert!(
             a.iter()
                 .zip(&b)
@@ -951,10 +951,10 @@ fn recorded_path_plays_back_exactly() {
 #[test]
 fn frame_statistics() {
     let v = [5.0, 1.0, 4.0, 2.0, 3.0, f64::NAN];
-    assert_eq!(stats::percentile(&v, 50.0), Some(3.0));
-    assert_eq!(stats::percentile(&v, 99.0), Some(5.0));
-    assert_eq!(stats::percentile(&v, 0.0), Some(1.0));
-    assert_eq!(stats::percentile(&[], 50.0), None);
+    assert_eq!(relief::app::figures::percentile(&v, 50.0), Some(3.0));
+    assert_eq!(relief::app::figures::percentile(&v, 99.0), Some(5.0));
+    assert_eq!(relief::app::figures::percentile(&v, 0.0), Some(1.0));
+    assert_eq!(relief::app::figures::percentile(&[], 50.0), None);
     let p = 1000.0 / 60.0;
     assert_eq!(stats::dropped_slots(p, p), 0);
     assert_eq!(stats::dropped_slots(1.4 * p, p), 0);

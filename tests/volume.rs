@@ -1562,7 +1562,7 @@ fn a_volume_shadows_another_by_the_analytic_attenuation() {
         .sun
         .direction();
     let (mut slab, mut haze) = slab_over_haze(sun);
-    let shadowed = relief::volume::shadow::shadow_each_other(&mut [&mut slab, &mut haze]);
+    let shadowed = relief::volume::desc::shadow_each_other(&mut [&mut slab, &mut haze]);
     assert_eq!(
         shadowed,
         vec![false, true],
@@ -1641,7 +1641,7 @@ fn gpu_lights_a_volume_through_another_like_the_cpu_reference() {
     let terrain = terrain_from_fn(65, 10.0, |_, _| 0.0);
     let (desc, cam) = synthetic(160, 120, DVec3::new(100.0, 250.0, 90.0), 66.0, 4.0);
     let (mut slab, mut haze) = slab_over_haze(desc.sun.direction());
-    relief::volume::shadow::shadow_each_other(&mut [&mut slab, &mut haze]);
+    relief::volume::desc::shadow_each_other(&mut [&mut slab, &mut haze]);
     let vols = vec![slab, haze];
     let Some((under, out, rays)) = render_pair(&terrain, &desc, &cam, &vols, &[]) else {
         return;
@@ -1706,7 +1706,7 @@ fn volumes_are_ordered_per_pixel_by_where_their_media_lie() {
     );
     let mut vols = vec![layer, small];
     // As the renderer does: the layer shadows the box below it.
-    relief::volume::shadow::shadow_each_other(&mut vols.iter_mut().collect::<Vec<_>>());
+    relief::volume::desc::shadow_each_other(&mut vols.iter_mut().collect::<Vec<_>>());
     let Some((under, out, rays)) = render_pair(&terrain, &desc, &cam, &vols, &[]) else {
         return;
     };

@@ -328,7 +328,7 @@ fn camera(position: DVec3, heading: f64, pitch: f64, w: u32, h: u32) -> Camera {
 
 fn instance(file: &str, pos: DVec3, heading: f64, voxel_size: f64) -> VoxelInstance {
     let frames = relief::voxel::desc::load_frames(&vox(file)).unwrap();
-    let (r, d, f) = relief::scene::attitude_basis(heading, 0.0, 0.0);
+    let (r, d, f) = relief::geom::attitude_basis(heading, 0.0, 0.0);
     VoxelInstance::new(
         file,
         frames.into_iter().map(Arc::new).collect(),
@@ -559,8 +559,7 @@ fn cli_converts_a_vox_file_and_renders_the_tree_demo() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let (w, h, depth) =
-        relief::app::capture::read_depth_tiff(&dir.join("depth_0000.tiff")).unwrap();
+    let (w, h, depth) = relief::app::output::read_depth_tiff(&dir.join("depth_0000.tiff")).unwrap();
     assert_eq!((w, h), (160, 90));
     // The tree stands 30 m ahead of the camera in the middle of the image.
     let centre = depth[(45 * 160 + 80) as usize];
@@ -1125,7 +1124,7 @@ fn partitioned_rectangles_cover_the_union_once_with_the_exact_models() {
 
 #[test]
 fn gpu_voxel_depth_through_a_distortion_table_matches_the_cpu_dda() {
-    use relief::cpu::distortion::screen_points;
+    use relief::display::screen_points::screen_points;
     use relief::display::DisplayConfig;
     let _l = gpu_lock();
     let cfg =

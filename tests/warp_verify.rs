@@ -7,9 +7,10 @@ mod common;
 
 use common::{gpu, gpu_lock, project_dir};
 use glam::DVec3;
-use relief::app::verify::{verify, PatternRig, VerifyOptions};
-use relief::cpu::distortion::{projector_coord, screen_points};
+use relief::app::pattern_rig::PatternRig;
+use relief::app::verify::{verify, VerifyOptions};
 use relief::display::pattern::{pattern_rgba8, PatternParams};
+use relief::display::screen_points::{projector_coord, screen_points};
 use relief::display::{DisplayConfig, Lens, Projector, Screen};
 
 fn configs() -> Vec<(String, DisplayConfig)> {
@@ -538,7 +539,7 @@ fn smooth_dome_master(dir: &std::path::Path) -> std::path::PathBuf {
         }
     }
     let master = dir.join("master.png");
-    relief::app::capture::write_png(&master, size, size, &img).unwrap();
+    relief::app::output::write_png(&master, size, size, &img).unwrap();
     master
 }
 
@@ -604,7 +605,7 @@ fn warp_apply_gives_each_projector_pixel_the_dome_master_colour_of_its_direction
         e.contains("dome-5proj-unblended.toml") && e.contains("dome master"),
         "{e}"
     );
-    relief::app::capture::write_png(&dir.join("wide.png"), 4, 2, &[0; 32]).unwrap();
+    relief::app::output::write_png(&dir.join("wide.png"), 4, 2, &[0; 32]).unwrap();
     let e = relief::app::warp::apply_dome_master(
         &config,
         0,

@@ -16,7 +16,6 @@ use serde_json::json;
 use std::path::{Path, PathBuf};
 
 // The writers lived here before `output`; their paths stay.
-pub use super::output::{read_depth_tiff, write_depth_tiff, write_json, write_png};
 
 fn mat_rows(m: glam::DMat4) -> Vec<[f64; 4]> {
     let t = m.transpose();

@@ -33,6 +33,3 @@ pub mod verify;
 pub mod view;
 pub mod voxels;
 pub mod warp;
-
-// `relief bench soak` was `app::soak`; its statistics are still found there.
-pub use bench::soak;

@@ -2,8 +2,8 @@
 //! [`crate::display::pattern`]) through virtual or real ray tables, on a flat stub terrain
 //! that no ray is cast against.
 
-use crate::cpu::distortion::ScreenPoints;
 use crate::display::pattern::PatternParams;
+use crate::display::screen_points::ScreenPoints;
 use crate::gpu::{FrameOutput, Gpu, RenderSettings, TerrainRenderer};
 use crate::scene::{Camera, Pose, Scene, SceneDesc};
 use crate::terrain::{Heightfield, Terrain, TerrainFrame};

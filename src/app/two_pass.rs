@@ -5,7 +5,7 @@
 //! software does. Also the virtual views both build on: view bases and per-pixel view points.
 
 use super::sampling::{quantise, sample_rgba8};
-use crate::cpu::distortion::ScreenPoints;
+use crate::display::screen_points::ScreenPoints;
 use crate::gpu::{FrameOutput, Gpu, RenderSettings, TerrainRenderer};
 use crate::scene::{Camera, Pose, SceneDesc};
 use crate::terrain::Terrain;

@@ -14,12 +14,12 @@
 //! against the exact ones (1 = nothing lost).
 
 use super::output::{write_json, write_png};
-pub use super::pattern_rig::{PatternRig, PatternView};
+use super::pattern_rig::{PatternRig, PatternView};
 use super::sampling::{quantise, sample_rgba8};
 use super::two_pass::{two_pass_faces, view_basis, view_points, warp_faces};
-use crate::cpu::distortion::{projector_coord, screen_points, ScreenPoints};
 use crate::display::blend::ChannelBlend;
 use crate::display::pattern::{pattern_colour, PatternParams};
+use crate::display::screen_points::{projector_coord, screen_points, ScreenPoints};
 use crate::display::{DisplayConfig, Projector, Screen};
 use crate::gpu::Gpu;
 use crate::{Error, Result};

@@ -1,6 +1,6 @@
 //! `relief warp inspect|export`: read warp files and write a display configuration's warp.
 
-use crate::cpu::distortion::screen_points;
+use crate::display::screen_points::screen_points;
 use crate::display::warp::{
     read_bourke, read_pfm, write_bourke, write_pfm, BourkeMesh, MeshNode, Pfm, RowOrder,
 };
@@ -197,7 +197,7 @@ pub fn apply_dome_master(
     let p = ch.projector;
     let pts = cfg.channel_points(channel)?;
     let eye = eye.map_or(DVec3::from(cfg.eye.position), DVec3::from);
-    crate::scene::check_finite("--eye", &eye.to_array())?;
+    crate::error::check_finite("--eye", &eye.to_array())?;
     let offset = ch.view.map(|v| v.matrix());
     let src = img.as_raw();
     let mut rgba = vec![0u8; (p.width * p.height * 4) as usize];

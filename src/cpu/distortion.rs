@@ -2,7 +2,7 @@
 //! while the projector is fixed) → unit direction from the eye, rotated into the world by the
 //! vehicle attitude, plus each pixel's cone half-angle from its neighbours.
 
-pub use crate::display::screen_points::{projector_coord, screen_points, ScreenPoints};
+use crate::display::screen_points::ScreenPoints;
 /// World-from-display rotation for a vehicle attitude (degrees): display x right, y forward,
 /// z up map to the attitude's right, forward and up.
 pub use crate::geom::attitude_matrix as world_from_display;

@@ -67,4 +67,5 @@ pub(crate) use device::shader_module;
 pub use device::{Gpu, GpuOptions, KernelChoice, KernelPath, ParamSpace, PARAM_USAGE};
 pub use frame::{FrameOutput, PassTimes, RenderSettings, Stage, TraceMode};
 pub use renderer::TerrainRenderer;
+pub use util::check_buffer_limit;
 pub use volume_set::MAX_VOLUMES;

@@ -10,12 +10,11 @@ use super::util::{
     buf, check_buffer_limit, float_texture_entry, pipeline_layout, render_pipeline, screen_texture,
     storage_entry, target_state, uint_texture_entry, uniform_entry, view,
 };
+use super::variants::FfTables;
 use super::{shaders, Gpu, PARAM_USAGE};
 use crate::freeform::FreeForm;
 use crate::{Error, Result};
 use wgpu::util::DeviceExt;
-
-pub use super::variants::FfTables;
 
 /// Bin side in pixels (WGSL `FF_BIN` in `ff_consts.wgsl`, checked at compile time).
 pub const BIN: u32 = 16;

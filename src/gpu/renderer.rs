@@ -3,12 +3,15 @@
 //! frame: parameter blocks, the passes in order, readback.
 
 use super::blend::BlendPass;
+use super::device::KernelPath;
+use super::frame::{FrameOutput, PassTimes, RenderSettings, Stage, TraceMode};
 use super::objects::{ObjectPasses, BIN_CAPACITY};
 use super::pattern::PatternPass;
 use super::readback::{self, Extras};
 use super::table::TableMode;
 use super::targets::{TargetPasses, Targets};
 use super::terrain_passes::{RayGen, TerrainPasses};
+use super::uniforms::{frame_uniforms, raygen_uniforms, table_raygen_uniforms};
 use super::util::encode_fullscreen;
 use super::variants::ShadeFeatures;
 use super::volume_set::VolumeSet;
@@ -22,13 +25,6 @@ use crate::{Error, Result};
 use std::time::Instant;
 
 // Names this file held before the gpu room was split, still reachable at their old paths.
-pub use super::device::KernelPath;
-pub use super::frame::{FrameOutput, PassTimes, RenderSettings, Stage, TraceMode};
-pub use super::pyramid::{dilate_square_pyramid, square_pyramid};
-pub use super::targets::TILE;
-pub use super::uniforms::{frame_uniforms, raygen_uniforms, table_raygen_uniforms};
-pub use super::util::check_buffer_limit;
-pub use super::volume_set::MAX_VOLUMES;
 
 /// Terrain data on the GPU and the pipelines that render it.
 pub struct TerrainRenderer {
@@ -132,7 +128,7 @@ impl TerrainRenderer {
     pub fn set_display(
         &mut self,
         gpu: &Gpu,
-        points: &crate::cpu::distortion::ScreenPoints,
+        points: &crate::display::screen_points::ScreenPoints,
         eye: glam::DVec3,
     ) -> Result<()> {
         let what = format!("projector resolution {}x{}", points.width, points.height);

@@ -3,9 +3,8 @@
 
 use super::specialise::SpecialisedPipelines;
 use super::util::target_state;
+use super::variants::ShadeFeatures;
 use super::ParamSpace;
-
-pub use super::variants::ShadeFeatures;
 
 /// Shade pipelines (fragment entry `fs_shade`, colour and capture-data targets).
 pub type ShadePipelines = SpecialisedPipelines<ShadeFeatures>;

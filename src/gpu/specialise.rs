@@ -13,9 +13,8 @@
 //! the naga validation test checks, and every variant is a complete, valid module.)
 
 use super::util::render_pipeline;
+use super::variants::Switches;
 use super::ParamSpace;
-
-pub use super::variants::{wgsl_bools, Switches};
 
 /// The pipelines of one full-screen fragment pass, one per switch combination used so far.
 pub struct SpecialisedPipelines<S: Switches> {

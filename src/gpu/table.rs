@@ -4,7 +4,7 @@
 use super::terrain_passes::TerrainPasses;
 use super::util::{fullscreen_pipeline, target_state, uniform_entry};
 use super::Gpu;
-use crate::cpu::distortion::ScreenPoints;
+use crate::display::screen_points::ScreenPoints;
 use crate::{Error, Result};
 
 /// The cached screen points of one projector, the table pipelines and the current eye point.

@@ -60,7 +60,7 @@ impl VolumeSet {
     /// Bakes the volumes' shadows on each other into their grids again and uploads them.
     fn shadow_each_other(&mut self, gpu: &Gpu) {
         let mut vols: Vec<_> = self.passes.iter_mut().map(|v| &mut v.volume).collect();
-        crate::volume::shadow::shadow_each_other(&mut vols);
+        crate::volume::desc::shadow_each_other(&mut vols);
         for v in &self.passes {
             v.upload_shadows(gpu);
         }

@@ -13,13 +13,12 @@ use super::util::{
     buf, check_buffer_limit, float_texture_entry, fullscreen_pipeline, padded_row, screen_texture,
     storage_entry, target_state, uint_texture_entry, uniform_entry, view,
 };
+use super::variants::VolumeSwitches;
 use super::{shaders, Gpu, PARAM_USAGE};
 use crate::volume::transfer::TABLE_SIZE;
 use crate::volume::Volume;
 use crate::{Error, Result};
 use wgpu::util::DeviceExt;
-
-pub use super::variants::VolumeSwitches;
 
 /// Format of the per-pixel statistics target (samples taken, segments passed, f32 bits of the
 /// medium's depth).
@@ -447,7 +446,7 @@ impl VolumePass {
     }
 
     /// Uploads the shadow grids again (after reclassification, or after
-    /// [`crate::volume::shadow::shadow_each_other`] changed what the samples are lit with).
+    /// [`crate::volume::desc::shadow_each_other`] changed what the samples are lit with).
     pub fn upload_shadows(&self, gpu: &Gpu) {
         if let Some(sh) = &self.volume.sun_shadow {
             write_shadow(gpu, &self.shadow, sh.dims, sh.lit_data());

@@ -4,6 +4,7 @@
 //! top-left corner and its centre is at `(px + 0.5, py + 0.5)`; the pinhole ray through image
 //! point `(u, v)` is `normalize(((u - cx) / fx, (v - cy) / fy, 1))` in the camera frame.
 
+use crate::geom::attitude_basis;
 use crate::{Error, Result};
 use glam::{DMat3, DMat4, DVec3};
 use serde::{Deserialize, Serialize};
@@ -17,8 +18,6 @@ pub(crate) fn check_fov(field: &str, fov: f64) -> Result<()> {
     }
     Ok(())
 }
-
-pub use crate::geom::attitude_basis;
 
 /// Position, attitude (degrees) and horizontal field of view (degrees).
 #[derive(Clone, Copy, Debug, PartialEq, Deserialize, Serialize)]

@@ -3,8 +3,9 @@
 
 mod camera;
 
-pub use camera::{attitude_basis, Camera, CameraPath, Keyframe, Pose};
+pub use camera::{Camera, CameraPath, Keyframe, Pose};
 
+use crate::error::check_finite;
 pub use crate::terrain::desc::{HeightSource, TerrainDesc};
 use crate::terrain::Terrain;
 use crate::{Error, Result};
@@ -189,8 +190,6 @@ pub struct Scene {
     pub path: PathBuf,
 }
 
-pub(crate) use crate::error::check_finite;
-
 impl Scene {
     /// Reads and validates a scene file.
     pub fn load(path: &Path) -> Result<Scene> {
@@ -288,7 +287,7 @@ impl Scene {
                 Ok(v)
             })
             .collect::<Result<Vec<_>>>()?;
-        crate::volume::shadow::shadow_each_other(&mut volumes.iter_mut().collect::<Vec<_>>());
+        crate::volume::desc::shadow_each_other(&mut volumes.iter_mut().collect::<Vec<_>>());
         Ok(volumes)
     }
 

@@ -60,8 +60,6 @@ impl SunShadow {
     }
 }
 
-pub use super::desc::shadow_each_other;
-
 /// The sun's transmittance through `grid` classified by `table` (extinction per metre in each
 /// entry's alpha), for the unit direction towards the sun `sun` in the volume frame: per voxel,
 /// or per block of 2³, 4³… voxels where the grid has more than [`MAX_CELLS`] (extinction

@@ -75,7 +75,7 @@ pub fn save_failure_image(name: &str, width: u32, height: u32, rgba: &[u8]) -> P
     let dir = project_dir().join("target").join("test-output");
     std::fs::create_dir_all(&dir).unwrap();
     let p = dir.join(format!("{name}-actual.png"));
-    relief::app::capture::write_png(&p, width, height, rgba).unwrap();
+    relief::app::output::write_png(&p, width, height, rgba).unwrap();
     p
 }
 
@@ -103,7 +103,7 @@ pub fn save_failure_images(
         .join("target")
         .join("test-output")
         .join(format!("{name}-diff.png"));
-    relief::app::capture::write_png(&p, width, height, &diff).unwrap();
+    relief::app::output::write_png(&p, width, height, &diff).unwrap();
     p
 }
 
@@ -121,7 +121,7 @@ pub fn save_failure_mask(name: &str, width: u32, height: u32, bad: &[(u32, u32)]
     let dir = project_dir().join("target").join("test-output");
     std::fs::create_dir_all(&dir).unwrap();
     let p = dir.join(format!("{name}-diff.png"));
-    relief::app::capture::write_png(&p, width, height, &m).unwrap();
+    relief::app::output::write_png(&p, width, height, &m).unwrap();
     p
 }
 

@@ -48,7 +48,7 @@ pub fn run(
     (cam.width, cam.height) = size;
     let s = RenderSettings::from_scene(&scene.desc);
     let eye = DVec3::from(cfg.eye.position);
-    let points = crate::cpu::distortion::screen_points(&cfg.screen, &p);
+    let points = crate::display::screen_points::screen_points(&cfg.screen, &p);
     let frame_ms = |display: bool| -> Result<(f64, f64)> {
         let mut r = TerrainRenderer::new(&gpu, &terrain)?;
         if display {

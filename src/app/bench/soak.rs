@@ -11,6 +11,7 @@
 use super::table::{Figures, RunInfo, Table};
 use super::timing::scene_at_size;
 use crate::app::figures::percentile;
+use crate::app::figures::{resident_kib, slope, window};
 use crate::gpu::{Gpu, RenderSettings};
 use crate::world::World;
 use crate::Result;
@@ -19,7 +20,6 @@ use std::path::Path;
 use std::time::Instant;
 
 // The soak run's statistics, where they have always been found.
-pub use crate::app::figures::{resident_kib, slope, window};
 
 /// What `relief bench soak` measures (the report's `details`).
 #[derive(Clone, Debug, Serialize)]

@@ -209,7 +209,7 @@ impl Motion {
         p.heading = (p.heading + c.yaw * 60.0 * dt + c.look.0).rem_euclid(360.0);
         p.pitch = (p.pitch + c.pitch * 45.0 * dt + c.look.1).clamp(-89.0, 89.0);
         p.roll = 0.0;
-        let (right, _, fwd) = crate::scene::attitude_basis(p.heading, p.pitch, 0.0);
+        let (right, _, fwd) = crate::geom::attitude_basis(p.heading, p.pitch, 0.0);
         let speed = self.free_speed * if c.fast { 5.0 } else { 1.0 };
         let v = fwd * c.forward + right * c.right + DVec3::Z * c.up;
         p.position += v * speed * dt;
@@ -238,7 +238,7 @@ impl Motion {
         } else {
             a.sink * (-2.0 * dt).exp()
         };
-        let (_, _, fwd) = crate::scene::attitude_basis(p.heading, p.pitch, 0.0);
+        let (_, _, fwd) = crate::geom::attitude_basis(p.heading, p.pitch, 0.0);
         p.position += (fwd * a.speed + DVec3::Z * a.sink) * dt;
     }
 

@@ -5,8 +5,8 @@
 use super::motion::{self, ControlScript, EyeFeed, Mode, Motion, PathRecorder};
 use super::stats::StatsCsv;
 use super::ViewOptions;
-use crate::cpu::distortion::ScreenPoints;
 use crate::display::blend::ChannelBlend;
+use crate::display::screen_points::ScreenPoints;
 use crate::display::{DisplayConfig, ViewOffset};
 use crate::gpu::RenderSettings;
 use crate::scene::{Pose, Scene};

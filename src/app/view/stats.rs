@@ -1,13 +1,13 @@
 //! Per-frame statistics of the window's frame loop, the `--stats-csv` log and the summary
 //! printed at exit.
 
+use crate::app::figures::percentile;
 use crate::app::figures::{slope, window};
 use crate::{Error, Result};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
 // The frame loop's percentiles, where they have always been found.
-pub use crate::app::figures::percentile;
 
 /// Where a frame's GPU time comes from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
