@@ -1,21 +1,19 @@
 //! relief: a polygon-free terrain image generator.
 //!
-//! Layout (each folder is one layer of the data flow):
-//! * [`scene`]: the TOML scene model (camera, sun, fog, output, camera path). No GPU types.
-//! * [`terrain`]: height-field loaders (SRTM `.hgt`, GeoTIFF, 16-bit PNG, procedural),
-//!   placement in the world and the maximum-LOD pyramid.
-//! * [`cpu`]: the CPU reference algorithms (f64): ray–terrain traversal, queries
-//!   (height of terrain, line of sight), dense marching oracle. These answer queries and are
-//!   the oracle the GPU output is tested against.
-//! * [`freeform`]: quadric free forms with recursive perturbations (model, scene tables).
-//! * [`volume`]: density volumes (NRRD, raw, procedural), transfer functions, brick grid.
-//! * [`voxel`]: coloured voxel models (`.vox` import, segment format, brick grid, scene tables).
-//! * [`display`]: curved-screen display model (screen, projectors, eye) for pre-distortion.
-//! * [`world`]: a scene's world loaded on the CPU (terrain and pyramid, free forms, volumes,
-//!   voxel models), ready for the renderers.
-//! * [`gpu`]: wgpu passes (ray generation, tile pre-pass, terrain cast + shade) and readback.
-//! * [`app`]: headless capture, benchmark and command-line front end.
-//! * [`fileio`]: bounded reads (memory budget, declared vs actual sizes) and atomic writes.
+//! Layout: rooms in one layer order, imports pointing down (`tests/layers.rs` enforces it;
+//! module map in `docs/architecture.md`):
+//! * leaves: [`error`] (the error type), [`fileio`] (bounded reads, atomic writes), [`geom`]
+//!   (attitudes and placements), [`geodesy`] (WGS84: geodetic ↔ ECEF, east-north-up frames,
+//!   radii of curvature);
+//! * model, no GPU types: [`terrain`] (height-field loaders, placement, maximum pyramid),
+//!   [`freeform`] (quadric free forms), [`volume`] (density volumes), [`voxel`] (coloured voxel
+//!   models), [`display`] (curved screens, projectors, warps);
+//! * [`scene`]: the TOML scene (camera, sun, fog, output, path, the model tables);
+//! * [`world`]: a scene's world loaded on the CPU, ready for the renderers;
+//! * [`cpu`]: the f64 reference algorithms: they answer queries (height of terrain, line of
+//!   sight) and are the oracle the GPU output is tested against;
+//! * [`gpu`]: the wgpu passes and their WGSL;
+//! * [`app`]: the commands of the `relief` binary (render, view, bench, warp, voxels).
 
 pub mod app;
 pub mod cpu;
@@ -23,6 +21,7 @@ pub mod display;
 pub mod error;
 pub mod fileio;
 pub mod freeform;
+pub mod geodesy;
 pub mod geom;
 pub mod gpu;
 pub mod scene;
