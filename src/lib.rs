@@ -4,6 +4,8 @@
 //! * [`scene`]: the TOML scene model (camera, sun, fog, output, camera path). No GPU types.
 //! * [`terrain`]: height-field loaders (SRTM `.hgt`, GeoTIFF, 16-bit PNG, procedural),
 //!   placement in the world and the maximum-LOD pyramid.
+//! * [`db`]: the terrain database: DEMs compiled into one tiled multi-resolution file, its
+//!   reader and windows of it as height fields.
 //! * [`cpu`]: the CPU reference algorithms (f64): ray–terrain traversal, queries
 //!   (height of terrain, line of sight), dense marching oracle. These answer queries and are
 //!   the oracle the GPU output is tested against.
@@ -19,6 +21,7 @@
 
 pub mod app;
 pub mod cpu;
+pub mod db;
 pub mod display;
 pub mod error;
 pub mod fileio;

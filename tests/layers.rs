@@ -20,6 +20,7 @@ const LAYERS: &[(&str, u32)] = &[
     ("fileio", 0),
     ("geom", 0),
     ("terrain", 1),
+    ("db", 1),
     ("freeform", 1),
     ("volume", 1),
     ("voxel", 1),
