@@ -930,3 +930,114 @@ fn missing_tiles_are_filled_from_a_coarser_level_with_a_warning() {
         "{warn}"
     );
 }
+
+// ---------------------------------------------------------------------------------------------
+// Seams, in pictures (GPU)
+
+/// The same views rendered through the whole tile's database and through the 2x2 and 3x3
+/// cut ones: mean colour difference ≤ 1/255, depth within 1e-5 relative, no sky or
+/// see-through pixel where the whole tile has terrain. The views straddle the cuts (the 2x2
+/// cut at sample 600 in x and y, the 3x3 cuts at 400 and 800). The `.hgt` rendered directly
+/// gives the same pictures too.
+#[test]
+fn cut_databases_render_the_same_pictures_as_the_whole_tile() {
+    use relief::gpu::TerrainRenderer;
+    use relief::scene::{Camera, Pose, Scene};
+    let _l = common::gpu_lock();
+    let Some(g) = common::gpu() else {
+        return;
+    };
+    let s = seams();
+    let load = |terrain: String| {
+        let text = format!(
+            "[terrain]\n{terrain}\n[sun]\nazimuth = 245.0\nelevation = 24.0\n[fog]\nvisibility = 90000.0\nscale_height = 3000.0\n[camera]\nposition = [0.0, 0.0, 5000.0]\n"
+        );
+        let scene = Scene::parse(&text, &s.dir.join("seams.toml")).unwrap();
+        let terrain = scene.load_terrain().unwrap();
+        (scene, terrain)
+    };
+    let db = |p: &Path| {
+        format!(
+            "database = \"{}\"",
+            p.file_name().unwrap().to_string_lossy()
+        )
+    };
+    let whole = load(db(&s.whole));
+    let [dx, dy] = whole.1.frame.spacing;
+    let at = |i: f64, j: f64, z: f64| glam::DVec3::new(i * dx, j * dy, z);
+    let pose = |position, heading, pitch, roll| Pose {
+        position,
+        heading,
+        pitch,
+        roll,
+        fov: 60.0,
+    };
+    let views = [
+        (
+            "over the 2x2 crossing",
+            pose(at(600.0, 480.0, 9000.0), 10.0, -55.0, 0.0),
+        ),
+        (
+            "across the 3x3 cuts",
+            pose(at(330.0, 250.0, 2600.0), 40.0, -9.0, 0.0),
+        ),
+        (
+            "along the 2x2 cut",
+            pose(at(600.0, 60.0, 1800.0), 0.0, -4.0, 3.0),
+        ),
+        (
+            "down the 3x3 crossing",
+            pose(at(800.0, 800.0, 7000.0), 200.0, -80.0, 0.0),
+        ),
+    ];
+    let (w, h) = (160u32, 120u32);
+    let settings = common::settings(true, true);
+    let render = |(scene, terrain): &(Scene, relief::terrain::Terrain), cam: &Camera| {
+        let mut r = TerrainRenderer::new(g, terrain).expect("renderer");
+        r.capture(g, terrain, &scene.desc, cam, &settings)
+            .expect("capture")
+    };
+    let cut = [
+        ("2x2", load(db(&s.two))),
+        ("3x3", load(db(&s.three))),
+        (
+            "the .hgt itself",
+            load(format!("source = \"{}\"", alps_hgt().display())),
+        ),
+    ];
+    for (view, p) in views {
+        let cam = Camera::new(p, w, h);
+        let reference = render(&whole, &cam);
+        let hits = reference.depth.iter().filter(|d| d.is_finite()).count();
+        assert!(
+            hits > (w * h / 3) as usize,
+            "{view}: only {hits} terrain pixels"
+        );
+        for (name, world) in &cut {
+            let out = render(world, &cam);
+            let mean = out
+                .rgba
+                .iter()
+                .zip(&reference.rgba)
+                .map(|(a, b)| a.abs_diff(*b) as f64)
+                .sum::<f64>()
+                / out.rgba.len() as f64;
+            let mut holes = 0;
+            let mut worst = 0.0f64;
+            for (a, b) in out.depth.iter().zip(&reference.depth) {
+                if b.is_finite() && !a.is_finite() {
+                    holes += 1;
+                } else if b.is_finite() {
+                    worst = worst.max(((a - b) / b).abs() as f64);
+                }
+            }
+            let ok = mean <= 1.0 && worst <= 1e-5 && holes == 0;
+            if !ok {
+                let tag = format!("db-seams-{name}-{}", view.replace(' ', "-"));
+                let p = common::save_failure_images(&tag, w, h, &out.rgba, &reference.rgba);
+                panic!("{name}, {view}: mean {mean:.3}/255, depth {worst:e} relative, {holes} sky/see-through pixels where the whole tile has terrain ({})", p.display());
+            }
+            eprintln!("{name}, {view}: {hits} terrain pixels, mean {mean:.3}/255, depth {worst:e}, no holes");
+        }
+    }
+}
