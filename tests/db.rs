@@ -113,10 +113,30 @@ struct Seams {
     three: PathBuf,
 }
 
+/// Removes a test's directory when the test passes (a failing one keeps it for a look).
+struct Cleanup(PathBuf);
+
+impl Drop for Cleanup {
+    fn drop(&mut self) {
+        if !std::thread::panicking() {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
+}
+
+/// A directory under `target/test-output/` for what several tests of this process share,
+/// made afresh (one name, so that runs do not pile up copies).
+fn shared_dir(name: &str) -> PathBuf {
+    let d = project_dir().join("target").join("test-output").join(name);
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
 fn seams() -> &'static Seams {
     static S: OnceLock<Seams> = OnceLock::new();
     S.get_or_init(|| {
-        let dir = temp_dir("db-seams");
+        let dir = shared_dir("db-seams");
         let (whole, two, three) = (
             dir.join("whole.reliefdb"),
             dir.join("two.reliefdb"),
@@ -138,7 +158,7 @@ fn seams() -> &'static Seams {
 fn mixed() -> &'static PathBuf {
     static M: OnceLock<PathBuf> = OnceLock::new();
     M.get_or_init(|| {
-        let p = temp_dir("db-mixed").join("mixed.reliefdb");
+        let p = shared_dir("db-mixed").join("mixed.reliefdb");
         build(&p, &[etopo(), alps_hgt(), terrains().join("N43E042.hgt")]);
         p
     })
@@ -312,6 +332,7 @@ fn check_coarse_maxima(d: &Database, check: impl Fn(TileId) -> bool) -> u64 {
 fn coarse_cell_maxima_bound_every_finer_sample() {
     let d = Database::open(&seams().whole).unwrap();
     let checked = check_coarse_maxima(&d, |_| true);
+    eprintln!("coarse maxima: {checked} finer samples checked");
     assert!(checked > 5_000_000, "{checked}");
     // The in-tile pyramid: each level the max of 2x2 below.
     let t = d.tile(d.entries()[0].id).unwrap().unwrap();
@@ -373,6 +394,7 @@ fn files_in(dir: &Path) -> Vec<String> {
 #[test]
 fn db_build_and_info_through_the_cli() {
     let dir = temp_dir("db-cli");
+    let _clean = Cleanup(dir.clone());
     let out = dir.join("alps.reliefdb");
     let o = relief_cli(&["db", "build", &s(&out), &s(&alps_hgt())], &[]);
     let (stdout, stderr) = text(&o);
@@ -481,6 +503,7 @@ fn db_scene(dir: &Path, name: &str, database: &str, extra: &str) -> PathBuf {
 #[test]
 fn a_corrupt_tile_is_an_error_naming_it() {
     let dir = temp_dir("db-corrupt");
+    let _clean = Cleanup(dir.clone());
     let p = dir.join("corrupt.reliefdb");
     std::fs::copy(&seams().whole, &p).unwrap();
     let (victim, offset, length) = {
@@ -531,6 +554,7 @@ fn fix_header_crc(bytes: &mut [u8]) {
 #[test]
 fn other_versions_truncated_files_and_hostile_headers_are_refused() {
     let dir = temp_dir("db-hostile");
+    let _clean = Cleanup(dir.clone());
     let good = std::fs::read(&seams().whole).unwrap();
     let open = |name: &str, bytes: &[u8]| -> String {
         let p = dir.join(name);
@@ -615,6 +639,7 @@ fn other_versions_truncated_files_and_hostile_headers_are_refused() {
 #[test]
 fn windows_off_the_database_and_misplaced_keys_are_named() {
     let dir = temp_dir("db-window");
+    let _clean = Cleanup(dir.clone());
     std::fs::copy(&seams().whole, dir.join("alps.reliefdb")).unwrap();
     let q = |name: &str, db: &str, extra: &str| {
         relief_cli(
@@ -703,6 +728,7 @@ fn windows_off_the_database_and_misplaced_keys_are_named() {
 #[test]
 fn overlapping_sources_of_equal_resolution_the_first_wins_with_a_warning() {
     let dir = temp_dir("db-overlap");
+    let _clean = Cleanup(dir.clone());
     let mut f = hgt::load(&alps_hgt()).unwrap();
     let (a, b) = (dir.join("west.tif"), dir.join("east.tif"));
     write_piece(&a, &f, 9.0, 47.0, 0, 0, 701, 1201, false);
@@ -909,6 +935,7 @@ fn missing_tiles_are_filled_from_a_coarser_level_with_a_warning() {
     assert!(compared > 1000, "{compared}");
     // The command line says which tiles were filled.
     let dir = temp_dir("db-missing");
+    let _clean = Cleanup(dir.clone());
     std::fs::copy(path, dir.join("mixed.reliefdb")).unwrap();
     let scene = db_scene(
         &dir,

@@ -106,6 +106,7 @@ pub fn info(d: &Database) -> String {
     let e = h.extent;
     let n = h.tile as u64;
     let centre = 0.5 * (e.lat_min + e.lat_max);
+    let centre = if centre.abs() < 0.005 { 0.0 } else { centre };
     let (mx, my) = metres_per_degree(centre);
     let mut s = String::new();
     let _ = writeln!(

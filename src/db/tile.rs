@@ -102,42 +102,51 @@ fn unshuffle(bytes: &[u8]) -> Vec<f32> {
         .collect()
 }
 
-/// The prediction of height `k` of a grid `side` samples wide from the heights before it:
-/// left + below − below-left (exact on planes, so on bilinear-filled areas nearly so);
-/// the left or the below neighbour on the first row and column, and where a term is NaN.
-fn predict(h: &[f32], k: usize, side: usize) -> f32 {
-    let (i, j) = (k % side, k / side);
+/// The prediction of height `k = j·side + i` of a grid `side` samples wide from the heights
+/// before it: left + below − below-left (exact on planes, so on bilinear-filled areas nearly
+/// so); the left or the below neighbour on the first row and column, and where a term is NaN.
+#[inline]
+fn predict(h: &[f32], i: usize, j: usize, k: usize, side: usize) -> f32 {
     let p = match (i, j) {
         (0, 0) => 0.0,
         (_, 0) => h[k - 1],
         (0, _) => h[k - side],
         _ => h[k - 1] + h[k - side] - h[k - side - 1],
     };
-    if p.is_nan() {
-        [k.checked_sub(1), k.checked_sub(side)]
-            .into_iter()
-            .flatten()
-            .map(|q| h[q])
-            .find(|v| !v.is_nan())
-            .unwrap_or(0.0)
-    } else {
-        p
+    if !p.is_nan() {
+        return p;
     }
+    [(i > 0).then(|| k - 1), (j > 0).then(|| k - side)]
+        .into_iter()
+        .flatten()
+        .map(|q| h[q])
+        .find(|v| !v.is_nan())
+        .unwrap_or(0.0)
 }
 
 /// The heights' bits XOR their predictions' bits ([`predict`]).
 fn residuals(h: &[f32], side: usize) -> Vec<f32> {
-    (0..h.len())
-        .map(|k| f32::from_bits(h[k].to_bits() ^ predict(h, k, side).to_bits()))
-        .collect()
+    let mut out = Vec::with_capacity(h.len());
+    for j in 0..h.len() / side {
+        for i in 0..side {
+            let k = j * side + i;
+            out.push(f32::from_bits(
+                h[k].to_bits() ^ predict(h, i, j, k, side).to_bits(),
+            ));
+        }
+    }
+    out
 }
 
 /// Inverse of [`residuals`].
 fn unresiduals(r: &[f32], side: usize) -> Vec<f32> {
-    let mut h = Vec::with_capacity(r.len());
-    for (k, x) in r.iter().enumerate() {
-        let p = predict(&h, k, side);
-        h.push(f32::from_bits(x.to_bits() ^ p.to_bits()));
+    let mut h = vec![0.0f32; r.len()];
+    for j in 0..r.len() / side {
+        for i in 0..side {
+            let k = j * side + i;
+            let p = predict(&h, i, j, k, side);
+            h[k] = f32::from_bits(r[k].to_bits() ^ p.to_bits());
+        }
     }
     h
 }

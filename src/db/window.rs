@@ -7,6 +7,7 @@ use super::format::{LevelInfo, TileId};
 use super::reader::Database;
 use crate::terrain::{GeoRef, Heightfield, MAX_SIDE};
 use crate::{fileio, Error, Result};
+use rayon::prelude::*;
 use std::path::Path;
 use std::sync::Arc;
 
@@ -227,14 +228,23 @@ pub fn read(db: &Database, spec: &WindowSpec) -> Result<Heightfield> {
         |lo: i64, hi: i64| lo.div_euclid(n)..=((hi - 1).div_euclid(n)).max(lo.div_euclid(n));
     let mut out = vec![f32::NAN; w * h];
     let mut filled = Vec::new();
+    let xs: Vec<i64> = tiles(spec.i0, i_last).collect();
     for ty in tiles(spec.j0, j_last) {
-        for tx in tiles(spec.i0, i_last) {
-            let id = TileId {
-                level: spec.level,
-                x: tx as u32,
-                y: ty as u32,
-            };
-            let t = heights_of(db, id, &mut filled)?;
+        // One row of tiles at a time, decoded in parallel.
+        let row: Vec<(Heights, Vec<(TileId, u32)>)> = xs
+            .par_iter()
+            .map(|&tx| {
+                let id = TileId {
+                    level: spec.level,
+                    x: tx as u32,
+                    y: ty as u32,
+                };
+                let mut f = Vec::new();
+                heights_of(db, id, &mut f).map(|t| (t, f))
+            })
+            .collect::<Result<_>>()?;
+        for (&tx, (t, f)) in xs.iter().zip(row) {
+            filled.extend(f);
             let t = t.get();
             let (ja, jb) = ((ty * n).max(spec.j0), (ty * n + n).min(j_last));
             let (ia, ib) = ((tx * n).max(spec.i0), (tx * n + n).min(i_last));
