@@ -224,7 +224,7 @@ pub fn decode_tile(bytes: &[u8], n: usize, path: &Path, id: TileId) -> Result<Ti
     let split = (n + 1) * (n + 1) * 4;
     let heights = unresiduals(&unshuffle(&raw[..split]), n + 1);
     let limit = crate::terrain::MAX_ABS_HEIGHT as f32;
-    if let Some(h) = heights.iter().find(|h| !h.is_nan() && !(h.abs() <= limit)) {
+    if let Some(h) = heights.iter().find(|h| h.abs() > limit) {
         return Err(bad(format!(
             "it holds a height of {h} m, beyond ±{limit:e} m"
         )));
@@ -235,7 +235,7 @@ pub fn decode_tile(bytes: &[u8], n: usize, path: &Path, id: TileId) -> Result<Ti
         .zip(&corners)
         .map(|(x, c)| f32::from_bits(x.to_bits() ^ c.to_bits()))
         .collect();
-    if cells.iter().zip(&corners).any(|(m, c)| !(m >= c)) {
+    if cells.iter().zip(&corners).any(|(m, c)| m.is_nan() || m < c) {
         return Err(bad(
             "a cell maximum is below its own corners or not a number".into(),
         ));
