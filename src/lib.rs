@@ -6,6 +6,8 @@
 //!   (attitudes and placements), [`geodesy`] (WGS84: geodetic ↔ ECEF, east-north-up frames,
 //!   radii of curvature);
 //! * model, no GPU types: [`terrain`] (height-field loaders, placement, maximum pyramid),
+//!   [`db`] (the terrain database: DEMs compiled into one tiled multi-resolution file, read
+//!   back in windows),
 //!   [`freeform`] (quadric free forms), [`volume`] (density volumes), [`voxel`] (coloured voxel
 //!   models), [`display`] (curved screens, projectors, warps);
 //! * [`scene`]: the TOML scene (camera, sun, fog, output, path, the model tables);
@@ -17,6 +19,7 @@
 
 pub mod app;
 pub mod cpu;
+pub mod db;
 pub mod display;
 pub mod error;
 pub mod fileio;

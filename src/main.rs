@@ -55,6 +55,11 @@ enum Command {
         #[command(subcommand)]
         action: WarpAction,
     },
+    /// Terrain databases: compile DEMs into one tiled multi-resolution file, describe one.
+    Db {
+        #[command(subcommand)]
+        action: relief::app::db::DbAction,
+    },
     /// Terrain queries on the CPU reference: height at (x, y), line of sight.
     Query {
         scene: PathBuf,
@@ -189,6 +194,11 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Some(Command::Warp { action }) => warp(action),
+        Some(Command::Db { action }) => {
+            let text = relief::app::db::run(&action)?;
+            println!("{}", text.trim_end());
+            Ok(())
+        }
         Some(Command::Adapter) => adapter(),
         Some(Command::Query { scene, at, los }) => query(&scene, at, los),
     }

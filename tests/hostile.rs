@@ -965,6 +965,116 @@ fn mutations_path_script_and_eye_csv() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// A small terrain database: a 33x33 geographic GeoTIFF (two voids) compiled with `tile`
+/// cells a side; its chunks are the header, the index and each tile's blob.
+fn db_sample(tile: u32) -> Sample {
+    use tiff::encoder::{colortype, TiffEncoder};
+    use tiff::tags::Tag;
+    let dir = temp_dir(&format!("db-sample-{tile}"));
+    let src = dir.join("sample.tif");
+    {
+        let file = std::fs::File::create(&src).unwrap();
+        let mut enc = TiffEncoder::new(std::io::BufWriter::new(file)).unwrap();
+        let mut img = enc.new_image::<colortype::Gray32Float>(33, 33).unwrap();
+        let e = img.encoder();
+        let step = 1.0 / 1200.0;
+        e.write_tag(Tag::ModelPixelScaleTag, &[step, step, 0.0][..])
+            .unwrap();
+        e.write_tag(
+            Tag::ModelTiepointTag,
+            &[0.0, 0.0, 0.0, 9.01, 47.03, 0.0][..],
+        )
+        .unwrap();
+        e.write_tag(
+            Tag::GeoKeyDirectoryTag,
+            &[1u16, 1, 0, 2, 1024, 0, 1, 2, 1025, 0, 1, 2][..],
+        )
+        .unwrap();
+        let data: Vec<f32> = (0..33 * 33)
+            .map(|k| match k {
+                100 | 500 => f32::NAN,
+                _ => (400 + 7 * (k % 33) + 3 * (k / 33)) as f32,
+            })
+            .collect();
+        img.write_data(&data).unwrap();
+    }
+    let out = dir.join("sample.reliefdb");
+    let opts = relief::db::BuildOptions { tile };
+    relief::db::build(&out, &[src], &opts, &|_, _| {}).unwrap();
+    let bytes = std::fs::read(&out).unwrap();
+    let d = relief::db::Database::open(&out).unwrap();
+    let h = d.header();
+    let mut chunks = vec![
+        (0, h.index_offset as usize),
+        (h.index_offset as usize, h.data_offset as usize),
+    ];
+    chunks.extend(
+        d.entries()
+            .iter()
+            .map(|e| (e.offset as usize, (e.offset + e.length as u64) as usize)),
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+    Sample {
+        name: format!("sample-{tile}.reliefdb"),
+        bytes,
+        chunks,
+    }
+}
+
+/// Makes a mutated database's checksums right again where its structure still allows (the
+/// header's, each blob's named by a readable index entry, the index's), so that mutations
+/// reach the parser and the tile decoder behind the CRCs.
+fn repair_db_checksums(b: &mut [u8]) {
+    let u32_at = |b: &[u8], k: usize| u32::from_le_bytes(b[k..k + 4].try_into().unwrap());
+    let u64_at = |b: &[u8], k: usize| u64::from_le_bytes(b[k..k + 8].try_into().unwrap());
+    if b.len() < 96 {
+        return;
+    }
+    let hl = u32_at(b, 12) as usize;
+    if !(8..=b.len()).contains(&hl) {
+        return;
+    }
+    let c = crc32fast::hash(&b[..hl - 4]);
+    b[hl - 4..hl].copy_from_slice(&c.to_le_bytes());
+    let count = u64_at(b, 32);
+    let end = (hl as u64).saturating_add(count.saturating_mul(40));
+    if end.saturating_add(4) > b.len() as u64 {
+        return;
+    }
+    let end = end as usize;
+    for k in (hl..end).step_by(40) {
+        let (off, len) = (u64_at(b, k + 16), u32_at(b, k + 24) as u64);
+        if off.saturating_add(len) <= b.len() as u64 {
+            let c = crc32fast::hash(&b[off as usize..(off + len) as usize]);
+            b[k + 28..k + 32].copy_from_slice(&c.to_le_bytes());
+        }
+    }
+    let c = crc32fast::hash(&b[hl..end]);
+    b[end..end + 4].copy_from_slice(&c.to_le_bytes());
+}
+
+/// Opens a database from bytes, reads every tile and the window over its whole extent.
+fn load_db(bytes: Vec<u8>) -> relief::Result<()> {
+    let d = relief::db::Database::from_bytes(Path::new("sample.reliefdb"), bytes)?;
+    for e in d.entries() {
+        d.tile(e.id)?;
+    }
+    let spec = relief::db::window::resolve(&d, None, None)?;
+    relief::db::window::read(&d, &spec).map(|_| ())
+}
+
+#[test]
+fn mutations_database() {
+    let samples = [db_sample(16), db_sample(32)];
+    fuzz("database", 13, CASES, &samples, |b| load_db(b.to_vec()));
+    // Behind the checksums: the same mutations with the CRCs made right again.
+    fuzz("database-crc-repaired", 14, CASES, &samples, |b| {
+        let mut v = b.to_vec();
+        repair_db_checksums(&mut v);
+        load_db(v)
+    });
+}
+
 /// The same on the full-size real files (slow: run with `--ignored`; prints its counts).
 #[test]
 #[ignore]
@@ -1273,6 +1383,52 @@ fn corpus() -> Vec<(&'static str, Vec<u8>)> {
         b"time,throttle,pitch,roll,yaw\n0,7,0,0,0\n".to_vec(),
     ));
     v.push(("eyes-bad.csv", b"0,0,0\n1,2\n".to_vec()));
+    // Terrain databases: an index of 2^40 tiles behind a sound header checksum, and a file of
+    // another format version.
+    {
+        use relief::db::format::{header_len, write_header, Extent, Header, LevelInfo};
+        let count = 1u64 << 40;
+        let mut h = Header {
+            version: 1,
+            tile: 256,
+            tile_count: count,
+            index_offset: 0,
+            data_offset: 0,
+            extent: Extent {
+                lon_min: 9.0,
+                lat_min: 47.0,
+                lon_max: 10.0,
+                lat_max: 48.0,
+            },
+            heights: [0.0, 1.0],
+            levels: vec![
+                LevelInfo {
+                    per_degree: 5e7,
+                    x0: 0,
+                    y0: 0,
+                    x1: 1,
+                    y1: 1,
+                    tiles: 1,
+                },
+                LevelInfo {
+                    per_degree: 1e8,
+                    x0: 0,
+                    y0: 0,
+                    x1: 1 << 27,
+                    y1: 1 << 26,
+                    tiles: count - 1,
+                },
+            ],
+            sources: Vec::new(),
+        };
+        h.index_offset = header_len(&h) as u64;
+        h.data_offset = h.index_offset + count * 40 + 4;
+        v.push(("db-index-huge.reliefdb", write_header(&h)));
+        let mut other = b"RELIEFDB".to_vec();
+        other.extend(9u32.to_le_bytes());
+        other.resize(160, 0);
+        v.push(("db-version9.reliefdb", other));
+    }
     v
 }
 
@@ -1450,6 +1606,8 @@ fn hostile_files_fail_cleanly_through_the_cli() {
         ("path csv binary", vec!["view".into(), scene("v1.toml", PROCEDURAL, ""), "--path".into(), c("path-binary.csv")], vec!["path-binary.csv", "not a text file"]),
         ("path csv bad", vec!["view".into(), scene("v2.toml", PROCEDURAL, ""), "--path".into(), c("path-bad.csv")], vec!["path-bad.csv", "line 3"]),
         ("script csv bad", vec!["view".into(), scene("v3.toml", PROCEDURAL, ""), "--mode".into(), "aircraft".into(), "--script".into(), c("script-bad.csv")], vec!["script-bad.csv", "throttle"]),
+        ("db index of 2^40 tiles", vec!["db".into(), "info".into(), c("db-index-huge.reliefdb")], vec!["db-index-huge.reliefdb", "1099511627776 tiles", "holds only"]),
+        ("db version 9 (render)", vec!["render".into(), scene("db9.toml", &format!("[terrain]\ndatabase = \"{}\"\n", c("db-version9.reliefdb")), ""), "--out".into(), o.clone()], vec!["db-version9.reliefdb", "format version 9"]),
         ("eye feed bad", vec!["view".into(), scene("v4.toml", PROCEDURAL, ""), "--display".into(), dome.into(), "--eye-feed".into(), c("eyes-bad.csv")], vec!["eyes-bad.csv", "line 2"]),
     ];
     for (what, args, needles) in &cases {

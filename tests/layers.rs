@@ -1,7 +1,7 @@
 //! The house rules of `src/`, checked from the source text (no GPU, no build of the crate):
 //!
 //! * imports point one way down the layers: shared leaves (`error`, `fileio`, `geom`) ← model
-//!   (`terrain`, `freeform`, `volume`, `voxel`, `display`) ← `scene` ← `world` ← CPU reference
+//!   (`terrain`, `db`, `freeform`, `volume`, `voxel`, `display`) ← `scene` ← `world` ← CPU reference
 //!   (`cpu`) ← GPU passes (`gpu`) ← application (`app`) ← `main.rs`;
 //! * no import cycle between two files of `src/`;
 //! * no file over 800 lines and no function over 120 lines.
@@ -21,6 +21,7 @@ const LAYERS: &[(&str, u32)] = &[
     ("geom", 0),
     ("geodesy", 0),
     ("terrain", 1),
+    ("db", 1),
     ("freeform", 1),
     ("volume", 1),
     ("voxel", 1),

@@ -4,6 +4,7 @@
 //! * [`bench`]: `relief bench MODE`: the benchmark modes, one report and JSON schema for all;
 //! * [`capture`]: `relief render`: headless frames (pinhole, display channel, dome master);
 //! * [`channel`]: a display configuration's channel by index, with the error that says so;
+//! * [`db`]: `relief db build|info`: the terrain database compiler and its report;
 //! * [`figures`]: median, percentile, slope, memory window, resident set size;
 //! * [`gpu_options`]: `--kernels` and `--trace-passes`, and the adapter opened with them;
 //! * [`output`]: the file writers (PNG, depth TIFF, JSON, a frame's files all or nothing);
@@ -21,6 +22,7 @@ pub mod args;
 pub mod bench;
 pub mod capture;
 pub mod channel;
+pub mod db;
 pub mod figures;
 pub mod gpu_options;
 pub mod output;

@@ -14,6 +14,15 @@ pub struct TerrainDesc {
     pub source: Option<PathBuf>,
     /// Procedural terrain instead of a file.
     pub procedural: Option<RidgedFbm>,
+    /// A terrain database (`relief db build`) relative to the scene file, instead of a file:
+    /// a window of one of its levels is the height table.
+    pub database: Option<PathBuf>,
+    /// Database only: `[lat_south, lon_west, lat_north, lon_east]` in degrees (default: the
+    /// database's whole extent).
+    pub window: Option<[f64; 4]>,
+    /// Database only: the level to read, 0 the coarsest (default: the finest level at which
+    /// the window fits 16384 samples a side).
+    pub level: Option<u32>,
     /// Sample spacing in metres `[dx, dy]`; overrides the file's georeference (required for PNG).
     pub cell_size: Option<[f64; 2]>,
     /// No-data value; overrides GDAL_NODATA.
@@ -62,22 +71,55 @@ fn east() -> [f64; 3] {
 pub enum HeightSource<'a> {
     File(&'a Path),
     Procedural(&'a RidgedFbm),
+    /// A window of a database level.
+    Database {
+        path: &'a Path,
+        window: Option<[f64; 4]>,
+        level: Option<u32>,
+    },
 }
 
 impl TerrainDesc {
-    /// The one height source the table names (exactly one of `source` and `procedural`).
+    /// The one height source the table names (exactly one of `source`, `procedural` and
+    /// `database`; `window` and `level` only with `database`).
     pub fn height_source(&self) -> Result<HeightSource<'_>> {
-        match (&self.source, &self.procedural) {
-            (Some(_), Some(_)) => Err(Error::invalid(
+        if self.database.is_none() {
+            for (key, set) in [
+                ("window", self.window.is_some()),
+                ("level", self.level.is_some()),
+            ] {
+                if set {
+                    return Err(Error::invalid(
+                        format!("terrain.{key}"),
+                        "applies to a terrain database only: set `database = \"file.reliefdb\"` or remove it",
+                    ));
+                }
+            }
+        }
+        match (&self.source, &self.procedural, &self.database) {
+            (Some(src), None, None) => Ok(HeightSource::File(src)),
+            (None, Some(p), None) => Ok(HeightSource::Procedural(p)),
+            (None, None, Some(db)) => {
+                if self.nodata.is_some() {
+                    return Err(Error::invalid(
+                        "terrain.nodata",
+                        "applies to height files; a database marks no-data itself (give nodata to the sources' GeoTIFFs)",
+                    ));
+                }
+                Ok(HeightSource::Database {
+                    path: db,
+                    window: self.window,
+                    level: self.level,
+                })
+            }
+            (None, None, None) => Err(Error::invalid(
                 "terrain",
-                "set either `source` or `procedural`, not both",
+                "set `source = \"file.hgt|tif|png\"`, `database = \"file.reliefdb\"` or a `[terrain.procedural]` table",
             )),
-            (None, None) => Err(Error::invalid(
+            _ => Err(Error::invalid(
                 "terrain",
-                "set `source = \"file.hgt|tif|png\"` or a `[terrain.procedural]` table",
+                "set only one of `source`, `database` and `[terrain.procedural]`",
             )),
-            (Some(src), None) => Ok(HeightSource::File(src)),
-            (None, Some(p)) => Ok(HeightSource::Procedural(p)),
         }
     }
 

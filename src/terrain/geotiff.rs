@@ -8,7 +8,7 @@
 //! and GDAL_NODATA (42113).
 //! Geographic spacing is converted to metres at the raster's centre latitude.
 
-use super::heightfield::{metres_per_degree, GeoRef, Heightfield};
+use super::heightfield::{metres_per_degree, GeoRef, Heightfield, SampleGrid};
 use crate::{fileio, Error, Result};
 use std::io::{BufReader, Read, Seek};
 use std::path::Path;
@@ -334,7 +334,13 @@ pub fn load_heights(
     spacing_override: Option<[f64; 2]>,
     nodata: Option<f64>,
 ) -> Result<Heightfield> {
-    heights(path, read_raster(path)?, spacing_override, nodata)
+    heights(path, read_raster(path)?, spacing_override, nodata)?.into_heightfield()
+}
+
+/// [`load_heights`] without the void filling: the raster's samples, `None` where void or
+/// no-data.
+pub fn load_height_samples(path: &Path, nodata: Option<f64>) -> Result<SampleGrid> {
+    heights(path, read_raster(path)?, None, nodata)
 }
 
 /// [`load_heights`] from the file's bytes; `path` names it in errors.
@@ -345,7 +351,7 @@ pub fn decode_heights(
     nodata: Option<f64>,
 ) -> Result<Heightfield> {
     let r = raster_from(path, std::io::Cursor::new(bytes), bytes.len() as u64)?;
-    heights(path, r, spacing_override, nodata)
+    heights(path, r, spacing_override, nodata)?.into_heightfield()
 }
 
 fn heights(
@@ -353,7 +359,7 @@ fn heights(
     r: Raster,
     spacing_override: Option<[f64; 2]>,
     nodata: Option<f64>,
-) -> Result<Heightfield> {
+) -> Result<SampleGrid> {
     if r.channels != 1 {
         return Err(Error::format(
             path,
@@ -378,7 +384,14 @@ fn heights(
             samples[j * w + i] = (!void).then_some(v as f32);
         }
     }
-    Heightfield::from_samples_with_voids(&path.display().to_string(), w, h, samples, spacing, geo)
+    Ok(SampleGrid {
+        what: path.display().to_string(),
+        width: w,
+        height: h,
+        samples,
+        spacing,
+        geo,
+    })
 }
 
 /// An RGB image draped over the terrain.

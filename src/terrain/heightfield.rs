@@ -16,6 +16,56 @@ pub struct GeoRef {
     pub dlat: f64,
 }
 
+/// Largest height magnitude (metres, before the vertical scale) a terrain may have.
+pub const MAX_ABS_HEIGHT: f64 = 1.0e7;
+
+/// Largest number of samples along one side a terrain may have: the procedural generator's
+/// limit and the GPU's 2-D texture size; a database window is chosen to fit it.
+pub const MAX_SIDE: usize = 16384;
+
+/// The samples of a height file as it holds them, before voids are filled: what
+/// [`Heightfield::from_samples_with_voids`] takes, kept apart for the database compiler,
+/// which needs to know which samples are void (a void does not cover its position).
+#[derive(Clone, Debug)]
+pub struct SampleGrid {
+    /// The file, for errors and warnings.
+    pub what: String,
+    /// Samples along x.
+    pub width: usize,
+    /// Samples along y.
+    pub height: usize,
+    /// `width * height` samples, row 0 = south; `None` marks a void / no-data sample.
+    pub samples: Vec<Option<f32>>,
+    /// Metres between neighbouring samples along x and y.
+    pub spacing: [f64; 2],
+    /// Geographic reference, where the file has one.
+    pub geo: Option<GeoRef>,
+}
+
+impl SampleGrid {
+    /// The height field: voids filled (and counted in a warning).
+    pub fn into_heightfield(self) -> Result<Heightfield> {
+        Heightfield::from_samples_with_voids(
+            &self.what,
+            self.width,
+            self.height,
+            self.samples,
+            self.spacing,
+            self.geo,
+        )
+    }
+}
+
+impl GeoRef {
+    /// Metres between samples along x and y for a grid of `rows` rows: the degree steps
+    /// converted at the grid's centre latitude (as the `.hgt` loader does).
+    pub fn metric_spacing(&self, rows: usize) -> [f64; 2] {
+        let centre_lat = self.lat0 + 0.5 * (rows.max(1) - 1) as f64 * self.dlat;
+        let (mx, my) = metres_per_degree(centre_lat);
+        [self.dlon * mx, self.dlat * my]
+    }
+}
+
 /// A regular grid of heights in metres.
 ///
 /// Sample `(i, j)` is at grid position `(i, j)`: `i` runs east (columns), `j` runs north

@@ -1,7 +1,7 @@
 //! SRTM `.hgt` tiles: square grids of big-endian i16 metres, rows north to south,
 //! south-west corner in the file name (`N47E009.hgt`), void = -32768.
 
-use super::heightfield::{metres_per_degree, GeoRef, Heightfield};
+use super::heightfield::{metres_per_degree, GeoRef, Heightfield, SampleGrid};
 use crate::{fileio, Error, Result};
 use std::path::Path;
 
@@ -62,10 +62,16 @@ pub fn tile_corner(stem: &str) -> std::result::Result<(f64, f64), String> {
 /// metric spacing comes from the file name. The length is checked (from the file's metadata)
 /// before anything is read; devices and directories are refused.
 pub fn load(path: &Path) -> Result<Heightfield> {
+    load_samples(path)?.into_heightfield()
+}
+
+/// [`load`] without the void filling: the tile's samples, `None` where void.
+pub fn load_samples(path: &Path) -> Result<SampleGrid> {
     let len = fileio::file_len(path)?;
-    tile_side(path, len)?;
+    let n = tile_side(path, len)?;
     let bytes = fileio::read_file(path, len)?;
-    decode(&bytes, path)
+    tile_side(path, bytes.len() as u64)?;
+    decode_square_samples(&bytes, n, path)
 }
 
 /// Decodes the bytes of an SRTM tile; `path` names the file in errors and gives the tile's
@@ -98,6 +104,11 @@ fn tile_side(path: &Path, len: u64) -> Result<usize> {
 /// a small test sample; [`load`] accepts only SRTM's 1201 and 3601); `path` names the file and
 /// gives the south-west corner.
 pub fn decode_square(bytes: &[u8], side: usize, path: &Path) -> Result<Heightfield> {
+    decode_square_samples(bytes, side, path)?.into_heightfield()
+}
+
+/// [`decode_square`] without the void filling.
+pub fn decode_square_samples(bytes: &[u8], side: usize, path: &Path) -> Result<SampleGrid> {
     let n = side;
     let need = (n as u64).saturating_mul(n as u64).saturating_mul(2);
     if n < 2 || bytes.len() as u64 != need {
@@ -125,17 +136,17 @@ pub fn decode_square(bytes: &[u8], side: usize, path: &Path) -> Result<Heightfie
             samples[j * n + i] = (v != VOID).then_some(v as f32);
         }
     }
-    Heightfield::from_samples_with_voids(
-        &path.display().to_string(),
-        n,
-        n,
+    Ok(SampleGrid {
+        what: path.display().to_string(),
+        width: n,
+        height: n,
         samples,
-        [step * mx, step * my],
-        Some(GeoRef {
+        spacing: [step * mx, step * my],
+        geo: Some(GeoRef {
             lon0: lon_w,
             lat0: lat_s,
             dlon: step,
             dlat: step,
         }),
-    )
+    })
 }

@@ -13,7 +13,7 @@ pub mod procedural;
 pub mod pyramid;
 
 pub use geotiff::Drape;
-pub use heightfield::{GeoRef, Heightfield};
+pub use heightfield::{GeoRef, Heightfield, SampleGrid, MAX_ABS_HEIGHT, MAX_SIDE};
 pub use pyramid::MaxPyramid;
 
 use crate::{Error, Result};
@@ -183,6 +183,17 @@ impl Terrain {
                     desc.png_offset,
                 )?
             }
+            HeightSource::Database {
+                path,
+                window,
+                level,
+            } => {
+                let mut field = crate::db::window::load(&base_dir.join(path), window, level)?;
+                if let Some(cs) = desc.cell_size {
+                    field.spacing = cs;
+                }
+                field
+            }
         };
         check_height_range(desc, base_dir, &field)?;
         let (axis_x, axis_y, normal) = desc.axes()?;
@@ -257,9 +268,6 @@ impl Terrain {
     }
 }
 
-/// Largest height magnitude (metres, before the vertical scale) a terrain may have.
-pub const MAX_ABS_HEIGHT: f64 = 1.0e7;
-
 /// `Err` naming the scene field that made the heights non-finite or absurd (beyond
 /// ±[`MAX_ABS_HEIGHT`]): `terrain.png_scale`/`png_offset` for PNG, `terrain.procedural.height`.
 fn check_height_range(desc: &TerrainDesc, base_dir: &Path, field: &Heightfield) -> Result<()> {
@@ -277,6 +285,10 @@ fn check_height_range(desc: &TerrainDesc, base_dir: &Path, field: &Heightfield) 
                  peak-to-valley height in metres (default 2000)",
                 p.height
             ),
+        )),
+        HeightSource::Database { path, .. } => Err(Error::format(
+            base_dir.join(path),
+            format!("heights {range} are beyond ±{MAX_ABS_HEIGHT:e} m: rebuild the database from sound sources"),
         )),
         HeightSource::File(src) => {
             let path = base_dir.join(src);

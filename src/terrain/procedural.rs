@@ -74,10 +74,14 @@ fn gradient_noise(x: f64, y: f64, seed: u32) -> f64 {
 impl RidgedFbm {
     /// Generates the height field.
     pub fn generate(&self) -> Result<Heightfield> {
-        if !(2..=16384).contains(&self.size) {
+        if !(2..=super::heightfield::MAX_SIDE).contains(&self.size) {
             return Err(Error::invalid(
                 "terrain.procedural.size",
-                format!("must be 2..=16384 samples, got {}", self.size),
+                format!(
+                    "must be 2..={} samples, got {}",
+                    super::heightfield::MAX_SIDE,
+                    self.size
+                ),
             ));
         }
         if !(1..=16).contains(&self.octaves) {

@@ -1,0 +1,302 @@
+//! A window of one level of a database as a [`Heightfield`] with its [`GeoRef`]: what a
+//! scene's `[terrain] database = "…"` loads. The samples are the level's own, the metric
+//! spacing comes from the same georeference conversion the `.hgt` loader uses, so a tile
+//! compiled alone and windowed over its extent gives the same terrain as the tile itself.
+
+use super::format::{LevelInfo, TileId};
+use super::reader::Database;
+use crate::terrain::{GeoRef, Heightfield, MAX_SIDE};
+use crate::{fileio, Error, Result};
+use rayon::prelude::*;
+use std::path::Path;
+use std::sync::Arc;
+
+/// Bytes per window sample while it is assembled and turned into a height field (the
+/// samples, their void flags, the field, the void filling's pyramid).
+const BYTES_PER_SAMPLE: u64 = 24;
+
+/// A rectangle of samples of one level.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct WindowSpec {
+    pub level: u32,
+    /// Sample column and row (of the whole level) of the window's south-west sample.
+    pub i0: i64,
+    pub j0: i64,
+    /// Samples along x (east) and y (north).
+    pub width: usize,
+    pub height: usize,
+}
+
+fn snapped(x: f64) -> f64 {
+    let r = x.round();
+    if (x - r).abs() < 1e-6 {
+        r
+    } else {
+        x
+    }
+}
+
+/// The database's extent as text for errors.
+fn extent_text(db: &Database) -> String {
+    let e = db.header().extent;
+    format!(
+        "latitude {:.6}..{:.6}, longitude {:.6}..{:.6}",
+        e.lat_min, e.lat_max, e.lon_min, e.lon_max
+    )
+}
+
+/// The sample range `[lo, hi]` of `level` that `[a, b]` (degrees from the grid's origin)
+/// covers: outward to whole samples, then inside `[in_lo, in_hi]`.
+fn span(a: f64, b: f64, d: f64, in_lo: i64, in_hi: i64) -> (i64, i64) {
+    let lo = (snapped(a * d).floor() as i64).max(in_lo);
+    let hi = (snapped(b * d).ceil() as i64).min(in_hi);
+    (lo, hi)
+}
+
+fn spec_at(db: &Database, level: u32, w: [f64; 4]) -> WindowSpec {
+    let l = &db.header().levels[level as usize];
+    let e = db.header().extent;
+    let d = l.per_degree;
+    let (xi, xa) = (
+        snapped((e.lon_min + 180.0) * d).ceil() as i64,
+        snapped((e.lon_max + 180.0) * d).floor() as i64,
+    );
+    let (yi, ya) = (
+        snapped((e.lat_min + 90.0) * d).ceil() as i64,
+        snapped((e.lat_max + 90.0) * d).floor() as i64,
+    );
+    let (i0, i1) = span(w[1] + 180.0, w[3] + 180.0, d, xi, xa);
+    let (j0, j1) = span(w[0] + 90.0, w[2] + 90.0, d, yi, ya);
+    WindowSpec {
+        level,
+        i0,
+        j0,
+        width: (i1 - i0 + 1).max(0) as usize,
+        height: (j1 - j0 + 1).max(0) as usize,
+    }
+}
+
+/// The samples a scene's `window = [lat_south, lon_west, lat_north, lon_east]` (default: the
+/// whole extent) covers at `level` (default: the finest level at which it fits
+/// [`MAX_SIDE`] samples a side). The window must lie within the database's extent.
+pub fn resolve(db: &Database, window: Option<[f64; 4]>, level: Option<u32>) -> Result<WindowSpec> {
+    let e = db.header().extent;
+    let w = window.unwrap_or([e.lat_min, e.lon_min, e.lat_max, e.lon_max]);
+    let tol = 1e-9;
+    let ordered = w.iter().all(|v| v.is_finite()) && w[0] < w[2] && w[1] < w[3];
+    if !ordered {
+        return Err(Error::invalid(
+            "terrain.window",
+            format!("{w:?} is not [lat_south, lon_west, lat_north, lon_east] with south < north and west < east (degrees)"),
+        ));
+    }
+    if w[0] < e.lat_min - tol
+        || w[2] > e.lat_max + tol
+        || w[1] < e.lon_min - tol
+        || w[3] > e.lon_max + tol
+    {
+        return Err(Error::invalid(
+            "terrain.window",
+            format!(
+                "{w:?} is not within the database {}, which covers {}: give a window inside it (or none for all of it)",
+                db.path().display(),
+                extent_text(db)
+            ),
+        ));
+    }
+    let levels = db.header().levels.len() as u32;
+    let spec = match level {
+        Some(l) if l >= levels => {
+            return Err(Error::invalid(
+                "terrain.level",
+                format!(
+                    "{l} is not a level of {} (levels 0..={}, 0 the coarsest)",
+                    db.path().display(),
+                    levels - 1
+                ),
+            ))
+        }
+        Some(l) => spec_at(db, l, w),
+        None => (0..levels)
+            .rev()
+            .map(|l| spec_at(db, l, w))
+            .find(|s| s.width <= MAX_SIDE && s.height <= MAX_SIDE)
+            .unwrap_or_else(|| spec_at(db, 0, w)),
+    };
+    if spec.width < 2 || spec.height < 2 {
+        return Err(Error::invalid(
+            "terrain.window",
+            format!(
+                "{w:?} spans {}x{} samples at level {} of {}; a terrain needs at least 2x2: give a larger window or a finer terrain.level",
+                spec.width,
+                spec.height,
+                spec.level,
+                db.path().display()
+            ),
+        ));
+    }
+    if spec.width > MAX_SIDE || spec.height > MAX_SIDE {
+        return Err(Error::invalid(
+            "terrain.level",
+            format!(
+                "the window spans {}x{} samples at level {}, more than {MAX_SIDE} a side: give a coarser level or a smaller window",
+                spec.width, spec.height, spec.level
+            ),
+        ));
+    }
+    Ok(spec)
+}
+
+/// A tile's heights: stored, or filled from a coarser level.
+enum Heights {
+    Stored(Arc<super::tile::Tile>),
+    Filled(Vec<f32>),
+}
+
+impl Heights {
+    fn get(&self) -> &[f32] {
+        match self {
+            Heights::Stored(t) => &t.heights,
+            Heights::Filled(v) => v,
+        }
+    }
+}
+
+/// The heights of tile `id`: stored, or (missing from the database) bilinear from the
+/// nearest coarser level that has the region, recorded in `filled` as (tile, level used).
+fn heights_of(db: &Database, id: TileId, filled: &mut Vec<(TileId, u32)>) -> Result<Heights> {
+    if let Some(t) = db.tile(id)? {
+        return Ok(Heights::Stored(t));
+    }
+    let n = db.tile_cells();
+    let np = n + 1;
+    if id.level == 0 {
+        return Ok(Heights::Filled(vec![f32::NAN; np * np]));
+    }
+    let before = filled.len();
+    let parent = heights_of(
+        db,
+        TileId {
+            level: id.level - 1,
+            x: id.x / 2,
+            y: id.y / 2,
+        },
+        filled,
+    )?;
+    let from = filled.get(before).map_or(id.level - 1, |f| f.1);
+    filled.truncate(before);
+    filled.push((id, from));
+    let p = parent.get();
+    let (ox, oy) = ((id.x % 2) as usize * n, (id.y % 2) as usize * n);
+    let mut out = vec![0.0f32; np * np];
+    for b in 0..np {
+        let (y2, fy) = ((oy + b) / 2, (oy + b) % 2);
+        for a in 0..np {
+            let (x2, fx) = ((ox + a) / 2, (ox + a) % 2);
+            let at = |dx: usize, dy: usize| p[(y2 + dy) * np + x2 + dx] as f64;
+            // Half-way positions average their two (or four) parent samples.
+            let h = match (fx, fy) {
+                (0, 0) => at(0, 0),
+                (1, 0) => 0.5 * (at(0, 0) + at(1, 0)),
+                (0, 1) => 0.5 * (at(0, 0) + at(0, 1)),
+                _ => 0.25 * (at(0, 0) + at(1, 0) + at(0, 1) + at(1, 1)),
+            };
+            out[b * np + a] = h as f32;
+        }
+    }
+    Ok(Heights::Filled(out))
+}
+
+/// Reads the window's samples into a height field (no-data samples filled, with a warning).
+/// Tiles missing at the window's level are filled from the nearest coarser level that has
+/// them, with a warning naming them.
+pub fn read(db: &Database, spec: &WindowSpec) -> Result<Heightfield> {
+    let (w, h) = (spec.width, spec.height);
+    fileio::check_alloc(
+        format!(
+            "{} (a {w}x{h} window at level {})",
+            db.path().display(),
+            spec.level
+        ),
+        (w as u64 * h as u64).saturating_mul(BYTES_PER_SAMPLE),
+    )?;
+    let level: LevelInfo = db.header().levels[spec.level as usize];
+    let n = db.tile_cells() as i64;
+    let np = n as usize + 1;
+    let (i_last, j_last) = (spec.i0 + w as i64 - 1, spec.j0 + h as i64 - 1);
+    let tiles =
+        |lo: i64, hi: i64| lo.div_euclid(n)..=((hi - 1).div_euclid(n)).max(lo.div_euclid(n));
+    let mut out = vec![f32::NAN; w * h];
+    let mut filled = Vec::new();
+    let xs: Vec<i64> = tiles(spec.i0, i_last).collect();
+    for ty in tiles(spec.j0, j_last) {
+        // One row of tiles at a time, decoded in parallel.
+        let row: Vec<(Heights, Vec<(TileId, u32)>)> = xs
+            .par_iter()
+            .map(|&tx| {
+                let id = TileId {
+                    level: spec.level,
+                    x: tx as u32,
+                    y: ty as u32,
+                };
+                let mut f = Vec::new();
+                heights_of(db, id, &mut f).map(|t| (t, f))
+            })
+            .collect::<Result<_>>()?;
+        for (&tx, (t, f)) in xs.iter().zip(row) {
+            filled.extend(f);
+            let t = t.get();
+            let (ja, jb) = ((ty * n).max(spec.j0), (ty * n + n).min(j_last));
+            let (ia, ib) = ((tx * n).max(spec.i0), (tx * n + n).min(i_last));
+            for j in ja..=jb {
+                let src = &t[(j - ty * n) as usize * np..][..np];
+                let dst = &mut out[(j - spec.j0) as usize * w..][..w];
+                for i in ia..=ib {
+                    dst[(i - spec.i0) as usize] = src[(i - tx * n) as usize];
+                }
+            }
+        }
+    }
+    if let Some(&(first, from)) = filled.first() {
+        let names: Vec<String> = filled.iter().take(3).map(|f| f.0.to_string()).collect();
+        log::warn!(
+            "{}: {} tile(s) of level {} under the window are not in the database ({}{}), filled bilinearly from level {from}{}",
+            db.path().display(),
+            filled.len(),
+            first.level,
+            names.join(", "),
+            if filled.len() > 3 { ", …" } else { "" },
+            if filled.iter().any(|f| f.1 != from) { " and coarser" } else { "" }
+        );
+    }
+    let geo = GeoRef {
+        lon0: level.lon(spec.i0),
+        lat0: level.lat(spec.j0),
+        dlon: level.spacing(),
+        dlat: level.spacing(),
+    };
+    let samples = out
+        .into_iter()
+        .map(|v| (!v.is_nan()).then_some(v))
+        .collect();
+    let what = format!("{} (level {} window)", db.path().display(), spec.level);
+    Heightfield::from_samples_with_voids(&what, w, h, samples, geo.metric_spacing(h), Some(geo))
+}
+
+/// Opens the database at `path` and reads a window of it (see [`resolve`] and [`read`]).
+pub fn load(path: &Path, window: Option<[f64; 4]>, level: Option<u32>) -> Result<Heightfield> {
+    let db = Database::open(path)?;
+    let spec = resolve(&db, window, level)?;
+    let l = &db.header().levels[spec.level as usize];
+    log::info!(
+        "{}: level {} ({:.3}″ spacing), window of {}x{} samples from lon {:.6}, lat {:.6}",
+        path.display(),
+        spec.level,
+        l.spacing() * 3600.0,
+        spec.width,
+        spec.height,
+        l.lon(spec.i0),
+        l.lat(spec.j0)
+    );
+    read(&db, &spec)
+}
