@@ -374,9 +374,10 @@ fn march_baseline_agrees_with_pyramid_on_most_pixels() {
 fn oversized_data_is_refused_with_the_limit_in_the_message() {
     let _l = gpu_lock();
     let Some(g) = gpu() else { return };
-    let err = relief::gpu::check_buffer_limit(g, "height table", 1 << 40)
-        .unwrap_err()
-        .to_string();
+    let err =
+        relief::gpu::check_buffer_limit(g, "height table", 1 << 40, "use a smaller height map")
+            .unwrap_err()
+            .to_string();
     assert!(
         err.contains("height table") && err.contains("allows"),
         "{err}"

@@ -52,13 +52,13 @@ pub fn read_pfm(path: &Path, order: RowOrder) -> Result<Pfm> {
 pub fn parse_pfm(bytes: &[u8], path: &Path, order: RowOrder) -> Result<Pfm> {
     let mut pos = 0;
     let bad = |msg: &str| Error::format(path, format!("not a PFM file: {msg}"));
-    let channels = match header_token(&bytes, &mut pos) {
+    let channels = match header_token(bytes, &mut pos) {
         Some("PF") => 3,
         Some("Pf") => 1,
         _ => return Err(bad("the header must start with PF (colour) or Pf (grey)")),
     };
     let mut num = |what: &str| -> Result<f64> {
-        header_token(&bytes, &mut pos)
+        header_token(bytes, &mut pos)
             .and_then(|t| t.parse::<f64>().ok())
             .ok_or_else(|| bad(&format!("bad or missing {what} in the header")))
     };

@@ -16,6 +16,9 @@ use crate::freeform::FreeForm;
 use crate::{Error, Result};
 use wgpu::util::DeviceExt;
 
+/// What to make smaller when the free forms do not fit the adapter.
+const OBJECT_FIX: &str = "use fewer or simpler free forms";
+
 /// Bin side in pixels (WGSL `FF_BIN` in `ff_consts.wgsl`, checked at compile time).
 pub const BIN: u32 = 16;
 const _: () = assert!(wgsl_u32(shaders::FF_CONSTS, "FF_BIN") == BIN);
@@ -110,8 +113,18 @@ fn choose_tables(
     nodes: &[FfNodeGpu],
     allow_uniform: bool,
 ) -> Result<FfTables> {
-    check_buffer_limit(gpu, "free-form records", (recs.len() * 144) as u64)?;
-    check_buffer_limit(gpu, "free-form quadrics", (nodes.len() * 48) as u64)?;
+    check_buffer_limit(
+        gpu,
+        "free-form records",
+        (recs.len() * 144) as u64,
+        OBJECT_FIX,
+    )?;
+    check_buffer_limit(
+        gpu,
+        "free-form quadrics",
+        (nodes.len() * 48) as u64,
+        OBJECT_FIX,
+    )?;
     let tables = FfTables::choose(
         recs.len(),
         nodes.len(),
@@ -380,7 +393,7 @@ impl ObjectPasses {
         let dev = &gpu.device;
         let bins = [width.div_ceil(BIN), height.div_ceil(BIN)];
         let bytes = 2 * bins[0] as u64 * bins[1] as u64 * (BIN_CAPACITY as u64 + 1) * 4;
-        check_buffer_limit(gpu, "free-form bins", bytes)?;
+        check_buffer_limit(gpu, "free-form bins", bytes, "render a smaller image")?;
         let bins_buf = dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some("free-form bins"),
             size: bytes,

@@ -16,6 +16,9 @@ use crate::terrain::Terrain;
 use crate::{Error, Result};
 use wgpu::util::DeviceExt;
 
+/// What to make smaller when the terrain does not fit the adapter.
+const HEIGHT_MAP_FIX: &str = "use a smaller or cropped height map";
+
 /// The terrain on the GPU and the frame's parameter blocks.
 pub(crate) struct TerrainData {
     pub heights: wgpu::Buffer,
@@ -46,9 +49,19 @@ impl TerrainData {
                 ),
             });
         }
-        check_buffer_limit(gpu, "height table", terrain.field.heights.len() as u64 * 4)?;
+        check_buffer_limit(
+            gpu,
+            "height table",
+            terrain.field.heights.len() as u64 * 4,
+            HEIGHT_MAP_FIX,
+        )?;
         let (pyramid_data, pyramid_side) = square_pyramid(terrain);
-        check_buffer_limit(gpu, "maximum pyramid", pyramid_data.len() as u64 * 4)?;
+        check_buffer_limit(
+            gpu,
+            "maximum pyramid",
+            pyramid_data.len() as u64 * 4,
+            HEIGHT_MAP_FIX,
+        )?;
         let storage = |label: &str, contents: &[u8]| {
             dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some(label),
@@ -62,7 +75,12 @@ impl TerrainData {
         let dilated = storage("dilated max pyramid", bytemuck::cast_slice(&dilated_data));
         let drape_words: Vec<u32> = match &terrain.drape {
             Some((d, _)) => {
-                check_buffer_limit(gpu, "drape image", d.rgba.len() as u64)?;
+                check_buffer_limit(
+                    gpu,
+                    "drape image",
+                    d.rgba.len() as u64,
+                    "use a smaller drape image",
+                )?;
                 d.rgba
                     .chunks_exact(4)
                     .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))

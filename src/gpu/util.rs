@@ -74,8 +74,9 @@ pub(crate) fn float_texture_entry(
     }
 }
 
-/// Checks that a buffer of `bytes` fits the device; the error names the data and the limit.
-pub fn check_buffer_limit(gpu: &Gpu, what: &str, bytes: u64) -> Result<()> {
+/// Checks that a storage buffer of `bytes` fits the device; the error names the data, the
+/// limit and `fix` (what the user can make smaller).
+pub fn check_buffer_limit(gpu: &Gpu, what: &str, bytes: u64, fix: &str) -> Result<()> {
     let limit = gpu
         .limits
         .max_storage_buffer_binding_size
@@ -84,7 +85,7 @@ pub fn check_buffer_limit(gpu: &Gpu, what: &str, bytes: u64) -> Result<()> {
         return Err(Error::Limit {
             what: what.to_string(),
             msg: format!(
-                "{bytes} bytes needed, the adapter {} allows {limit} bytes per storage buffer; use a smaller or cropped height map",
+                "{bytes} bytes needed, the adapter {} allows {limit} bytes per storage buffer; {fix}",
                 gpu.info.name
             ),
         });

@@ -539,7 +539,12 @@ fn check_volume_limits(gpu: &Gpu, volume: &Volume) -> Result<()> {
             msg: format!("{bytes} bytes of texture; at most 2 GiB"),
         });
     }
-    check_buffer_limit(gpu, "volume brick grid", volume.occupancy.len() as u64 * 4)?;
+    check_buffer_limit(
+        gpu,
+        "volume brick grid",
+        volume.occupancy.len() as u64 * 4,
+        "use a smaller or downsampled volume",
+    )?;
     Ok(())
 }
 

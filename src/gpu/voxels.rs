@@ -11,8 +11,8 @@
 
 use super::types::{VoxDrawGpu, VoxInstanceGpu};
 use super::util::{
-    buf, fullscreen_pipeline_with, screen_texture, storage_entry, target_state, uint_texture_entry,
-    uniform_entry, view,
+    buf, check_buffer_limit, fullscreen_pipeline_with, screen_texture, storage_entry, target_state,
+    uint_texture_entry, uniform_entry, view,
 };
 use super::{shaders, Gpu, PARAM_USAGE};
 use crate::cpu::voxel::InstanceRect;
@@ -21,6 +21,9 @@ use crate::{Error, Result};
 use std::collections::HashMap;
 use std::sync::Arc;
 use wgpu::util::DeviceExt;
+
+/// What to make smaller when the voxel models do not fit the adapter.
+const VOXEL_FIX: &str = "use smaller voxel models or fewer animation frames";
 
 // Every scene's instance records fit the smallest uniform binding WebGPU guarantees (16 KiB).
 /// Marks an empty brick's entry in `vox_data` (WGSL `VOX_EMPTY_BIT`); the low 16 bits hold
@@ -64,24 +67,6 @@ fn check_instances(gpu: &Gpu, instances: &[VoxelInstance]) -> Result<()> {
             what: "storage buffers per shader stage".into(),
             msg: format!(
                 "voxel models need 2, the adapter {} allows {have}; render the scene without [[voxels]]",
-                gpu.info.name
-            ),
-        });
-    }
-    Ok(())
-}
-
-/// Refuses a storage buffer of `bytes` over the adapter's limits.
-fn check_storage(gpu: &Gpu, what: &str, bytes: u64) -> Result<()> {
-    let limit = gpu
-        .limits
-        .max_storage_buffer_binding_size
-        .min(gpu.limits.max_buffer_size);
-    if bytes > limit {
-        return Err(Error::Limit {
-            what: what.to_string(),
-            msg: format!(
-                "{bytes} bytes needed, the adapter {} allows {limit} bytes per storage buffer; use smaller voxel models or fewer animation frames",
                 gpu.info.name
             ),
         });
@@ -261,11 +246,16 @@ impl VoxelPasses {
     pub fn new(gpu: &Gpu, instances: &[VoxelInstance]) -> Result<VoxelPasses> {
         check_instances(gpu, instances)?;
         // Brick tables first, from the sizes alone (before anything large is built).
-        check_storage(gpu, "voxel brick tables", brick_table_bytes(instances))?;
+        check_buffer_limit(
+            gpu,
+            "voxel brick tables",
+            brick_table_bytes(instances),
+            VOXEL_FIX,
+        )?;
         let built = std::time::Instant::now();
         let packed = Packed::new(instances);
         let data_bytes = (packed.table.len() + packed.pool.len()) as u64 * 4;
-        check_storage(gpu, "voxel brick tables and pool", data_bytes)?;
+        check_buffer_limit(gpu, "voxel brick tables and pool", data_bytes, VOXEL_FIX)?;
         let bytes = data_bytes + packed.palette.len() as u64 * 4;
         let Packed {
             table,

@@ -3,10 +3,10 @@
 //! and spread over the whole terrain.
 
 use super::table::{Figures, Row, RunInfo, Table};
-use super::timing::{median_frame_ms, scene_at_size};
+use super::timing::{scene_at_size, FrameSetup};
 use crate::app::figures::median;
 use crate::freeform::FreeForm;
-use crate::gpu::{Gpu, RenderSettings, Stage, TerrainRenderer};
+use crate::gpu::{RenderSettings, Stage, TerrainRenderer};
 use crate::scene::{Camera, SceneDesc};
 use crate::terrain::Terrain;
 use crate::world::World;
@@ -130,17 +130,7 @@ pub fn scattered_free_forms(
         .collect()
 }
 
-/// Everything the frames are rendered with.
-struct Bench<'a> {
-    gpu: &'a Gpu,
-    terrain: &'a Terrain,
-    desc: &'a SceneDesc,
-    cam: &'a Camera,
-    settings: &'a RenderSettings,
-    frames: u32,
-}
-
-impl Bench<'_> {
+impl FrameSetup<'_> {
     /// The headline ratio: terrain only and with `objects`, one frame of each in turn (each
     /// timed alone, submit to idle), the median of each. Interleaving keeps slow spells of a
     /// shared machine from landing on one configuration only.
@@ -178,7 +168,7 @@ impl Bench<'_> {
             r.set_objects(gpu, &generated)?;
             // Warm-up: shader compilation on first use, target allocation.
             r.capture(gpu, terrain, desc, cam, s)?;
-            let ms = median_frame_ms(r, gpu, terrain, desc, cam, s, Stage::Shade, self.frames)?;
+            let ms = self.median_ms(r, Stage::Shade)?;
             log::info!(
                 "{} generated free forms ({scatter:?}): {ms:.1} ms",
                 generated.len()
@@ -199,7 +189,7 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo,
     let mut renderer = TerrainRenderer::new(&gpu, terrain)?;
     let cam = scene.camera(0, terrain);
     let settings = RenderSettings::from_scene(&scene.desc);
-    let bench = Bench {
+    let bench = FrameSetup {
         gpu: &gpu,
         terrain,
         desc: &scene.desc,

@@ -4,7 +4,7 @@
 
 use super::table::{Figures, Row, RunInfo, Table};
 use super::terrain::product_settings;
-use super::timing::{median_frame_ms, scene_at_size};
+use super::timing::{scene_at_size, FrameSetup};
 use crate::gpu::{Stage, TerrainRenderer};
 use crate::Result;
 use serde::Serialize;
@@ -26,18 +26,16 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo,
     let mut renderer = TerrainRenderer::new(&gpu, &terrain)?;
     let cam = scene.camera(0, &terrain);
     let s = product_settings(&scene);
-    // Warm-up: shader compilation on first use, target allocation.
-    renderer.capture(&gpu, &terrain, &scene.desc, &cam, &s)?;
-    let primary_ms = median_frame_ms(
-        &mut renderer,
-        &gpu,
-        &terrain,
-        &scene.desc,
-        &cam,
-        &s,
-        Stage::Cast,
+    let frame = FrameSetup {
+        gpu: &gpu,
+        terrain: &terrain,
+        desc: &scene.desc,
+        cam: &cam,
+        settings: &s,
         frames,
-    )?;
+    };
+    frame.capture(&mut renderer)?;
+    let primary_ms = frame.median_ms(&mut renderer, Stage::Cast)?;
     let details = PrimaryTiming {
         primary_ms,
         rays_per_second: (size.0 * size.1) as f64 / (primary_ms * 1e-3),

@@ -5,7 +5,7 @@
 //! rays and depths for outside comparisons (`benches/embree_compare.py`).
 
 use super::table::{Figures, Row, RunInfo, Table};
-use super::timing::{median_frame_ms, scene_at_size};
+use super::timing::{scene_at_size, FrameSetup};
 use crate::cpu;
 use crate::gpu::{FrameOutput, Gpu, RenderSettings, Stage, TerrainRenderer, TraceMode};
 use crate::scene::{Camera, Scene};
@@ -186,14 +186,17 @@ impl Bench<'_> {
         name: &str,
         s: &RenderSettings,
     ) -> Result<(ConfigResult, FrameOutput)> {
-        let (gpu, terrain, desc, cam) = (self.gpu, self.terrain, &self.scene.desc, self.cam);
-        // Warm-up: shader compilation on first use, target allocation.
-        let out = renderer.capture(gpu, terrain, desc, cam, s)?;
-        let mut time = |stage: Stage| -> Result<f64> {
-            median_frame_ms(renderer, gpu, terrain, desc, cam, s, stage, self.frames)
+        let frame = FrameSetup {
+            gpu: self.gpu,
+            terrain: self.terrain,
+            desc: &self.scene.desc,
+            cam: self.cam,
+            settings: s,
+            frames: self.frames,
         };
-        let primary_ms = time(Stage::Cast)?;
-        let frame_ms = time(Stage::Shade)?;
+        let out = frame.capture(renderer)?;
+        let primary_ms = frame.median_ms(renderer, Stage::Cast)?;
+        let frame_ms = frame.median_ms(renderer, Stage::Shade)?;
         let px = (out.width * out.height) as f64;
         let r = ConfigResult {
             name: name.to_string(),

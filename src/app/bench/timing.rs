@@ -2,7 +2,7 @@
 //! timing (frame pairs, median).
 
 use crate::app::figures::median;
-use crate::gpu::{Gpu, RenderSettings, Stage, TerrainRenderer};
+use crate::gpu::{FrameOutput, Gpu, RenderSettings, Stage, TerrainRenderer};
 use crate::scene::{Camera, Scene, SceneDesc};
 use crate::terrain::Terrain;
 use crate::Result;
@@ -18,32 +18,45 @@ pub fn scene_at_size(scene_path: &Path, size: (u32, u32)) -> Result<Scene> {
     Ok(scene)
 }
 
-/// Wall-clock milliseconds per frame up to `stage` (submit to GPU idle, no readback), after
-/// one untimed frame: `frames` frames in pairs, each pair submitted back to back as a frame
-/// loop does (the CPU side of one frame overlaps the other's rendering), the median over the
-/// pairs. The median, not the mean: on a shared machine slow spells come and go, and one of
-/// them should not decide a figure.
-#[allow(clippy::too_many_arguments)]
-pub fn median_frame_ms(
-    r: &mut TerrainRenderer,
-    gpu: &Gpu,
-    terrain: &Terrain,
-    desc: &SceneDesc,
-    cam: &Camera,
-    s: &RenderSettings,
-    stage: Stage,
-    frames: u32,
-) -> Result<f64> {
-    r.render(gpu, terrain, desc, cam, s, stage)?;
-    gpu.wait()?;
-    let mut times = Vec::new();
-    for _ in 0..(frames / 2).max(1) {
-        let start = Instant::now();
-        for _ in 0..2 {
-            r.render(gpu, terrain, desc, cam, s, stage)?;
-        }
-        gpu.wait()?;
-        times.push(start.elapsed().as_secs_f64() * 1e3 / 2.0);
+/// What a benchmark's frames are rendered with: the adapter, the terrain, the scene
+/// description, the camera, the render settings and the timed frames per measurement. The
+/// modes add their own measurements in `impl FrameSetup` blocks of their files.
+#[derive(Clone, Copy)]
+pub struct FrameSetup<'a> {
+    pub gpu: &'a Gpu,
+    pub terrain: &'a Terrain,
+    pub desc: &'a SceneDesc,
+    pub cam: &'a Camera,
+    pub settings: &'a RenderSettings,
+    pub frames: u32,
+}
+
+impl FrameSetup<'_> {
+    /// One frame rendered and read back (a warm-up: shader compilation on first use, target
+    /// allocation; or a frame a mode inspects).
+    pub fn capture(&self, r: &mut TerrainRenderer) -> Result<FrameOutput> {
+        r.capture(self.gpu, self.terrain, self.desc, self.cam, self.settings)
     }
-    Ok(median(times))
+
+    /// Wall-clock milliseconds per frame up to `stage` (submit to GPU idle, no readback),
+    /// after one untimed frame: `frames` frames in pairs, each pair submitted back to back as
+    /// a frame loop does (the CPU side of one frame overlaps the other's rendering), the
+    /// median over the pairs. The median, not the mean: on a shared machine slow spells come
+    /// and go, and one of them should not decide a figure.
+    pub fn median_ms(&self, r: &mut TerrainRenderer, stage: Stage) -> Result<f64> {
+        let (gpu, terrain, desc, cam, s) =
+            (self.gpu, self.terrain, self.desc, self.cam, self.settings);
+        r.render(gpu, terrain, desc, cam, s, stage)?;
+        gpu.wait()?;
+        let mut times = Vec::new();
+        for _ in 0..(self.frames / 2).max(1) {
+            let start = Instant::now();
+            for _ in 0..2 {
+                r.render(gpu, terrain, desc, cam, s, stage)?;
+            }
+            gpu.wait()?;
+            times.push(start.elapsed().as_secs_f64() * 1e3 / 2.0);
+        }
+        Ok(median(times))
+    }
 }

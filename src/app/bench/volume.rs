@@ -2,10 +2,8 @@
 //! termination against plain marching of the same lattice, measured in the same run.
 
 use super::table::{Figures, Row, RunInfo, Table};
-use super::timing::{median_frame_ms, scene_at_size};
-use crate::gpu::{Gpu, RenderSettings, Stage, TerrainRenderer};
-use crate::scene::{Camera, Scene};
-use crate::terrain::Terrain;
+use super::timing::{scene_at_size, FrameSetup};
+use crate::gpu::{RenderSettings, Stage, TerrainRenderer};
 use crate::volume::{Volume, VolumeSettings};
 use crate::world::World;
 use crate::{Error, Result};
@@ -82,35 +80,11 @@ fn configurations(base: VolumeSettings) -> [(&'static str, VolumeSettings); 4] {
     ]
 }
 
-/// Everything the frames are rendered with.
-struct Bench<'a> {
-    gpu: &'a Gpu,
-    terrain: &'a Terrain,
-    scene: &'a Scene,
-    cam: &'a Camera,
-    settings: &'a RenderSettings,
-    frames: u32,
-}
-
-impl Bench<'_> {
-    fn frame_ms(&self, r: &mut TerrainRenderer) -> Result<f64> {
-        let (gpu, terrain, desc, cam) = (self.gpu, self.terrain, &self.scene.desc, self.cam);
-        median_frame_ms(
-            r,
-            gpu,
-            terrain,
-            desc,
-            cam,
-            self.settings,
-            Stage::Shade,
-            self.frames,
-        )
-    }
-
+impl FrameSetup<'_> {
     /// Measures each sampling configuration; `lattice_points` is what the first (plain
     /// marching) samples.
     fn runs(&self, r: &mut TerrainRenderer, volume: &Volume) -> Result<(Vec<VolumeRun>, u64)> {
-        let (gpu, terrain, desc, cam) = (self.gpu, self.terrain, &self.scene.desc, self.cam);
+        let (gpu, terrain, desc, cam) = (self.gpu, self.terrain, self.desc, self.cam);
         let mut runs = Vec::new();
         let mut lattice_points = 0;
         for (name, cfg) in configurations(volume.settings) {
@@ -125,7 +99,7 @@ impl Bench<'_> {
                     lattice_points = samples;
                 }
             }
-            let frame = self.frame_ms(r)?;
+            let frame = self.median_ms(r, Stage::Shade)?;
             log::info!(
                 "{name}: frame {frame:.1} ms, volume pass {volume_ms:.1} ms, {samples} samples"
             );
@@ -160,15 +134,15 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo,
     renderer.set_objects(&gpu, &world.objects)?;
     let cam = scene.camera(0, &world.terrain);
     let settings = RenderSettings::from_scene(&scene.desc);
-    let bench = Bench {
+    let bench = FrameSetup {
         gpu: &gpu,
         terrain: &world.terrain,
-        scene: &scene,
+        desc: &scene.desc,
         cam: &cam,
         settings: &settings,
         frames,
     };
-    let no_volume_frame_ms = bench.frame_ms(&mut renderer)?;
+    let no_volume_frame_ms = bench.median_ms(&mut renderer, Stage::Shade)?;
     renderer.set_volumes(&gpu, std::slice::from_ref(volume))?;
     let (runs, lattice_points) = bench.runs(&mut renderer, volume)?;
     let details = VolumeBench {

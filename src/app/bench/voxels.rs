@@ -2,11 +2,10 @@
 //! filling the view, and the simplified-voxel paper's two model sizes at one voxel per pixel.
 
 use super::table::{Figures, Row, RunInfo, Table};
-use super::timing::{median_frame_ms, scene_at_size};
+use super::timing::{scene_at_size, FrameSetup};
 use crate::app::figures::median;
-use crate::gpu::{Gpu, RenderSettings, Stage, TerrainRenderer};
-use crate::scene::{Camera, SceneDesc};
-use crate::terrain::Terrain;
+use crate::gpu::{RenderSettings, Stage, TerrainRenderer};
+use crate::scene::Camera;
 use crate::voxel::VoxelInstance;
 use crate::world::World;
 use crate::{Error, Result};
@@ -115,17 +114,7 @@ fn paper_sets(
     Ok(vec![(name(&one), place(&one)), (name(&big), place(&big))])
 }
 
-/// Everything the frames are rendered with.
-struct Bench<'a> {
-    gpu: &'a Gpu,
-    terrain: &'a Terrain,
-    desc: &'a SceneDesc,
-    cam: &'a Camera,
-    settings: &'a RenderSettings,
-    frames: u32,
-}
-
-impl Bench<'_> {
+impl FrameSetup<'_> {
     /// Renders the models `m` (none: terrain only) and times them.
     fn run(&self, r: &mut TerrainRenderer, name: String, m: &[VoxelInstance]) -> Result<VoxelRun> {
         let (gpu, terrain, desc, cam, s) =
@@ -142,7 +131,7 @@ impl Bench<'_> {
             cast.push(t.voxels_ms);
             shadow.push(t.voxel_shadow_ms);
         }
-        let frame_ms = median_frame_ms(r, gpu, terrain, desc, cam, s, Stage::Shade, self.frames)?;
+        let frame_ms = self.median_ms(r, Stage::Shade)?;
         Ok(VoxelRun {
             name,
             instances: m.len(),
@@ -175,7 +164,7 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo,
     let cam = scene.camera(0, &world.terrain);
     let settings = RenderSettings::from_scene(&scene.desc);
     let frames = frames.max(1);
-    let bench = Bench {
+    let bench = FrameSetup {
         gpu: &gpu,
         terrain: &world.terrain,
         desc: &scene.desc,
