@@ -109,3 +109,38 @@ pub fn height_above_tangent_plane(origin: Geodetic, x: DVec3) -> f64 {
     let up = enu_basis(origin.lat, origin.lon).z_axis;
     (x - to_ecef(origin)).dot(up)
 }
+
+/// The curved earth seen from one point: the osculating paraboloid of the ellipsoid at the
+/// point's foot, `drop(e, n) = e²/(2N) + n²/(2M)` metres below the tangent plane at horizontal
+/// offsets `e` (east) and `n` (north) metres, with the radii of curvature at the point's
+/// latitude (Euler: the normal section in any azimuth has curvature `cos²α/M + sin²α/N`).
+///
+/// Against the exact ellipsoid this drops the quartic term (`r⁴/8R³`: 0.8 m at 200 km) and the
+/// change of the radii with latitude (≈ 0.3 m at 200 km at mid latitudes): below a metre up to
+/// 200 km, 0.02 arc-minutes of elevation there.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Curvature {
+    /// `1/(2N)` (per metre): the drop per square metre of eastward offset.
+    pub east: f64,
+    /// `1/(2M)` (per metre): the drop per square metre of northward offset.
+    pub north: f64,
+}
+
+impl Curvature {
+    /// The paraboloid at geodetic latitude `lat` (degrees).
+    pub fn at(lat: f64) -> Curvature {
+        Curvature {
+            east: 0.5 / prime_vertical_radius(lat),
+            north: 0.5 / meridional_radius(lat),
+        }
+    }
+    /// No curvature (a flat earth).
+    pub const FLAT: Curvature = Curvature {
+        east: 0.0,
+        north: 0.0,
+    };
+    /// Drop (m) of the surface below the tangent plane at offsets `east`, `north` (m).
+    pub fn drop(&self, east: f64, north: f64) -> f64 {
+        self.east * east * east + self.north * north * north
+    }
+}

@@ -248,6 +248,53 @@ impl Terrain {
         self.height_at_grid(g.x, g.y).map(|h| g.z - h)
     }
 
+    /// World position of a geodetic point `[lat, lon, alt]` (degrees, metres above mean sea
+    /// level): its grid position through the terrain's geographic reference (longitude and
+    /// latitude steps, linear: the flat placement every georeferenced terrain has), at `alt`
+    /// along the base normal. `field` names the scene key in errors. Errors: a terrain without
+    /// a geographic reference, non-finite values, a latitude or longitude off the grid.
+    pub fn geodetic_to_world(&self, field: &str, lla: [f64; 3]) -> Result<DVec3> {
+        let [lat, lon, alt] = lla;
+        let Some(geo) = self.field.geo else {
+            return Err(Error::invalid(
+                field,
+                "a geodetic position needs a georeferenced terrain (SRTM .hgt, a GeoTIFF in                  degrees or a database): give `position` in metres instead",
+            ));
+        };
+        if !(lat.is_finite() && lon.is_finite() && alt.is_finite())
+            || lat.abs() > 90.0
+            || alt.abs() > 1.0e7
+        {
+            return Err(Error::invalid(
+                field,
+                format!("[{lat}, {lon}, {alt}] is not a position: give [latitude (-90..90), longitude (degrees), altitude (m, within ±1e7)]"),
+            ));
+        }
+        let lon = lon - 360.0 * ((lon - geo.lon0 + 180.0) / 360.0).floor();
+        let (gx, gy) = ((lon - geo.lon0) / geo.dlon, (lat - geo.lat0) / geo.dlat);
+        let [cw, ch] = self.cells();
+        if !(gx >= 0.0 && gy >= 0.0 && gx <= cw as f64 && gy <= ch as f64) {
+            let (lat_a, lat_b) = (geo.lat0, geo.lat0 + ch as f64 * geo.dlat);
+            let (lon_a, lon_b) = (geo.lon0, geo.lon0 + cw as f64 * geo.dlon);
+            return Err(Error::invalid(
+                field,
+                format!(
+                    "latitude {lat}, longitude {lon} is off the terrain, which covers latitude                      {:.6}..{:.6}, longitude {:.6}..{:.6}: move the position or widen the terrain (window)",
+                    lat_a.min(lat_b), lat_a.max(lat_b), lon_a.min(lon_b), lon_a.max(lon_b)
+                ),
+            ));
+        }
+        Ok(self.frame.grid_to_world(DVec3::new(gx, gy, alt)))
+    }
+
+    /// Geodetic `[lat, lon, alt]` of a world position (the inverse of
+    /// [`Terrain::geodetic_to_world`]); `None` without a geographic reference.
+    pub fn world_to_geodetic(&self, p: DVec3) -> Option<[f64; 3]> {
+        let geo = self.field.geo?;
+        let g = self.frame.world_to_grid(p);
+        Some([geo.lat0 + g.y * geo.dlat, geo.lon0 + g.x * geo.dlon, g.z])
+    }
+
     /// Height of the bilinear surface at grid position `(x, y)`, or `None` outside the grid.
     pub fn height_at_grid(&self, x: f64, y: f64) -> Option<f64> {
         let [cw, ch] = self.cells();
