@@ -51,6 +51,9 @@ pub struct TerrainDesc {
     /// as a solid block); `false`: rays pass under the surface, seen from above only.
     #[serde(default = "yes")]
     pub walls: bool,
+    /// The curved earth (WGS84, `geodesy::Curvature` at the eye): default on for a database,
+    /// off for single height files and procedural terrain.
+    pub curved: Option<bool>,
 }
 
 fn yes() -> bool {

@@ -4,6 +4,7 @@
 //! in metres along the base plane's normal. [`TerrainFrame`] maps it to and from the world
 //! (metres, x east, y north, z up by default).
 
+pub mod curved;
 pub mod desc;
 pub mod geotiff;
 pub mod heightfield;
@@ -113,6 +114,9 @@ pub struct Terrain {
     /// `false` (`terrain.walls = false`): such rays pass under the surface, which is then
     /// only seen from above. Default `true`.
     pub walls: bool,
+    /// The earth's curvature is applied (`terrain.curved`; needs a geographic reference):
+    /// the surface drops below the eye's tangent plane by [`curved::GridCurvature::drop`].
+    pub curved: bool,
 }
 
 impl Terrain {
@@ -166,6 +170,7 @@ impl Terrain {
             max_height,
             drape: None,
             walls: true,
+            curved: false,
         })
     }
 
@@ -206,6 +211,15 @@ impl Terrain {
         };
         let mut terrain = Terrain::new(field, frame, desc.vertical_scale)?;
         terrain.walls = desc.walls;
+        terrain.curved = desc
+            .curved
+            .unwrap_or(matches!(desc.height_source()?, HeightSource::Database { .. }));
+        if terrain.curved && terrain.field.geo.is_none() {
+            return Err(Error::invalid(
+                "terrain.curved",
+                "the curved earth needs a georeferenced terrain (SRTM .hgt, a GeoTIFF in degrees or a database): remove `curved = true`",
+            ));
+        }
         if let Some(d) = &desc.drape {
             let drape = geotiff::load_drape(&base_dir.join(d))?;
             let mapping = drape_mapping(&terrain.field, &drape);

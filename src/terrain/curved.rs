@@ -1,0 +1,63 @@
+//! The curved earth in the grid frame: the drop of the WGS84 surface below the tangent plane
+//! of the eye, as a quadratic form in grid coordinates, so that traversals can fold it into
+//! their bound tests and exact patch quadratics (see `docs/database.md#curved-earth`).
+
+use super::Terrain;
+use crate::geodesy::Curvature;
+use glam::{DVec2, DVec3};
+
+/// The eye's osculating paraboloid in the grid frame: a point at grid `(x, y)` lies
+/// `k.x·(x − eye.x)² + k.y·(y − eye.y)²` metres below the eye's tangent plane (the base plane
+/// through the eye's foot). Flat terrain: `k = 0`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GridCurvature {
+    /// The eye's grid position (x, y).
+    pub eye: DVec2,
+    /// Drop per squared grid step along x and y (metres): `spacing²/(2N)`, `spacing²/(2M)`.
+    pub k: DVec2,
+}
+
+impl GridCurvature {
+    /// No curvature.
+    pub const FLAT: GridCurvature = GridCurvature {
+        eye: DVec2::ZERO,
+        k: DVec2::ZERO,
+    };
+
+    /// Drop (m) below the eye's tangent plane at grid `(x, y)`.
+    pub fn drop(&self, x: f64, y: f64) -> f64 {
+        let (dx, dy) = (x - self.eye.x, y - self.eye.y);
+        self.k.x * dx * dx + self.k.y * dy * dy
+    }
+
+    /// Gradient of the drop (metres per grid step) at grid `(x, y)`.
+    pub fn drop_gradient(&self, x: f64, y: f64) -> DVec2 {
+        DVec2::new(
+            2.0 * self.k.x * (x - self.eye.x),
+            2.0 * self.k.y * (y - self.eye.y),
+        )
+    }
+
+    pub fn is_flat(&self) -> bool {
+        self.k == DVec2::ZERO
+    }
+}
+
+impl Terrain {
+    /// The curvature seen from the world point `eye`: [`GridCurvature::FLAT`] unless the
+    /// terrain is curved (`terrain.curved`), else the paraboloid at the eye's latitude (the
+    /// grid's axes are east and north, its spacing in metres).
+    pub fn curvature(&self, eye: DVec3) -> GridCurvature {
+        let (true, Some(geo)) = (self.curved, self.field.geo) else {
+            return GridCurvature::FLAT;
+        };
+        let g = self.frame.world_to_grid(eye);
+        let lat = (geo.lat0 + g.y * geo.dlat).clamp(-90.0, 90.0);
+        let c = Curvature::at(lat);
+        let [sx, sy] = self.frame.spacing;
+        GridCurvature {
+            eye: DVec2::new(g.x, g.y),
+            k: DVec2::new(c.east * sx * sx, c.north * sy * sy),
+        }
+    }
+}
