@@ -40,22 +40,59 @@ pub fn checked_attitude(
     Ok(attitude_matrix(heading, pitch, roll))
 }
 
-/// A placed object's position: `position` (world metres), or with `above_terrain` set, the
-/// same x, y at that height above the ground, where `ground(p)` is the terrain height below
-/// `p` (`None` off the terrain). Errors name `field("position")` / `field("above_terrain")`.
-pub fn place_above_ground(
+/// What placing an object needs from the terrain: the ground below a point (for
+/// `above_terrain`) and world positions of geodetic coordinates (for `geodetic`).
+/// `terrain::Terrain` implements it.
+pub trait Ground {
+    /// World z of the terrain surface below `p`; `None` off the terrain.
+    fn ground_z(&self, p: DVec3) -> Option<f64>;
+    /// World position of `[lat, lon, alt]` (degrees, metres above mean sea level); errors
+    /// name `field` (no geographic reference, not a position, off the terrain).
+    fn geodetic_to_world(&self, field: &str, lla: [f64; 3]) -> Result<DVec3>;
+}
+
+/// A placed object's anchor: `position` (world metres) or `geodetic` (`[lat, lon, alt]`
+/// through the terrain's geographic reference), exactly one of them; with `above_terrain`
+/// set, the same x, y at that height above the ground. Errors name `field("position")`,
+/// `field("geodetic")`, `field("position/geodetic")` or `field("above_terrain")`.
+pub fn place(
     field: &dyn Fn(&str) -> String,
-    position: [f64; 3],
+    position: Option<[f64; 3]>,
+    geodetic: Option<[f64; 3]>,
     above_terrain: Option<f64>,
-    ground: impl Fn(DVec3) -> Option<f64>,
+    ground: &dyn Ground,
 ) -> Result<DVec3> {
-    check_finite(&field("position"), &position)?;
-    let mut p = DVec3::from(position);
+    let mut p = match (position, geodetic) {
+        (Some(_), Some(_)) => {
+            return Err(Error::invalid(
+                field("position/geodetic"),
+                "both are set: place the object by one of them, `position = [x, y, z]` \
+                 (world metres) or `geodetic = [lat, lon, alt]` (degrees, metres above sea level)",
+            ))
+        }
+        (None, None) => {
+            return Err(Error::invalid(
+                field("position/geodetic"),
+                "neither is set: give `position = [x, y, z]` (world metres) or \
+                 `geodetic = [lat, lon, alt]` (degrees, metres above sea level)",
+            ))
+        }
+        (Some(pos), None) => {
+            check_finite(&field("position"), &pos)?;
+            DVec3::from(pos)
+        }
+        (None, Some(lla)) => ground.geodetic_to_world(&field("geodetic"), lla)?,
+    };
     if let Some(agl) = above_terrain {
         check_finite(&field("above_terrain"), &[agl])?;
-        let z = ground(p).ok_or_else(|| {
+        let key = if geodetic.is_some() {
+            "geodetic"
+        } else {
+            "position"
+        };
+        let z = ground.ground_z(p).ok_or_else(|| {
             Error::invalid(
-                field("position"),
+                field(key),
                 "above_terrain is set but the position is outside the terrain",
             )
         })?;

@@ -3,7 +3,7 @@
 
 use super::{FreeForm, Material, Node, Quadric, MAX_DEPTH, MAX_NODES};
 use crate::error::check_finite;
-use crate::geom::{checked_attitude, place_above_ground};
+use crate::geom::{checked_attitude, place, Ground};
 use crate::{Error, Result};
 use glam::{DMat3, DVec3};
 use serde::{Deserialize, Serialize};
@@ -35,6 +35,9 @@ pub struct FreeFormDesc {
     pub size: Option<[f64; 3]>,
     /// Objects: world position of the object origin.
     pub position: Option<[f64; 3]>,
+    /// Objects: or the origin's `[latitude, longitude, altitude]` (WGS84 degrees, metres above
+    /// mean sea level) on a georeferenced terrain.
+    pub geodetic: Option<[f64; 3]>,
     /// Objects: if set, the position's z becomes the terrain height below plus this.
     pub above_terrain: Option<f64>,
     /// Perturbations: centre in the object frame.
@@ -230,9 +233,9 @@ fn forbid(present: bool, field: &str, key: &str, why: &str) -> Result<()> {
 }
 
 impl FreeFormDesc {
-    /// Builds object `index` of the scene. `ground(p)` gives the terrain height (world z of
-    /// the terrain point below `p`) for `above_terrain`.
-    pub fn build(&self, index: usize, ground: impl Fn(DVec3) -> Option<f64>) -> Result<FreeForm> {
+    /// Builds object `index` of the scene. `ground` gives the terrain height below a point
+    /// (for `above_terrain`) and places `geodetic` positions.
+    pub fn build(&self, index: usize, ground: &dyn Ground) -> Result<FreeForm> {
         let name = self
             .name
             .clone()
@@ -247,14 +250,16 @@ impl FreeFormDesc {
                 bad,
                 &field,
                 key,
-                "applies to perturbations only; place objects with `position`",
+                "applies to perturbations only; place objects with `position` or `geodetic`",
             )?;
         }
-        let pos = self
-            .position
-            .ok_or_else(|| Error::invalid(&field, "needs `position = [x, y, z]` (world metres)"))?;
-        let position =
-            place_above_ground(&|k| format!("{field}.{k}"), pos, self.above_terrain, ground)?;
+        let position = place(
+            &|k| format!("{field}.{k}"),
+            self.position,
+            self.geodetic,
+            self.above_terrain,
+            ground,
+        )?;
         let bounds = match (self.bounds, natural) {
             (Some([lo, hi]), _) => {
                 check_finite(&format!("{field}.bounds"), &[lo, hi].concat())?;
@@ -350,6 +355,7 @@ impl FreeFormDesc {
         }
         for (bad, key) in [
             (self.position.is_some(), "position"),
+            (self.geodetic.is_some(), "geodetic"),
             (self.above_terrain.is_some(), "above_terrain"),
             (self.bounds.is_some(), "bounds"),
             (self.material.is_some(), "material"),

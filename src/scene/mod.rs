@@ -270,7 +270,7 @@ impl Scene {
             .objects
             .iter()
             .enumerate()
-            .map(|(i, o)| o.build(i, |p| terrain.point_below(p).map(|g| g.z)))
+            .map(|(i, o)| o.build(i, terrain))
             .collect()
     }
 
@@ -282,7 +282,7 @@ impl Scene {
             .iter()
             .enumerate()
             .map(|(i, v)| {
-                let mut v = v.build(i, &self.base_dir, |p| terrain.point_below(p).map(|g| g.z))?;
+                let mut v = v.build(i, &self.base_dir, terrain)?;
                 v.set_sun(self.desc.sun.direction());
                 Ok(v)
             })

@@ -211,9 +211,10 @@ impl Terrain {
         };
         let mut terrain = Terrain::new(field, frame, desc.vertical_scale)?;
         terrain.walls = desc.walls;
-        terrain.curved = desc
-            .curved
-            .unwrap_or(matches!(desc.height_source()?, HeightSource::Database { .. }));
+        terrain.curved = desc.curved.unwrap_or(matches!(
+            desc.height_source()?,
+            HeightSource::Database { .. }
+        ));
         if terrain.curved && terrain.field.geo.is_none() {
             return Err(Error::invalid(
                 "terrain.curved",
@@ -272,7 +273,8 @@ impl Terrain {
         let Some(geo) = self.field.geo else {
             return Err(Error::invalid(
                 field,
-                "a geodetic position needs a georeferenced terrain (SRTM .hgt, a GeoTIFF in                  degrees or a database): give `position` in metres instead",
+                "a geodetic position needs a georeferenced terrain (SRTM .hgt, a GeoTIFF in \
+                 degrees or a database): give `position` in metres instead",
             ));
         };
         if !(lat.is_finite() && lon.is_finite() && alt.is_finite())
@@ -293,7 +295,8 @@ impl Terrain {
             return Err(Error::invalid(
                 field,
                 format!(
-                    "latitude {lat}, longitude {lon} is off the terrain, which covers latitude                      {:.6}..{:.6}, longitude {:.6}..{:.6}: move the position or widen the terrain (window)",
+                    "latitude {lat}, longitude {lon} is off the terrain, which covers latitude \
+                     {:.6}..{:.6}, longitude {:.6}..{:.6}: move the position or widen the terrain (window)",
                     lat_a.min(lat_b), lat_a.max(lat_b), lon_a.min(lon_b), lon_a.max(lon_b)
                 ),
             ));
@@ -326,6 +329,15 @@ impl Terrain {
             f.at(i + 1, j + 1) as f64,
         );
         Some(h00 * (1.0 - u) * (1.0 - v) + h10 * u * (1.0 - v) + h01 * (1.0 - u) * v + h11 * u * v)
+    }
+}
+
+impl crate::geom::Ground for Terrain {
+    fn ground_z(&self, p: DVec3) -> Option<f64> {
+        self.point_below(p).map(|g| g.z)
+    }
+    fn geodetic_to_world(&self, field: &str, lla: [f64; 3]) -> Result<DVec3> {
+        Terrain::geodetic_to_world(self, field, lla)
     }
 }
 

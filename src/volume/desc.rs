@@ -4,7 +4,7 @@ use super::procedural::ProceduralVolume;
 use super::transfer::{TfPoint, TransferFunction, TransferTable};
 use super::{BrickGrid, DensityGrid, VolumeTexture};
 use crate::error::check_finite;
-use crate::geom::checked_attitude;
+use crate::geom::{checked_attitude, place, Ground};
 use crate::{Error, Result};
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
@@ -14,8 +14,9 @@ use std::path::Path;
 /// One density volume.
 ///
 /// The volume is a box of `dims · voxel_size` metres; `position` is the world position of
-/// the centre of its bottom face (or, with `above_terrain`, that many metres above the
-/// terrain below), turned by heading/pitch/roll like the camera.
+/// the centre of its bottom face (or `geodetic` its latitude, longitude and altitude; with
+/// `above_terrain`, that many metres above the terrain below), turned by heading/pitch/roll
+/// like the camera.
 #[derive(Clone, Debug, Default, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct VolumeDesc {
@@ -29,6 +30,8 @@ pub struct VolumeDesc {
     /// Metres per voxel (default: the file's spacing; procedural: 1).
     pub voxel_size: Option<[f64; 3]>,
     pub position: Option<[f64; 3]>,
+    /// Or `[latitude, longitude, altitude]` (WGS84 degrees, metres above mean sea level).
+    pub geodetic: Option<[f64; 3]>,
     pub above_terrain: Option<f64>,
     #[serde(default)]
     pub heading: f64,
@@ -142,14 +145,9 @@ pub struct Volume {
 }
 
 impl VolumeDesc {
-    /// Loads the data and places it; `ground(p)` is the terrain height below `p` (for
-    /// `above_terrain`). Errors name the volume.
-    pub fn build(
-        &self,
-        index: usize,
-        base_dir: &Path,
-        ground: impl Fn(DVec3) -> Option<f64>,
-    ) -> Result<Volume> {
+    /// Loads the data and places it; `ground` gives the terrain height below a point (for
+    /// `above_terrain`) and places `geodetic` positions. Errors name the volume.
+    pub fn build(&self, index: usize, base_dir: &Path, ground: &dyn Ground) -> Result<Volume> {
         let name = self
             .name
             .clone()
@@ -285,24 +283,16 @@ impl VolumeDesc {
         &self,
         ext: DVec3,
         rotation: DMat3,
-        ground: impl Fn(DVec3) -> Option<f64>,
+        ground: &dyn Ground,
         field: &dyn Fn(&str) -> String,
     ) -> Result<DVec3> {
-        let pos = self
-            .position
-            .ok_or_else(|| Error::invalid(field("position"), "is required"))?;
-        check_finite(&field("position"), &pos)?;
-        let mut pos = DVec3::from(pos);
-        if let Some(a) = self.above_terrain {
-            check_finite(&field("above_terrain"), &[a])?;
-            let g = ground(pos).ok_or_else(|| {
-                Error::invalid(
-                    field("above_terrain"),
-                    "the position is not over the terrain",
-                )
-            })?;
-            pos.z = g + a;
-        }
+        let pos = place(
+            field,
+            self.position,
+            self.geodetic,
+            self.above_terrain,
+            ground,
+        )?;
         Ok(pos - rotation * DVec3::new(ext.x / 2.0, ext.y / 2.0, 0.0))
     }
 

@@ -6,6 +6,7 @@
 //! name = "tree"
 //! file = "tree.vox"          # relative to the scene file
 //! position = [x, y, z]       # world position of the model's bottom centre
+//! # geodetic = [lat, lon, alt] # or: its latitude, longitude, metres above sea level
 //! above_terrain = 0.0        # z = terrain height below + this
 //! voxel_size = 0.05          # metres per voxel
 //! heading = 0.0              # degrees, pitch and roll as for the camera
@@ -14,7 +15,7 @@
 //! ```
 
 use super::VoxelModel;
-use crate::geom::{checked_attitude, place_above_ground};
+use crate::geom::{checked_attitude, place, Ground};
 use crate::{Error, Result};
 use glam::{DMat3, DVec3};
 use serde::{Deserialize, Serialize};
@@ -30,7 +31,10 @@ pub const MAX_INSTANCES: usize = 64;
 pub struct VoxelDesc {
     pub name: Option<String>,
     pub file: std::path::PathBuf,
-    pub position: [f64; 3],
+    /// World position of the model's bottom centre.
+    pub position: Option<[f64; 3]>,
+    /// Or its `[latitude, longitude, altitude]` (WGS84 degrees, metres above mean sea level).
+    pub geodetic: Option<[f64; 3]>,
     pub above_terrain: Option<f64>,
     #[serde(default = "default_size")]
     pub voxel_size: f64,
@@ -189,12 +193,12 @@ pub fn load_frames(path: &Path) -> Result<Vec<VoxelModel>> {
 
 impl VoxelDesc {
     /// Loads and places the model (`index` and name in errors); `ground` gives the terrain
-    /// height below a world point.
+    /// height below a world point and places `geodetic` positions.
     pub fn build(
         &self,
         index: usize,
         base_dir: &Path,
-        ground: impl Fn(DVec3) -> Option<f64>,
+        ground: &dyn Ground,
     ) -> Result<VoxelInstance> {
         let name = self
             .name
@@ -215,7 +219,13 @@ impl VoxelDesc {
                 format!("must be 0..=1000, got {}", self.fps),
             ));
         }
-        let position = place_above_ground(&at, self.position, self.above_terrain, ground)?;
+        let position = place(
+            &at,
+            self.position,
+            self.geodetic,
+            self.above_terrain,
+            ground,
+        )?;
         let path = base_dir.join(&self.file);
         let frames = load_frames(&path)?;
         if let Some(f) = self.frame {
@@ -261,6 +271,6 @@ pub fn build_all(
     descs
         .iter()
         .enumerate()
-        .map(|(i, d)| d.build(i, base_dir, |p| terrain.point_below(p).map(|g| g.z)))
+        .map(|(i, d)| d.build(i, base_dir, terrain))
         .collect()
 }

@@ -120,9 +120,7 @@ pub fn scattered_free_forms(
         .enumerate()
         .filter_map(|(i, o)| {
             // Objects that would stand outside the terrain are skipped.
-            match o.build(i, |p| {
-                crate::cpu::query::terrain_point_below(terrain, p).map(|g| g.z)
-            }) {
+            match o.build(i, terrain) {
                 Err(Error::Invalid { msg, .. }) if msg.contains("outside the terrain") => None,
                 r => Some(r),
             }
