@@ -300,3 +300,14 @@ pub fn scene_sun_visible(
     super::query::cast_ray(terrain, p, to_sun, 0.0, f64::INFINITY).is_none()
         && objects_clear(objects, p, to_sun)
 }
+
+/// The free forms as the eye at `eye` sees them on the curved earth: each lowered rigidly by
+/// the drop below the eye's tangent plane at its origin ([`Terrain::curved_offset`]); copies
+/// of `objects` on a flat terrain. The GPU renderer does the same per frame.
+pub fn lowered(terrain: &Terrain, eye: DVec3, objects: &[FreeForm]) -> Vec<FreeForm> {
+    let curv = terrain.curvature(eye);
+    objects
+        .iter()
+        .map(|o| o.translated(terrain.curved_offset(&curv, o.position)))
+        .collect()
+}

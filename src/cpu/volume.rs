@@ -368,3 +368,14 @@ fn undecided_face(v: &Volume, p: DVec3, vi: [u32; 3], bits: u8, err: f64) -> boo
         v.grid.voxel(n[0], n[1], n[2]) != bits
     })
 }
+
+/// The volumes as the eye at `eye` sees them on the curved earth: each lowered rigidly by the
+/// drop below the eye's tangent plane at its anchor (the bottom face's centre,
+/// [`Volume::anchor`]); copies on a flat terrain. The GPU renderer does the same per frame.
+pub fn lowered(terrain: &Terrain, eye: DVec3, volumes: &[Volume]) -> Vec<Volume> {
+    let curv = terrain.curvature(eye);
+    volumes
+        .iter()
+        .map(|v| v.translated(terrain.curved_offset(&curv, v.anchor())))
+        .collect()
+}

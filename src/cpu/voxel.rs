@@ -589,3 +589,18 @@ pub fn shadow_rects(
         covering_rect(cam, &pts)
     })
 }
+
+/// The voxel models as the eye at `eye` sees them on the curved earth: each lowered rigidly by
+/// the drop below the eye's tangent plane at its bottom centre; copies on a flat terrain. The
+/// GPU renderer does the same per frame.
+pub fn lowered(
+    terrain: &crate::terrain::Terrain,
+    eye: DVec3,
+    instances: &[VoxelInstance],
+) -> Vec<VoxelInstance> {
+    let curv = terrain.curvature(eye);
+    instances
+        .iter()
+        .map(|m| m.translated(terrain.curved_offset(&curv, m.position)))
+        .collect()
+}

@@ -147,6 +147,14 @@ impl FreeForm {
         self.rotation.transpose() * (p - self.position)
     }
 
+    /// The object moved rigidly by `offset` (world metres).
+    pub fn translated(&self, offset: DVec3) -> FreeForm {
+        FreeForm {
+            position: self.position + offset,
+            ..self.clone()
+        }
+    }
+
     /// World direction -> object frame.
     pub fn dir_to_local(&self, d: DVec3) -> DVec3 {
         self.rotation.transpose() * d

@@ -287,6 +287,10 @@ fn binned_pipelines(
 /// Object buffers and the pipelines that use them.
 pub(crate) struct ObjectPasses {
     pub count: u32,
+    /// The object records as placed, and per object its origin and bounding-sphere centre
+    /// (world, f64): what [`ObjectPasses::set_offsets`] moves.
+    placed: Vec<FfObjectGpu>,
+    placed_points: Vec<[glam::DVec3; 2]>,
     objects: wgpu::Buffer,
     nodes: wgpu::Buffer,
     bin_bgl: wgpu::BindGroupLayout,
@@ -335,7 +339,8 @@ impl ObjectPasses {
         let usage = if tables.uniform() {
             PARAM_USAGE
         } else {
-            wgpu::BufferUsages::STORAGE
+            // Written again per frame on the curved earth (`set_offsets`).
+            wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST
         };
         let objects_buf = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("free forms"),
@@ -364,6 +369,11 @@ impl ObjectPasses {
         );
         Ok(ObjectPasses {
             count: objects.len() as u32,
+            placed: recs,
+            placed_points: objects
+                .iter()
+                .map(|o| [o.position, o.bounding_sphere().0])
+                .collect(),
             objects: objects_buf,
             nodes: nodes_buf,
             bin_bgl,
@@ -377,6 +387,29 @@ impl ObjectPasses {
             shadow,
             shade,
         })
+    }
+
+    /// World origins of the objects as placed.
+    pub fn placed_origins(&self) -> impl Iterator<Item = glam::DVec3> + '_ {
+        self.placed_points.iter().map(|[p, _]| *p)
+    }
+
+    /// Moves each object rigidly by its offset from where it was placed (the curved earth's
+    /// drop at its origin, `Terrain::curved_offset`) and uploads the records: the passes read
+    /// positions and bounding spheres from them only.
+    pub fn set_offsets(&self, gpu: &Gpu, offsets: &[glam::DVec3]) {
+        let f = |v: glam::DVec3| [v.x as f32, v.y as f32, v.z as f32];
+        let recs: Vec<FfObjectGpu> = (self.placed.iter().zip(&self.placed_points))
+            .zip(offsets)
+            .map(|((rec, [p, c]), o)| {
+                let mut rec = *rec;
+                rec.position[..3].copy_from_slice(&f(*p + *o));
+                rec.sphere[..3].copy_from_slice(&f(*c + *o));
+                rec
+            })
+            .collect();
+        gpu.queue
+            .write_buffer(&self.objects, 0, bytemuck::cast_slice(&recs));
     }
 
     /// Bins, the free-form G-buffer and bind groups for a `width` x `height` frame.

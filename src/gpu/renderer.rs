@@ -20,6 +20,7 @@ use super::Gpu;
 use crate::cpu::voxel::InstanceRect;
 use crate::display::pattern::PatternParams;
 use crate::scene::{Camera, SceneDesc};
+use crate::terrain::curved::GridCurvature;
 use crate::terrain::Terrain;
 use crate::{Error, Result};
 use std::time::Instant;
@@ -31,8 +32,13 @@ pub struct TerrainRenderer {
     base: TerrainPasses,
     table: Option<TableMode>,
     objects: Option<ObjectPasses>,
-    /// Lowest world z of the free forms' bounding spheres (+inf without free forms).
+    /// Lowest world z of the free forms' bounding spheres (+inf without free forms), as
+    /// placed and as this frame sees them (lowered on the curved earth).
     objects_floor: f64,
+    placed_floor: f64,
+    /// The curvature the objects were last moved for ([`Self::lower_objects`]); `None`: as
+    /// placed.
+    lowered_for: Option<GridCurvature>,
     volumes: VolumeSet,
     /// Edge blend of a display channel (see [`Self::set_blend`]).
     blend: Option<BlendPass>,
@@ -112,6 +118,8 @@ impl TerrainRenderer {
             table: None,
             objects: None,
             objects_floor: f64::INFINITY,
+            placed_floor: f64::INFINITY,
+            lowered_for: None,
             volumes: VolumeSet::default(),
             blend: None,
             voxels: None,
@@ -183,6 +191,8 @@ impl TerrainRenderer {
                 c.z - r
             })
             .fold(f64::INFINITY, f64::min);
+        self.placed_floor = self.objects_floor;
+        self.lowered_for = None;
         self.targets = None;
         Ok(())
     }
@@ -195,6 +205,7 @@ impl TerrainRenderer {
     /// for the CPU model).
     pub fn set_volumes(&mut self, gpu: &Gpu, volumes: &[crate::volume::Volume]) -> Result<()> {
         self.volumes.set(gpu, volumes)?;
+        self.lowered_for = None;
         self.targets = None;
         Ok(())
     }
@@ -214,6 +225,7 @@ impl TerrainRenderer {
         } else {
             Some(VoxelPasses::new(gpu, models)?)
         };
+        self.lowered_for = None;
         self.targets = None;
         Ok(())
     }
@@ -417,6 +429,7 @@ impl TerrainRenderer {
             Some(o) => o.shade.prepare(&gpu.device, features),
             None => self.base.shade.prepare(&gpu.device, features),
         };
+        self.lower_objects(job);
         let t = self.targets.as_ref().expect("targets just ensured");
         let mut fu = frame_uniforms(job.terrain, job.scene, job.cam, s, t.tiles);
         fu.pyramid_dims = [self.base.data.pyramid_side, 0, 0, 0];
@@ -449,6 +462,35 @@ impl TerrainRenderer {
                 Vec::new()
             },
         }
+    }
+
+    /// On the curved earth, moves every free form, volume and voxel model rigidly down by the
+    /// drop below the eye's tangent plane at its anchor (`Terrain::curved_offset`; the CPU
+    /// oracle's `cpu::{freeform, volume, voxel}::lowered`), so that objects placed on the
+    /// ground stay on it; uploads only when the curvature seen from the eye changed. Nothing
+    /// on a flat terrain.
+    fn lower_objects(&mut self, job: &FrameJob) {
+        let terrain = job.terrain;
+        let curv = terrain.curvature(job.cam.pose.position);
+        if self.lowered_for == Some(curv) || (self.lowered_for.is_none() && curv.is_flat()) {
+            return;
+        }
+        let offset = |anchor| terrain.curved_offset(&curv, anchor);
+        let mut deepest = 0.0f64;
+        if let Some(o) = &self.objects {
+            let offsets: Vec<_> = o.placed_origins().map(offset).collect();
+            deepest = offsets.iter().fold(deepest, |d, v| d.min(v.z));
+            o.set_offsets(job.gpu, &offsets);
+        }
+        self.objects_floor = self.placed_floor + deepest;
+        for v in &mut self.volumes.passes {
+            v.offset = offset(v.volume.anchor());
+        }
+        if let Some(v) = &mut self.voxels {
+            let offsets: Vec<_> = v.placed().iter().map(|m| offset(m.position)).collect();
+            v.set_offsets(&offsets);
+        }
+        self.lowered_for = Some(curv);
     }
 
     /// Records the frame's passes (submitting between them when timed) and submits.

@@ -153,6 +153,9 @@ fn sampler_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
 /// GPU resources of one volume and the pass that integrates it.
 pub(crate) struct VolumePass {
     pub volume: Volume,
+    /// Rigid offset of the volume from where it was placed, this frame (the curved earth's
+    /// drop at its anchor): the uniforms see the eye moved the other way.
+    pub offset: glam::DVec3,
     bgl: wgpu::BindGroupLayout,
     pipelines: SpecialisedPipelines<VolumeSwitches>,
     view: wgpu::TextureView,
@@ -395,6 +398,7 @@ impl VolumePass {
         );
         Ok(VolumePass {
             volume: volume.clone(),
+            offset: glam::DVec3::ZERO,
             bgl,
             pipelines,
             view,
@@ -441,7 +445,7 @@ impl VolumePass {
         gpu.queue.write_buffer(
             &self.uniforms,
             0,
-            bytemuck::bytes_of(&uniforms(&self.volume, eye)),
+            bytemuck::bytes_of(&uniforms(&self.volume, eye - self.offset)),
         );
     }
 

@@ -213,6 +213,9 @@ fn voxel_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
 
 /// Uploaded voxel data and the pipelines.
 pub(crate) struct VoxelPasses {
+    /// The models as placed (on the flat base plane).
+    placed: Vec<VoxelInstance>,
+    /// The models as this frame sees them ([`VoxelPasses::set_offsets`]).
     instances: Vec<VoxelInstance>,
     /// Boxes the screen rectangles come from (`cpu::voxel::cover_boxes`), once per upload.
     cover: Vec<Vec<[glam::DVec3; 2]>>,
@@ -306,6 +309,7 @@ impl VoxelPasses {
             built.elapsed().as_secs_f64() * 1e3
         );
         Ok(VoxelPasses {
+            placed: instances.to_vec(),
             instances: instances.to_vec(),
             cover: crate::cpu::voxel::cover_boxes(instances),
             frames,
@@ -389,9 +393,22 @@ impl VoxelPasses {
         drawn.into_iter().take(self.slots()).collect()
     }
 
-    /// The placed models (as uploaded).
+    /// The models as this frame sees them (as uploaded, moved by [`Self::set_offsets`]).
     pub fn instances(&self) -> &[VoxelInstance] {
         &self.instances
+    }
+
+    /// The models as placed (before [`Self::set_offsets`]).
+    pub fn placed(&self) -> &[VoxelInstance] {
+        &self.placed
+    }
+
+    /// Moves each model rigidly by its offset from where it was placed (the curved earth's
+    /// drop at its anchor); the next [`Self::update`] writes the records.
+    pub fn set_offsets(&mut self, offsets: &[glam::DVec3]) {
+        for ((m, p), o) in self.instances.iter_mut().zip(&self.placed).zip(offsets) {
+            m.position = p.position + *o;
+        }
     }
 
     /// Per model, the boxes its screen rectangles come from (`cpu::voxel::cover_boxes`).

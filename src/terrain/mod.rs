@@ -312,6 +312,18 @@ impl Terrain {
         Some([geo.lat0 + g.y * geo.dlat, geo.lon0 + g.x * geo.dlon, g.z])
     }
 
+    /// The rigid offset that keeps an object anchored at world `anchor` on the curved surface
+    /// seen with `curv` ([`Terrain::curvature`] of the eye): the drop below the eye's tangent
+    /// plane there, down the base normal; zero on a flat terrain. Objects are placed on the
+    /// flat base plane (as the height samples are) and move by this each frame.
+    pub fn curved_offset(&self, curv: &curved::GridCurvature, anchor: DVec3) -> DVec3 {
+        if curv.is_flat() {
+            return DVec3::ZERO;
+        }
+        let g = self.frame.world_to_grid(anchor);
+        -self.frame.normal * curv.drop(g.x, g.y)
+    }
+
     /// Height of the bilinear surface at grid position `(x, y)`, or `None` outside the grid.
     pub fn height_at_grid(&self, x: f64, y: f64) -> Option<f64> {
         let [cw, ch] = self.cells();

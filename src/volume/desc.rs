@@ -452,6 +452,21 @@ impl Volume {
         self.corner + self.rotation * (0.5 * self.extent())
     }
 
+    /// World position of the bottom face's centre: the point `position` / `geodetic` place
+    /// (the anchor the curved earth lowers the volume by).
+    pub fn anchor(&self) -> DVec3 {
+        let e = self.extent();
+        self.corner + self.rotation * DVec3::new(0.5 * e.x, 0.5 * e.y, 0.0)
+    }
+
+    /// The volume moved rigidly by `offset` (world metres).
+    pub fn translated(&self, offset: DVec3) -> Volume {
+        Volume {
+            corner: self.corner + offset,
+            ..self.clone()
+        }
+    }
+
     /// A world point in the volume frame (metres from the corner).
     pub fn to_local(&self, p: DVec3) -> DVec3 {
         self.rotation.transpose() * (p - self.corner)

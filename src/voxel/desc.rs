@@ -101,6 +101,14 @@ impl VoxelInstance {
         DVec3::new(d[0] as f64 * 0.5, d[1] as f64 * 0.5, 0.0)
     }
 
+    /// The model moved rigidly by `offset` (world metres).
+    pub fn translated(&self, offset: DVec3) -> VoxelInstance {
+        VoxelInstance {
+            position: self.position + offset,
+            ..self.clone()
+        }
+    }
+
     /// World point → voxel units.
     pub fn to_local(&self, p: DVec3) -> DVec3 {
         self.rotation.transpose() * (p - self.position) / self.voxel_size + self.anchor()
