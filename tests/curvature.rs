@@ -188,7 +188,11 @@ fn sea_horizon_dip_matches_the_ellipsoid_from_1_5_and_10_km() {
     for alt in [1000.0, 5000.0, 10000.0] {
         let (scene, terrain) = scene(db, PACIFIC_WINDOW, [PACIFIC[0], PACIFIC[1], alt], 0.0);
         assert!(terrain.curved, "databases are curved by default");
-        assert_eq!(terrain.max_height, 0.0, "the window is open sea");
+        assert_eq!(
+            (terrain.min_height, terrain.max_height),
+            (0.0, 0.0),
+            "sea_level = 0 over open sea: a flat sea"
+        );
         let eye = scene.camera_position(&terrain).unwrap();
         // The one-pixel camera's ray is local_dir (checked once: the test's own direction
         // convention is the camera's).
@@ -475,4 +479,57 @@ fn a_curved_view_on_the_gpu_matches_the_cpu_oracle() {
         dark as f64 >= 0.97 * shadowed as f64 && bright as f64 >= 0.97 * sunny as f64,
         "{dark}/{shadowed} CPU-shadowed pixels dark on the GPU, {bright}/{sunny} CPU-lit ones lit"
     );
+}
+
+/// `camera.geodetic`: exactly one of it and `position`; refused, naming the key, for a
+/// terrain without a georeference and a point off the terrain.
+#[test]
+fn geodetic_camera_errors_name_the_key() {
+    let db = pacific_db();
+    let dir = db.parent().unwrap();
+    let load = |terrain: &str, camera: &str| -> Result<(), String> {
+        let text = format!("[terrain]\n{terrain}\n[camera]\n{camera}\n");
+        let scene = Scene::parse(&text, &dir.join("errors.toml")).map_err(|e| e.to_string())?;
+        scene.load_terrain().map(|_| ()).map_err(|e| e.to_string())
+    };
+    let pacific = format!(
+        "database = \"{}\"\n{PACIFIC_WINDOW}",
+        db.file_name().unwrap().to_string_lossy()
+    );
+    assert!(load(&pacific, "geodetic = [30.0, -150.0, 1000.0]").is_ok());
+    for (terrain, camera, needle) in [
+        (
+            pacific.as_str(),
+            "geodetic = [30.0, -150.0, 1000.0]\nposition = [0.0, 0.0, 1.0]",
+            "camera.position",
+        ),
+        (pacific.as_str(), "heading = 3.0", "camera.position"),
+        (
+            pacific.as_str(),
+            "geodetic = [40.0, -150.0, 1000.0]",
+            "camera.geodetic",
+        ),
+        (
+            pacific.as_str(),
+            "geodetic = [30.0, nan, 1000.0]",
+            "camera.geodetic",
+        ),
+        (
+            "[terrain.procedural]\nsize = 2",
+            "geodetic = [30.0, -150.0, 1000.0]",
+            "camera.geodetic",
+        ),
+    ] {
+        let terrain = terrain.strip_prefix("[terrain]\n").unwrap_or(terrain);
+        let text = if terrain.starts_with("[terrain.procedural]") {
+            let scene = format!("{terrain}\n[camera]\n{camera}\n");
+            Scene::parse(&scene, &dir.join("errors.toml"))
+                .and_then(|s| s.load_terrain().map(|_| ()))
+                .map_err(|e| e.to_string())
+        } else {
+            load(terrain, camera)
+        };
+        let err = text.expect_err(camera);
+        assert!(err.contains(needle), "{camera}: {err}");
+    }
 }
