@@ -98,7 +98,11 @@ fn single_bilinear_cell_matches_brute_force_root_search() {
         let d = (target - o).normalize();
         let exact = cpu::cast_ray(&terrain, o, d, 0.0, f64::INFINITY).map(|hit| hit.t);
         // Brute force: dense sign search of z - h(x, y) over the cell, then bisection.
-        let r = GridRay { o, d };
+        let r = GridRay {
+            o,
+            d,
+            curv: relief::terrain::curved::GridCurvature::FLAT,
+        };
         let f = |t: f64| {
             let p = r.at(t);
             terrain.height_at_grid(p.x, p.y).map(|hh| p.z - hh)

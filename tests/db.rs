@@ -965,7 +965,8 @@ fn missing_tiles_are_filled_from_a_coarser_level_with_a_warning() {
 /// cut ones: mean colour difference ≤ 1/255, depth within 1e-5 relative, no sky or
 /// see-through pixel where the whole tile has terrain. The views straddle the cuts (the 2x2
 /// cut at sample 600 in x and y, the 3x3 cuts at 400 and 800). The `.hgt` rendered directly
-/// gives the same pictures too.
+/// gives the same pictures too. All flat (`curved = false`: databases default to the curved
+/// earth, the `.hgt` not; this test is about tiling, `tests/curvature.rs` about the curve).
 #[test]
 fn cut_databases_render_the_same_pictures_as_the_whole_tile() {
     use relief::gpu::TerrainRenderer;
@@ -977,7 +978,7 @@ fn cut_databases_render_the_same_pictures_as_the_whole_tile() {
     let s = seams();
     let load = |terrain: String| {
         let text = format!(
-            "[terrain]\n{terrain}\n[sun]\nazimuth = 245.0\nelevation = 24.0\n[fog]\nvisibility = 90000.0\nscale_height = 3000.0\n[camera]\nposition = [0.0, 0.0, 5000.0]\n"
+            "[terrain]\n{terrain}\ncurved = false\n[sun]\nazimuth = 245.0\nelevation = 24.0\n[fog]\nvisibility = 90000.0\nscale_height = 3000.0\n[camera]\nposition = [0.0, 0.0, 5000.0]\n"
         );
         let scene = Scene::parse(&text, &s.dir.join("seams.toml")).unwrap();
         let terrain = scene.load_terrain().unwrap();

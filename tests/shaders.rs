@@ -43,12 +43,13 @@ fn every_specialised_variant_validates_with_naga() {
     use relief::gpu::variants::ShadeFeatures;
     use relief::gpu::variants::VolumeSwitches;
     let bit = |bits: u32, k: u32| bits & (1 << k) != 0;
-    for bits in 0..16 {
+    for bits in 0..32 {
         let f = ShadeFeatures {
             shadows: bit(bits, 0),
             drape: bit(bits, 1),
             voxels: bit(bits, 2),
             volume_shadows: bit(bits, 3),
+            curved: bit(bits, 4),
         };
         validate(&format!("shade {f:?}"), &shaders::shade(f));
         for tables in [
@@ -82,7 +83,7 @@ fn every_specialised_variant_validates_with_naga() {
 #[test]
 fn naga_rejects_a_broken_shader() {
     // The check above can fail: a type error is reported.
-    let src = relief::gpu::shaders::cast().replace("let t1 = tt.y;", "let t1: u32 = tt.y;");
+    let src = relief::gpu::shaders::cast(false).replace("let t1 = tt.y;", "let t1: u32 = tt.y;");
     let module = naga::front::wgsl::parse_str(&src);
     let invalid = match module {
         Err(_) => true,
@@ -202,8 +203,8 @@ fn full_screen_passes_never_discard() {
     use relief::gpu::variants::VolumeSwitches;
     for (name, src) in [
         ("raygen", shaders::raygen()),
-        ("tile", shaders::tile()),
-        ("cast", shaders::cast()),
+        ("tile", shaders::tile(true)),
+        ("cast", shaders::cast(true)),
         ("shade", shaders::shade(ShadeFeatures::ALL)),
         (
             "shade (free forms)",

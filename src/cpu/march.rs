@@ -18,7 +18,9 @@ pub fn march(
     let (t0, t1) = clip_to_box(terrain, &r, 0.0, t_max)?;
     let f = |t: f64| {
         let p = r.at(t);
-        terrain.height_at_grid(p.x, p.y).map(|h| p.z - h)
+        terrain
+            .height_at_grid(p.x, p.y)
+            .map(|h| p.z + r.curv.drop(p.x, p.y) - h)
     };
     let dt = step_cells / r.d.x.abs().max(r.d.y.abs()).max(1e-9);
     let mut prev_t = t0;

@@ -10,5 +10,8 @@ pub mod traverse;
 pub mod volume;
 pub mod voxel;
 
-pub use query::{cast_ray, height_above_terrain, line_of_sight, sun_visible, terrain_point_below};
+pub use query::{
+    cast_ray, cast_ray_seen_from, height_above_terrain, line_of_sight, sun_visible,
+    sun_visible_seen_from, terrain_point_below,
+};
 pub use traverse::{GridRay, Hit, TraversalStats};

@@ -1,7 +1,15 @@
 //! Terrain queries on the CPU: ray casting, height of terrain, height above terrain, line of
 //! sight and sun visibility. All in world coordinates (metres).
+//!
+//! Curved earth (`terrain.curved`): a query's world frame is the tangent frame of its own
+//! origin (the ray's origin, the line of sight's first point), so [`cast_ray`] and
+//! [`line_of_sight`] see the surface drop away from there; [`cast_ray_seen_from`] and
+//! [`sun_visible_seen_from`] take a picture's curvature instead (shadow rays from its hits).
+//! Heights of terrain and above terrain are along the base normal through the point and
+//! above MSL: at the point itself the drop is 0, so curvature does not change them.
 
 use super::traverse::{intersect_with_walls, make_hit, GridRay, Hit, TraversalStats};
+use crate::terrain::curved::GridCurvature;
 use crate::terrain::Terrain;
 use glam::DVec3;
 
@@ -16,19 +24,33 @@ pub fn cast_ray(
     t_min: f64,
     t_max: f64,
 ) -> Option<Hit> {
-    cast(terrain, origin, dir, t_min, t_max, terrain.walls)
+    let curv = terrain.curvature(origin);
+    cast(terrain, curv, origin, dir, [t_min, t_max], terrain.walls)
 }
 
-fn cast(
+/// [`cast_ray`] in the tangent frame of the eye whose curvature `curv` is
+/// ([`Terrain::curvature`]): the rays of one picture, shadow rays included.
+pub fn cast_ray_seen_from(
     terrain: &Terrain,
+    curv: GridCurvature,
     origin: DVec3,
     dir: DVec3,
     t_min: f64,
     t_max: f64,
+) -> Option<Hit> {
+    cast(terrain, curv, origin, dir, [t_min, t_max], terrain.walls)
+}
+
+fn cast(
+    terrain: &Terrain,
+    curv: GridCurvature,
+    origin: DVec3,
+    dir: DVec3,
+    [t_min, t_max]: [f64; 2],
     walls: bool,
 ) -> Option<Hit> {
     let dir = dir.normalize();
-    let r = GridRay::from_world(terrain, origin, dir);
+    let r = GridRay::seen_from(terrain, origin, dir, curv);
     let mut stats = TraversalStats::default();
     intersect_with_walls(
         terrain,
@@ -86,17 +108,18 @@ pub fn line_of_sight(terrain: &Terrain, a: DVec3, b: DVec3) -> bool {
     if s0 > s1 {
         return true; // never over the grid
     }
+    let curv = terrain.curvature(a);
     let first = terrain.frame.world_to_grid(a + d * s0);
     let ground =
         terrain.height_at_grid(first.x.clamp(0.0, cw as f64), first.y.clamp(0.0, ch as f64));
-    if ground.is_some_and(|h| first.z < h - eps) {
+    if ground.is_some_and(|h| first.z + curv.drop(first.x, first.y) < h - eps) {
         return false;
     }
     if len == 0.0 {
         return true;
     }
     // Walls on: a segment entering the grid's box below the surface is blocked where it enters.
-    cast(terrain, a, d / len, eps, len - eps, true).is_none()
+    cast(terrain, curv, a, d / len, [eps, len - eps], true).is_none()
 }
 
 /// True when `p` is over the height grid and more than 1 mm below the terrain surface.
@@ -111,13 +134,27 @@ pub fn shadow_offset(terrain: &Terrain) -> f64 {
         + 1e-4 * (terrain.max_height.abs() as f64)
 }
 
-/// True when the sun (unit direction `to_sun`) is visible from surface point `p` with normal `n`.
+/// True when the sun (unit direction `to_sun`) is visible from surface point `p` with normal `n`
+/// (on a curved terrain in `p`'s own tangent frame; see [`sun_visible_seen_from`]).
 pub fn sun_visible(terrain: &Terrain, p: DVec3, n: DVec3, to_sun: DVec3) -> bool {
+    sun_visible_seen_from(terrain, terrain.curvature(p), p, n, to_sun)
+}
+
+/// [`sun_visible`] for a hit of a picture whose eye has curvature `curv` (the shade pass's
+/// shadow ray: the same frame as the primary ray).
+pub fn sun_visible_seen_from(
+    terrain: &Terrain,
+    curv: GridCurvature,
+    p: DVec3,
+    n: DVec3,
+    to_sun: DVec3,
+) -> bool {
     if n.dot(to_sun) <= 0.0 {
         return false;
     }
-    cast_ray(
+    cast_ray_seen_from(
         terrain,
+        curv,
         p + n * shadow_offset(terrain),
         to_sun,
         0.0,

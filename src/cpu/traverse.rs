@@ -11,29 +11,77 @@
 //! i.e. the terrain renders as a solid block with vertical side walls down to the lowest
 //! sample and a floor there. With `terrain.walls = false` such a ray instead passes under the
 //! surface until it comes up through it ([`patch_hit_from_below`]).
+//!
+//! Curved earth (`terrain.curved`): the ray carries the picture's [`GridCurvature`] (the
+//! eye's paraboloid); its height above the curved datum is `z(t) + drop(x(t), y(t))`, a convex
+//! quadratic in `t`, which the box clip, the cell bound test and the patch quadratic use in
+//! place of `z(t)` (see `docs/database.md#curved-earth`). Flat: `drop = 0`, the same
+//! arithmetic as before.
 
+use crate::terrain::curved::GridCurvature;
 use crate::terrain::pyramid::PAD;
 use crate::terrain::Terrain;
 use glam::DVec3;
 
-/// A ray in the grid frame: `p(t) = o + d t`, with `t` in world metres.
+/// A ray in the grid frame: `p(t) = o + d t`, with `t` in world metres, and the curvature of
+/// the picture it belongs to ([`GridCurvature::FLAT`] on a flat terrain).
 #[derive(Clone, Copy, Debug)]
 pub struct GridRay {
     pub o: DVec3,
     pub d: DVec3,
+    pub curv: GridCurvature,
 }
 
 impl GridRay {
-    /// The grid-frame ray of a world ray (`dir` must be unit length for `t` in metres).
+    /// The grid-frame ray of a world ray (`dir` must be unit length for `t` in metres), seen
+    /// from its own origin: on a curved terrain the world frame is the origin's tangent frame.
     pub fn from_world(terrain: &Terrain, origin: DVec3, dir: DVec3) -> GridRay {
+        Self::seen_from(terrain, origin, dir, terrain.curvature(origin))
+    }
+    /// As [`GridRay::from_world`] in the tangent frame of another eye (`curv`, from
+    /// [`Terrain::curvature`] of the camera): shadow rays of a picture.
+    pub fn seen_from(terrain: &Terrain, origin: DVec3, dir: DVec3, curv: GridCurvature) -> GridRay {
         GridRay {
             o: terrain.frame.world_to_grid(origin),
             d: terrain.frame.world_dir_to_grid(dir),
+            curv,
         }
     }
     #[inline]
     pub fn at(&self, t: f64) -> DVec3 {
         self.o + self.d * t
+    }
+    /// Height of the ray at `t` above the curved datum: `z(t) + drop(x(t), y(t))`.
+    #[inline]
+    pub fn lifted(&self, t: f64) -> f64 {
+        let p = self.at(t);
+        p.z + self.curv.drop(p.x, p.y)
+    }
+    /// `lifted(t) = A t² + B t + C` (A ≥ 0): the coefficients, `x − eye` taken before squaring.
+    pub fn lifted_quadratic(&self) -> (f64, f64, f64) {
+        let k = self.curv.k;
+        let (ex, ey) = (self.o.x - self.curv.eye.x, self.o.y - self.curv.eye.y);
+        (
+            k.x * self.d.x * self.d.x + k.y * self.d.y * self.d.y,
+            self.d.z + 2.0 * (k.x * ex * self.d.x + k.y * ey * self.d.y),
+            self.o.z + self.curv.drop(self.o.x, self.o.y),
+        )
+    }
+    /// Lowest height above the curved datum over `[ta, tb]` (the lower end of the segment on
+    /// a flat terrain; else also the vertex of the convex quadratic where it lies inside).
+    pub fn lowest(&self, ta: f64, tb: f64) -> f64 {
+        if self.curv.is_flat() {
+            return (self.o.z + self.d.z * ta).min(self.o.z + self.d.z * tb);
+        }
+        let (a, b, _) = self.lifted_quadratic();
+        let mut low = self.lifted(ta).min(self.lifted(tb));
+        if a > 0.0 {
+            let tv = -b / (2.0 * a);
+            if tv > ta && tv < tb {
+                low = low.min(self.lifted(tv));
+            }
+        }
+        low
     }
 }
 
@@ -74,7 +122,11 @@ pub fn clip_to_box(terrain: &Terrain, r: &GridRay, t_min: f64, t_max: f64) -> Op
     let lo = DVec3::new(0.0, 0.0, terrain.min_height as f64 - slack);
     let hi = DVec3::new(cw as f64, ch as f64, terrain.max_height as f64 + slack);
     let (mut t0, mut t1) = (t_min, t_max);
-    for a in 0..3 {
+    let axes = if r.curv.is_flat() { 3 } else { 2 };
+    if axes == 2 {
+        (t0, t1) = clip_curved_slab(r, lo.z, hi.z, t0, t1)?;
+    }
+    for a in 0..axes {
         let (o, d) = (r.o[a], r.d[a]);
         if d.abs() < 1e-300 {
             if o < lo[a] || o > hi[a] {
@@ -87,6 +139,47 @@ pub fn clip_to_box(terrain: &Terrain, r: &GridRay, t_min: f64, t_max: f64) -> Op
             }
             t0 = t0.max(ta);
             t1 = t1.min(tb);
+        }
+    }
+    (t0 <= t1).then_some((t0, t1))
+}
+
+/// The curved z-slab: `t` in `[t0, t1]` where the ray's height above the curved datum
+/// (a convex quadratic) is at most `hi`; for an origin below `lo` (underground), from where it
+/// comes back above `lo`.
+fn clip_curved_slab(r: &GridRay, lo: f64, hi: f64, t0: f64, t1: f64) -> Option<(f64, f64)> {
+    let (a, b, c) = r.lifted_quadratic();
+    let (mut t0, mut t1) = (t0, t1);
+    // Roots of a t² + b t + (c − h), stable formula; a > 0.
+    let roots = |h: f64| -> Option<(f64, f64)> {
+        let cc = c - h;
+        let disc = b * b - 4.0 * a * cc;
+        if disc < 0.0 {
+            return None;
+        }
+        let q = -0.5 * (b + b.signum() * disc.sqrt());
+        let (r1, r2) = (q / a, if q != 0.0 { cc / q } else { 0.0 });
+        Some((r1.min(r2), r1.max(r2)))
+    };
+    if a <= 0.0 {
+        // Vertical ray: the flat slab.
+        if b.abs() < 1e-300 {
+            if c < lo || c > hi {
+                return None;
+            }
+        } else {
+            let (ta, tb) = ((lo - c) / b, (hi - c) / b);
+            t0 = t0.max(ta.min(tb));
+            t1 = t1.min(ta.max(tb));
+        }
+        return (t0 <= t1).then_some((t0, t1));
+    }
+    let (ra, rb) = roots(hi)?;
+    t0 = t0.max(ra);
+    t1 = t1.min(rb);
+    if c < lo {
+        if let Some((_, up)) = roots(lo) {
+            t0 = t0.max(up);
         }
     }
     (t0 <= t1).then_some((t0, t1))
@@ -207,7 +300,17 @@ fn patch_quadratic(
     let qa = -e * r.d.x * r.d.y;
     let qb = r.d.z - b * r.d.x - c * r.d.y - e * (u0 * r.d.y + v0 * r.d.x);
     let qc = p.z - (a + b * u0 + c * v0 + e * u0 * v0);
-    (qa, qb, qc)
+    if r.curv.is_flat() {
+        return (qa, qb, qc);
+    }
+    // The drop along the ray from p: k·(p − eye + d s)², exact in s.
+    let k = r.curv.k;
+    let (ex, ey) = (p.x - r.curv.eye.x, p.y - r.curv.eye.y);
+    (
+        qa + k.x * r.d.x * r.d.x + k.y * r.d.y * r.d.y,
+        qb + 2.0 * (k.x * ex * r.d.x + k.y * ey * r.d.y),
+        qc + r.curv.drop(p.x, p.y),
+    )
 }
 
 /// Traverses the pyramid; returns the first hit `(t, cell)` in `[t_min, t_max]`. The
@@ -248,7 +351,7 @@ pub fn intersect_with_walls(
     // Without walls: is the ray below the surface where it enters the box?
     let mut under = !walls && {
         let p = r.at(t0);
-        p.z < surface_height_clamped(terrain, p.x, p.y)
+        r.lifted(t0) < surface_height_clamped(terrain, p.x, p.y)
     };
     let pyr = &terrain.pyramid;
     let top = pyr.top();
@@ -283,7 +386,7 @@ pub fn intersect_with_walls(
         };
         let t_exit = tx.min(ty).min(t1).max(t);
         let cell_max = pyr.get(level, ix, iy) as f64;
-        let z_low = (r.o.z + r.d.z * t).min(r.o.z + r.d.z * t_exit);
+        let z_low = r.lowest(t, t_exit);
         if z_low <= cell_max + slack && cell_max > PAD as f64 {
             if level > 0 {
                 // Descend to the child holding the entry point.
@@ -339,7 +442,9 @@ pub fn intersect_with_walls(
     None
 }
 
-/// Full hit record for a grid-space hit.
+/// Full hit record for a grid-space hit. On a curved terrain the point is in the eye's
+/// tangent frame (its z is the surface's height less the drop) and the normal tilts with the
+/// drop's gradient.
 pub fn make_hit(terrain: &Terrain, r: &GridRay, t: f64, cell: [usize; 2]) -> Hit {
     let p = r.at(t);
     let f = &terrain.field;
@@ -355,8 +460,9 @@ pub fn make_hit(terrain: &Terrain, r: &GridRay, t: f64, cell: [usize; 2]) -> Hit
         (p.y - j as f64).clamp(0.0, 1.0),
     );
     let e = h00 - h10 - h01 + h11;
-    let dhdx = h10 - h00 + e * v;
-    let dhdy = h01 - h00 + e * u;
+    let g = r.curv.drop_gradient(p.x, p.y);
+    let dhdx = h10 - h00 + e * v - g.x;
+    let dhdy = h01 - h00 + e * u - g.y;
     Hit {
         t,
         point: terrain.frame.grid_to_world(p),

@@ -424,6 +424,7 @@ impl TerrainRenderer {
             drape: self.base.data.has_drape,
             voxels: self.voxels.is_some(),
             volume_shadows: s.shadows && self.volumes.any_casts_shadow(),
+            curved: job.terrain.curved,
         };
         let shade_index = match &mut self.objects {
             Some(o) => o.shade.prepare(&gpu.device, features),
@@ -542,8 +543,15 @@ impl TerrainRenderer {
                 cam,
                 job.scene.sun.direction(),
                 // No surface lies lower: the terrain's lowest point, the free
-                // forms' and the models' own (their boxes start the sweep).
-                job.terrain.lowest_z().min(self.objects_floor) - 1.0,
+                // forms' and the models' own (their boxes start the sweep); a curved
+                // terrain's drop.
+                (job.terrain.lowest_z()
+                    - job
+                        .terrain
+                        .curvature(cam.pose.position)
+                        .max_drop(job.terrain.cells()))
+                .min(self.objects_floor)
+                    - 1.0,
             )
         } else {
             full(n)

@@ -24,9 +24,16 @@ pub fn raygen() -> String {
     [FULLSCREEN, include_str!("shaders/raygen.wgsl")].concat()
 }
 
-/// Tile pre-pass (fragment).
-pub fn tile() -> String {
+/// The traversal's curved-earth switch (`CURVED` in `terrain_traverse.wgsl`).
+fn curved_const(curved: bool) -> String {
+    super::variants::wgsl_bools(&[("CURVED", curved)])
+}
+
+/// Tile pre-pass (fragment); `curved`: the terrain's curved earth (see
+/// [`super::variants::ShadeFeatures::curved`]).
+pub fn tile(curved: bool) -> String {
     [
+        &curved_const(curved),
         FRAME,
         FULLSCREEN,
         RAY_TABLE,
@@ -36,9 +43,11 @@ pub fn tile() -> String {
     .concat()
 }
 
-/// Terrain cast pass (fragment): traversal only, writes the G-buffer.
-pub fn cast() -> String {
+/// Terrain cast pass (fragment): traversal only, writes the G-buffer; `curved` as in
+/// [`tile`].
+pub fn cast(curved: bool) -> String {
     [
+        &curved_const(curved),
         FRAME,
         FULLSCREEN,
         RAY_TABLE,
@@ -279,8 +288,10 @@ pub fn all() -> Vec<(&'static str, String)> {
     };
     vec![
         ("raygen", raygen()),
-        ("tile", tile()),
-        ("cast", cast()),
+        ("tile", tile(false)),
+        ("tile (curved)", tile(true)),
+        ("cast", cast(false)),
+        ("cast (curved)", cast(true)),
         ("shade", shade(ShadeFeatures::ALL)),
         ("shade (no options)", shade(ShadeFeatures::NONE)),
         ("shade_objects", shade_objects(ShadeFeatures::ALL, UNIFORM)),

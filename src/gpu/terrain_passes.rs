@@ -207,8 +207,8 @@ impl TerrainPasses {
         let dev = &gpu.device;
         let module = |label: &str, src: String| super::shader_module(dev, gpu.params, label, &src);
         let raygen_mod = module("raygen.wgsl", shaders::raygen());
-        let tile_mod = module("tile.wgsl", shaders::tile());
-        let cast_mod = module("cast.wgsl", shaders::cast());
+        let tile_mod = module("tile.wgsl", shaders::tile(terrain.curved));
+        let cast_mod = module("cast.wgsl", shaders::cast(terrain.curved));
         let fullscreen = |label: &str,
                           m: &wgpu::ShaderModule,
                           entry: &str,

@@ -33,6 +33,8 @@ pub struct FrameUniforms {
     pub sun_world: [f32; 4],
     pub objects: [u32; 4],
     pub stamp: [u32; 4],
+    /// Curved earth: eye grid x, y, `GridCurvature::k` x, y (zero on a flat terrain).
+    pub curvature: [f32; 4],
     pub levels: [[u32; 4]; MAX_LEVELS],
 }
 
@@ -48,7 +50,7 @@ pub struct RayGenUniforms {
     pub eye: [f32; 4],
 }
 
-const _: () = assert!(std::mem::size_of::<FrameUniforms>() == 16 * (28 + MAX_LEVELS));
+const _: () = assert!(std::mem::size_of::<FrameUniforms>() == 16 * (29 + MAX_LEVELS));
 const _: () = assert!(std::mem::size_of::<RayGenUniforms>() == 96);
 
 /// Mirrors WGSL `FfObject` in `shaders/freeform.wgsl`: one placed free form.

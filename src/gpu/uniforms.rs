@@ -85,6 +85,12 @@ pub fn frame_uniforms(
         } => (1, [step_cells, bisections as f32, 0.0, 0.0]),
     };
     let c = |v: [f32; 3], w: f32| [v[0], v[1], v[2], w];
+    let curv = terrain.curvature(cam.pose.position);
+    let mut slack = (4.0 * crate::cpu::traverse::height_slack(terrain)).max(1e-3);
+    if !curv.is_flat() {
+        // f32 rounding of the drop (up to ~10 km at 350 km) in the cell bound test.
+        slack = slack.max(1e-6 * curv.max_drop(terrain.cells()));
+    }
     FrameUniforms {
         eye: v4(eye, 1.0),
         grid_from_world: [
@@ -106,7 +112,7 @@ pub fn frame_uniforms(
             terrain.min_height,
             terrain.max_height,
             crate::cpu::query::shadow_offset(terrain) as f32,
-            (4.0 * crate::cpu::traverse::height_slack(terrain)).max(1e-3) as f32,
+            slack as f32,
         ],
         drape_map,
         size: [cam.width, cam.height, tiles[0], tiles[1]],
@@ -129,6 +135,12 @@ pub fn frame_uniforms(
         sun_world: v4(sun, 0.0),
         objects: [0; 4],
         stamp: [0; 4],
+        curvature: [
+            curv.eye.x as f32,
+            curv.eye.y as f32,
+            curv.k.x as f32,
+            curv.k.y as f32,
+        ],
         levels,
     }
 }

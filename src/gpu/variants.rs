@@ -32,6 +32,9 @@ pub struct ShadeFeatures {
     pub voxels: bool,
     /// Density volumes shadow the surfaces (the volume-sun pass's answer).
     pub volume_shadows: bool,
+    /// Curved earth (`terrain.curved`): the traversal, normals and heights with the drop of
+    /// the datum below the eye's tangent plane (`CURVED`; flat terrains compile without it).
+    pub curved: bool,
 }
 
 impl ShadeFeatures {
@@ -41,6 +44,7 @@ impl ShadeFeatures {
         drape: true,
         voxels: true,
         volume_shadows: true,
+        curved: true,
     };
     /// None compiled in.
     pub const NONE: ShadeFeatures = ShadeFeatures {
@@ -48,6 +52,7 @@ impl ShadeFeatures {
         drape: false,
         voxels: false,
         volume_shadows: false,
+        curved: false,
     };
 }
 
@@ -58,6 +63,7 @@ impl Switches for ShadeFeatures {
             ("DRAPE", self.drape),
             ("VOXELS", self.voxels),
             ("VOLUME_SHADOWS", self.volume_shadows),
+            ("CURVED", self.curved),
         ])
     }
 }

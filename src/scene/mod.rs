@@ -125,8 +125,14 @@ impl Default for Fog {
 #[derive(Clone, Copy, Debug, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct CameraDesc {
-    /// World position in metres.
-    pub position: [f64; 3],
+    /// World position in metres (this or `geodetic`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub position: Option<[f64; 3]>,
+    /// `[latitude, longitude, altitude]`: degrees, metres above MSL, instead of `position`
+    /// (a georeferenced terrain; the point must be over it). Heading stays from grid +y,
+    /// which is true north on such a terrain.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub geodetic: Option<[f64; 3]>,
     /// If set, the position's z is replaced by the terrain height below plus this many metres.
     pub above_terrain: Option<f64>,
     /// Degrees clockwise from north (+y).
@@ -218,8 +224,21 @@ impl Scene {
     /// ground below the camera.
     pub fn load_terrain(&self) -> Result<Terrain> {
         let terrain = Terrain::from_desc(&self.desc.terrain, &self.base_dir)?;
+        self.camera_position(&terrain)?;
         self.check_above_terrain(&terrain)?;
         Ok(terrain)
+    }
+
+    /// The static camera's world position: `camera.position`, or `camera.geodetic` mapped
+    /// by [`Terrain::geodetic_to_world`] (an error naming `camera.geodetic` when the terrain
+    /// has no geographic reference or the point is off it).
+    pub fn camera_position(&self, terrain: &Terrain) -> Result<DVec3> {
+        let c = &self.desc.camera;
+        match (c.position, c.geodetic) {
+            (Some(p), None) => Ok(DVec3::from(p)),
+            (None, Some(g)) => terrain.geodetic_to_world("camera.geodetic", g),
+            _ => Err(camera_position_error()),
+        }
     }
 
     /// `Err` naming `camera.above_terrain` when it is set but the camera position is not over
@@ -229,7 +248,7 @@ impl Scene {
         if c.above_terrain.is_none() {
             return Ok(());
         }
-        let p = DVec3::from(c.position);
+        let p = self.camera_position(terrain)?;
         if terrain.point_below(p).is_some() {
             return Ok(());
         }
@@ -302,7 +321,8 @@ impl Scene {
         let pose = match &d.path {
             Some(p) => p.pose_at(frame as f64 / p.fps),
             None => Pose {
-                position: DVec3::from(d.camera.position),
+                // Checked by `load_terrain`; the origin only for a terrain it did not load.
+                position: self.camera_position(terrain).unwrap_or(DVec3::ZERO),
                 heading: d.camera.heading,
                 pitch: d.camera.pitch,
                 roll: d.camera.roll,
@@ -323,7 +343,15 @@ impl SceneDesc {
     /// Checks ranges and consistency; errors name the field.
     pub fn validate(&self) -> Result<()> {
         let c = &self.camera;
-        check_finite("camera.position", &c.position)?;
+        if c.position.is_some() == c.geodetic.is_some() {
+            return Err(camera_position_error());
+        }
+        if let Some(p) = &c.position {
+            check_finite("camera.position", p)?;
+        }
+        if let Some(g) = &c.geodetic {
+            check_finite("camera.geodetic", g)?;
+        }
         check_finite("camera.heading/pitch/roll", &[c.heading, c.pitch, c.roll])?;
         camera::check_fov("camera.fov", c.fov)?;
         if let Some(a) = c.above_terrain {
@@ -417,4 +445,11 @@ impl SceneDesc {
         }
         Ok(())
     }
+}
+
+fn camera_position_error() -> Error {
+    Error::invalid(
+        "camera.position",
+        "give the camera either `position = [x, y, z]` (metres) or `geodetic = [latitude, longitude, altitude]`, exactly one of them",
+    )
 }

@@ -38,6 +38,12 @@ impl GridCurvature {
         )
     }
 
+    /// Largest drop over a grid of `cells` (at its corner farthest from the eye).
+    pub fn max_drop(&self, cells: [usize; 2]) -> f64 {
+        let far = |e: f64, n: usize| e.abs().max((n as f64 - e).abs());
+        self.k.x * far(self.eye.x, cells[0]).powi(2) + self.k.y * far(self.eye.y, cells[1]).powi(2)
+    }
+
     pub fn is_flat(&self) -> bool {
         self.k == DVec2::ZERO
     }

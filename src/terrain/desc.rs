@@ -54,6 +54,9 @@ pub struct TerrainDesc {
     /// The curved earth (WGS84, `geodesy::Curvature` at the eye): default on for a database,
     /// off for single height files and procedural terrain.
     pub curved: Option<bool>,
+    /// Heights below this (metres, e.g. `0.0`) are raised to it at load: the sea floor of a
+    /// global DEM becomes a flat sea surface.
+    pub sea_level: Option<f64>,
 }
 
 fn yes() -> bool {

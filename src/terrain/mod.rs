@@ -200,6 +200,19 @@ impl Terrain {
                 field
             }
         };
+        let mut field = field;
+        if let Some(sea) = desc.sea_level {
+            if !sea.is_finite() || sea.abs() > 1.0e4 {
+                return Err(Error::invalid(
+                    "terrain.sea_level",
+                    format!("must be a height within ±10000 m, got {sea}"),
+                ));
+            }
+            let sea = sea as f32;
+            for h in &mut field.heights {
+                *h = h.max(sea);
+            }
+        }
         check_height_range(desc, base_dir, &field)?;
         let (axis_x, axis_y, normal) = desc.axes()?;
         let frame = TerrainFrame {

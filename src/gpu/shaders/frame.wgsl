@@ -56,6 +56,9 @@ struct Frame {
     // x: this frame's stamp (never 0; the free-form shadow pass marks blocked pixels with it,
     // so its target needs no clear), yzw: unused.
     stamp: vec4<u32>,
+    // Curved earth (`CURVED` pipelines): eye grid x, y; drop per squared grid step along x, y
+    // (metres): the datum lies k.x (x - ex)^2 + k.y (y - ey)^2 below the eye's tangent plane.
+    curvature: vec4<f32>,
     // Per level: cells x, cells y, row stride, offset into `pyramid`.
     levels: array<vec4<u32>, 16>,
 }

@@ -158,6 +158,12 @@ fn shade_surface(px: vec2<u32>, g: vec4<u32>, dir_w: vec3<f32>, dl: vec3<f32>) -
     let t = bitcast<f32>(g.x);
     let ro = frame.eye.xyz;
     let p = ro + to_grid_dir(dir_w) * t;
+    // Curved earth: p is in the eye's tangent frame; its height above MSL (colour ramp,
+    // haze altitude) is p.z + drop.
+    var p_msl = p;
+    if (CURVED) {
+        p_msl.z = p.z + drop_at(p.xy);
+    }
     let sun = frame.sun_local.xyz;
     let is_object = (flags & 16u) != 0u;
     // Voxel models (flag 32): palette RGBA in y, packed world face normal in z.
@@ -182,8 +188,13 @@ fn shade_surface(px: vec2<u32>, g: vec4<u32>, dir_w: vec3<f32>, dl: vec3<f32>) -
         let cell = cell_shape(i, j, u, v);
         let h = cell.h;
         let e = h.x - h.y - h.z + h.w;
-        n_geom = local_normal(vec2<f32>(h.y - h.x + e * v, h.z - h.x + e * u));
-        n = local_normal(cell.gradient);
+        // Curved earth: the surface tilts with the drop's gradient.
+        var dg = vec2<f32>(0.0);
+        if (CURVED) {
+            dg = drop_gradient(p.xy);
+        }
+        n_geom = local_normal(vec2<f32>(h.y - h.x + e * v, h.z - h.x + e * u) - dg);
+        n = local_normal(cell.gradient - dg);
     }
     var lit = select(0.0, 1.0, dot(n_geom, sun) > 0.0);
     var shadow_steps = 0u;
@@ -215,11 +226,11 @@ fn shade_surface(px: vec2<u32>, g: vec4<u32>, dir_w: vec3<f32>, dl: vec3<f32>) -
         c = base * (diffuse + ambient_light(n));
         out.data = vec4<u32>(g.x, g.w >> 16u, min(shadow_steps, 0xffffu) << 16u, flags & 0x3fu);
     } else {
-        let base = albedo(p, n);
+        let base = albedo(p_msl, n);
         let diffuse = frame.sun_colour.xyz * (frame.sun_local.w * max(dot(n, sun), 0.0) * lit);
         c = base * (diffuse + ambient_light(n));
         out.data = vec4<u32>(g.x, g.z, min(patches, 0xffffu) | (min(shadow_steps, 0xffffu) << 16u), flags);
     }
-    out.colour = vec4<f32>(aerial_perspective(c, t, p.z, dl), 1.0);
+    out.colour = vec4<f32>(aerial_perspective(c, t, p_msl.z, dl), 1.0);
     return out;
 }

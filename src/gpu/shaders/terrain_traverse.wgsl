@@ -1,5 +1,6 @@
 // Ray-terrain traversal through the maximum pyramid; the same algorithm as
-// `src/cpu/traverse.rs`, step for step. Expects module-scope `frame`, `heights`, `pyramid`.
+// `src/cpu/traverse.rs`, step for step. Expects module-scope `frame`, `heights`, `pyramid`
+// and the compile-time switch `CURVED` (curved earth, prepended by `gpu::shaders`).
 
 struct Ray {
     o: vec3<f32>,
@@ -78,8 +79,89 @@ fn surface_height(x: f32, y: f32) -> f32 {
     return mix(mix(h00, h10, u), mix(h01, h11, u), v);
 }
 
+// Curved earth (`CURVED`, a compile-time switch: flat terrains compile without this code).
+// The datum lies drop(x, y) = k.x (x - ex)^2 + k.y (y - ey)^2 metres below the eye's tangent
+// plane (frame.curvature = ex, ey, k.x, k.y, grid units; `x - ex` taken before squaring); a
+// ray's height above it, z(t) + drop(x(t), y(t)), is a convex quadratic A t^2 + B t + C.
+// Same as `GridRay::lifted` and friends in `src/cpu/traverse.rs`.
+fn drop_at(p: vec2<f32>) -> f32 {
+    let e = p - frame.curvature.xy;
+    return frame.curvature.z * e.x * e.x + frame.curvature.w * e.y * e.y;
+}
+
+// Gradient of the drop (metres per grid step).
+fn drop_gradient(p: vec2<f32>) -> vec2<f32> {
+    return 2.0 * frame.curvature.zw * (p - frame.curvature.xy);
+}
+
+fn lifted(r: Ray, t: f32) -> f32 {
+    let p = r.o + r.d * t;
+    return p.z + drop_at(p.xy);
+}
+
+// (A, B, C) of the ray's height above the curved datum.
+fn lifted_quadratic(r: Ray) -> vec3<f32> {
+    let k = frame.curvature.zw;
+    let e = r.o.xy - frame.curvature.xy;
+    return vec3<f32>(k.x * r.d.x * r.d.x + k.y * r.d.y * r.d.y, r.d.z + 2.0 * (k.x * e.x * r.d.x + k.y * e.y * r.d.y), r.o.z + drop_at(r.o.xy));
+}
+
+// Lowest height above the curved datum over [ta, tb]: the ends, or the vertex inside.
+fn lowest_lifted(r: Ray, ta: f32, tb: f32, q: vec3<f32>) -> f32 {
+    var low = min(lifted(r, ta), lifted(r, tb));
+    if (q.x > 0.0) {
+        let tv = -q.y / (2.0 * q.x);
+        if (tv > ta && tv < tb) {
+            low = min(low, lifted(r, tv));
+        }
+    }
+    return low;
+}
+
+// The curved box: xy slabs as `clip_box`; the z-slab is where the height above the datum is
+// at most the highest sample (between the quadratic's roots) and, for an origin below the
+// lowest sample, from where it comes back above it (`clip_curved_slab` on the CPU).
+fn clip_box_curved(r: Ray, t_min: f32, t_max: f32) -> vec2<f32> {
+    let inv = vec2<f32>(safe_inv(r.d.x), safe_inv(r.d.y));
+    let ta = -r.o.xy * inv;
+    let tb = (vec2<f32>(cells_x(), cells_y()) - r.o.xy) * inv;
+    var t0 = max(max(min(ta.x, tb.x), min(ta.y, tb.y)), t_min);
+    var t1 = min(min(max(ta.x, tb.x), max(ta.y, tb.y)), t_max);
+    let q = lifted_quadratic(r);
+    let zlo = frame.heights_range.x - frame.heights_range.w;
+    let zhi = frame.heights_range.y + frame.heights_range.w;
+    if (q.x > 0.0) {
+        let ch = q.z - zhi;
+        let disc = q.y * q.y - 4.0 * q.x * ch;
+        if (disc < 0.0) {
+            return vec2<f32>(1.0, 0.0);
+        }
+        let s = -0.5 * (q.y + select(-1.0, 1.0, q.y >= 0.0) * sqrt(disc));
+        let r1 = s / q.x;
+        let r2 = select(0.0, ch / s, s != 0.0);
+        t0 = max(t0, min(r1, r2));
+        t1 = min(t1, max(r1, r2));
+        let cl = q.z - zlo;
+        let disc_lo = q.y * q.y - 4.0 * q.x * cl;
+        if (cl < 0.0 && disc_lo >= 0.0) {
+            let sl = -0.5 * (q.y + select(-1.0, 1.0, q.y >= 0.0) * sqrt(disc_lo));
+            t0 = max(t0, max(sl / q.x, select(0.0, cl / sl, sl != 0.0)));
+        }
+    } else {
+        let iz = safe_inv(q.y);
+        let za = (zlo - q.z) * iz;
+        let zb = (zhi - q.z) * iz;
+        t0 = max(t0, min(za, zb));
+        t1 = min(t1, max(za, zb));
+    }
+    return vec2<f32>(t0, t1);
+}
+
 // Clip to the terrain box; returns (t0, t1), empty when t0 > t1.
 fn clip_box(r: Ray, t_min: f32, t_max: f32) -> vec2<f32> {
+    if (CURVED) {
+        return clip_box_curved(r, t_min, t_max);
+    }
     let lo = vec3<f32>(0.0, 0.0, frame.heights_range.x - frame.heights_range.w);
     let hi = vec3<f32>(cells_x(), cells_y(), frame.heights_range.y + frame.heights_range.w);
     let inv = vec3<f32>(safe_inv(r.d.x), safe_inv(r.d.y), safe_inv(r.d.z));
@@ -108,9 +190,17 @@ fn patch_hit(r: Ray, i: i32, j: i32, ta: f32, tb: f32, under: bool) -> vec2<f32>
     let p = r.o + r.d * ta;
     let u0 = p.x - f32(i);
     let v0 = p.y - f32(j);
-    let qa = -e * r.d.x * r.d.y;
-    let qb = r.d.z - b * r.d.x - c * r.d.y - e * (u0 * r.d.y + v0 * r.d.x);
-    let qc = p.z - (h00 + b * u0 + c * v0 + e * u0 * v0);
+    var qa = -e * r.d.x * r.d.y;
+    var qb = r.d.z - b * r.d.x - c * r.d.y - e * (u0 * r.d.y + v0 * r.d.x);
+    var qc = p.z - (h00 + b * u0 + c * v0 + e * u0 * v0);
+    if (CURVED) {
+        // The drop along the ray from p: k (p - eye + d s)^2, exact in s.
+        let k = frame.curvature.zw;
+        let ep = p.xy - frame.curvature.xy;
+        qa += k.x * r.d.x * r.d.x + k.y * r.d.y * r.d.y;
+        qb += 2.0 * (k.x * ep.x * r.d.x + k.y * ep.y * r.d.y);
+        qc += drop_at(p.xy);
+    }
     let below = under && qc <= 0.0;
     if (qc <= 0.0 && !below) {
         return vec2<f32>(ta, 0.0);
@@ -261,11 +351,19 @@ fn traverse_from(r: Ray, t_min: f32, t_max: f32, max_steps: u32, start_level: u3
     let top = frame.grid.z - 1u;
     let dir = walk_dir(r);
     var w = walk_start(r, tt.x, min(start_level, top));
+    var lq = vec3<f32>(0.0);
+    if (CURVED) {
+        lq = lifted_quadratic(r);
+    }
     // Terrain without walls: is the ray below the surface where it enters the box?
     var under = false;
     if (frame.mode.z != 0u) {
         let p0 = r.o + r.d * tt.x;
-        under = p0.z < surface_height(p0.x, p0.y);
+        var z0 = p0.z;
+        if (CURVED) {
+            z0 = lifted(r, tt.x);
+        }
+        under = z0 < surface_height(p0.x, p0.y);
     }
     // Two nested loops for SIMD rasterisers: the inner one only steps through the pyramid and
     // stops at a level-0 cell the segment may touch; the patch test runs after it, once for
@@ -284,7 +382,10 @@ fn traverse_from(r: Ray, t_min: f32, t_max: f32, max_steps: u32, start_level: u3
             exits = cell_exits(r, dir, w);
             t_exit = max(min(min(exits.x, exits.y), t1), w.t);
             let cmax = pyr_get(w.level, w.cell.x, w.cell.y) + frame.heights_range.w;
-            let z_low = min(r.o.z + r.d.z * w.t, r.o.z + r.d.z * t_exit);
+            var z_low = min(r.o.z + r.d.z * w.t, r.o.z + r.d.z * t_exit);
+            if (CURVED) {
+                z_low = lowest_lifted(r, w.t, t_exit, lq);
+            }
             if (z_low <= cmax) {
                 if (w.level > 0u) {
                     w = descend(r, dir, w);
