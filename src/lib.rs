@@ -18,6 +18,7 @@
 //! * [`app`]: the commands of the `relief` binary (render, view, bench, warp, voxels).
 
 pub mod app;
+pub mod cigi;
 pub mod cpu;
 pub mod db;
 pub mod display;
