@@ -5,10 +5,10 @@
 mod common;
 
 use common::{temp_dir, Rng};
-use std::net::SocketAddr;
-use std::process::Command;
 use relief::cigi::pcap::{write_pcap, UdpFrame, HOST_ADDR, IG_ADDR};
 use relief::cigi::*;
+use std::net::SocketAddr;
+use std::process::Command;
 use std::time::Instant;
 
 // ---------------------------------------------------------------------------------------------
@@ -372,7 +372,12 @@ const IG_PORT: u16 = 8005;
 /// A capture of host and IG datagrams of both samples in `order`.
 fn capture(order: ByteOrder) -> Vec<u8> {
     let datagrams: Vec<(bool, Vec<u8>)> = (0..2)
-        .flat_map(|k| [(true, host_datagram(k, order)), (false, ig_datagram(k, order))])
+        .flat_map(|k| {
+            [
+                (true, host_datagram(k, order)),
+                (false, ig_datagram(k, order)),
+            ]
+        })
         .collect();
     let frames: Vec<UdpFrame<'_>> = datagrams
         .iter()
@@ -380,7 +385,12 @@ fn capture(order: ByteOrder) -> Vec<u8> {
         .map(|(i, (from_host, d))| {
             let (host, ig) = ((HOST_ADDR, CIGI_PORT), (IG_ADDR, IG_PORT));
             let (src, dst) = if *from_host { (host, ig) } else { (ig, host) };
-            UdpFrame { src, dst, time_us: 1_000_000 + 16_667 * i as u64, payload: d }
+            UdpFrame {
+                src,
+                dst,
+                time_us: 1_000_000 + 16_667 * i as u64,
+                payload: d,
+            }
         })
         .collect();
     write_pcap(&frames).unwrap()
@@ -394,7 +404,12 @@ fn round_trip<P: Packet + PartialEq + std::fmt::Debug>(p: &P, order: ByteOrder) 
     assert_eq!(bytes.len(), P::KIND.size(), "{:?}", P::KIND);
     assert_eq!(bytes[0], P::KIND.id());
     assert_eq!(usize::from(bytes[1]), P::KIND.size());
-    assert_eq!(P::decode(&bytes, order).as_ref(), Some(p), "{:?} {order:?}", P::KIND);
+    assert_eq!(
+        P::decode(&bytes, order).as_ref(),
+        Some(p),
+        "{:?} {order:?}",
+        P::KIND
+    );
     // One byte short, or another kind's ID: no packet.
     assert!(P::decode(&bytes[..bytes.len() - 1], order).is_none());
     let mut other = bytes.clone();
@@ -427,7 +442,11 @@ fn every_packet_round_trips_in_both_byte_orders() {
         }
     }
     // Every kind is covered above, host and IG sets included.
-    let kinds: Vec<Kind> = host_body(0).iter().map(|p| p.kind()).chain(ig_body(0).iter().map(|p| p.kind())).collect();
+    let kinds: Vec<Kind> = host_body(0)
+        .iter()
+        .map(|p| p.kind())
+        .chain(ig_body(0).iter().map(|p| p.kind()))
+        .collect();
     assert_eq!(kinds.len() + 2, Kind::ALL.len());
 }
 
@@ -440,7 +459,14 @@ fn whole_messages_read_back_in_both_byte_orders() {
             let mut want: Vec<HostPacket> = vec![ig_control(k).into()];
             want.extend(host_body(k));
             assert_eq!(m.packets, want);
-            assert_eq!(m.walk, Walk { packets: 12, decoded: 12, ..Walk::default() });
+            assert_eq!(
+                m.walk,
+                Walk {
+                    packets: 12,
+                    decoded: 12,
+                    ..Walk::default()
+                }
+            );
             let m = read_ig_message(&ig_datagram(k, order)).unwrap();
             assert_eq!(m.order, order);
             let mut want: Vec<IgPacket> = vec![start_of_frame(k).into()];
@@ -456,20 +482,39 @@ fn whole_messages_read_back_in_both_byte_orders() {
 #[test]
 fn byte_orders_put_each_field_where_the_icd_says() {
     let e = entity_control(0);
-    for (order, magic) in [(ByteOrder::Big, [0x80, 0x00]), (ByteOrder::Little, [0x00, 0x80])] {
+    for (order, magic) in [
+        (ByteOrder::Big, [0x80, 0x00]),
+        (ByteOrder::Little, [0x00, 0x80]),
+    ] {
         let be = order == ByteOrder::Big;
         let ig = ig_control(0).encode(order);
         assert_eq!(ig[2], 3, "version");
         assert_eq!(ig[4] >> 4, 3, "minor version");
         assert_eq!(&ig[6..8], &magic);
-        let host_frame = if be { 123_456u32.to_be_bytes() } else { 123_456u32.to_le_bytes() };
+        let host_frame = if be {
+            123_456u32.to_be_bytes()
+        } else {
+            123_456u32.to_le_bytes()
+        };
         assert_eq!(&ig[8..12], &host_frame);
         let bytes = e.encode(order);
-        let id = if be { e.entity_id.to_be_bytes() } else { e.entity_id.to_le_bytes() };
+        let id = if be {
+            e.entity_id.to_be_bytes()
+        } else {
+            e.entity_id.to_le_bytes()
+        };
         assert_eq!(&bytes[2..4], &id);
-        let lat = if be { e.lat.to_be_bytes() } else { e.lat.to_le_bytes() };
+        let lat = if be {
+            e.lat.to_be_bytes()
+        } else {
+            e.lat.to_le_bytes()
+        };
         assert_eq!(&bytes[24..32], &lat);
-        let yaw = if be { e.yaw.to_be_bytes() } else { e.yaw.to_le_bytes() };
+        let yaw = if be {
+            e.yaw.to_be_bytes()
+        } else {
+            e.yaw.to_le_bytes()
+        };
         assert_eq!(&bytes[20..24], &yaw);
         // State 1, attached, no collision detection, inherit alpha, conformal clamp (2).
         assert_eq!(bytes[4], 0b0101_0101);
@@ -515,7 +560,11 @@ fn decode_and_encode_agree_on_random_bytes() {
                 // Every non-reserved bit survives: the re-encoding keeps the random bits of
                 // the fields (at least half of the packet's bytes are field bytes).
                 let same = a.iter().zip(&bytes).filter(|(x, y)| x == y).count();
-                assert!(same * 2 >= kind.size(), "{kind:?}: {same} of {} bytes kept", kind.size());
+                assert!(
+                    same * 2 >= kind.size(),
+                    "{kind:?}: {same} of {} bytes kept",
+                    kind.size()
+                );
             }
         }
     }
@@ -524,7 +573,10 @@ fn decode_and_encode_agree_on_random_bytes() {
 // ---------------------------------------------------------------------------------------------
 // Hostile input
 
-fn host_msg(frame: u32, packets: &[&dyn Fn(&mut Vec<u8>)]) -> Vec<u8> {
+/// Appends one packet's bytes (valid or not) to a datagram.
+type Put<'a> = &'a dyn Fn(&mut Vec<u8>);
+
+fn host_msg(frame: u32, packets: &[Put<'_>]) -> Vec<u8> {
     let mut bytes = ig_control_at(frame, None).encode(ByteOrder::Big);
     for p in packets {
         p(&mut bytes);
@@ -577,15 +629,25 @@ fn assert_counters_add_up(c: &Counters) {
 fn size_zero_and_sizes_past_the_end_stop_the_walk() {
     let mut s = Session::new();
     let zero = |b: &mut Vec<u8>| b.extend_from_slice(&[2, 0, 0, 0, 0, 0, 0, 0]);
-    let w = s.receive(&host_msg(1, &[&push_entity(1), &zero, &push_entity(2)]), 0.0).unwrap();
+    let w = s
+        .receive(
+            &host_msg(1, &[&push_entity(1), &zero, &push_entity(2)]),
+            0.0,
+        )
+        .unwrap();
     assert_eq!(w.stop, Some(Stop::SizeBelowTwo));
     let one = |b: &mut Vec<u8>| b.extend_from_slice(&[2, 1, 0, 0]);
-    s.receive(&host_msg(2, &[&one, &push_entity(3)]), 0.0).unwrap();
+    s.receive(&host_msg(2, &[&one, &push_entity(3)]), 0.0)
+        .unwrap();
     let past = |b: &mut Vec<u8>| b.extend_from_slice(&[2, 200, 0, 0, 0, 0, 0, 0]);
-    let w = s.receive(&host_msg(3, &[&push_entity(4), &past]), 0.0).unwrap();
+    let w = s
+        .receive(&host_msg(3, &[&push_entity(4), &past]), 0.0)
+        .unwrap();
     assert_eq!(w.stop, Some(Stop::PastEnd));
     let stray = |b: &mut Vec<u8>| b.push(2);
-    let w = s.receive(&host_msg(4, &[&push_entity(5), &stray]), 0.0).unwrap();
+    let w = s
+        .receive(&host_msg(4, &[&push_entity(5), &stray]), 0.0)
+        .unwrap();
     assert_eq!(w.stop, Some(Stop::Trailing));
     // Entities before the stop stand; after it, none.
     let ids: Vec<u16> = s.entities().map(|e| e.id).collect();
@@ -601,12 +663,14 @@ fn size_zero_and_sizes_past_the_end_stop_the_walk() {
 fn unknown_short_and_misplaced_packets_are_skipped_and_counted() {
     let mut s = Session::new();
     // Component Control (ID 4, 32 bytes): a CIGI packet relief does not handle yet.
-    let unknown = |b: &mut Vec<u8>| b.extend_from_slice(&{
-        let mut p = [0u8; 32];
-        p[0] = 4;
-        p[1] = 32;
-        p
-    });
+    let unknown = |b: &mut Vec<u8>| {
+        b.extend_from_slice(&{
+            let mut p = [0u8; 32];
+            p[0] = 4;
+            p[1] = 32;
+            p
+        })
+    };
     // An Entity Control claiming 16 bytes: shorter than its layout.
     let short = |b: &mut Vec<u8>| {
         let mut p = entity(9).encode(ByteOrder::Big);
@@ -616,14 +680,35 @@ fn unknown_short_and_misplaced_packets_are_skipped_and_counted() {
     // Start of Frame from the host, and a second IG Control.
     let sof = |b: &mut Vec<u8>| start_of_frame(0).encode_into(ByteOrder::Big, b);
     let igc = |b: &mut Vec<u8>| ig_control(0).encode_into(ByteOrder::Big, b);
-    let d = host_msg(7, &[&unknown, &short, &push_entity(1), &sof, &igc, &push_entity(2)]);
+    let d = host_msg(
+        7,
+        &[
+            &unknown,
+            &short,
+            &push_entity(1),
+            &sof,
+            &igc,
+            &push_entity(2),
+        ],
+    );
     let w = s.receive(&d, 0.0).unwrap();
     assert_eq!(
         w,
-        Walk { packets: 7, decoded: 3, unknown: 2, short: 1, misplaced_header: 1, stop: None }
+        Walk {
+            packets: 7,
+            decoded: 3,
+            unknown: 2,
+            short: 1,
+            misplaced_header: 1,
+            stop: None
+        }
     );
     assert_eq!(s.entity_count(), 2);
-    assert_eq!(s.host_frame, Some(7), "the second IG Control is not applied");
+    assert_eq!(
+        s.host_frame,
+        Some(7),
+        "the second IG Control is not applied"
+    );
     // Longer than the layout: read by the layout, the rest skipped.
     let long = |b: &mut Vec<u8>| {
         let mut p = entity(3).encode(ByteOrder::Big);
@@ -631,7 +716,8 @@ fn unknown_short_and_misplaced_packets_are_skipped_and_counted() {
         p.extend_from_slice(&[0xff; 8]);
         b.extend_from_slice(&p);
     };
-    s.receive(&host_msg(8, &[&long, &push_entity(4)]), 0.0).unwrap();
+    s.receive(&host_msg(8, &[&long, &push_entity(4)]), 0.0)
+        .unwrap();
     assert_eq!(s.entity(3).unwrap().latest.pose.alt, 1000.0);
     assert!(s.entity(4).is_some());
     assert_counters_add_up(&s.counters);
@@ -653,7 +739,10 @@ fn wrong_versions_magic_numbers_and_headers_are_refused() {
         let r = s.receive(&with(4, (minor << 4) | 1), 0.0);
         assert_eq!(r, Err(Rejection::MinorVersion(minor)));
     }
-    assert_eq!(s.receive(&with(6, 0x81), 0.0), Err(Rejection::Magic([0x81, 0])));
+    assert_eq!(
+        s.receive(&with(6, 0x81), 0.0),
+        Err(Rejection::Magic([0x81, 0]))
+    );
     assert_eq!(s.receive(&with(1, 16), 0.0), Err(Rejection::Short));
     assert_eq!(s.receive(&with(1, 255), 0.0), Err(Rejection::Short));
     assert_eq!(s.receive(&good[..7], 0.0), Err(Rejection::Short));
@@ -663,7 +752,10 @@ fn wrong_versions_magic_numbers_and_headers_are_refused() {
     assert_eq!(s.receive(&headless, 0.0), Err(Rejection::NoHeader(2)));
     assert_eq!(s.entity_count(), 0);
     let c = s.counters.clone();
-    assert_eq!((c.refused_version, c.bad_magic, c.short, c.no_header), (9, 1, 4, 1));
+    assert_eq!(
+        (c.refused_version, c.bad_magic, c.short, c.no_header),
+        (9, 1, 4, 1)
+    );
     assert_eq!((c.accepted, c.packets), (0, 0));
     // Minor version 2 is read; a byte-swapped message is read as such.
     assert!(s.receive(&with(4, (2 << 4) | 1), 0.0).is_ok());
@@ -697,7 +789,13 @@ fn huge_entity_ids_live_in_a_map_and_the_count_is_capped() {
     // Updates of held entities still pass at the cap; destroying one makes room.
     let mut destroy = entity(65_535);
     destroy.entity_state = 2;
-    let d = host_msg(2, &[&|b: &mut Vec<u8>| destroy.encode_into(ByteOrder::Big, b), &push_entity(7)]);
+    let d = host_msg(
+        2,
+        &[
+            &|b: &mut Vec<u8>| destroy.encode_into(ByteOrder::Big, b),
+            &push_entity(7),
+        ],
+    );
     s.receive(&d, 0.0).unwrap();
     assert!(s.entity(65_535).is_none() && s.entity(7).is_some());
     assert_counters_add_up(&s.counters);
@@ -744,7 +842,10 @@ fn a_hundred_thousand_hostile_datagrams() {
     // 2-core machine in the test profile.
     const BUDGET_S: f64 = 1.0;
     let mut rng = Rng::new(2026);
-    let valid = [host_datagram(0, ByteOrder::Big), host_datagram(1, ByteOrder::Little)];
+    let valid = [
+        host_datagram(0, ByteOrder::Big),
+        host_datagram(1, ByteOrder::Little),
+    ];
     let mut datagrams = Vec::with_capacity(N);
     for i in 0..N {
         let r = rng.next_u64();
@@ -765,7 +866,8 @@ fn a_hundred_thousand_hostile_datagrams() {
                 let mut d = ig_control_at(i as u32, Some(i as u32)).encode(ByteOrder::Big);
                 for _ in 0..(r % 12) {
                     let x = rng.next_u64();
-                    let id = [1u8, 2, 8, 9, 10, 12, 16, 21, 24, 25, 26, 27, 101, 0, 255][(x % 15) as usize];
+                    let id = [1u8, 2, 8, 9, 10, 12, 16, 21, 24, 25, 26, 27, 101, 0, 255]
+                        [(x % 15) as usize];
                     let len = ((x >> 8) % 70) as usize;
                     d.push(id);
                     d.push((x >> 16) as u8);
@@ -793,7 +895,10 @@ fn a_hundred_thousand_hostile_datagrams() {
         secs * 1e3,
         secs * 1e6 / N as f64
     );
-    assert!(secs < BUDGET_S, "{secs:.3} s for {N} datagrams (budget {BUDGET_S} s)");
+    assert!(
+        secs < BUDGET_S,
+        "{secs:.3} s for {N} datagrams (budget {BUDGET_S} s)"
+    );
     assert_eq!(c.datagrams, N as u64);
     assert_counters_add_up(c);
     // Each kind of damage was met.
@@ -834,8 +939,10 @@ fn ownship_is_interpolated_between_two_host_samples() {
     let b = at(0, 47.5, 9.25, 1100.0, [10.0, 4.0, 10.0]);
     let wrap_a = at(1, -10.0, 179.75, 0.0, [170.0, 0.0, 0.0]);
     let wrap_b = at(1, -10.0, -179.75, 0.0, [-170.0, 0.0, 0.0]);
-    s.receive(&pose_msg(1, Some(100_000), &[a, wrap_a]), 50.0).unwrap();
-    s.receive(&pose_msg(2, Some(150_000), &[b, wrap_b]), 50.7).unwrap();
+    s.receive(&pose_msg(1, Some(100_000), &[a, wrap_a]), 50.0)
+        .unwrap();
+    s.receive(&pose_msg(2, Some(150_000), &[b, wrap_b]), 50.7)
+        .unwrap();
     assert_eq!(s.host_time, 1.5);
     let mid = s.pose_at(0, 1.25).unwrap();
     assert_eq!(
@@ -863,14 +970,23 @@ fn ownship_is_interpolated_between_two_host_samples() {
 #[test]
 fn host_time_follows_timestamps_through_their_wrap_or_the_arrival_clock() {
     let mut s = Session::new();
-    s.receive(&pose_msg(1, Some(u32::MAX - 49_999), &[entity(0)]), 0.0).unwrap();
+    s.receive(&pose_msg(1, Some(u32::MAX - 49_999), &[entity(0)]), 0.0)
+        .unwrap();
     let t0 = s.host_time;
-    s.receive(&pose_msg(2, Some(50_000), &[entity(0)]), 0.0).unwrap();
-    assert!((s.host_time - t0 - 1.0).abs() < 1e-6, "{} {}", s.host_time, t0);
+    s.receive(&pose_msg(2, Some(50_000), &[entity(0)]), 0.0)
+        .unwrap();
+    assert!(
+        (s.host_time - t0 - 1.0).abs() < 1e-6,
+        "{} {}",
+        s.host_time,
+        t0
+    );
     // Without valid timestamps the arrival times are the samples' times.
     let mut s = Session::new();
-    s.receive(&pose_msg(1, None, &[at(0, 0.0, 0.0, 0.0, [0.0; 3])]), 10.0).unwrap();
-    s.receive(&pose_msg(2, None, &[at(0, 0.0, 0.0, 20.0, [0.0; 3])]), 12.0).unwrap();
+    s.receive(&pose_msg(1, None, &[at(0, 0.0, 0.0, 0.0, [0.0; 3])]), 10.0)
+        .unwrap();
+    s.receive(&pose_msg(2, None, &[at(0, 0.0, 0.0, 20.0, [0.0; 3])]), 12.0)
+        .unwrap();
     assert_eq!(s.pose_at(0, 11.0).unwrap().alt, 10.0);
 }
 
@@ -901,20 +1017,45 @@ fn rate_control_dead_reckons_from_the_latest_sample() {
 #[test]
 fn entities_attach_detach_and_are_destroyed_with_their_children() {
     let mut s = Session::new();
-    let child = |id: u16, parent: u16| EntityControl { attach: true, parent_id: parent, ..entity(id) };
-    s.receive(&pose_msg(1, None, &[entity(10), child(11, 10), child(12, 11), entity(13)]), 0.0)
-        .unwrap();
+    let child = |id: u16, parent: u16| EntityControl {
+        attach: true,
+        parent_id: parent,
+        ..entity(id)
+    };
+    s.receive(
+        &pose_msg(
+            1,
+            None,
+            &[entity(10), child(11, 10), child(12, 11), entity(13)],
+        ),
+        0.0,
+    )
+    .unwrap();
     assert_eq!(s.entity(12).unwrap().parent, Some(11));
     // A cycle is refused.
-    s.receive(&pose_msg(2, None, &[child(10, 12)]), 0.0).unwrap();
-    assert_eq!((s.entity(10).unwrap().parent, s.counters.invalid_values), (None, 1));
-    let destroy = EntityControl { entity_state: 2, ..entity(10) };
+    s.receive(&pose_msg(2, None, &[child(10, 12)]), 0.0)
+        .unwrap();
+    assert_eq!(
+        (s.entity(10).unwrap().parent, s.counters.invalid_values),
+        (None, 1)
+    );
+    let destroy = EntityControl {
+        entity_state: 2,
+        ..entity(10)
+    };
     s.receive(&pose_msg(3, None, &[destroy]), 0.0).unwrap();
     let ids: Vec<u16> = s.entities().map(|e| e.id).collect();
     assert_eq!((ids, s.counters.destroyed), (vec![13], 3));
     // Reset/standby clears all but the ownship.
-    s.receive(&pose_msg(4, None, &[entity(0), entity(1)]), 0.0).unwrap();
-    let mut standby = MessageBuilder::host(&IgControl { ig_mode: 0, ..ig_control_at(5, None) }, ByteOrder::Big);
+    s.receive(&pose_msg(4, None, &[entity(0), entity(1)]), 0.0)
+        .unwrap();
+    let mut standby = MessageBuilder::host(
+        &IgControl {
+            ig_mode: 0,
+            ..ig_control_at(5, None)
+        },
+        ByteOrder::Big,
+    );
     standby.push(&HatHotRequest::default());
     s.receive(&standby.finish(), 0.0).unwrap();
     assert_eq!(s.entities().map(|e| e.id).collect::<Vec<_>>(), vec![0]);
@@ -946,15 +1087,32 @@ fn queries_queue_with_their_host_frame_up_to_the_cap() {
         s.receive(&m.finish(), 0.0).unwrap();
     }
     assert_eq!(s.pending_queries(), cap);
-    assert_eq!(s.counters.dropped_queries, (cap / 100 + 1) as u64 * 100 - cap as u64);
+    assert_eq!(
+        s.counters.dropped_queries,
+        (cap / 100 + 1) as u64 * 100 - cap as u64
+    );
 }
 
 #[test]
 fn environment_views_and_the_start_of_frame_message() {
     let mut s = Session::new();
-    let mut m = MessageBuilder::host(&IgControl { database: 4, ..ig_control_at(77, None) }, ByteOrder::Big);
-    m.push(&celestial(0)).push(&weather(0)).push(&view_control(0)).push(&view_definition(0));
-    m.push(&WeatherControl { scope: 0, enable: true, visibility: 800.0, ..weather(1) });
+    let mut m = MessageBuilder::host(
+        &IgControl {
+            database: 4,
+            ..ig_control_at(77, None)
+        },
+        ByteOrder::Big,
+    );
+    m.push(&celestial(0))
+        .push(&weather(0))
+        .push(&view_control(0))
+        .push(&view_definition(0));
+    m.push(&WeatherControl {
+        scope: 0,
+        enable: true,
+        visibility: 800.0,
+        ..weather(1)
+    });
     s.receive(&m.finish(), 0.0).unwrap();
     assert_eq!(s.celestial, Some(celestial(0)));
     assert_eq!(s.views[&300].control, Some(view_control(0)));
@@ -969,10 +1127,18 @@ fn environment_views_and_the_start_of_frame_message() {
     let mut out = s.start_of_frame(9, Some(1234));
     out.push(&hat_hot_response(0)).push(&los_response(1));
     let back = read_ig_message(&out.finish()).unwrap();
-    let IgPacket::StartOfFrame(sof) = back.packets[0] else { panic!("{:?}", back.packets[0]) };
-    assert_eq!((sof.ig_frame, sof.last_host_frame, sof.database, sof.ig_mode), (9, 78, 0, 1));
+    let IgPacket::StartOfFrame(sof) = back.packets[0] else {
+        panic!("{:?}", back.packets[0])
+    };
+    assert_eq!(
+        (sof.ig_frame, sof.last_host_frame, sof.database, sof.ig_mode),
+        (9, 78, 0, 1)
+    );
     assert_eq!((sof.timestamp_valid, sof.timestamp), (true, 1234));
-    assert_eq!(back.packets[1..], [hat_hot_response(0).into(), los_response(1).into()]);
+    assert_eq!(
+        back.packets[1..],
+        [hat_hot_response(0).into(), los_response(1).into()]
+    );
 }
 
 #[test]
@@ -980,10 +1146,18 @@ fn other_senders_are_ignored_once_the_host_is_known() {
     let host: SocketAddr = "127.0.0.1:8004".parse().unwrap();
     let other: SocketAddr = "127.0.0.9:8004".parse().unwrap();
     let mut s = Session::new();
-    assert!(s.receive_from(other, &[1, 2, 3], 0.0).unwrap().is_err(), "refused: no host yet");
-    assert!(s.receive_from(host, &pose_msg(1, None, &[entity(1)]), 0.0).unwrap().is_ok());
+    assert!(
+        s.receive_from(other, &[1, 2, 3], 0.0).unwrap().is_err(),
+        "refused: no host yet"
+    );
+    assert!(s
+        .receive_from(host, &pose_msg(1, None, &[entity(1)]), 0.0)
+        .unwrap()
+        .is_ok());
     assert_eq!(s.host, Some(host));
-    assert!(s.receive_from(other, &pose_msg(2, None, &[entity(2)]), 0.0).is_none());
+    assert!(s
+        .receive_from(other, &pose_msg(2, None, &[entity(2)]), 0.0)
+        .is_none());
     assert!(s.entity(2).is_none());
     assert_eq!(s.counters.ignored_sender, 1);
     assert_counters_add_up(&s.counters);
@@ -998,7 +1172,11 @@ type Expect = Vec<(String, String)>;
 fn fields(prefix: &str, list: &[(&str, f64)]) -> Expect {
     list.iter()
         .map(|(n, v)| {
-            let name = if n.starts_with("cigi.") { n.to_string() } else { format!("{prefix}.{n}") };
+            let name = if n.starts_with("cigi.") {
+                n.to_string()
+            } else {
+                format!("{prefix}.{n}")
+            };
             (name, v.to_string())
         })
         .collect()
@@ -1008,184 +1186,362 @@ fn f(v: bool) -> f64 {
     f64::from(u8::from(v))
 }
 
-fn header_fields(kind: Kind, order: ByteOrder) -> Expect {
-    let mut e = fields("", &[("cigi.packet_id", f64::from(kind.id())), ("cigi.packet_size", kind.size() as f64)]);
-    e.push(("cigi.version".into(), "3".into()));
-    let _ = order;
-    e
-}
-
 fn byte_swap(order: ByteOrder) -> (String, String) {
-    let show = if order == ByteOrder::Big { "0x8000" } else { "0x0080" };
+    let show = if order == ByteOrder::Big {
+        "0x8000"
+    } else {
+        "0x0080"
+    };
     ("cigi.byte_swap".into(), show.into())
 }
 
 fn expect_host(p: &HostPacket, order: ByteOrder) -> Expect {
-    let mut e = fields("", &[("cigi.packet_id", f64::from(p.kind().id())), ("cigi.packet_size", p.kind().size() as f64)]);
+    let mut e = fields(
+        "",
+        &[
+            ("cigi.packet_id", f64::from(p.kind().id())),
+            ("cigi.packet_size", p.kind().size() as f64),
+        ],
+    );
     let more = match *p {
         HostPacket::IgControl(p) => {
-            let mut h = header_fields(Kind::IgControl, order);
-            h.remove(0);
-            h.remove(0);
-            h.extend(fields("cigi.ig_control", &[
-                ("db_number", f64::from(p.database)), ("ig_mode", f64::from(p.ig_mode)),
-                ("timestamp_valid", f(p.timestamp_valid)), ("extrapolation_enable", f(p.extrapolation)),
-                ("minor_version", 3.0),
-            ]));
+            let mut h = vec![("cigi.version".to_string(), "3".to_string())];
+            h.extend(fields(
+                "cigi.ig_control",
+                &[
+                    ("db_number", f64::from(p.database)),
+                    ("ig_mode", f64::from(p.ig_mode)),
+                    ("timestamp_valid", f(p.timestamp_valid)),
+                    ("extrapolation_enable", f(p.extrapolation)),
+                    ("minor_version", 3.0),
+                ],
+            ));
             h.push(byte_swap(order));
-            h.extend(fields("cigi.ig_control", &[
-                ("host_frame_number", f64::from(p.host_frame)), ("timestamp", f64::from(p.timestamp)),
-                ("last_ig_frame_number", f64::from(p.last_ig_frame)),
-            ]));
+            h.extend(fields(
+                "cigi.ig_control",
+                &[
+                    ("host_frame_number", f64::from(p.host_frame)),
+                    ("timestamp", f64::from(p.timestamp)),
+                    ("last_ig_frame_number", f64::from(p.last_ig_frame)),
+                ],
+            ));
             h
         }
-        HostPacket::EntityControl(p) => fields("cigi.entity_control", &[
-            ("entity_id", f64::from(p.entity_id)), ("entity_state", f64::from(p.entity_state)),
-            ("attach_state", f(p.attach)), ("coll_det_request", f(p.collision_detection)),
-            ("inherit_alpha", f(p.inherit_alpha)), ("ground_ocean_clamp", f64::from(p.ground_clamp)),
-            ("animation_dir", f(p.animation_direction)), ("animation_loop_mode", f(p.animation_loop)),
-            ("animation_state", f64::from(p.animation_state)), ("extrapolation_enable", f(p.extrapolation)),
-            ("alpha", f64::from(p.alpha)), ("entity_type", f64::from(p.entity_type)),
-            ("parent_id", f64::from(p.parent_id)), ("roll", f64::from(p.roll)),
-            ("pitch", f64::from(p.pitch)), ("yaw", f64::from(p.yaw)), ("lat_xoff", p.lat),
-            ("lon_yoff", p.lon), ("alt_zoff", p.alt),
-        ]),
-        HostPacket::RateControl(p) => fields("cigi.rate_control", &[
-            ("entity_id", f64::from(p.entity_id)), ("part_id", f64::from(p.part_id)),
-            ("apply_to_part", f(p.apply_to_part)), ("coordinate_system", f(p.body_frame)),
-            ("x_rate", f64::from(p.x_rate)), ("y_rate", f64::from(p.y_rate)), ("z_rate", f64::from(p.z_rate)),
-            ("roll_rate", f64::from(p.roll_rate)), ("pitch_rate", f64::from(p.pitch_rate)),
-            ("yaw_rate", f64::from(p.yaw_rate)),
-        ]),
-        HostPacket::CelestialSphereControl(p) => fields("cigi.celestial_sphere_control", &[
-            ("hour", f64::from(p.hour)), ("minute", f64::from(p.minute)), ("ephemeris_enable", f(p.ephemeris)),
-            ("sun_enable", f(p.sun)), ("moon_enable", f(p.moon)), ("star_enable", f(p.stars)),
-            ("date_time_valid", f(p.date_time_valid)), ("date", f64::from(p.date)),
-            ("star_intensity", f64::from(p.star_intensity)),
-        ]),
-        HostPacket::AtmosphereControl(p) => fields("cigi.atmosphere_control", &[
-            ("atmospheric_model_enable", f(p.model_enable)), ("humidity", f64::from(p.humidity)),
-            ("air_temp", f64::from(p.air_temperature)), ("visibility_range", f64::from(p.visibility)),
-            ("horiz_wind", f64::from(p.horizontal_wind)), ("vert_wind", f64::from(p.vertical_wind)),
-            ("wind_direction", f64::from(p.wind_direction)), ("barometric_pressure", f64::from(p.pressure)),
-        ]),
-        HostPacket::WeatherControl(p) => fields("cigi.weather_control", &[
-            ("entity_region_id", f64::from(p.entity_region_id)), ("layer_id", f64::from(p.layer_id)),
-            ("humidity", f64::from(p.humidity)), ("weather_enable", f(p.enable)), ("scud_enable", f(p.scud)),
-            ("random_winds_enable", f(p.random_winds)), ("random_lightning_enable", f(p.random_lightning)),
-            ("cloud_type", f64::from(p.cloud_type)), ("scope", f64::from(p.scope)),
-            ("severity", f64::from(p.severity)), ("air_temp", f64::from(p.air_temperature)),
-            ("visibility_range", f64::from(p.visibility)), ("scud_frequency", f64::from(p.scud_frequency)),
-            ("coverage", f64::from(p.coverage)), ("base_elevation", f64::from(p.base_elevation)),
-            ("thickness", f64::from(p.thickness)), ("transition_band", f64::from(p.transition_band)),
-            ("horiz_wind", f64::from(p.horizontal_wind)), ("vert_wind", f64::from(p.vertical_wind)),
-            ("wind_direction", f64::from(p.wind_direction)), ("barometric_pressure", f64::from(p.pressure)),
-            ("aerosol_concentration", f64::from(p.aerosol)),
-        ]),
-        HostPacket::ViewControl(p) => fields("cigi.view_control", &[
-            ("view_id", f64::from(p.view_id)), ("group_id", f64::from(p.group_id)),
-            ("xoff_enable", f(p.x_enable)), ("yoff_enable", f(p.y_enable)), ("zoff_enable", f(p.z_enable)),
-            ("roll_enable", f(p.roll_enable)), ("pitch_enable", f(p.pitch_enable)),
-            ("yaw_enable", f(p.yaw_enable)), ("entity_id", f64::from(p.entity_id)),
-            ("xoff", f64::from(p.x)), ("yoff", f64::from(p.y)), ("zoff", f64::from(p.z)),
-            ("roll", f64::from(p.roll)), ("pitch", f64::from(p.pitch)), ("yaw", f64::from(p.yaw)),
-        ]),
-        HostPacket::ViewDefinition(p) => fields("cigi.view_def", &[
-            ("view_id", f64::from(p.view_id)), ("group_id", f64::from(p.group_id)),
-            ("near_enable", f(p.near_enable)), ("far_enable", f(p.far_enable)),
-            ("left_enable", f(p.left_enable)), ("right_enable", f(p.right_enable)),
-            ("top_enable", f(p.top_enable)), ("bottom_enable", f(p.bottom_enable)),
-            ("mirror_mode", f64::from(p.mirror)), ("pixel_replication", f64::from(p.pixel_replication)),
-            ("projection_type", f(p.orthographic)), ("reorder", f(p.reorder)),
-            ("view_type", f64::from(p.view_type)), ("near", f64::from(p.near)), ("far", f64::from(p.far)),
-            ("left", f64::from(p.left)), ("right", f64::from(p.right)), ("top", f64::from(p.top)),
-            ("bottom", f64::from(p.bottom)),
-        ]),
-        HostPacket::HatHotRequest(p) => fields("cigi.hat_hot_request", &[
-            ("hat_hot_id", f64::from(p.request_id)), ("type", f64::from(p.request_type)),
-            ("coordinate_system", f(p.entity_frame)), ("update_period", f64::from(p.update_period)),
-            ("entity_id", f64::from(p.entity_id)), ("lat_xoff", p.lat), ("lon_yoff", p.lon), ("alt_zoff", p.alt),
-        ]),
-        HostPacket::LosSegmentRequest(p) => fields("cigi.los_segment_request", &[
-            ("los_id", f64::from(p.request_id)), ("type", f(p.extended)),
-            ("source_coord", f(p.source_entity_frame)), ("destination_coord", f(p.destination_entity_frame)),
-            ("response_coord", f(p.response_entity_frame)),
-            ("destination_entity_id_valid", f(p.destination_entity_valid)),
-            ("alpha_threshold", f64::from(p.alpha_threshold)), ("entity_id", f64::from(p.entity_id)),
-            ("source_lat_xoff", p.source_lat), ("source_lon_yoff", p.source_lon),
-            ("source_alt_zoff", p.source_alt), ("destination_lat_xoff", p.destination_lat),
-            ("destination_lon_yoff", p.destination_lon), ("destination_alt_zoff", p.destination_alt),
-            ("material_mask", f64::from(p.material_mask)), ("update_period", f64::from(p.update_period)),
-            ("destination_entity_id", f64::from(p.destination_entity_id)),
-        ]),
-        HostPacket::LosVectorRequest(p) => fields("cigi.los_vector_request", &[
-            ("los_id", f64::from(p.request_id)), ("type", f(p.extended)),
-            ("source_coord", f(p.source_entity_frame)), ("response_coord", f(p.response_entity_frame)),
-            ("alpha", f64::from(p.alpha_threshold)), ("entity_id", f64::from(p.entity_id)),
-            ("azimuth", f64::from(p.azimuth)), ("elevation", f64::from(p.elevation)),
-            ("min_range", f64::from(p.min_range)), ("max_range", f64::from(p.max_range)),
-            ("source_lat_xoff", p.source_lat), ("source_lon_yoff", p.source_lon),
-            ("source_alt_zoff", p.source_alt), ("material_mask", f64::from(p.material_mask)),
-            ("update_period", f64::from(p.update_period)),
-        ]),
-        HostPacket::PositionRequest(p) => fields("cigi.pos_request", &[
-            ("object_id", f64::from(p.object_id)), ("part_id", f64::from(p.part_id)),
-            ("update_mode", f(p.continuous)), ("object_class", f64::from(p.object_class)),
-            ("coord_system", f64::from(p.coordinate_system)),
-        ]),
+        HostPacket::EntityControl(p) => fields(
+            "cigi.entity_control",
+            &[
+                ("entity_id", f64::from(p.entity_id)),
+                ("entity_state", f64::from(p.entity_state)),
+                ("attach_state", f(p.attach)),
+                ("coll_det_request", f(p.collision_detection)),
+                ("inherit_alpha", f(p.inherit_alpha)),
+                ("ground_ocean_clamp", f64::from(p.ground_clamp)),
+                ("animation_dir", f(p.animation_direction)),
+                ("animation_loop_mode", f(p.animation_loop)),
+                ("animation_state", f64::from(p.animation_state)),
+                ("extrapolation_enable", f(p.extrapolation)),
+                ("alpha", f64::from(p.alpha)),
+                ("entity_type", f64::from(p.entity_type)),
+                ("parent_id", f64::from(p.parent_id)),
+                ("roll", f64::from(p.roll)),
+                ("pitch", f64::from(p.pitch)),
+                ("yaw", f64::from(p.yaw)),
+                ("lat_xoff", p.lat),
+                ("lon_yoff", p.lon),
+                ("alt_zoff", p.alt),
+            ],
+        ),
+        HostPacket::RateControl(p) => fields(
+            "cigi.rate_control",
+            &[
+                ("entity_id", f64::from(p.entity_id)),
+                ("part_id", f64::from(p.part_id)),
+                ("apply_to_part", f(p.apply_to_part)),
+                ("coordinate_system", f(p.body_frame)),
+                ("x_rate", f64::from(p.x_rate)),
+                ("y_rate", f64::from(p.y_rate)),
+                ("z_rate", f64::from(p.z_rate)),
+                ("roll_rate", f64::from(p.roll_rate)),
+                ("pitch_rate", f64::from(p.pitch_rate)),
+                ("yaw_rate", f64::from(p.yaw_rate)),
+            ],
+        ),
+        HostPacket::CelestialSphereControl(p) => fields(
+            "cigi.celestial_sphere_control",
+            &[
+                ("hour", f64::from(p.hour)),
+                ("minute", f64::from(p.minute)),
+                ("ephemeris_enable", f(p.ephemeris)),
+                ("sun_enable", f(p.sun)),
+                ("moon_enable", f(p.moon)),
+                ("star_enable", f(p.stars)),
+                ("date_time_valid", f(p.date_time_valid)),
+                ("date", f64::from(p.date)),
+                ("star_intensity", f64::from(p.star_intensity)),
+            ],
+        ),
+        HostPacket::AtmosphereControl(p) => fields(
+            "cigi.atmosphere_control",
+            &[
+                ("atmospheric_model_enable", f(p.model_enable)),
+                ("humidity", f64::from(p.humidity)),
+                ("air_temp", f64::from(p.air_temperature)),
+                ("visibility_range", f64::from(p.visibility)),
+                ("horiz_wind", f64::from(p.horizontal_wind)),
+                ("vert_wind", f64::from(p.vertical_wind)),
+                ("wind_direction", f64::from(p.wind_direction)),
+                ("barometric_pressure", f64::from(p.pressure)),
+            ],
+        ),
+        HostPacket::WeatherControl(p) => fields(
+            "cigi.weather_control",
+            &[
+                ("entity_region_id", f64::from(p.entity_region_id)),
+                ("layer_id", f64::from(p.layer_id)),
+                ("humidity", f64::from(p.humidity)),
+                ("weather_enable", f(p.enable)),
+                ("scud_enable", f(p.scud)),
+                ("random_winds_enable", f(p.random_winds)),
+                ("random_lightning_enable", f(p.random_lightning)),
+                ("cloud_type", f64::from(p.cloud_type)),
+                ("scope", f64::from(p.scope)),
+                ("severity", f64::from(p.severity)),
+                ("air_temp", f64::from(p.air_temperature)),
+                ("visibility_range", f64::from(p.visibility)),
+                ("scud_frequency", f64::from(p.scud_frequency)),
+                ("coverage", f64::from(p.coverage)),
+                ("base_elevation", f64::from(p.base_elevation)),
+                ("thickness", f64::from(p.thickness)),
+                ("transition_band", f64::from(p.transition_band)),
+                ("horiz_wind", f64::from(p.horizontal_wind)),
+                ("vert_wind", f64::from(p.vertical_wind)),
+                ("wind_direction", f64::from(p.wind_direction)),
+                ("barometric_pressure", f64::from(p.pressure)),
+                ("aerosol_concentration", f64::from(p.aerosol)),
+            ],
+        ),
+        HostPacket::ViewControl(p) => fields(
+            "cigi.view_control",
+            &[
+                ("view_id", f64::from(p.view_id)),
+                ("group_id", f64::from(p.group_id)),
+                ("xoff_enable", f(p.x_enable)),
+                ("yoff_enable", f(p.y_enable)),
+                ("zoff_enable", f(p.z_enable)),
+                ("roll_enable", f(p.roll_enable)),
+                ("pitch_enable", f(p.pitch_enable)),
+                ("yaw_enable", f(p.yaw_enable)),
+                ("entity_id", f64::from(p.entity_id)),
+                ("xoff", f64::from(p.x)),
+                ("yoff", f64::from(p.y)),
+                ("zoff", f64::from(p.z)),
+                ("roll", f64::from(p.roll)),
+                ("pitch", f64::from(p.pitch)),
+                ("yaw", f64::from(p.yaw)),
+            ],
+        ),
+        HostPacket::ViewDefinition(p) => fields(
+            "cigi.view_def",
+            &[
+                ("view_id", f64::from(p.view_id)),
+                ("group_id", f64::from(p.group_id)),
+                ("near_enable", f(p.near_enable)),
+                ("far_enable", f(p.far_enable)),
+                ("left_enable", f(p.left_enable)),
+                ("right_enable", f(p.right_enable)),
+                ("top_enable", f(p.top_enable)),
+                ("bottom_enable", f(p.bottom_enable)),
+                ("mirror_mode", f64::from(p.mirror)),
+                ("pixel_replication", f64::from(p.pixel_replication)),
+                ("projection_type", f(p.orthographic)),
+                ("reorder", f(p.reorder)),
+                ("view_type", f64::from(p.view_type)),
+                ("near", f64::from(p.near)),
+                ("far", f64::from(p.far)),
+                ("left", f64::from(p.left)),
+                ("right", f64::from(p.right)),
+                ("top", f64::from(p.top)),
+                ("bottom", f64::from(p.bottom)),
+            ],
+        ),
+        HostPacket::HatHotRequest(p) => fields(
+            "cigi.hat_hot_request",
+            &[
+                ("hat_hot_id", f64::from(p.request_id)),
+                ("type", f64::from(p.request_type)),
+                ("coordinate_system", f(p.entity_frame)),
+                ("update_period", f64::from(p.update_period)),
+                ("entity_id", f64::from(p.entity_id)),
+                ("lat_xoff", p.lat),
+                ("lon_yoff", p.lon),
+                ("alt_zoff", p.alt),
+            ],
+        ),
+        HostPacket::LosSegmentRequest(p) => fields(
+            "cigi.los_segment_request",
+            &[
+                ("los_id", f64::from(p.request_id)),
+                ("type", f(p.extended)),
+                ("source_coord", f(p.source_entity_frame)),
+                ("destination_coord", f(p.destination_entity_frame)),
+                ("response_coord", f(p.response_entity_frame)),
+                ("destination_entity_id_valid", f(p.destination_entity_valid)),
+                ("alpha_threshold", f64::from(p.alpha_threshold)),
+                ("entity_id", f64::from(p.entity_id)),
+                ("source_lat_xoff", p.source_lat),
+                ("source_lon_yoff", p.source_lon),
+                ("source_alt_zoff", p.source_alt),
+                ("destination_lat_xoff", p.destination_lat),
+                ("destination_lon_yoff", p.destination_lon),
+                ("destination_alt_zoff", p.destination_alt),
+                ("material_mask", f64::from(p.material_mask)),
+                ("update_period", f64::from(p.update_period)),
+                ("destination_entity_id", f64::from(p.destination_entity_id)),
+            ],
+        ),
+        HostPacket::LosVectorRequest(p) => fields(
+            "cigi.los_vector_request",
+            &[
+                ("los_id", f64::from(p.request_id)),
+                ("type", f(p.extended)),
+                ("source_coord", f(p.source_entity_frame)),
+                ("response_coord", f(p.response_entity_frame)),
+                ("alpha", f64::from(p.alpha_threshold)),
+                ("entity_id", f64::from(p.entity_id)),
+                ("azimuth", f64::from(p.azimuth)),
+                ("elevation", f64::from(p.elevation)),
+                ("min_range", f64::from(p.min_range)),
+                ("max_range", f64::from(p.max_range)),
+                ("source_lat_xoff", p.source_lat),
+                ("source_lon_yoff", p.source_lon),
+                ("source_alt_zoff", p.source_alt),
+                ("material_mask", f64::from(p.material_mask)),
+                ("update_period", f64::from(p.update_period)),
+            ],
+        ),
+        HostPacket::PositionRequest(p) => fields(
+            "cigi.pos_request",
+            &[
+                ("object_id", f64::from(p.object_id)),
+                ("part_id", f64::from(p.part_id)),
+                ("update_mode", f(p.continuous)),
+                ("object_class", f64::from(p.object_class)),
+                ("coord_system", f64::from(p.coordinate_system)),
+            ],
+        ),
     };
     e.extend(more);
     e
 }
 
 fn expect_ig(p: &IgPacket, order: ByteOrder) -> Expect {
-    let mut e = fields("", &[("cigi.packet_id", f64::from(p.kind().id())), ("cigi.packet_size", p.kind().size() as f64)]);
+    let mut e = fields(
+        "",
+        &[
+            ("cigi.packet_id", f64::from(p.kind().id())),
+            ("cigi.packet_size", p.kind().size() as f64),
+        ],
+    );
     let more = match *p {
         IgPacket::StartOfFrame(p) => {
             let mut h = vec![("cigi.version".to_string(), "3".to_string())];
-            h.extend(fields("cigi.sof", &[
-                ("db_number", f64::from(p.database)), ("ig_status", f64::from(p.ig_status)),
-                ("ig_mode", f64::from(p.ig_mode)), ("timestamp_valid", f(p.timestamp_valid)),
-                ("earth_reference_model", f(p.earth_reference)), ("minor_version", 3.0),
-            ]));
+            h.extend(fields(
+                "cigi.sof",
+                &[
+                    ("db_number", f64::from(p.database)),
+                    ("ig_status", f64::from(p.ig_status)),
+                    ("ig_mode", f64::from(p.ig_mode)),
+                    ("timestamp_valid", f(p.timestamp_valid)),
+                    ("earth_reference_model", f(p.earth_reference)),
+                    ("minor_version", 3.0),
+                ],
+            ));
             h.push(byte_swap(order));
-            h.extend(fields("cigi.sof", &[
-                ("ig_frame_number", f64::from(p.ig_frame)), ("timestamp", f64::from(p.timestamp)),
-                ("last_host_frame_number", f64::from(p.last_host_frame)),
-            ]));
+            h.extend(fields(
+                "cigi.sof",
+                &[
+                    ("ig_frame_number", f64::from(p.ig_frame)),
+                    ("timestamp", f64::from(p.timestamp)),
+                    ("last_host_frame_number", f64::from(p.last_host_frame)),
+                ],
+            ));
             h
         }
-        IgPacket::HatHotResponse(p) => fields("cigi.hat_hot_response", &[
-            ("hat_hot_id", f64::from(p.request_id)), ("valid", f(p.valid)), ("type", f(p.hot)),
-            ("host_frame_number_lsn", f64::from(p.host_frame_lsn)), ("height", p.height),
-        ]),
-        IgPacket::HatHotExtendedResponse(p) => fields("cigi.hat_hot_ext_response", &[
-            ("hat_hot_id", f64::from(p.request_id)), ("valid", f(p.valid)),
-            ("host_frame_number_lsn", f64::from(p.host_frame_lsn)), ("hat", p.hat), ("hot", p.hot),
-            ("material_code", f64::from(p.material)), ("normal_vector_azimuth", f64::from(p.normal_azimuth)),
-            ("normal_vector_elevation", f64::from(p.normal_elevation)),
-        ]),
-        IgPacket::LosResponse(p) => fields("cigi.los_response", &[
-            ("los_id", f64::from(p.request_id)), ("valid", f(p.valid)), ("entity_id_valid", f(p.entity_valid)),
-            ("visible", f(p.visible)), ("host_frame_number_lsn", f64::from(p.host_frame_lsn)),
-            ("count", f64::from(p.count)), ("entity_id", f64::from(p.entity_id)), ("range", p.range),
-        ]),
-        IgPacket::LosExtendedResponse(p) => fields("cigi.3_2_los_ext_response", &[
-            ("los_id", f64::from(p.request_id)), ("valid", f(p.valid)), ("entity_id_valid", f(p.entity_valid)),
-            ("range_valid", f(p.range_valid)), ("visible", f(p.visible)),
-            ("host_frame_number_lsn", f64::from(p.host_frame_lsn)), ("response_count", f64::from(p.count)),
-            ("entity_id", f64::from(p.entity_id)), ("range", p.range), ("lat_xoff", p.lat),
-            ("lon_yoff", p.lon), ("alt_zoff", p.alt), ("red", f64::from(p.red)), ("green", f64::from(p.green)),
-            ("blue", f64::from(p.blue)), ("alpha", f64::from(p.alpha)), ("material_code", f64::from(p.material)),
-            ("normal_vector_azimuth", f64::from(p.normal_azimuth)),
-            ("normal_vector_elevation", f64::from(p.normal_elevation)),
-        ]),
-        IgPacket::PositionResponse(p) => fields("cigi.pos_response", &[
-            ("object_id", f64::from(p.object_id)), ("part_id", f64::from(p.part_id)),
-            ("object_class", f64::from(p.object_class)), ("coord_system", f64::from(p.coordinate_system)),
-            ("lat_xoff", p.lat), ("lon_yoff", p.lon), ("alt_zoff", p.alt), ("roll", f64::from(p.roll)),
-            ("pitch", f64::from(p.pitch)), ("yaw", f64::from(p.yaw)),
-        ]),
+        IgPacket::HatHotResponse(p) => fields(
+            "cigi.hat_hot_response",
+            &[
+                ("hat_hot_id", f64::from(p.request_id)),
+                ("valid", f(p.valid)),
+                ("type", f(p.hot)),
+                ("host_frame_number_lsn", f64::from(p.host_frame_lsn)),
+                ("height", p.height),
+            ],
+        ),
+        IgPacket::HatHotExtendedResponse(p) => fields(
+            "cigi.hat_hot_ext_response",
+            &[
+                ("hat_hot_id", f64::from(p.request_id)),
+                ("valid", f(p.valid)),
+                ("host_frame_number_lsn", f64::from(p.host_frame_lsn)),
+                ("hat", p.hat),
+                ("hot", p.hot),
+                ("material_code", f64::from(p.material)),
+                ("normal_vector_azimuth", f64::from(p.normal_azimuth)),
+                ("normal_vector_elevation", f64::from(p.normal_elevation)),
+            ],
+        ),
+        IgPacket::LosResponse(p) => fields(
+            "cigi.los_response",
+            &[
+                ("los_id", f64::from(p.request_id)),
+                ("valid", f(p.valid)),
+                ("entity_id_valid", f(p.entity_valid)),
+                ("visible", f(p.visible)),
+                ("host_frame_number_lsn", f64::from(p.host_frame_lsn)),
+                ("count", f64::from(p.count)),
+                ("entity_id", f64::from(p.entity_id)),
+                ("range", p.range),
+            ],
+        ),
+        IgPacket::LosExtendedResponse(p) => fields(
+            "cigi.3_2_los_ext_response",
+            &[
+                ("los_id", f64::from(p.request_id)),
+                ("valid", f(p.valid)),
+                ("entity_id_valid", f(p.entity_valid)),
+                ("range_valid", f(p.range_valid)),
+                ("visible", f(p.visible)),
+                ("host_frame_number_lsn", f64::from(p.host_frame_lsn)),
+                ("response_count", f64::from(p.count)),
+                ("entity_id", f64::from(p.entity_id)),
+                ("range", p.range),
+                ("lat_xoff", p.lat),
+                ("lon_yoff", p.lon),
+                ("alt_zoff", p.alt),
+                ("red", f64::from(p.red)),
+                ("green", f64::from(p.green)),
+                ("blue", f64::from(p.blue)),
+                ("alpha", f64::from(p.alpha)),
+                ("material_code", f64::from(p.material)),
+                ("normal_vector_azimuth", f64::from(p.normal_azimuth)),
+                ("normal_vector_elevation", f64::from(p.normal_elevation)),
+            ],
+        ),
+        IgPacket::PositionResponse(p) => fields(
+            "cigi.pos_response",
+            &[
+                ("object_id", f64::from(p.object_id)),
+                ("part_id", f64::from(p.part_id)),
+                ("object_class", f64::from(p.object_class)),
+                ("coord_system", f64::from(p.coordinate_system)),
+                ("lat_xoff", p.lat),
+                ("lon_yoff", p.lon),
+                ("alt_zoff", p.alt),
+                ("roll", f64::from(p.roll)),
+                ("pitch", f64::from(p.pitch)),
+                ("yaw", f64::from(p.yaw)),
+            ],
+        ),
     };
     e.extend(more);
     e
@@ -1207,7 +1563,9 @@ fn pdml_fields(pdml: &str) -> (Vec<Expect>, Vec<String>) {
     for packet in pdml.split("<packet>").skip(1) {
         let mut frame = Vec::new();
         for el in packet.split("<field").skip(1) {
-            let Some(name) = attr(el, "name") else { continue };
+            let Some(name) = attr(el, "name") else {
+                continue;
+            };
             all.push(name.to_string());
             let show = attr(el, "show").unwrap_or("");
             if !name.starts_with("cigi.") || attr(el, "hide") == Some("yes") || show.is_empty() {
@@ -1245,22 +1603,43 @@ fn tshark_decodes_every_packet_as_sent() {
             .output()
             .unwrap();
         let pdml = String::from_utf8_lossy(&out.stdout);
-        assert!(out.status.success(), "tshark: {}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success(),
+            "tshark: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         let (frames, all) = pdml_fields(&pdml);
         let bad: Vec<&String> = all
             .iter()
-            .filter(|n| n.starts_with("_ws.malformed") || n.starts_with("_ws.expert") || *n == "cigi.unknown" || *n == "cigi.invalid_len")
+            .filter(|n| {
+                n.starts_with("_ws.malformed")
+                    || n.starts_with("_ws.expert")
+                    || *n == "cigi.unknown"
+                    || *n == "cigi.invalid_len"
+            })
             .collect();
-        assert!(bad.is_empty(), "{order:?}: tshark reports {bad:?} ({})", pcap.display());
+        assert!(
+            bad.is_empty(),
+            "{order:?}: tshark reports {bad:?} ({})",
+            pcap.display()
+        );
         // Frames alternate host (sample 0), IG (sample 0), host (1), IG (1).
         let mut want = Vec::new();
         for k in 0..2 {
             let mut host: Vec<HostPacket> = vec![ig_control(k).into()];
             host.extend(host_body(k));
-            want.push(host.iter().flat_map(|p| expect_host(p, order)).collect::<Expect>());
+            want.push(
+                host.iter()
+                    .flat_map(|p| expect_host(p, order))
+                    .collect::<Expect>(),
+            );
             let mut ig: Vec<IgPacket> = vec![start_of_frame(k).into()];
             ig.extend(ig_body(k));
-            want.push(ig.iter().flat_map(|p| expect_ig(p, order)).collect::<Expect>());
+            want.push(
+                ig.iter()
+                    .flat_map(|p| expect_ig(p, order))
+                    .collect::<Expect>(),
+            );
         }
         assert_eq!(frames.len(), 4, "{order:?}");
         let mut compared = 0;
@@ -1269,10 +1648,19 @@ fn tshark_decodes_every_packet_as_sent() {
                 assert!(
                     g.0 == w.0 && same_value(&g.1, &w.1),
                     "{order:?} frame {}, field {j}: tshark shows {} = {}, relief sent {} = {}",
-                    i + 1, g.0, g.1, w.0, w.1
+                    i + 1,
+                    g.0,
+                    g.1,
+                    w.0,
+                    w.1
                 );
             }
-            assert_eq!(got.len(), want.len(), "{order:?} frame {}: field count", i + 1);
+            assert_eq!(
+                got.len(),
+                want.len(),
+                "{order:?} frame {}: field count",
+                i + 1
+            );
             compared += got.len();
         }
         println!(

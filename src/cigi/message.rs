@@ -41,8 +41,12 @@ impl std::fmt::Display for Rejection {
             Rejection::Short => write!(f, "datagram or header packet too short"),
             Rejection::NoHeader(id) => write!(f, "first packet has ID {id}, not the header"),
             Rejection::Version(v) => write!(f, "CIGI version {v}, relief reads 3"),
-            Rejection::MinorVersion(v) => write!(f, "CIGI minor version {v}, relief reads 3.2 and 3.3"),
-            Rejection::Magic(b) => write!(f, "magic number {b:02x?}, not 0x8000 in either byte order"),
+            Rejection::MinorVersion(v) => {
+                write!(f, "CIGI minor version {v}, relief reads 3.2 and 3.3")
+            }
+            Rejection::Magic(b) => {
+                write!(f, "magic number {b:02x?}, not 0x8000 in either byte order")
+            }
         }
     }
 }

@@ -108,9 +108,8 @@ pub trait Packet: Sized {
     /// bytes are a later minor version's and ignored.
     fn decode(bytes: &[u8], order: ByteOrder) -> Option<Self> {
         let size = Self::KIND.size();
-        let ok = bytes.len() >= size
-            && bytes[0] == Self::KIND.id()
-            && usize::from(bytes[1]) >= size;
+        let ok =
+            bytes.len() >= size && bytes[0] == Self::KIND.id() && usize::from(bytes[1]) >= size;
         ok.then(|| Self::read(&Reader::new(bytes, order)))
     }
 }

@@ -39,7 +39,10 @@ pub fn write_pcap(frames: &[UdpFrame<'_>]) -> Result<Vec<u8>> {
         if total > usize::from(u16::MAX) {
             return Err(Error::Limit {
                 what: "pcap UDP payload".into(),
-                msg: format!("{} bytes; an IPv4 datagram holds at most 65507", f.payload.len()),
+                msg: format!(
+                    "{} bytes; an IPv4 datagram holds at most 65507",
+                    f.payload.len()
+                ),
             });
         }
         out.extend_from_slice(&((f.time_us / 1_000_000) as u32).to_le_bytes());

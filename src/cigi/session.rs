@@ -83,8 +83,14 @@ impl Counters {
     /// Datagrams refused as a whole for their contents, and walks cut short or packets
     /// skipped for a wrong size: everything a well-behaved host never sends.
     pub fn malformed(&self) -> u64 {
-        self.short + self.no_header + self.bad_magic + self.size_below_two + self.past_end
-            + self.trailing + self.short_packets + self.misplaced_header
+        self.short
+            + self.no_header
+            + self.bad_magic
+            + self.size_below_two
+            + self.past_end
+            + self.trailing
+            + self.short_packets
+            + self.misplaced_header
     }
 }
 
@@ -186,7 +192,10 @@ impl Session {
         if self.host.is_some_and(|h| h != from) {
             self.counters.datagrams += 1;
             self.counters.ignored_sender += 1;
-            log::debug!("CIGI datagram from {from} ignored: the host is {:?}", self.host);
+            log::debug!(
+                "CIGI datagram from {from} ignored: the host is {:?}",
+                self.host
+            );
             return None;
         }
         let r = self.receive(bytes, now);
@@ -329,7 +338,9 @@ impl Session {
             pitch: f64::from(p.pitch),
             yaw: f64::from(p.yaw),
         };
-        let v = [pose.lat, pose.lon, pose.alt, pose.roll, pose.pitch, pose.yaw];
+        let v = [
+            pose.lat, pose.lon, pose.alt, pose.roll, pose.pitch, pose.yaw,
+        ];
         let geodetic_ok = p.attach || (pose.lat.abs() <= 90.0 && pose.lon.abs() <= 360.0);
         if p.entity_state > 2 || !v.iter().all(|x| x.is_finite()) || !geodetic_ok {
             self.counters.invalid_values += 1;
@@ -424,7 +435,14 @@ impl Session {
     }
 
     fn rate_control(&mut self, p: &RateControl) {
-        let v = [p.x_rate, p.y_rate, p.z_rate, p.roll_rate, p.pitch_rate, p.yaw_rate];
+        let v = [
+            p.x_rate,
+            p.y_rate,
+            p.z_rate,
+            p.roll_rate,
+            p.pitch_rate,
+            p.yaw_rate,
+        ];
         if !v.iter().all(|x| x.is_finite()) {
             self.counters.invalid_values += 1;
             return;
