@@ -9,7 +9,8 @@
 //!   [`db`] (the terrain database: DEMs compiled into one tiled multi-resolution file, read
 //!   back in windows),
 //!   [`freeform`] (quadric free forms), [`volume`] (density volumes), [`voxel`] (coloured voxel
-//!   models), [`display`] (curved screens, projectors, warps);
+//!   models), [`display`] (curved screens, projectors, warps), [`cigi`] (the CIGI 3.3 wire layer:
+//!   packets, datagrams, the host's state as a `Session`);
 //! * [`scene`]: the TOML scene (camera, sun, fog, output, path, the model tables);
 //! * [`world`]: a scene's world loaded on the CPU, ready for the renderers;
 //! * [`cpu`]: the f64 reference algorithms: they answer queries (height of terrain, line of
@@ -18,6 +19,7 @@
 //! * [`app`]: the commands of the `relief` binary (render, view, bench, warp, voxels).
 
 pub mod app;
+pub mod cigi;
 pub mod cpu;
 pub mod db;
 pub mod display;

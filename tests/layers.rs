@@ -26,6 +26,7 @@ const LAYERS: &[(&str, u32)] = &[
     ("volume", 1),
     ("voxel", 1),
     ("display", 1),
+    ("cigi", 1),
     ("scene", 2),
     ("world", 3),
     ("cpu", 4),
