@@ -21,11 +21,13 @@ pub mod format;
 pub mod parse;
 pub mod reader;
 pub mod source;
+pub mod synth;
 pub mod tile;
 pub mod window;
 
 pub use build::{build, BuildOptions, BuildReport};
 pub use format::{Extent, Header, IndexEntry, LevelInfo, SourceInfo, TileId};
 pub use reader::Database;
+pub use synth::{synth, SynthOptions};
 pub use tile::Tile;
 pub use window::WindowSpec;

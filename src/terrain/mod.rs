@@ -211,9 +211,10 @@ impl Terrain {
         };
         let mut terrain = Terrain::new(field, frame, desc.vertical_scale)?;
         terrain.walls = desc.walls;
-        terrain.curved = desc
-            .curved
-            .unwrap_or(matches!(desc.height_source()?, HeightSource::Database { .. }));
+        terrain.curved = desc.curved.unwrap_or(matches!(
+            desc.height_source()?,
+            HeightSource::Database { .. }
+        ));
         if terrain.curved && terrain.field.geo.is_none() {
             return Err(Error::invalid(
                 "terrain.curved",
