@@ -18,6 +18,7 @@
 
 pub mod build;
 pub mod format;
+pub mod pager;
 pub mod parse;
 pub mod reader;
 pub mod source;
