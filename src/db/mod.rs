@@ -12,7 +12,8 @@
 //! cache ([`reader`]); [`window`] turns a region of one level into a [`Heightfield`] with its
 //! georeference, which a scene renders as it renders a `.hgt`.
 //!
-//! Not here yet: a curved earth, footprint level of detail, GPU paging (docs/database.md).
+//! [`pager`] keeps the tiles a view needs in a fixed pool of slots, read on worker threads;
+//! [`synth`] writes procedural mosaics. Not here yet: paged rendering (docs/database.md).
 //!
 //! [`Heightfield`]: crate::terrain::Heightfield
 
