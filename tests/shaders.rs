@@ -222,3 +222,30 @@ fn full_screen_passes_never_discard() {
         assert!(!code.contains("discard"), "{name} discards a fragment");
     }
 }
+
+#[test]
+fn the_paged_terrain_include_validates_with_naga() {
+    // terrain_paged.wgsl is an include for the traversal; a small entry point calls each of
+    // its functions so that naga checks them all.
+    let src = format!(
+        "{}\n@group(0) @binding(0) var<storage, read_write> out: array<f32>;\n\
+         @compute @workgroup_size(8, 8)\n\
+         fn main(@builtin(global_invocation_id) id: vec3<u32>) {{\n\
+             let c = cell_max(id.z, id.xy);\n\
+             let p = patch_corners(id.z, id.xy);\n\
+             let r = finest_resident(id.z, id.xy);\n\
+             out[id.x] = c + p.x + p.w + f32(r);\n\
+         }}\n",
+        relief::gpu::shaders::TERRAIN_PAGED
+    );
+    validate_one("terrain_paged", &src);
+    // The Rust twins of its structs have the WGSL sizes.
+    assert_eq!(
+        std::mem::size_of::<relief::gpu::terrain_pool::PagedParams>(),
+        16
+    );
+    assert_eq!(
+        std::mem::size_of::<relief::gpu::terrain_pool::PagedLevel>(),
+        32
+    );
+}

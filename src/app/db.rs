@@ -22,6 +22,33 @@ pub enum DbAction {
         #[arg(long, default_value_t = db::format::DEFAULT_TILE)]
         tile: u32,
     },
+    /// Write a synthetic mosaic (procedural ridged fBm, deterministic for a seed) as a
+    /// database, without source files: for tests and benchmarks at any size.
+    Synth {
+        /// The database file to write.
+        out: PathBuf,
+        /// Source tiles, longitude x latitude (e.g. 16x16).
+        #[arg(long, default_value = "16x16", value_parser = parse_tiles)]
+        tiles: [u32; 2],
+        /// Samples per source tile side (neighbours share their edges, as SRTM's 1201 or 3601).
+        #[arg(long, default_value_t = 257)]
+        samples: u32,
+        /// Latitude of the south-west corner, degrees.
+        #[arg(long, default_value_t = 46.0, allow_hyphen_values = true)]
+        lat: f64,
+        /// Longitude of the south-west corner, degrees.
+        #[arg(long, default_value_t = 7.0, allow_hyphen_values = true)]
+        lon: f64,
+        /// Sample step in arc-seconds (default: one degree per source tile).
+        #[arg(long)]
+        arcsec: Option<f64>,
+        /// Noise seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u32,
+        /// Cells per database tile side: a power of two in 16..=4096.
+        #[arg(long, default_value_t = db::format::DEFAULT_TILE)]
+        tile: u32,
+    },
     /// Print a database's extent, levels, tile counts, size on disk and sources.
     Info {
         db: PathBuf,
@@ -35,6 +62,28 @@ pub enum DbAction {
 pub fn run(action: &DbAction) -> Result<String> {
     match action {
         DbAction::Build { out, sources, tile } => build(out, sources, *tile),
+        DbAction::Synth {
+            out,
+            tiles,
+            samples,
+            lat,
+            lon,
+            arcsec,
+            seed,
+            tile,
+        } => synth(
+            out,
+            &db::SynthOptions {
+                tiles: *tiles,
+                samples: *samples,
+                lat: *lat,
+                lon: *lon,
+                arcsec: *arcsec,
+                seed: *seed,
+                tile: *tile,
+                ..db::SynthOptions::default()
+            },
+        ),
         DbAction::Info { db, verify } => {
             let d = Database::open(db)?;
             let mut text = info(&d);
@@ -87,6 +136,42 @@ fn build(out: &Path, sources: &[PathBuf], tile: u32) -> Result<String> {
         r.bytes as f64 / r.source_bytes.max(1) as f64,
         human_bytes(r.source_bytes),
         sources.len(),
+        r.samples as f64 / secs / 1e6
+    ))
+}
+
+/// `16x16` → `[16, 16]`.
+fn parse_tiles(s: &str) -> std::result::Result<[u32; 2], String> {
+    let bad = || format!("`{s}`: give the tiles as WxH, e.g. 16x16");
+    let (a, b) = s.split_once(['x', 'X']).ok_or_else(bad)?;
+    Ok([
+        a.trim().parse().map_err(|_| bad())?,
+        b.trim().parse().map_err(|_| bad())?,
+    ])
+}
+
+fn synth(out: &Path, opts: &db::SynthOptions) -> Result<String> {
+    let t = std::time::Instant::now();
+    let bar = progress_bar("synthesising");
+    let report = db::synth(out, opts, &|done, total| {
+        bar.set_length(total);
+        bar.set_position(done);
+    });
+    bar.finish_and_clear();
+    let r = report?;
+    let secs = t.elapsed().as_secs_f64();
+    let [w, h] = opts.size();
+    Ok(format!(
+        "wrote {}: a {}x{} mosaic of {}² tiles ({w}x{h} samples, seed {}), {} levels, {} tiles, {} samples stored, {} in {secs:.2} s ({:.1} M samples/s)",
+        out.display(),
+        opts.tiles[0],
+        opts.tiles[1],
+        opts.samples,
+        opts.seed,
+        r.levels,
+        r.tiles,
+        r.samples,
+        human_bytes(r.bytes),
         r.samples as f64 / secs / 1e6
     ))
 }

@@ -336,17 +336,8 @@ fn build_tile(
     }
 }
 
-/// Compiles `sources` into the database `out` (written atomically: a temporary file renamed
-/// when complete, removed on any error or interruption). `progress(done, total)` is called
-/// after each tile. Sources are `.hgt` tiles or GeoTIFFs in degrees; where they overlap the
-/// finer wins (equal resolutions: the one given first, with a warning).
-pub fn build(
-    out: &Path,
-    sources: &[PathBuf],
-    opts: &BuildOptions,
-    progress: &(dyn Fn(u64, u64) + Sync),
-) -> Result<BuildReport> {
-    let n = opts.tile;
+/// Checks `--tile`: a power of two in 16..=4096.
+pub fn check_tile(n: u32) -> Result<()> {
     if !n.is_power_of_two() || !(format::MIN_TILE..=format::MAX_TILE).contains(&n) {
         return Err(Error::invalid(
             "--tile",
@@ -357,6 +348,20 @@ pub fn build(
             ),
         ));
     }
+    Ok(())
+}
+
+/// Compiles `sources` into the database `out` (written atomically: a temporary file renamed
+/// when complete, removed on any error or interruption). `progress(done, total)` is called
+/// after each tile. Sources are `.hgt` tiles or GeoTIFFs in degrees; where they overlap the
+/// finer wins (equal resolutions: the one given first, with a warning).
+pub fn build(
+    out: &Path,
+    sources: &[PathBuf],
+    opts: &BuildOptions,
+    progress: &(dyn Fn(u64, u64) + Sync),
+) -> Result<BuildReport> {
+    check_tile(opts.tile)?;
     if sources.is_empty() {
         return Err(Error::invalid(
             "db build",
@@ -370,7 +375,19 @@ pub fn build(
         .map(|(k, p)| Source::load(p, k))
         .collect::<Result<Vec<_>>>()?;
     source::order_and_check_overlaps(&mut srcs);
-    let plan = plan(&srcs, n)?;
+    build_sources(out, &srcs, opts, progress)
+}
+
+/// Compiles loaded (or procedural) sources, ordered finest first, into `out`.
+pub(crate) fn build_sources(
+    out: &Path,
+    srcs: &[Source],
+    opts: &BuildOptions,
+    progress: &(dyn Fn(u64, u64) + Sync),
+) -> Result<BuildReport> {
+    check_tile(opts.tile)?;
+    let n = opts.tile;
+    let plan = plan(srcs, n)?;
     let tile_count: u64 = plan.levels.iter().map(|l| l.tiles).sum();
     let mut header = Header {
         version: format::VERSION,
@@ -399,7 +416,7 @@ pub fn build(
     header.index_offset = format::header_len(&header) as u64;
     header.data_offset = header.index_offset + tile_count * format::INDEX_ENTRY as u64 + 4;
     let entries = fileio::write_atomic(out, |f| {
-        write_tiles(f, out, &srcs, &plan, &mut header, progress)
+        write_tiles(f, out, srcs, &plan, &mut header, progress)
     })?;
     let bytes = fileio::file_len(out)?;
     Ok(BuildReport {

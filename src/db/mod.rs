@@ -12,20 +12,24 @@
 //! cache ([`reader`]); [`window`] turns a region of one level into a [`Heightfield`] with its
 //! georeference, which a scene renders as it renders a `.hgt`.
 //!
-//! Not here yet: a curved earth, footprint level of detail, GPU paging (docs/database.md).
+//! [`pager`] keeps the tiles a view needs in a fixed pool of slots, read on worker threads;
+//! [`synth`] writes procedural mosaics. Not here yet: paged rendering (docs/database.md).
 //!
 //! [`Heightfield`]: crate::terrain::Heightfield
 
 pub mod build;
 pub mod format;
+pub mod pager;
 pub mod parse;
 pub mod reader;
 pub mod source;
+pub mod synth;
 pub mod tile;
 pub mod window;
 
 pub use build::{build, BuildOptions, BuildReport};
 pub use format::{Extent, Header, IndexEntry, LevelInfo, SourceInfo, TileId};
 pub use reader::Database;
+pub use synth::{synth, SynthOptions};
 pub use tile::Tile;
 pub use window::WindowSpec;

@@ -151,6 +151,10 @@ impl Database {
     pub fn tile_cells(&self) -> usize {
         self.header.tile as usize
     }
+    /// The tile's index entry, where it is stored.
+    pub fn entry(&self, id: TileId) -> Option<&IndexEntry> {
+        self.index.get(&id)
+    }
     /// Whether the tile is stored.
     pub fn has_tile(&self, id: TileId) -> bool {
         self.index.contains_key(&id)

@@ -1,6 +1,8 @@
 //! The compiler's source DEMs: loaded through the terrain loaders (voids kept as such),
-//! checked, ordered finest first, and sampled bilinearly at a geographic position.
+//! checked, ordered finest first, and sampled bilinearly at a geographic position; or a
+//! procedural mosaic ([`Synth`]) whose samples are computed on demand, never held.
 
+use crate::terrain::procedural::ridged_fbm;
 use crate::terrain::{geotiff, hgt, SampleGrid};
 use crate::{fileio, Error, Result};
 use std::path::{Path, PathBuf};
@@ -24,10 +26,49 @@ pub struct Source {
     pub dlat: f64,
     pub width: usize,
     pub height: usize,
-    /// Row 0 south; NaN marks a void.
-    pub data: Vec<f32>,
+    /// The samples: row 0 south, NaN marks a void.
+    pub data: SourceData,
     /// Bytes of the file.
     pub file_len: u64,
+}
+
+/// Where a source's samples come from.
+pub enum SourceData {
+    /// Loaded from a file, row 0 south.
+    Grid(Vec<f32>),
+    /// Computed from their indices when asked.
+    Synth(Synth),
+}
+
+/// A procedural source: ridged fBm over the sample grid, deterministic for a seed, a
+/// function of the sample's position alone (so any tiling of it is seamless).
+#[derive(Clone, Copy, Debug)]
+pub struct Synth {
+    pub seed: u32,
+    /// Wavelength of the first octave, in samples.
+    pub wavelength: f64,
+    pub octaves: u32,
+    /// Peak-to-valley height, metres.
+    pub height: f64,
+}
+
+impl Synth {
+    /// The height of sample `(i, j)`.
+    pub fn at(&self, i: usize, j: usize) -> f32 {
+        let f = 1.0 / self.wavelength;
+        let r = ridged_fbm(i as f64 * f, j as f64 * f, self.octaves, self.seed);
+        (r * 0.5 * self.height) as f32
+    }
+}
+
+impl SourceData {
+    /// Sample `(i, j)` of a source `width` samples wide.
+    pub fn at(&self, width: usize, i: usize, j: usize) -> f32 {
+        match self {
+            SourceData::Grid(v) => v[j * width + i],
+            SourceData::Synth(s) => s.at(i, j),
+        }
+    }
 }
 
 fn snap(x: f64) -> f64 {
@@ -83,11 +124,12 @@ impl Source {
             ));
         }
         let file_len = fileio::file_len(path)?;
-        let data = grid
-            .samples
-            .into_iter()
-            .map(|s| s.unwrap_or(f32::NAN))
-            .collect();
+        let data = SourceData::Grid(
+            grid.samples
+                .into_iter()
+                .map(|s| s.unwrap_or(f32::NAN))
+                .collect(),
+        );
         Ok(Source {
             path: path.to_path_buf(),
             name: path.file_name().map_or_else(
@@ -147,7 +189,7 @@ impl Source {
             if wgt == 0.0 {
                 continue;
             }
-            let h = self.data[(j + dj) * self.width + i + di];
+            let h = self.data.at(self.width, i + di, j + dj);
             if h.is_nan() {
                 return None;
             }
@@ -197,7 +239,7 @@ pub fn order_and_check_overlaps(sources: &mut [Source]) {
                     if lon < lo_x - ex || lon > hi_x + ex {
                         continue;
                     }
-                    let h = first.data[j * first.width + i];
+                    let h = first.data.at(first.width, i, j);
                     if let (false, Some(g)) = (h.is_nan(), second.sample(lon, lat)) {
                         worst = worst.max((h as f64 - g as f64).abs());
                         shared += 1;

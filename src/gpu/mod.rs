@@ -55,6 +55,7 @@ pub mod specialise;
 pub(crate) mod table;
 pub(crate) mod targets;
 pub(crate) mod terrain_passes;
+pub mod terrain_pool;
 pub mod types;
 pub mod uniforms;
 pub(crate) mod util;

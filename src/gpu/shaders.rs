@@ -7,6 +7,8 @@ use super::variants::{FfTables, ShadeFeatures, Switches, VolumeSwitches};
 const FRAME: &str = include_str!("shaders/frame.wgsl");
 const FULLSCREEN: &str = include_str!("shaders/fullscreen.wgsl");
 const TRAVERSE: &str = include_str!("shaders/terrain_traverse.wgsl");
+/// The paged terrain's reads (`cell_max`, `patch_corners`, `finest_resident`), an include.
+pub const TERRAIN_PAGED: &str = include_str!("shaders/terrain_paged.wgsl");
 const GBUFFER: &str = include_str!("shaders/gbuffer.wgsl");
 const RAY_TABLE: &str = include_str!("shaders/ray_table.wgsl");
 const FREEFORM: &str = include_str!("shaders/freeform.wgsl");

@@ -71,6 +71,23 @@ fn gradient_noise(x: f64, y: f64, seed: u32) -> f64 {
     (a + (b - a) * v) * std::f64::consts::SQRT_2
 }
 
+/// Ridged fBm at `(x, y)` in units of the first octave's wavelength: `octaves` octaves of
+/// gradient noise, each twice the frequency and half the amplitude of the one before, folded
+/// into ridges and weighted by the octave below. Deterministic (integer hashing, f64), in
+/// about 0..2.
+pub fn ridged_fbm(x: f64, y: f64, octaves: u32, seed: u32) -> f64 {
+    let (mut freq, mut amp, mut sum, mut weight) = (1.0, 1.0, 0.0, 1.0);
+    for o in 0..octaves {
+        let r = 1.0 - gradient_noise(x * freq, y * freq, seed.wrapping_add(o)).abs();
+        let r = r * r * weight;
+        weight = (r * 2.0).clamp(0.0, 1.0);
+        sum += r * amp;
+        freq *= 2.0;
+        amp *= 0.5;
+    }
+    sum
+}
+
 impl RidgedFbm {
     /// Generates the height field.
     pub fn generate(&self) -> Result<Heightfield> {
@@ -107,18 +124,8 @@ impl RidgedFbm {
             .into_par_iter()
             .map(|k| {
                 let (i, j) = ((k % n) as f64, (k / n) as f64);
-                let (mut freq, mut amp, mut sum, mut weight) =
-                    (1.0 / self.wavelength, 1.0, 0.0, 1.0);
-                for o in 0..self.octaves {
-                    let r =
-                        1.0 - gradient_noise(i * freq, j * freq, self.seed.wrapping_add(o)).abs();
-                    let r = r * r * weight;
-                    weight = (r * 2.0).clamp(0.0, 1.0);
-                    sum += r * amp;
-                    freq *= 2.0;
-                    amp *= 0.5;
-                }
-                (sum * 0.5 * self.height) as f32
+                let f = 1.0 / self.wavelength;
+                (ridged_fbm(i * f, j * f, self.octaves, self.seed) * 0.5 * self.height) as f32
             })
             .collect();
         Heightfield::from_samples_with_voids(

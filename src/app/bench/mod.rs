@@ -13,6 +13,7 @@
 //! * [`table`]: what every report has: the run, rows of figures, summary, notes;
 //! * [`timing`]: the scene at the benchmark's size, frame timing.
 
+pub mod db;
 pub mod display;
 pub mod freeforms;
 pub mod primary;
@@ -105,6 +106,14 @@ pub enum BenchCommand {
         #[command(flatten)]
         args: BenchArgs,
     },
+    /// The terrain database: build throughput (synthetic mosaic), the scene through a database
+    /// against its .hgt, and a scripted flight through the pager.
+    Db {
+        #[command(flatten)]
+        args: BenchArgs,
+        #[command(flatten)]
+        db: db::DbBenchArgs,
+    },
 }
 
 impl BenchCommand {
@@ -117,7 +126,8 @@ impl BenchCommand {
             | BenchCommand::Volume { args }
             | BenchCommand::Voxels { args }
             | BenchCommand::Display { args, .. }
-            | BenchCommand::Soak { args } => args,
+            | BenchCommand::Soak { args }
+            | BenchCommand::Db { args, .. } => args,
         }
     }
 
@@ -194,6 +204,10 @@ impl BenchCommand {
             BenchCommand::Soak { .. } => {
                 let (run, d) = soak::run(scene, size, frames)?;
                 (run, Details::Soak(d))
+            }
+            BenchCommand::Db { db: a, .. } => {
+                let (run, d) = db::run(scene, size, frames, a)?;
+                (run, Details::Db(d))
             }
         };
         Ok(BenchReport::new(run, details))

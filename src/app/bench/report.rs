@@ -13,6 +13,7 @@
 //! printed), `summary` the headline figures, `notes` what is not a number, `details` the
 //! mode's whole result ([`Details`]).
 
+use super::db::DbBench;
 use super::display::DisplayBench;
 use super::freeforms::FreeFormBench;
 use super::primary::PrimaryTiming;
@@ -36,6 +37,7 @@ pub enum Details {
     Voxels(VoxelBench),
     Display(DisplayBench),
     Soak(SoakBench),
+    Db(DbBench),
 }
 
 impl Details {
@@ -49,6 +51,7 @@ impl Details {
             Details::Voxels(_) => "voxels",
             Details::Display(_) => "display",
             Details::Soak(_) => "soak",
+            Details::Db(_) => "db",
         }
     }
 
@@ -62,6 +65,7 @@ impl Details {
             Details::Voxels(d) => d.table(),
             Details::Display(d) => d.table(),
             Details::Soak(d) => d.table(),
+            Details::Db(d) => d.table(),
         }
     }
 }

@@ -1,0 +1,138 @@
+// The paged terrain: database tiles in a pool of fixed slots, found through a page table
+// (src/gpu/terrain_pool.rs fills both from db::pager's uploads).
+//
+// Virtual levels: level 0 is the finest database level's cells, level k cells of 2^k of them;
+// cells are addressed by their index on the finest level's global cell grid (anchored at
+// longitude -180, latitude -90). A virtual cell is read from the finest resident database tile
+// that covers it: database level F - j holds it in its in-tile pyramid level k - j (cells of
+// 2^k finest cells), or, where j > k (only a coarser level is resident), in the coarse cell
+// containing it, whose maximum bounds every finer sample in its footprint. So `cell_max` is
+// always a conservative bound, and `patch_corners` the surface of the finest resident level.
+//
+// Slot layout (f32): the (N+1)^2 heights row by row (row 0 south), then the in-tile maximum
+// pyramid (N^2 cell maxima, then each coarser in-tile level, down to 1).
+
+struct PagedParams {
+    tile_n: u32,       // cells per tile side N (a power of two)
+    log2_n: u32,
+    levels: u32,       // database levels (0 the coarsest)
+    slot_floats: u32,  // floats per slot
+}
+
+struct PagedLevel {
+    table_offset: u32, // this level's first entry in paged_table
+    x0: u32,           // tile range x0..x0+width, y0..y0+height
+    y0: u32,
+    width: u32,
+    height: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+}
+
+@group(3) @binding(0) var<uniform> paged: PagedParams;
+@group(3) @binding(1) var<storage, read> paged_levels: array<PagedLevel>;
+@group(3) @binding(2) var<storage, read> paged_table: array<u32>;
+@group(3) @binding(3) var<storage, read> paged_pool: array<f32>;
+
+const PAGED_NONE: u32 = 0xffffffffu;
+const PAGED_PAD: f32 = -1e30;
+
+// The slot holding tile (x, y) of database level `dl`, or PAGED_NONE.
+fn paged_slot(dl: u32, x: u32, y: u32) -> u32 {
+    let lv = paged_levels[dl];
+    if (x < lv.x0 || y < lv.y0 || x - lv.x0 >= lv.width || y - lv.y0 >= lv.height) {
+        return PAGED_NONE;
+    }
+    return paged_table[lv.table_offset + (y - lv.y0) * lv.width + (x - lv.x0)];
+}
+
+// Offset of in-tile pyramid level m in a slot.
+fn paged_max_offset(m: u32) -> u32 {
+    let n = paged.tile_n;
+    let side = n >> m;
+    return (n + 1u) * (n + 1u) + (n * n - side * side) / 3u * 4u;
+}
+
+// The index of virtual cell `cell` of level `level` on database level F - j's own cell grid
+// (cells of 2^j finest cells): the first of the cells it covers, or the one containing it.
+fn paged_cell_on(level: u32, cell: vec2<u32>, j: u32) -> vec2<u32> {
+    if (j <= level) {
+        return cell << vec2<u32>(level - j);
+    }
+    return cell >> vec2<u32>(j - level);
+}
+
+// The coarseness j (virtual level of the database level F - j) of the finest resident
+// database level over virtual cell `cell` of level `level`, searching from the finest level
+// whose tiles can hold such a cell; PAGED_NONE where nothing is resident.
+fn finest_resident(level: u32, cell: vec2<u32>) -> u32 {
+    let f = paged.levels - 1u;
+    var j = select(0u, level - paged.log2_n, level > paged.log2_n);
+    loop {
+        if (j > f) {
+            return PAGED_NONE;
+        }
+        let t = paged_cell_on(level, cell, j) >> vec2<u32>(paged.log2_n);
+        if (paged_slot(f - j, t.x, t.y) != PAGED_NONE) {
+            return j;
+        }
+        j = j + 1u;
+    }
+    return PAGED_NONE;
+}
+
+// A bound on the terrain over virtual cell `cell` of level `level`: its maximum from the
+// finest resident level (a coarser cell's maximum where that is all there is).
+fn cell_max(level: u32, cell: vec2<u32>) -> f32 {
+    let j = finest_resident(level, cell);
+    if (j == PAGED_NONE) {
+        return PAGED_PAD;
+    }
+    let f = paged.levels - 1u;
+    // On database level F - j: cell index at its own cell size, and the in-tile level.
+    let c = paged_cell_on(level, cell, j);
+    let m = select(0u, level - j, j <= level);
+    let t = c >> vec2<u32>(paged.log2_n);
+    let slot = paged_slot(f - j, t.x, t.y);
+    let local = (c & vec2<u32>(paged.tile_n - 1u)) >> vec2<u32>(m);
+    let side = paged.tile_n >> m;
+    return paged_pool[slot * paged.slot_floats + paged_max_offset(m) + local.y * side + local.x];
+}
+
+// Height of sample (i, j) of the tile in `slot`.
+fn paged_height(slot: u32, i: u32, j: u32) -> f32 {
+    return paged_pool[slot * paged.slot_floats + j * (paged.tile_n + 1u) + i];
+}
+
+// The bilinear patch corners (south-west, south-east, north-west, north-east) of virtual
+// cell `cell` at level `level`: the samples of database level F - level where resident,
+// otherwise that cell's corners on the finest resident coarser level's bilinear surface (which
+// is continuous, so neighbouring cells meet without cracks).
+fn patch_corners(level: u32, cell: vec2<u32>) -> vec4<f32> {
+    let f = paged.levels - 1u;
+    let j = max(finest_resident(level, cell), level);
+    if (j == PAGED_NONE || level > f) {
+        return vec4<f32>(PAGED_PAD);
+    }
+    // Cell corners in units of level-(F - j) samples: (cell << level) >> j, fractional.
+    let s = f32(1u << (j - level));
+    let base = cell >> vec2<u32>(j - level);
+    let frac0 = vec2<f32>(cell - (base << vec2<u32>(j - level))) / s;
+    let t = base >> vec2<u32>(paged.log2_n);
+    let slot = paged_slot(f - j, t.x, t.y);
+    let a = base & vec2<u32>(paged.tile_n - 1u);
+    let h00 = paged_height(slot, a.x, a.y);
+    let h10 = paged_height(slot, a.x + 1u, a.y);
+    let h01 = paged_height(slot, a.x, a.y + 1u);
+    let h11 = paged_height(slot, a.x + 1u, a.y + 1u);
+    let inv = 1.0 / s;
+    var out: vec4<f32>;
+    for (var k = 0u; k < 4u; k = k + 1u) {
+        let uv = frac0 + vec2<f32>(f32(k & 1u), f32(k >> 1u)) * inv;
+        let south = mix(h00, h10, uv.x);
+        let north = mix(h01, h11, uv.x);
+        out[k] = mix(south, north, uv.y);
+    }
+    return out;
+}

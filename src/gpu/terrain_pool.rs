@@ -1,0 +1,128 @@
+//! The paged terrain on the GPU: a storage buffer of fixed slots and the page table, filled
+//! from [`crate::db::pager::Pager`]'s uploads with `queue.write_buffer` (the pager already
+//! keeps each frame's uploads within its byte budget), read by `terrain_paged.wgsl`
+//! (`cell_max`, `patch_corners`, `finest_resident`).
+//!
+//! Not yet bound by the renderer: the traversal (`terrain_traverse.wgsl`) is being factored
+//! to call exactly those functions, after which the paged buffers replace the pyramid.
+
+use super::util::check_buffer_limit;
+use super::Gpu;
+use crate::db::pager::{PageTable, Upload};
+use crate::Result;
+
+/// `PagedParams` in `terrain_paged.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct PagedParams {
+    pub tile_n: u32,
+    pub log2_n: u32,
+    pub levels: u32,
+    pub slot_floats: u32,
+}
+
+/// `PagedLevel` in `terrain_paged.wgsl`: a level's page-table offset and tile range.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct PagedLevel {
+    pub table_offset: u32,
+    pub x0: u32,
+    pub y0: u32,
+    pub width: u32,
+    pub height: u32,
+    pub pad: [u32; 3],
+}
+
+/// The pool, the page table and their parameters on the GPU.
+pub struct TerrainPool {
+    pub params: wgpu::Buffer,
+    pub levels: wgpu::Buffer,
+    pub table: wgpu::Buffer,
+    pub pool: wgpu::Buffer,
+    slot_floats: u64,
+    n: usize,
+}
+
+/// The level records and parameters for `table` with tiles of `n` cells.
+pub fn layout(table: &PageTable, n: usize) -> (PagedParams, Vec<PagedLevel>) {
+    let levels = table
+        .levels()
+        .iter()
+        .zip(table.offsets())
+        .map(|(l, &off)| PagedLevel {
+            table_offset: off as u32,
+            x0: l.x0,
+            y0: l.y0,
+            width: l.x1 - l.x0,
+            height: l.y1 - l.y0,
+            pad: [0; 3],
+        })
+        .collect::<Vec<_>>();
+    let params = PagedParams {
+        tile_n: n as u32,
+        log2_n: n.trailing_zeros(),
+        levels: levels.len() as u32,
+        slot_floats: crate::db::Tile::floats(n) as u32,
+    };
+    (params, levels)
+}
+
+impl TerrainPool {
+    /// Buffers for `slots` slots of tiles of `n` cells and the page table's shape; an error
+    /// naming `--terrain-memory` where the pool exceeds the adapter's storage-buffer limit.
+    pub fn new(gpu: &Gpu, table: &PageTable, n: usize, slots: usize) -> Result<TerrainPool> {
+        use wgpu::util::DeviceExt;
+        let (params, levels) = layout(table, n);
+        let slot_floats = params.slot_floats as u64;
+        let bytes = slot_floats * 4 * slots as u64;
+        check_buffer_limit(
+            gpu,
+            "terrain pool",
+            bytes,
+            "give a smaller --terrain-memory",
+        )?;
+        let dev = &gpu.device;
+        let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
+        let init = |label: &str, contents: &[u8], usage| {
+            dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage,
+            })
+        };
+        Ok(TerrainPool {
+            params: init(
+                "paged params",
+                bytemuck::bytes_of(&params),
+                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            ),
+            levels: init("paged levels", bytemuck::cast_slice(&levels), storage),
+            table: init("paged table", bytemuck::cast_slice(table.raw()), storage),
+            pool: dev.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("terrain pool"),
+                size: bytes.max(4),
+                usage: storage,
+                mapped_at_creation: false,
+            }),
+            slot_floats,
+            n,
+        })
+    }
+
+    /// Copies this frame's uploads into their slots and the page table as it now stands.
+    pub fn apply(&self, gpu: &Gpu, uploads: &[Upload], table: &PageTable) {
+        for u in uploads {
+            debug_assert_eq!(u.tile.n, self.n);
+            let at = u.slot as u64 * self.slot_floats * 4;
+            gpu.queue
+                .write_buffer(&self.pool, at, bytemuck::cast_slice(&u.tile.heights));
+            let h = u.tile.heights.len() as u64 * 4;
+            gpu.queue
+                .write_buffer(&self.pool, at + h, bytemuck::cast_slice(&u.tile.maxima));
+        }
+        if !uploads.is_empty() {
+            gpu.queue
+                .write_buffer(&self.table, 0, bytemuck::cast_slice(table.raw()));
+        }
+    }
+}
