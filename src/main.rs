@@ -319,16 +319,31 @@ fn query(scene: &Path, at: Option<[f64; 2]>, los: Option<Vec<[f64; 3]>>) -> Resu
     if at.is_none() && los.is_none() {
         bail!("give --at X,Y and/or --los X1,Y1,Z1 X2,Y2,Z2");
     }
+    // A database scene is queried at the database's full resolution, through its tile cache.
+    let full = relief::cpu::database::FullResolution::open(&s.desc.terrain, &s.base_dir)?;
     if let Some([x, y]) = at {
         let p = glam::DVec3::new(x, y, 0.0);
-        match relief::cpu::terrain_point_below(&terrain, p) {
-            Some(q) => println!("terrain at ({x}, {y}): z = {:.3} m", q.z),
-            None => bail!("({x}, {y}) is outside the height grid"),
+        let Some(q) = relief::cpu::terrain_point_below(&terrain, p) else {
+            bail!("({x}, {y}) is outside the height grid");
+        };
+        match full.as_ref().map(|f| f.height_at(&terrain, p)).transpose()? {
+            Some(Some(h)) => println!(
+                "terrain at ({x}, {y}): z = {:.3} m (database level {}, {:.3}″ samples; the scene renders {:.3} m there)",
+                h.height,
+                h.level,
+                h.spacing * 3600.0,
+                q.z
+            ),
+            Some(None) => bail!("({x}, {y}) is off the database"),
+            None => println!("terrain at ({x}, {y}): z = {:.3} m", q.z),
         }
     }
     if let Some(pts) = los {
         let (a, b) = (glam::DVec3::from(pts[0]), glam::DVec3::from(pts[1]));
-        let clear = relief::cpu::line_of_sight(&terrain, a, b);
+        let clear = match &full {
+            Some(f) => f.line_of_sight(&terrain, a, b)?.0,
+            None => relief::cpu::line_of_sight(&terrain, a, b),
+        };
         let below: Vec<_> = [("first", a), ("second", b)]
             .iter()
             .filter(|(_, p)| relief::cpu::query::is_underground(&terrain, *p))

@@ -21,6 +21,7 @@ pub mod build;
 pub mod format;
 pub mod pager;
 pub mod parse;
+pub mod query;
 pub mod reader;
 pub mod source;
 pub mod synth;
@@ -29,6 +30,7 @@ pub mod window;
 
 pub use build::{build, BuildOptions, BuildReport};
 pub use format::{Extent, Header, IndexEntry, LevelInfo, SourceInfo, TileId};
+pub use query::{height_at, SurfaceSample};
 pub use reader::Database;
 pub use synth::{synth, SynthOptions};
 pub use tile::Tile;

@@ -1,0 +1,92 @@
+//! Queries on a database scene at the database's full resolution, whatever level the scene
+//! renders: heights from the finest tile at the position (`db::query`), lines of sight over a
+//! window of the finest level that fits around the segment. Tiles come through the
+//! database's bounded cache, so repeated queries in one region read the file once.
+
+use super::query::line_of_sight;
+use crate::db::{self, Database, SurfaceSample};
+use crate::terrain::{Terrain, TerrainDesc};
+use crate::{Error, Result};
+use glam::DVec3;
+use std::path::{Path, PathBuf};
+
+/// A database scene's terrain description and its database, open.
+pub struct FullResolution {
+    db: Database,
+    desc: TerrainDesc,
+    base_dir: PathBuf,
+}
+
+impl FullResolution {
+    /// `None` when the terrain is not a database.
+    pub fn open(desc: &TerrainDesc, base_dir: &Path) -> Result<Option<FullResolution>> {
+        let Some(path) = &desc.database else {
+            return Ok(None);
+        };
+        Ok(Some(FullResolution {
+            db: Database::open(&base_dir.join(path))?,
+            desc: desc.clone(),
+            base_dir: base_dir.to_path_buf(),
+        }))
+    }
+
+    pub fn database(&self) -> &Database {
+        &self.db
+    }
+
+    /// Geodetic `[lat, lon, alt]` of a world point of `terrain` (the scene's terrain).
+    fn geodetic(terrain: &Terrain, p: DVec3) -> Result<[f64; 3]> {
+        terrain.world_to_geodetic(p).ok_or_else(|| {
+            Error::invalid(
+                "terrain.database",
+                "the scene's terrain has no geographic reference",
+            )
+        })
+    }
+
+    /// The surface below the world point `p` of the scene's `terrain`, at full resolution (the
+    /// height above mean sea level, after `sea_level`); `None` off the database.
+    pub fn height_at(&self, terrain: &Terrain, p: DVec3) -> Result<Option<SurfaceSample>> {
+        let [lat, lon, _] = Self::geodetic(terrain, p)?;
+        let s = db::height_at(&self.db, lat, lon)?;
+        Ok(s.map(|mut s| {
+            if let Some(sea) = self.desc.sea_level {
+                s.height = s.height.max(sea);
+            }
+            s.height *= self.desc.vertical_scale;
+            s
+        }))
+    }
+
+    /// Line of sight between world points `a` and `b` of the scene's `terrain` over the finest
+    /// level of the database that fits a window around the segment (the scene's `curved`
+    /// applies: the segment is seen from `a`). Returns the answer and the window terrain's
+    /// level spacing (degrees).
+    pub fn line_of_sight(&self, terrain: &Terrain, a: DVec3, b: DVec3) -> Result<(bool, f64)> {
+        let (ga, gb) = (Self::geodetic(terrain, a)?, Self::geodetic(terrain, b)?);
+        let e = self.db.header().extent;
+        let finest = self.db.header().levels.last().map_or(1.0, |l| l.spacing());
+        let m = 2.0 * finest;
+        let w = [
+            (ga[0].min(gb[0]) - m).max(e.lat_min),
+            (ga[1].min(gb[1]) - m).max(e.lon_min),
+            (ga[0].max(gb[0]) + m).min(e.lat_max),
+            (ga[1].max(gb[1]) + m).min(e.lon_max),
+        ];
+        if !(w[0] < w[2] && w[1] < w[3]) {
+            return Err(Error::invalid(
+                "los",
+                "the segment lies off the database: give points over the terrain",
+            ));
+        }
+        let desc = TerrainDesc {
+            window: Some(w),
+            level: None,
+            ..self.desc.clone()
+        };
+        let local = Terrain::from_desc(&desc, &self.base_dir)?;
+        let spacing = local.field.geo.map_or(f64::NAN, |g| g.dlat);
+        let to_local = |g: [f64; 3]| local.geodetic_to_world("los", g);
+        Ok((line_of_sight(&local, to_local(ga)?, to_local(gb)?), spacing))
+    }
+}

@@ -1,0 +1,158 @@
+//! Queries on a database scene read the database at full resolution through its tile cache,
+//! whatever level the scene renders (issue 20: "the CPU oracle (`query --at`, `--los`) reads
+//! the same database at full resolution"). Truth: the SRTM tile's own bilinear surface, read
+//! here from the `.hgt` file.
+
+mod common;
+
+use common::{relief_cli, temp_dir, terrains};
+use glam::DVec3;
+use relief::cpu::database::FullResolution;
+use relief::scene::Scene;
+use std::path::Path;
+
+/// N47E009's bilinear surface at (lat, lon), from the file's big-endian samples (row 0 north).
+fn srtm_height(bytes: &[u8], lat: f64, lon: f64) -> f64 {
+    let n = 1201usize;
+    let at = |i: usize, j_south: usize| {
+        let row = n - 1 - j_south;
+        let k = 2 * (row * n + i);
+        i16::from_be_bytes([bytes[k], bytes[k + 1]]) as f64
+    };
+    let (x, y) = ((lon - 9.0) * 1200.0, (lat - 47.0) * 1200.0);
+    let (i, j) = (
+        (x.floor() as usize).min(n - 2),
+        (y.floor() as usize).min(n - 2),
+    );
+    let (u, v) = (x - i as f64, y - j as f64);
+    at(i, j) * (1.0 - u) * (1.0 - v)
+        + at(i + 1, j) * u * (1.0 - v)
+        + at(i, j + 1) * (1.0 - u) * v
+        + at(i + 1, j + 1) * u * v
+}
+
+fn scene(dir: &Path, extra: &str) -> Scene {
+    let text = format!(
+        "[terrain]\ndatabase = \"world.reliefdb\"\nwindow = [46.5, 8.5, 48.5, 10.5]\nlevel = 7\n{extra}\n[camera]\nposition = [1000.0, 1000.0, 9000.0]\n"
+    );
+    let path = dir.join("scene.toml");
+    std::fs::write(&path, &text).unwrap();
+    Scene::parse(&text, &path).unwrap()
+}
+
+#[test]
+fn database_queries_answer_at_full_resolution_through_the_tile_cache() {
+    let dir = temp_dir("db-query");
+    let hgt = terrains().join("N47E009.hgt");
+    let etopo = common::project_dir().join("tests/data/etopo20.tif");
+    let db = dir.join("world.reliefdb");
+    relief::db::build(
+        &db,
+        &[etopo, hgt.clone()],
+        &relief::db::BuildOptions::default(),
+        &|_, _| {},
+    )
+    .unwrap();
+    let srtm = std::fs::read(&hgt).unwrap();
+
+    // The scene renders level 7 (48″ samples) over the inset; queries must see its 3″ samples.
+    let s = scene(&dir, "curved = false");
+    let terrain = s.load_terrain().unwrap();
+    assert!(
+        terrain.field.geo.unwrap().dlat > 0.01,
+        "the scene renders a coarse level"
+    );
+    let full = FullResolution::open(&s.desc.terrain, &s.base_dir)
+        .unwrap()
+        .unwrap();
+    let mut rng = 0x2545_f491_4f6c_dd1du64;
+    let mut next = || {
+        rng ^= rng << 13;
+        rng ^= rng >> 7;
+        rng ^= rng << 17;
+        (rng >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let (mut worst, mut coarse_off) = (0.0f64, 0.0f64);
+    for _ in 0..200 {
+        let (lat, lon) = (47.02 + 0.96 * next(), 9.02 + 0.96 * next());
+        let p = terrain.geodetic_to_world("test", [lat, lon, 0.0]).unwrap();
+        let h = full
+            .height_at(&terrain, p)
+            .unwrap()
+            .expect("over the database");
+        assert_eq!(h.level, 11, "the finest level answers");
+        let truth = srtm_height(&srtm, lat, lon);
+        worst = worst.max((h.height - truth).abs());
+        let rendered = terrain.point_below(p).unwrap().z;
+        coarse_off = coarse_off.max((rendered - truth).abs());
+    }
+    // The samples are the file's (f32 of whole metres); the bilinear weights differ only by
+    // the world round trip of the position (≈1e-12 of a sample).
+    assert!(
+        worst < 1e-3,
+        "full-resolution height off the SRTM surface by {worst} m"
+    );
+    // The coarse level the scene renders is far off somewhere: the check above can fail.
+    assert!(
+        coarse_off > 50.0,
+        "the coarse window is within {coarse_off} m"
+    );
+    println!("200 heights: worst {worst:.2e} m off SRTM (the rendered 48″ level: up to {coarse_off:.0} m)");
+
+    // Lines of sight at full resolution agree with the .hgt terrain's, on 100 segments.
+    let flat = {
+        let text = format!(
+            "[terrain]\nsource = \"{}\"\n[camera]\nposition = [1000.0, 1000.0, 9000.0]\n",
+            hgt.display()
+        );
+        Scene::parse(&text, &dir.join("hgt.toml"))
+            .unwrap()
+            .load_terrain()
+            .unwrap()
+    };
+    let (mut blocked, mut differ_from_coarse) = (0, 0);
+    for _ in 0..100 {
+        let mut ends = [DVec3::ZERO; 2];
+        let mut on_hgt = [DVec3::ZERO; 2];
+        for k in 0..2 {
+            let (lat, lon) = (47.05 + 0.9 * next(), 9.05 + 0.9 * next());
+            let alt = 600.0 + 2000.0 * next();
+            ends[k] = terrain.geodetic_to_world("test", [lat, lon, alt]).unwrap();
+            on_hgt[k] = flat.geodetic_to_world("test", [lat, lon, alt]).unwrap();
+        }
+        let (clear, spacing) = full.line_of_sight(&terrain, ends[0], ends[1]).unwrap();
+        assert!(
+            (spacing - 1.0 / 1200.0).abs() < 1e-12,
+            "finest level: {spacing}"
+        );
+        let truth = relief::cpu::line_of_sight(&flat, on_hgt[0], on_hgt[1]);
+        assert_eq!(clear, truth, "segment {:?} -> {:?}", on_hgt[0], on_hgt[1]);
+        blocked += usize::from(!truth);
+        differ_from_coarse +=
+            usize::from(relief::cpu::line_of_sight(&terrain, ends[0], ends[1]) != truth);
+    }
+    assert!(
+        (10..=90).contains(&blocked),
+        "{blocked} of 100 blocked: pick a fairer mix"
+    );
+    println!("100 lines of sight: {blocked} blocked, all as on the .hgt; the 48″ level differs on {differ_from_coarse}");
+
+    // The CLI says which level answered.
+    let out = relief_cli(
+        &[
+            "query",
+            dir.join("scene.toml").to_str().unwrap(),
+            "--at",
+            "75000,111000",
+        ],
+        &[],
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(text.contains("database level 11"), "{text}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
