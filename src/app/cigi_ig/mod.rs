@@ -44,6 +44,35 @@ pub struct Ownship {
     pub host_time: f64,
 }
 
+/// The receive buffer asked for: a frame's worth of datagrams at flood rates (the kernel caps
+/// it at `net.core.rmem_max`).
+pub const RECEIVE_BUFFER: usize = 4 << 20;
+
+/// Asks for [`RECEIVE_BUFFER`] bytes of socket receive buffer, so datagrams arriving between
+/// two frames' reads are not dropped by the default one (~200 KiB, a few hundred datagrams).
+fn grow_receive_buffer(socket: &UdpSocket) {
+    #[cfg(unix)]
+    {
+        use std::os::fd::AsRawFd;
+        let size = RECEIVE_BUFFER as libc::c_int;
+        // SAFETY: a valid socket descriptor, a pointer to a c_int and its size.
+        let r = unsafe {
+            libc::setsockopt(
+                socket.as_raw_fd(),
+                libc::SOL_SOCKET,
+                libc::SO_RCVBUF,
+                (&size as *const libc::c_int).cast(),
+                std::mem::size_of::<libc::c_int>() as libc::socklen_t,
+            )
+        };
+        if r != 0 {
+            log::debug!("CIGI: SO_RCVBUF: {}", std::io::Error::last_os_error());
+        }
+    }
+    #[cfg(not(unix))]
+    let _ = socket;
+}
+
 /// A CIGI IG: socket, session, frame counter.
 pub struct CigiIg {
     socket: UdpSocket,
@@ -89,6 +118,7 @@ impl CigiIg {
         let io = |e: std::io::Error| Error::invalid("--cigi", format!("UDP {at}: {e}"));
         let socket = UdpSocket::bind(at).map_err(io)?;
         socket.set_nonblocking(true).map_err(io)?;
+        grow_receive_buffer(&socket);
         let local = socket.local_addr().map_err(io)?;
         println!("cigi: listening on {local}");
         use std::io::Write as _;
