@@ -27,10 +27,21 @@ struct Ig {
 impl Ig {
     /// Starts `relief serve SCENE --cigi 0 ARGS` and reads the port it prints.
     fn start(scene: &Path, args: &[&str], host: UdpSocket) -> Ig {
+        Ig::start_command("serve", scene, args, host, &[])
+    }
+
+    /// `relief COMMAND SCENE --cigi 0 --size 160x120 ARGS` with `envs`.
+    fn start_command(
+        command: &str,
+        scene: &Path,
+        args: &[&str],
+        host: UdpSocket,
+        envs: &[(&str, &str)],
+    ) -> Ig {
         let scene = scene.to_str().unwrap();
-        let mut all = vec!["serve", scene, "--cigi", "0", "--size", SIZE];
+        let mut all = vec![command, scene, "--cigi", "0", "--size", SIZE];
         all.extend_from_slice(args);
-        let mut child = relief_command(&all, &[])
+        let mut child = relief_command(&all, envs)
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
             .spawn()
@@ -626,5 +637,63 @@ impl TryWaitRef for Child {
         let stat = std::fs::read_to_string(format!("/proc/{}/stat", self.id()))?;
         let zombie = stat.rsplit(')').next().is_some_and(|s| s.trim_start().starts_with('Z'));
         Ok(zombie.then(Default::default))
+    }
+}
+
+/// A private X server (`Xvfb -displayfd`), killed on drop; `None` (said why) without Xvfb.
+struct Xvfb(Child, String);
+
+impl Xvfb {
+    fn start() -> Option<Xvfb> {
+        let child = std::process::Command::new("Xvfb")
+            .args(["-displayfd", "1", "-screen", "0", "640x480x24", "-nolisten", "tcp"])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn();
+        let mut child = match child {
+            Ok(c) => c,
+            Err(e) => {
+                eprintln!("Skipping the window test: cannot start Xvfb ({e}; .ci/run installs it)");
+                return None;
+            }
+        };
+        let mut line = String::new();
+        BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+        let n: u32 = line.trim().parse().expect("Xvfb prints its display number");
+        Some(Xvfb(child, format!(":{n}")))
+    }
+}
+
+impl Drop for Xvfb {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+#[test]
+fn view_with_cigi_follows_a_synchronous_host() {
+    let Some(x) = Xvfb::start() else { return };
+    let dir = temp_dir("cigi-view");
+    let scene = scene(&dir, [47.6, 9.6, 900.0], 45.0, 10.0, 0.0);
+    let frames = dir.join("frames");
+    let ig = Ig::start_command(
+        "view",
+        &scene,
+        &["--cigi-sync", "--frames", "3", "--capture-frames", frames.to_str().unwrap()],
+        host_socket(),
+        &[("DISPLAY", x.1.as_str())],
+    );
+    for k in 0..3u32 {
+        let own = ownship([47.37 - 0.001 * f64::from(k), 9.31, 2300.0], 182.0, -6.0, 0.0);
+        let (m, _) = ig.exchange(&message(50 + k, &[own.into()]), 50 + k);
+        assert_eq!(sof(&m).ig_frame, k);
+    }
+    ig.finish();
+    for k in 0..3u32 {
+        let j = common::read_json(&frames.join(format!("frame_{k:04}.json")));
+        assert_eq!(j["cigi"]["host_frame"], 50 + k, "frame {k}");
+        let lat = j["camera"]["geodetic"][0].as_f64().unwrap();
+        assert!((lat - (47.37 - 0.001 * f64::from(k))).abs() < 1e-9, "frame {k}: lat {lat}");
     }
 }
