@@ -60,7 +60,8 @@ impl Ig {
             .parse()
             .unwrap();
         child.stdout = Some(out.into_inner());
-        host.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+        host.set_read_timeout(Some(Duration::from_secs(30)))
+            .unwrap();
         Ig { child, addr, host }
     }
 
@@ -93,8 +94,18 @@ impl Ig {
         let status = self.child.wait().unwrap();
         let mut out = String::new();
         let mut err = String::new();
-        self.child.stdout.take().unwrap().read_to_string(&mut out).unwrap();
-        self.child.stderr.take().unwrap().read_to_string(&mut err).unwrap();
+        self.child
+            .stdout
+            .take()
+            .unwrap()
+            .read_to_string(&mut out)
+            .unwrap();
+        self.child
+            .stderr
+            .take()
+            .unwrap()
+            .read_to_string(&mut err)
+            .unwrap();
         assert!(status.success(), "relief serve failed: {err}");
         out
     }
@@ -156,7 +167,14 @@ fn message(frame: u32, packets: &[HostPacket]) -> Vec<u8> {
 }
 
 /// A scene over N47E009 (`.hgt`) with the camera at geodetic `lla`, written to `dir/NAME.toml`.
-fn scene_named(dir: &Path, name: &str, lla: [f64; 3], heading: f64, pitch: f64, roll: f64) -> PathBuf {
+fn scene_named(
+    dir: &Path,
+    name: &str,
+    lla: [f64; 3],
+    heading: f64,
+    pitch: f64,
+    roll: f64,
+) -> PathBuf {
     let hgt = terrains().join("N47E009.hgt");
     let text = format!(
         "[terrain]\nsource = {hgt:?}\n[sun]\nazimuth = 245.0\nelevation = 24.0\n\
@@ -182,7 +200,10 @@ impl Dem {
     fn load() -> Dem {
         let b = std::fs::read(terrains().join("N47E009.hgt")).unwrap();
         assert_eq!(b.len(), 1201 * 1201 * 2);
-        Dem(b.chunks(2).map(|c| i16::from_be_bytes([c[0], c[1]])).collect())
+        Dem(b
+            .chunks(2)
+            .map(|c| i16::from_be_bytes([c[0], c[1]]))
+            .collect())
     }
 
     fn at(&self, row: usize, col: usize) -> f64 {
@@ -226,7 +247,13 @@ fn the_ownship_view_equals_render_of_the_same_geodetic_camera() {
     let served = dir.join("served");
     let ig = Ig::start(
         &elsewhere,
-        &["--cigi-sync", "--frames", "1", "--capture-frames", served.to_str().unwrap()],
+        &[
+            "--cigi-sync",
+            "--frames",
+            "1",
+            "--capture-frames",
+            served.to_str().unwrap(),
+        ],
         host_socket(),
     );
     let own = ownship(lla, heading, pitch, roll);
@@ -235,14 +262,27 @@ fn the_ownship_view_equals_render_of_the_same_geodetic_camera() {
     ig.finish();
     let rendered = dir.join("rendered");
     let out = relief_command(
-        &["render", scene.to_str().unwrap(), "--out", rendered.to_str().unwrap()],
+        &[
+            "render",
+            scene.to_str().unwrap(),
+            "--out",
+            rendered.to_str().unwrap(),
+        ],
         &[],
     )
     .output()
     .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let a = image::open(served.join("frame_0000.png")).unwrap().to_rgba8();
-    let b = image::open(rendered.join("frame_0000.png")).unwrap().to_rgba8();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let a = image::open(served.join("frame_0000.png"))
+        .unwrap()
+        .to_rgba8();
+    let b = image::open(rendered.join("frame_0000.png"))
+        .unwrap()
+        .to_rgba8();
     let d = mean_diff(&a, &b);
     eprintln!("served vs rendered: mean difference {d:.4}/255");
     assert!(d <= 1.0, "mean difference {d}/255");
@@ -295,7 +335,11 @@ fn hat_and_hot_follow_the_dem_within_a_centimetre() {
             IgPacket::HatHotResponse(r) => {
                 assert!(r.valid);
                 assert_eq!(r.host_frame_lsn, 1);
-                let (h, a) = if r.hot { (Some(r.height), None) } else { (None, Some(r.height)) };
+                let (h, a) = if r.hot {
+                    (Some(r.height), None)
+                } else {
+                    (None, Some(r.height))
+                };
                 (r.request_id, h, a)
             }
             IgPacket::HatHotExtendedResponse(r) => {
@@ -307,10 +351,17 @@ fn hat_and_hot_follow_the_dem_within_a_centimetre() {
         let (lat, lon, alt) = points[usize::from(id / 10)];
         let want = dem.height(lat, lon);
         if let Some(h) = hot {
-            assert!((h - want).abs() <= 0.01, "HOT at {lat}, {lon}: {h} vs DEM {want}");
+            assert!(
+                (h - want).abs() <= 0.01,
+                "HOT at {lat}, {lon}: {h} vs DEM {want}"
+            );
         }
         if let Some(a) = hat {
-            assert!((a - (alt - want)).abs() <= 0.01, "HAT at {lat}, {lon}: {a} vs {}", alt - want);
+            assert!(
+                (a - (alt - want)).abs() <= 0.01,
+                "HAT at {lat}, {lon}: {a} vs {}",
+                alt - want
+            );
         }
         seen += 1;
     }
@@ -327,7 +378,12 @@ fn meridional_radius(lat: f64) -> f64 {
 
 /// The first point of the segment (constant longitude) below the DEM by a dense march:
 /// `(fraction along the segment, step)`, or `None` when it stays above.
-fn march(dem: &Dem, lon: f64, (lat0, alt0): (f64, f64), (lat1, alt1): (f64, f64)) -> Option<(f64, f64)> {
+fn march(
+    dem: &Dem,
+    lon: f64,
+    (lat0, alt0): (f64, f64),
+    (lat1, alt1): (f64, f64),
+) -> Option<(f64, f64)> {
     let n = 40_000;
     (0..=n).map(|k| k as f64 / n as f64).find_map(|s| {
         let (lat, alt) = (lat0 + (lat1 - lat0) * s, alt0 + (alt1 - alt0) * s);
@@ -393,12 +449,19 @@ fn line_of_sight_across_the_saentis_ridge() {
     // Metres per degree of latitude here (WGS84), and the segment's length.
     let per_deg = meridional_radius(0.5 * (north + south)).to_radians();
     let length = (north - south) * per_deg;
-    let low = march(&dem, lon, (north, 2300.0), (south, 2300.0)).expect("the low segment meets the ridge");
-    assert!(march(&dem, lon, (north, 2700.0), (south, 2700.0)).is_none(), "the high one clears it");
+    let low = march(&dem, lon, (north, 2300.0), (south, 2300.0))
+        .expect("the low segment meets the ridge");
+    assert!(
+        march(&dem, lon, (north, 2700.0), (south, 2700.0)).is_none(),
+        "the high one clears it"
+    );
     let (s, step) = low;
     let want = s * length;
     let tol = step * length + 1e-3 * want;
-    eprintln!("march: low segment blocked at {want:.2} m (step {:.2} m)", step * length);
+    eprintln!(
+        "march: low segment blocked at {want:.2} m (step {:.2} m)",
+        step * length
+    );
     let mut seen = 0;
     for p in &m.packets[1..] {
         match *p {
@@ -407,7 +470,11 @@ fn line_of_sight_across_the_saentis_ridge() {
                 let low = r.request_id == 1;
                 assert_eq!(r.visible, !low, "request {}", r.request_id);
                 if low {
-                    assert!((r.range - want).abs() <= tol, "range {} vs march {want}", r.range);
+                    assert!(
+                        (r.range - want).abs() <= tol,
+                        "range {} vs march {want}",
+                        r.range
+                    );
                 }
             }
             IgPacket::LosExtendedResponse(r) => {
@@ -418,12 +485,25 @@ fn line_of_sight_across_the_saentis_ridge() {
                 }
                 assert_eq!(r.range_valid, low, "request {}", r.request_id);
                 if low {
-                    assert!((r.range - want).abs() <= tol, "{}: range {} vs march {want}", r.request_id, r.range);
+                    assert!(
+                        (r.range - want).abs() <= tol,
+                        "{}: range {} vs march {want}",
+                        r.request_id,
+                        r.range
+                    );
                     let lat = north + (south - north) * s;
-                    assert!((r.lat - lat).abs() * per_deg <= tol, "{}: lat {} vs {lat}", r.request_id, r.lat);
+                    assert!(
+                        (r.lat - lat).abs() * per_deg <= tol,
+                        "{}: lat {} vs {lat}",
+                        r.request_id,
+                        r.lat
+                    );
                     assert!((r.lon - lon).abs() < 1e-9);
                     assert!((r.alt - 2300.0).abs() < 1e-6, "alt {}", r.alt);
-                    assert!((r.alt - dem.height(r.lat, r.lon)).abs() < 0.05, "the hit is on the DEM");
+                    assert!(
+                        (r.alt - dem.height(r.lat, r.lon)).abs() < 0.05,
+                        "the hit is on the DEM"
+                    );
                 }
             }
             p => panic!("unexpected {p:?}"),
@@ -460,21 +540,35 @@ fn a_synchronous_host_gets_one_ig_frame_per_host_frame_decoded_by_tshark() {
     let frames = dir.join("frames");
     let ig = Ig::start(
         &scene,
-        &["--cigi-sync", "--frames", "10", "--capture-frames", frames.to_str().unwrap()],
+        &[
+            "--cigi-sync",
+            "--frames",
+            "10",
+            "--capture-frames",
+            frames.to_str().unwrap(),
+        ],
         host_socket(),
     );
     let host_addr = ig.host.local_addr().unwrap();
     let mut raw = Vec::new();
     for k in 0..10u32 {
         let hf = 1000 + 3 * k;
-        let own = ownship([47.37 - 0.001 * f64::from(k), 9.31, 2300.0], 182.0, -6.0, 0.0);
+        let own = ownship(
+            [47.37 - 0.001 * f64::from(k), 9.31, 2300.0],
+            182.0,
+            -6.0,
+            0.0,
+        );
         let mut packets = vec![own.into()];
         if k % 3 == 0 {
             packets.push(hat_hot(k as u16, 1, 47.3, 9.4, 0.0).into());
         }
         let (m, bytes) = ig.exchange(&message(hf, &packets), hf);
         let s = sof(&m);
-        assert_eq!((s.ig_frame, s.last_host_frame, s.database, s.ig_mode), (k, hf, 0, 1));
+        assert_eq!(
+            (s.ig_frame, s.last_host_frame, s.database, s.ig_mode),
+            (k, hf, 0, 1)
+        );
         assert_eq!(m.packets.len(), if k % 3 == 0 { 2 } else { 1 });
         raw.push(bytes);
     }
@@ -484,9 +578,16 @@ fn a_synchronous_host_gets_one_ig_frame_per_host_frame_decoded_by_tshark() {
         assert_eq!(j["cigi"]["host_frame"], 1000 + 3 * k, "IG frame {k}");
         assert_eq!(j["cigi"]["ig_frame"], k);
         let lat = j["camera"]["geodetic"][0].as_f64().unwrap();
-        assert!((lat - (47.37 - 0.001 * f64::from(k))).abs() < 1e-9, "frame {k}: lat {lat}");
+        assert!(
+            (lat - (47.37 - 0.001 * f64::from(k))).abs() < 1e-9,
+            "frame {k}: lat {lat}"
+        );
     }
-    if std::process::Command::new("tshark").arg("-v").output().is_err() {
+    if std::process::Command::new("tshark")
+        .arg("-v")
+        .output()
+        .is_err()
+    {
         eprintln!("Skipping the tshark part: `tshark` is not installed (.ci/run installs it)");
         return;
     }
@@ -508,25 +609,51 @@ fn a_synchronous_host_gets_one_ig_frame_per_host_frame_decoded_by_tshark() {
         .args(["-d", "udp.port==8005,cigi", "-T", "pdml"])
         .output()
         .unwrap();
-    assert!(out.status.success(), "tshark: {}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "tshark: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let packets = pdml(&String::from_utf8_lossy(&out.stdout));
     assert_eq!(packets.len(), 10);
     for (k, fields) in packets.iter().enumerate() {
         let get = |n: &str| -> Vec<&str> {
-            fields.iter().filter(|(f, _)| f == n).map(|(_, v)| v.as_str()).collect()
+            fields
+                .iter()
+                .filter(|(f, _)| f == n)
+                .map(|(_, v)| v.as_str())
+                .collect()
         };
         assert!(
-            !fields.iter().any(|(n, _)| n.starts_with("_ws.malformed") || n.starts_with("_ws.expert") || n == "cigi.unknown"),
+            !fields.iter().any(|(n, _)| n.starts_with("_ws.malformed")
+                || n.starts_with("_ws.expert")
+                || n == "cigi.unknown"),
             "frame {k}: {fields:?}"
         );
         let hf = (1000 + 3 * k).to_string();
-        assert_eq!(get("cigi.sof.ig_frame_number"), [k.to_string().as_str()], "frame {k}");
-        assert_eq!(get("cigi.sof.last_host_frame_number"), [hf.as_str()], "frame {k}");
+        assert_eq!(
+            get("cigi.sof.ig_frame_number"),
+            [k.to_string().as_str()],
+            "frame {k}"
+        );
+        assert_eq!(
+            get("cigi.sof.last_host_frame_number"),
+            [hf.as_str()],
+            "frame {k}"
+        );
         assert_eq!(get("cigi.sof.db_number"), ["0"], "frame {k}");
         assert_eq!(get("cigi.sof.ig_mode"), ["1"], "frame {k}");
         assert_eq!(get("cigi.sof.timestamp_valid"), ["1"], "frame {k}");
         let ids = get("cigi.packet_id");
-        assert_eq!(ids, if k % 3 == 0 { vec!["101", "102"] } else { vec!["101"] }, "frame {k}");
+        assert_eq!(
+            ids,
+            if k % 3 == 0 {
+                vec!["101", "102"]
+            } else {
+                vec!["101"]
+            },
+            "frame {k}"
+        );
     }
 }
 
@@ -559,8 +686,14 @@ fn twenty_thousand_hostile_datagrams_while_a_valid_host_flies() {
     let scene = scene(&dir, [47.37, 9.31, 2300.0], 182.0, -6.0, 0.0);
     let host = host_socket();
     let host_addr = host.local_addr().unwrap().to_string();
-    let ig = Ig::start(&scene, &["--frames", "240", "--cigi-host", &host_addr], host);
-    ig.host.set_read_timeout(Some(Duration::from_millis(5))).unwrap();
+    let ig = Ig::start(
+        &scene,
+        &["--frames", "240", "--cigi-host", &host_addr],
+        host,
+    );
+    ig.host
+        .set_read_timeout(Some(Duration::from_millis(5)))
+        .unwrap();
     let valid = |f: u32| {
         message(
             f,
@@ -610,20 +743,27 @@ fn twenty_thousand_hostile_datagrams_while_a_valid_host_flies() {
     assert!(answers >= 30, "frames kept coming: {answers}");
     assert!(last_answer_after_flood.is_some(), "answers after the flood");
     // "cigi: N IG frames, D datagrams in (A accepted, R refused, I from other senders, M malformed)"
-    let summary = out.lines().find(|l| l.starts_with("cigi: ")).expect("summary line");
+    let summary = out
+        .lines()
+        .find(|l| l.starts_with("cigi: "))
+        .expect("summary line");
     let nums: Vec<u64> = summary
         .split(|c: char| !c.is_ascii_digit())
         .filter(|s| !s.is_empty())
         .map(|s| s.parse().unwrap())
         .collect();
-    let (frames, datagrams, accepted, refused, others) = (nums[0], nums[1], nums[2], nums[3], nums[4]);
+    let (frames, datagrams, accepted, refused, others) =
+        (nums[0], nums[1], nums[2], nums[3], nums[4]);
     assert_eq!(frames, 240);
     assert_eq!(accepted + refused, datagrams);
     assert!(others >= 1 && others <= u64::from(strangers), "{summary}");
     // Loopback may drop datagrams under the flood (the IG asks for a 4 MiB receive buffer);
     // most arrive and a good part of them are refused.
     let offered = u64::from(sent + host_frames + strangers);
-    assert!(datagrams <= offered && datagrams >= offered * 9 / 10, "{summary}");
+    assert!(
+        datagrams <= offered && datagrams >= offered * 9 / 10,
+        "{summary}"
+    );
     assert!(refused >= (datagrams - others) / 3 + others, "{summary}");
 }
 
@@ -635,7 +775,10 @@ impl TryWaitRef for Child {
     /// Whether the process has exited, without reaping it (`/proc` state Z or gone).
     fn try_wait_ref(&self) -> std::io::Result<Option<std::process::ExitStatus>> {
         let stat = std::fs::read_to_string(format!("/proc/{}/stat", self.id()))?;
-        let zombie = stat.rsplit(')').next().is_some_and(|s| s.trim_start().starts_with('Z'));
+        let zombie = stat
+            .rsplit(')')
+            .next()
+            .is_some_and(|s| s.trim_start().starts_with('Z'));
         Ok(zombie.then(Default::default))
     }
 }
@@ -646,7 +789,15 @@ struct Xvfb(Child, String);
 impl Xvfb {
     fn start() -> Option<Xvfb> {
         let child = std::process::Command::new("Xvfb")
-            .args(["-displayfd", "1", "-screen", "0", "640x480x24", "-nolisten", "tcp"])
+            .args([
+                "-displayfd",
+                "1",
+                "-screen",
+                "0",
+                "640x480x24",
+                "-nolisten",
+                "tcp",
+            ])
             .stdout(Stdio::piped())
             .stderr(Stdio::null())
             .spawn();
@@ -658,7 +809,9 @@ impl Xvfb {
             }
         };
         let mut line = String::new();
-        BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+        BufReader::new(child.stdout.take().unwrap())
+            .read_line(&mut line)
+            .unwrap();
         let n: u32 = line.trim().parse().expect("Xvfb prints its display number");
         Some(Xvfb(child, format!(":{n}")))
     }
@@ -680,12 +833,23 @@ fn view_with_cigi_follows_a_synchronous_host() {
     let ig = Ig::start_command(
         "view",
         &scene,
-        &["--cigi-sync", "--frames", "3", "--capture-frames", frames.to_str().unwrap()],
+        &[
+            "--cigi-sync",
+            "--frames",
+            "3",
+            "--capture-frames",
+            frames.to_str().unwrap(),
+        ],
         host_socket(),
         &[("DISPLAY", x.1.as_str())],
     );
     for k in 0..3u32 {
-        let own = ownship([47.37 - 0.001 * f64::from(k), 9.31, 2300.0], 182.0, -6.0, 0.0);
+        let own = ownship(
+            [47.37 - 0.001 * f64::from(k), 9.31, 2300.0],
+            182.0,
+            -6.0,
+            0.0,
+        );
         let (m, _) = ig.exchange(&message(50 + k, &[own.into()]), 50 + k);
         assert_eq!(sof(&m).ig_frame, k);
     }
@@ -694,6 +858,9 @@ fn view_with_cigi_follows_a_synchronous_host() {
         let j = common::read_json(&frames.join(format!("frame_{k:04}.json")));
         assert_eq!(j["cigi"]["host_frame"], 50 + k, "frame {k}");
         let lat = j["camera"]["geodetic"][0].as_f64().unwrap();
-        assert!((lat - (47.37 - 0.001 * f64::from(k))).abs() < 1e-9, "frame {k}: lat {lat}");
+        assert!(
+            (lat - (47.37 - 0.001 * f64::from(k))).abs() < 1e-9,
+            "frame {k}: lat {lat}"
+        );
     }
 }

@@ -387,7 +387,11 @@ impl Frames<'_> {
     }
 
     /// Renders through `cam` (the job's projection and pattern) and returns the pixels.
-    pub fn render_camera(&self, renderer: &mut TerrainRenderer, cam: &Camera) -> Result<FrameOutput> {
+    pub fn render_camera(
+        &self,
+        renderer: &mut TerrainRenderer,
+        cam: &Camera,
+    ) -> Result<FrameOutput> {
         let (gpu, scene, terrain, settings) = (self.gpu, self.scene, self.terrain, self.settings);
         if self.job.pattern {
             let params = crate::display::pattern::PatternParams::grid(cam.basis().2);

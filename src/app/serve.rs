@@ -43,7 +43,10 @@ pub struct ServeOptions {
 /// the session's summary line.
 pub fn run(opts: &ServeOptions) -> Result<String> {
     if opts.cigi.cigi.is_none() {
-        return Err(Error::invalid("--cigi", "give the UDP port to listen on (0: any free port)"));
+        return Err(Error::invalid(
+            "--cigi",
+            "give the UDP port to listen on (0: any free port)",
+        ));
     }
     let job = RenderJob {
         scene: opts.scene.clone(),

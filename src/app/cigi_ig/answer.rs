@@ -20,9 +20,9 @@
 //! terrain's georeferenced window.
 
 use crate::cigi::{
-    HatHotExtendedResponse, HatHotRequest, HatHotResponse, LosExtendedResponse,
-    LosResponse, LosSegmentRequest, LosVectorRequest, MessageBuilder, PositionRequest,
-    PositionResponse, Query, Session,
+    HatHotExtendedResponse, HatHotRequest, HatHotResponse, LosExtendedResponse, LosResponse,
+    LosSegmentRequest, LosVectorRequest, MessageBuilder, PositionRequest, PositionResponse, Query,
+    Session,
 };
 use crate::cpu::query::{cast_ray, line_of_sight};
 use crate::cpu::Hit;
@@ -62,8 +62,15 @@ pub fn height_of_terrain(t: &Terrain, lat: f64, lon: f64) -> Option<f64> {
 /// (grid +y is north, +x east, the base normal up).
 pub fn azimuth_elevation(t: &Terrain, v: DVec3) -> (f64, f64) {
     let v = v.normalize_or_zero();
-    let (e, n, u) = (v.dot(t.frame.axis_x), v.dot(t.frame.axis_y), v.dot(t.frame.normal));
-    (e.atan2(n).to_degrees(), u.clamp(-1.0, 1.0).asin().to_degrees())
+    let (e, n, u) = (
+        v.dot(t.frame.axis_x),
+        v.dot(t.frame.axis_y),
+        v.dot(t.frame.normal),
+    );
+    (
+        e.atan2(n).to_degrees(),
+        u.clamp(-1.0, 1.0).asin().to_degrees(),
+    )
 }
 
 /// World unit vector of azimuth `az` (from true north, clockwise) and elevation `el` (degrees).

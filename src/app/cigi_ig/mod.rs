@@ -107,7 +107,9 @@ impl CigiIg {
         let port = args
             .cigi
             .ok_or_else(|| Error::invalid("--cigi", "give the UDP port to listen on"))?;
-        if !(args.cigi_timeout.is_finite() && args.cigi_timeout > 0.0 && args.cigi_timeout <= 3600.0)
+        if !(args.cigi_timeout.is_finite()
+            && args.cigi_timeout > 0.0
+            && args.cigi_timeout <= 3600.0)
         {
             return Err(Error::invalid(
                 "--cigi-timeout",
@@ -220,7 +222,9 @@ impl CigiIg {
     fn wait_readable(&self, d: Duration) {
         let mut probe = [0u8; 1];
         if self.socket.set_nonblocking(false).is_ok() {
-            let _ = self.socket.set_read_timeout(Some(d.max(Duration::from_millis(1))));
+            let _ = self
+                .socket
+                .set_read_timeout(Some(d.max(Duration::from_millis(1))));
             let _ = self.socket.peek_from(&mut probe);
             let _ = self.socket.set_nonblocking(true);
         } else {
@@ -232,7 +236,11 @@ impl CigiIg {
     /// attitude at the frame's host time (interpolated by [`Session::pose_at`]) and the fov of
     /// a View Definition with both left and right given. `None` for the position part while
     /// the host has not placed the ownship (or placed it off the terrain: `base` kept).
-    pub fn camera_pose(&mut self, terrain: &Terrain, base: CameraPose) -> (CameraPose, Option<Ownship>) {
+    pub fn camera_pose(
+        &mut self,
+        terrain: &Terrain,
+        base: CameraPose,
+    ) -> (CameraPose, Option<Ownship>) {
         let others = self.session.entity_count() - usize::from(self.session.ownship().is_some());
         if others > self.other_entities {
             if self.other_entities == 0 {
@@ -252,18 +260,30 @@ impl CigiIg {
         };
         let attached = self.session.ownship().is_some_and(|e| e.parent.is_some());
         let lla = [p.lat, p.lon, p.alt];
-        match terrain.geodetic_to_world("CIGI ownship", lla).ok().filter(|_| !attached) {
+        match terrain
+            .geodetic_to_world("CIGI ownship", lla)
+            .ok()
+            .filter(|_| !attached)
+        {
             Some(w) => {
                 pose.position = w;
                 pose.heading = p.yaw;
                 pose.pitch = p.pitch;
                 pose.roll = p.roll;
-                (pose, Some(Ownship { geodetic: lla, host_time: t }))
+                (
+                    pose,
+                    Some(Ownship {
+                        geodetic: lla,
+                        host_time: t,
+                    }),
+                )
             }
             None => {
                 self.off_terrain += 1;
                 if self.off_terrain == 1 {
-                    log::warn!("CIGI ownship at {lla:?} is off the terrain (or attached): camera kept");
+                    log::warn!(
+                        "CIGI ownship at {lla:?} is off the terrain (or attached): camera kept"
+                    );
                 }
                 (pose, None)
             }
