@@ -37,6 +37,9 @@ struct Cli {
 enum Command {
     /// Render frames headless: frame_NNNN.png, depth_NNNN.tiff, frame_NNNN.json.
     Render(RenderJob),
+    /// A headless CIGI 3.3 image generator: the host flies the ownship over UDP, relief
+    /// renders its view and answers HAT/HOT, line-of-sight and position queries.
+    Serve(Box<relief::app::serve::ServeOptions>),
     /// Open a window: the same renderer in a fixed-rate frame loop, with flight and capture.
     View(Box<ViewOptions>),
     /// Benchmarks, one mode a subcommand: terrain traversal, primary rays, free forms, volumes,
@@ -176,6 +179,12 @@ fn run(cli: Cli) -> Result<()> {
             let files = relief::app::capture::run(&job)
                 .with_context(|| format!("rendering {}", job.scene.display()))?;
             println!("wrote {} files to {}", files.len(), job.out_dir.display());
+            Ok(())
+        }
+        Some(Command::Serve(opts)) => {
+            let summary = relief::app::serve::run(&opts)
+                .with_context(|| format!("serving {}", opts.scene.display()))?;
+            println!("{summary}");
             Ok(())
         }
         Some(Command::View(opts)) => {

@@ -168,15 +168,40 @@ struct Projection {
     two_pass: Option<TwoPass>,
 }
 
-/// Renders `job.frames` frames and writes them to `job.out_dir`; returns the file paths.
-pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
+/// What a run renders with besides its renderer: the scene (output size set), its world, the
+/// adapter, the job's projection and the render settings.
+pub struct Prepared {
+    pub scene: Scene,
+    pub world: World,
+    pub gpu: Gpu,
+    projection: Projection,
+    pub settings: RenderSettings,
+}
+
+impl Prepared {
+    /// The frame renderer of this run (`job` names the output directory and the pattern).
+    pub fn frames<'a>(&'a self, job: &'a RenderJob) -> Frames<'a> {
+        Frames {
+            job,
+            gpu: &self.gpu,
+            scene: &self.scene,
+            terrain: &self.world.terrain,
+            settings: &self.settings,
+            projection: &self.projection,
+            fps: self.scene.desc.path.as_ref().map_or(30.0, |p| p.fps),
+        }
+    }
+}
+
+/// Loads `job`'s scene and world, opens the adapter and sets the renderer up for the job's
+/// projection (pinhole, display channel, dome master).
+pub fn prepare(job: &RenderJob) -> Result<(Prepared, TerrainRenderer)> {
     let mut scene = Scene::load(&job.scene)?;
     if let Some((w, h)) = job.size {
         scene.desc.output.width = w;
         scene.desc.output.height = h;
         scene.desc.validate()?;
     }
-    let last_frame = last_frame(job)?;
     let world = World::load(&scene)?;
     let gpu = crate::app::gpu_options::open()?;
     log::info!("adapter: {}", gpu.describe());
@@ -190,16 +215,22 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
     }
     let mut settings = RenderSettings::from_scene(&scene.desc);
     job.toggles.apply(&mut settings);
-    std::fs::create_dir_all(&job.out_dir).map_err(|e| Error::io(&job.out_dir, e))?;
-    let frames = Frames {
-        job,
-        gpu: &gpu,
-        scene: &scene,
-        terrain: &world.terrain,
-        settings: &settings,
-        projection: &projection,
-        fps: scene.desc.path.as_ref().map_or(30.0, |p| p.fps),
+    let prepared = Prepared {
+        scene,
+        world,
+        gpu,
+        projection,
+        settings,
     };
+    Ok((prepared, renderer))
+}
+
+/// Renders `job.frames` frames and writes them to `job.out_dir`; returns the file paths.
+pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
+    let last_frame = last_frame(job)?;
+    let (p, mut renderer) = prepare(job)?;
+    std::fs::create_dir_all(&job.out_dir).map_err(|e| Error::io(&job.out_dir, e))?;
+    let frames = p.frames(job);
     let mut written = Vec::new();
     for frame in job.first_frame..=last_frame {
         // An error names the frame and what is kept: every earlier frame is complete.
@@ -336,7 +367,7 @@ fn dome_master(
 }
 
 /// What every frame of a run shares.
-struct Frames<'a> {
+pub struct Frames<'a> {
     job: &'a RenderJob,
     gpu: &'a Gpu,
     scene: &'a Scene,
@@ -349,9 +380,19 @@ struct Frames<'a> {
 impl Frames<'_> {
     /// Renders frame `frame` and writes its three files (none of them when one cannot be).
     fn render(&self, renderer: &mut TerrainRenderer, frame: u32) -> Result<[PathBuf; 3]> {
-        let (gpu, scene, terrain, settings) = (self.gpu, self.scene, self.terrain, self.settings);
-        let cam = scene.camera(frame, terrain);
+        let cam = self.scene.camera(frame, self.terrain);
         renderer.set_time(frame as f64 / self.fps);
+        let out = self.render_camera(renderer, &cam)?;
+        self.write(&out, &cam, frame, |_| {})
+    }
+
+    /// Renders through `cam` (the job's projection and pattern) and returns the pixels.
+    pub fn render_camera(
+        &self,
+        renderer: &mut TerrainRenderer,
+        cam: &Camera,
+    ) -> Result<FrameOutput> {
+        let (gpu, scene, terrain, settings) = (self.gpu, self.scene, self.terrain, self.settings);
         if self.job.pattern {
             let params = crate::display::pattern::PatternParams::grid(cam.basis().2);
             renderer.set_pattern(gpu, Some(params));
@@ -369,23 +410,37 @@ impl Frames<'_> {
                 cam.width,
                 cam.height,
             )?,
-            None => renderer.capture(gpu, terrain, &scene.desc, &cam, settings)?,
+            None => renderer.capture(gpu, terrain, &scene.desc, cam, settings)?,
         };
         if let Some(b) = &self.projection.blend_after_warp {
             b.apply_rgba8(&mut out.rgba);
         }
+        Ok(out)
+    }
+
+    /// Writes frame `frame`'s three files to the job's output directory (none of them when
+    /// one cannot be); `edit` adds to the frame JSON.
+    pub fn write(
+        &self,
+        out: &FrameOutput,
+        cam: &Camera,
+        frame: u32,
+        edit: impl FnOnce(&mut serde_json::Value),
+    ) -> Result<[PathBuf; 3]> {
+        let (gpu, scene, terrain, settings) = (self.gpu, self.scene, self.terrain, self.settings);
         let [png, tif, meta] = frame_paths(&self.job.out_dir, frame as u64);
         // None of the frame's files is written when one of them cannot be.
         for p in [&png, &tif, &meta] {
             fileio::check_writable_target(p)?;
         }
-        let mut m = frame_metadata(gpu, scene, terrain, &cam, settings, frame, &out);
+        let mut m = frame_metadata(gpu, scene, terrain, cam, settings, frame, out);
         if !self.projection.meta.is_null() {
             m["display"] = self.projection.meta.clone();
             m["camera"]["model"] =
                 json!("distortion-table (see display); the pinhole intrinsics do not apply");
         }
-        write_frame_files(&png, &tif, &meta, &out, &m)?;
+        edit(&mut m);
+        write_frame_files(&png, &tif, &meta, out, &m)?;
         log::info!(
             "frame {frame}: raygen {:.1} ms, tile {:.1} ms, cast {:.1} ms, free forms {:.1} ms, voxels {:.1} ms, voxel shadows {:.1} ms, shade {:.1} ms, volume shadows {:.1} ms, volume {:.1} ms -> {}",
             out.times.raygen_ms,

@@ -30,6 +30,8 @@ struct Step {
     screenshot: bool,
     grab: bool,
     overlay: Option<Vec<String>>,
+    /// `--cigi`: the frame's `cigi` JSON part and the ownship's geodetic position.
+    cigi: Option<(serde_json::Value, Option<[f64; 3]>)>,
 }
 
 /// What drawing the windows took.
@@ -68,6 +70,10 @@ impl App {
         self.poll_gpu();
         let step = self.step()?;
         let drawn = self.draw(&step)?;
+        let p = &mut self.prep;
+        if let Some(ig) = &mut p.cigi {
+            ig.end_frame(&p.world.terrain);
+        }
         self.record(&step, &drawn, start, loop_start)
     }
 
@@ -99,10 +105,25 @@ impl App {
         let terrain = &self.prep.world.terrain;
         (self.prep.motion).step(t, if n == 0 { 0.0 } else { dt }, &c, terrain);
         let eye = self.eye_for(n)?;
+        let mut pose = self.prep.motion.pose;
+        let mut cigi = None;
+        let p = &mut self.prep;
+        if let Some(ig) = &mut p.cigi {
+            // The same per-frame session update as `relief serve`.
+            if ig.sync {
+                ig.wait_host_frame()?;
+            } else {
+                ig.poll();
+            }
+            let (cam, own) = ig.camera_pose(&p.world.terrain, pose);
+            pose = cam;
+            cigi = Some((ig.frame_json(ig.ig_frame), own.map(|o| o.geodetic)));
+        }
         Ok(Step {
             n,
             t,
-            pose: self.prep.motion.pose,
+            pose,
+            cigi,
             eye,
             screenshot: std::mem::take(&mut self.screenshot),
             grab: self.prep.opts.grab == Some(n),
@@ -368,6 +389,10 @@ impl Draw<'_> {
             out,
         );
         meta["time_s"] = json!(t);
+        if let Some((c, geodetic)) = &step.cigi {
+            meta["cigi"] = c.clone();
+            meta["camera"]["geodetic"] = json!(geodetic);
+        }
         meta["view"] = json!({
             "mode": prep.motion.mode.name(),
             "rate_hz": prep.opts.rate,

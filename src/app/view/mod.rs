@@ -124,6 +124,9 @@ pub struct ViewOptions {
     pub no_overlay: bool,
     #[command(flatten)]
     pub toggles: RenderToggles,
+    /// `--cigi PORT` and its options: the camera obeys a CIGI host (as `relief serve`).
+    #[command(flatten)]
+    pub cigi: crate::app::cigi_ig::CigiArgs,
 }
 
 impl ViewOptions {

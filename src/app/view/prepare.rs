@@ -56,6 +56,8 @@ pub struct Prepared {
     pub eyes: Option<EyeSource>,
     pub recorder: Option<PathRecorder>,
     pub stats_csv: Option<StatsCsv>,
+    /// `--cigi`: the IG whose ownship drives the camera.
+    pub cigi: Option<crate::app::cigi_ig::CigiIg>,
 }
 
 /// Loads and checks everything `opts` names.
@@ -92,6 +94,10 @@ pub fn prepare(opts: &ViewOptions) -> Result<Prepared> {
         .as_deref()
         .map(StatsCsv::create)
         .transpose()?;
+    let cigi = match opts.cigi.cigi {
+        Some(_) => Some(crate::app::cigi_ig::CigiIg::bind(&opts.cigi)?),
+        None => None,
+    };
     Ok(Prepared {
         opts: opts.clone(),
         resize_at,
@@ -104,6 +110,7 @@ pub fn prepare(opts: &ViewOptions) -> Result<Prepared> {
         eyes,
         recorder,
         stats_csv,
+        cigi,
     })
 }
 

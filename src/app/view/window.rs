@@ -450,6 +450,9 @@ impl App {
     }
 
     fn finish(mut self) -> Result<ViewReport> {
+        if let Some(ig) = &self.prep.cigi {
+            log::info!("{}", ig.summary());
+        }
         if let Some(e) = self.error.take() {
             return Err(e);
         }

@@ -1,0 +1,291 @@
+//! Answers to the host's queries from the CPU reference (`crate::cpu::query`): HAT/HOT, line of
+//! sight (segment and vector) and position. Each query gets exactly one response packet.
+//!
+//! * **HOT** is the height above MSL of the terrain's bilinear surface at the query's latitude
+//!   and longitude; **HAT** the query's altitude minus it. The extended response carries both
+//!   and the surface normal as the ICD defines it: azimuth from true north (−180..180°),
+//!   elevation above the local horizontal (−90..90°).
+//! * **LOS segment**: `visible` from [`line_of_sight`] (an end point underground is blocked);
+//!   the range, intersection point and normal from the first hit of [`cast_ray`] along the
+//!   segment (on a curved terrain in the tangent frame of the source, as the CPU reference does).
+//! * **LOS vector**: [`cast_ray`] from the source along azimuth/elevation between the minimum
+//!   and maximum range; no hit is answered `valid = false` (basic) or `range_valid = false`
+//!   (extended).
+//! * **Position**: the entity's pose at the frame's host time, geodetic for a top-level entity,
+//!   parent-relative for an attached one. Other object classes (parts, views, groups, trackers)
+//!   and unknown entities get no response (counted).
+//!
+//! Requests in an entity's frame (HAT/HOT `entity_frame`, LOS `source_entity_frame`, …) are
+//! answered `valid = false`: relative queries are not modelled yet. So is a point off the
+//! terrain's georeferenced window.
+
+use crate::cigi::{
+    HatHotExtendedResponse, HatHotRequest, HatHotResponse, LosExtendedResponse, LosResponse,
+    LosSegmentRequest, LosVectorRequest, MessageBuilder, PositionRequest, PositionResponse, Query,
+    Session,
+};
+use crate::cpu::query::{cast_ray, line_of_sight};
+use crate::cpu::Hit;
+use crate::terrain::Terrain;
+use glam::DVec3;
+
+/// What the answers of one frame did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct AnswerCounts {
+    pub hat_hot: u64,
+    pub los: u64,
+    pub position: u64,
+    /// Answered `valid = false` (entity frames, points off the terrain).
+    pub invalid: u64,
+    /// Not answered (unknown entity, unsupported object class).
+    pub unanswered: u64,
+}
+
+/// The four least significant bits of host frame `f`.
+fn lsn(f: u32) -> u8 {
+    (f & 0xF) as u8
+}
+
+/// The world point of `[lat, lon, alt]`, `None` off the terrain or without a georeference.
+fn world(t: &Terrain, lla: [f64; 3]) -> Option<DVec3> {
+    t.geodetic_to_world("cigi", lla).ok()
+}
+
+/// Terrain height above MSL at `lat`, `lon` (the bilinear surface).
+pub fn height_of_terrain(t: &Terrain, lat: f64, lon: f64) -> Option<f64> {
+    let p = world(t, [lat, lon, 0.0])?;
+    let g = t.frame.world_to_grid(p);
+    t.height_at_grid(g.x, g.y)
+}
+
+/// Azimuth from true north and elevation above the horizontal (degrees) of world vector `v`
+/// (grid +y is north, +x east, the base normal up).
+pub fn azimuth_elevation(t: &Terrain, v: DVec3) -> (f64, f64) {
+    let v = v.normalize_or_zero();
+    let (e, n, u) = (
+        v.dot(t.frame.axis_x),
+        v.dot(t.frame.axis_y),
+        v.dot(t.frame.normal),
+    );
+    (
+        e.atan2(n).to_degrees(),
+        u.clamp(-1.0, 1.0).asin().to_degrees(),
+    )
+}
+
+/// World unit vector of azimuth `az` (from true north, clockwise) and elevation `el` (degrees).
+pub fn direction(t: &Terrain, az: f64, el: f64) -> DVec3 {
+    let (a, e) = (az.to_radians(), el.to_radians());
+    let f = &t.frame;
+    f.axis_x * (a.sin() * e.cos()) + f.axis_y * (a.cos() * e.cos()) + f.normal * e.sin()
+}
+
+/// The surface normal below `lat`, `lon`: a vertical ray from above the highest sample.
+fn normal_below(t: &Terrain, lat: f64, lon: f64) -> Option<DVec3> {
+    let top = f64::from(t.max_height).max(0.0) + 100.0;
+    let o = world(t, [lat, lon, top])?;
+    let span = top - f64::from(t.min_height) + 100.0;
+    cast_ray(t, o, -t.frame.normal, 0.0, span).map(|h| h.normal)
+}
+
+/// Answers every query of `queries` onto `msg`; `now_host` is the host time of the frame.
+pub fn answer(
+    t: &Terrain,
+    session: &Session,
+    queries: &[Query],
+    now_host: f64,
+    msg: &mut MessageBuilder,
+) -> AnswerCounts {
+    let mut c = AnswerCounts::default();
+    for q in queries {
+        match q {
+            Query::HatHot(r, f) => {
+                c.hat_hot += 1;
+                c.invalid += u64::from(!hat_hot(t, r, *f, msg));
+            }
+            Query::LosSegment(r, f) => {
+                c.los += 1;
+                c.invalid += u64::from(!los_segment(t, r, *f, msg));
+            }
+            Query::LosVector(r, f) => {
+                c.los += 1;
+                c.invalid += u64::from(!los_vector(t, r, *f, msg));
+            }
+            Query::Position(r, _) => match position(session, r, now_host) {
+                Some(p) => {
+                    c.position += 1;
+                    msg.push(&p);
+                }
+                None => c.unanswered += 1,
+            },
+        }
+    }
+    c
+}
+
+/// One HAT/HOT response; `false` when it is answered invalid.
+fn hat_hot(t: &Terrain, r: &HatHotRequest, frame: u32, msg: &mut MessageBuilder) -> bool {
+    let hot = (!r.entity_frame)
+        .then(|| height_of_terrain(t, r.lat, r.lon))
+        .flatten();
+    let valid = hot.is_some();
+    let hot = hot.unwrap_or(0.0);
+    let hat = if valid { r.alt - hot } else { 0.0 };
+    if r.request_type & 3 == 2 {
+        let (az, el) = normal_below(t, r.lat, r.lon)
+            .filter(|_| valid)
+            .map_or((0.0, 90.0), |n| azimuth_elevation(t, n));
+        msg.push(&HatHotExtendedResponse {
+            request_id: r.request_id,
+            valid,
+            host_frame_lsn: lsn(frame),
+            hat,
+            hot,
+            material: 0,
+            normal_azimuth: az as f32,
+            normal_elevation: el as f32,
+        });
+    } else {
+        let is_hot = r.request_type & 3 == 1;
+        msg.push(&HatHotResponse {
+            request_id: r.request_id,
+            valid,
+            hot: is_hot,
+            host_frame_lsn: lsn(frame),
+            height: if is_hot { hot } else { hat },
+        });
+    }
+    valid
+}
+
+/// What one line-of-sight test found.
+struct Los {
+    valid: bool,
+    visible: bool,
+    hit: Option<Hit>,
+}
+
+/// One LOS response (basic or extended) from what the test found.
+fn push_los(t: &Terrain, id: u16, extended: bool, frame: u32, los: &Los, msg: &mut MessageBuilder) {
+    let range = los.hit.as_ref().map_or(0.0, |h| h.t);
+    if extended {
+        let (mut lla, mut az, mut el) = ([0.0; 3], 0.0, 90.0);
+        if let Some(h) = &los.hit {
+            lla = t.world_to_geodetic(h.point).unwrap_or([0.0; 3]);
+            (az, el) = azimuth_elevation(t, h.normal);
+        }
+        msg.push(&LosExtendedResponse {
+            request_id: id,
+            valid: los.valid,
+            entity_valid: false,
+            range_valid: los.valid && los.hit.is_some(),
+            visible: los.visible,
+            host_frame_lsn: lsn(frame),
+            count: 1,
+            entity_id: 0,
+            range,
+            lat: lla[0],
+            lon: lla[1],
+            alt: lla[2],
+            red: 0,
+            green: 0,
+            blue: 0,
+            alpha: if los.hit.is_some() { 255 } else { 0 },
+            material: 0,
+            normal_azimuth: az as f32,
+            normal_elevation: el as f32,
+        });
+    } else {
+        msg.push(&LosResponse {
+            request_id: id,
+            valid: los.valid,
+            entity_valid: false,
+            visible: los.visible,
+            host_frame_lsn: lsn(frame),
+            count: 1,
+            entity_id: 0,
+            range,
+        });
+    }
+}
+
+fn los_segment(t: &Terrain, r: &LosSegmentRequest, frame: u32, msg: &mut MessageBuilder) -> bool {
+    let ends = (!r.source_entity_frame && !r.destination_entity_frame)
+        .then(|| {
+            let a = world(t, [r.source_lat, r.source_lon, r.source_alt])?;
+            let b = world(t, [r.destination_lat, r.destination_lon, r.destination_alt])?;
+            Some((a, b))
+        })
+        .flatten();
+    let los = match ends {
+        Some((a, b)) => {
+            let len = (b - a).length();
+            let hit = (len > 0.0)
+                .then(|| cast_ray(t, a, (b - a) / len, 0.0, len))
+                .flatten();
+            Los {
+                valid: true,
+                visible: line_of_sight(t, a, b),
+                hit,
+            }
+        }
+        None => Los {
+            valid: false,
+            visible: false,
+            hit: None,
+        },
+    };
+    push_los(t, r.request_id, r.extended, frame, &los, msg);
+    los.valid
+}
+
+fn los_vector(t: &Terrain, r: &LosVectorRequest, frame: u32, msg: &mut MessageBuilder) -> bool {
+    let src = (!r.source_entity_frame)
+        .then(|| world(t, [r.source_lat, r.source_lon, r.source_alt]))
+        .flatten();
+    let ranges_ok = r.min_range.is_finite()
+        && r.max_range.is_finite()
+        && r.min_range >= 0.0
+        && r.max_range >= r.min_range;
+    let dir_ok = r.azimuth.is_finite() && r.elevation.is_finite();
+    let los = match src.filter(|_| ranges_ok && dir_ok) {
+        Some(a) => {
+            let d = direction(t, f64::from(r.azimuth), f64::from(r.elevation));
+            let hit = cast_ray(t, a, d, f64::from(r.min_range), f64::from(r.max_range));
+            // A basic response has no range-valid flag: a vector that meets nothing is invalid.
+            Los {
+                valid: r.extended || hit.is_some(),
+                visible: hit.is_none(),
+                hit,
+            }
+        }
+        None => Los {
+            valid: false,
+            visible: false,
+            hit: None,
+        },
+    };
+    push_los(t, r.request_id, r.extended, frame, &los, msg);
+    src.is_some() && ranges_ok && dir_ok
+}
+
+/// The position of an entity (object class 0) at host time `now_host`.
+fn position(s: &Session, r: &PositionRequest, now_host: f64) -> Option<PositionResponse> {
+    if r.object_class != 0 {
+        return None;
+    }
+    let e = s.entity(r.object_id)?;
+    let p = s.pose_at(r.object_id, now_host)?;
+    Some(PositionResponse {
+        object_id: r.object_id,
+        part_id: 0,
+        object_class: 0,
+        coordinate_system: u8::from(e.parent.is_some()),
+        lat: p.lat,
+        lon: p.lon,
+        alt: p.alt,
+        roll: p.roll as f32,
+        pitch: p.pitch as f32,
+        yaw: p.yaw as f32,
+    })
+}

@@ -1,0 +1,371 @@
+//! The IG side of CIGI for the frame loops (`relief serve`, `relief view --cigi`): the UDP
+//! socket, the [`Session`] fed from it, the ownship as the camera, and the IG→host datagram
+//! of each frame (Start of Frame and the answers of [`answer`]). The loops call, per frame:
+//! [`CigiIg::poll`] (or [`CigiIg::wait_host_frame`] when synchronous), [`CigiIg::camera_pose`],
+//! render, then [`CigiIg::end_frame`] ([docs/cigi.md](../../../docs/cigi.md)).
+
+pub mod answer;
+
+use crate::cigi::Session;
+use crate::scene::Pose as CameraPose;
+use crate::terrain::Terrain;
+use crate::{Error, Result};
+use std::net::{IpAddr, SocketAddr, UdpSocket};
+use std::time::{Duration, Instant};
+
+/// The CIGI options of `relief serve` and `relief view`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct CigiArgs {
+    /// Be a CIGI 3.3 IG on this UDP port (0: a free port, printed as `cigi: listening on ADDR`).
+    #[arg(long, value_name = "PORT")]
+    pub cigi: Option<u16>,
+    /// Address to bind the CIGI port on (0.0.0.0 for every interface).
+    #[arg(long, value_name = "ADDR", default_value = "127.0.0.1")]
+    pub cigi_bind: IpAddr,
+    /// Accept CIGI datagrams only from this host (others are counted and dropped) and send
+    /// the IG's datagrams there; default: answer the sender of the last accepted datagram.
+    #[arg(long, value_name = "ADDR:PORT")]
+    pub cigi_host: Option<SocketAddr>,
+    /// Synchronous mode: one IG frame per host frame (each host datagram with a new host
+    /// frame number starts one frame); default asynchronous (free-running, at most 60 Hz).
+    #[arg(long)]
+    pub cigi_sync: bool,
+    /// Synchronous mode: give up when no host frame came for this many seconds.
+    #[arg(long, value_name = "SECONDS", default_value_t = 5.0)]
+    pub cigi_timeout: f64,
+}
+
+/// What [`CigiIg::camera_pose`] made of the session.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ownship {
+    /// The ownship's geodetic `[lat, lon, alt]` at the frame's host time.
+    pub geodetic: [f64; 3],
+    /// The host time (s) the pose is for.
+    pub host_time: f64,
+}
+
+/// The receive buffer asked for: a frame's worth of datagrams at flood rates (the kernel caps
+/// it at `net.core.rmem_max`).
+pub const RECEIVE_BUFFER: usize = 4 << 20;
+
+/// Asks for [`RECEIVE_BUFFER`] bytes of socket receive buffer, so datagrams arriving between
+/// two frames' reads are not dropped by the default one (~200 KiB, a few hundred datagrams).
+fn grow_receive_buffer(socket: &UdpSocket) {
+    #[cfg(unix)]
+    {
+        use std::os::fd::AsRawFd;
+        let size = RECEIVE_BUFFER as libc::c_int;
+        // SAFETY: a valid socket descriptor, a pointer to a c_int and its size.
+        let r = unsafe {
+            libc::setsockopt(
+                socket.as_raw_fd(),
+                libc::SOL_SOCKET,
+                libc::SO_RCVBUF,
+                (&size as *const libc::c_int).cast(),
+                std::mem::size_of::<libc::c_int>() as libc::socklen_t,
+            )
+        };
+        if r != 0 {
+            log::debug!("CIGI: SO_RCVBUF: {}", std::io::Error::last_os_error());
+        }
+    }
+    #[cfg(not(unix))]
+    let _ = socket;
+}
+
+/// A CIGI IG: socket, session, frame counter.
+pub struct CigiIg {
+    socket: UdpSocket,
+    pub session: Session,
+    /// The host fixed by `--cigi-host`.
+    fixed_host: Option<SocketAddr>,
+    /// Where the IG's datagrams go: the fixed host, else the last accepted sender.
+    reply_to: Option<SocketAddr>,
+    start: Instant,
+    /// IG frames ended so far (the next Start of Frame's number).
+    pub ig_frame: u32,
+    /// The host frame the last frame was started for (synchronous mode).
+    last_started: Option<u32>,
+    pub sync: bool,
+    timeout: Duration,
+    /// Datagrams sent and send failures.
+    pub sent: u64,
+    pub send_errors: u64,
+    /// Queries answered, by kind, since the start.
+    pub answers: answer::AnswerCounts,
+    /// The largest number of entities besides the ownship seen (they are not drawn yet).
+    pub other_entities: usize,
+    /// The ownship pose was off the terrain (the camera kept its last pose), frames.
+    pub off_terrain: u64,
+    buf: Vec<u8>,
+}
+
+impl CigiIg {
+    /// Binds the socket of `args` (`args.cigi` must be set) and prints the address it listens
+    /// on as one line on stdout.
+    pub fn bind(args: &CigiArgs) -> Result<CigiIg> {
+        let port = args
+            .cigi
+            .ok_or_else(|| Error::invalid("--cigi", "give the UDP port to listen on"))?;
+        if !(args.cigi_timeout.is_finite()
+            && args.cigi_timeout > 0.0
+            && args.cigi_timeout <= 3600.0)
+        {
+            return Err(Error::invalid(
+                "--cigi-timeout",
+                format!("must be in (0, 3600] seconds, got {}", args.cigi_timeout),
+            ));
+        }
+        let at = SocketAddr::new(args.cigi_bind, port);
+        let io = |e: std::io::Error| Error::invalid("--cigi", format!("UDP {at}: {e}"));
+        let socket = UdpSocket::bind(at).map_err(io)?;
+        socket.set_nonblocking(true).map_err(io)?;
+        grow_receive_buffer(&socket);
+        let local = socket.local_addr().map_err(io)?;
+        println!("cigi: listening on {local}");
+        use std::io::Write as _;
+        let _ = std::io::stdout().flush();
+        let session = match args.cigi_host {
+            Some(h) => Session::with_host(h),
+            None => Session::new(),
+        };
+        Ok(CigiIg {
+            socket,
+            session,
+            fixed_host: args.cigi_host,
+            reply_to: args.cigi_host,
+            start: Instant::now(),
+            ig_frame: 0,
+            last_started: None,
+            sync: args.cigi_sync,
+            timeout: Duration::from_secs_f64(args.cigi_timeout),
+            sent: 0,
+            send_errors: 0,
+            answers: Default::default(),
+            other_entities: 0,
+            off_terrain: 0,
+            buf: vec![0; 65536],
+        })
+    }
+
+    /// The socket's address.
+    pub fn local_addr(&self) -> Option<SocketAddr> {
+        self.socket.local_addr().ok()
+    }
+
+    /// Seconds since the IG started (the session's local clock).
+    pub fn now(&self) -> f64 {
+        self.start.elapsed().as_secs_f64()
+    }
+
+    /// Takes one waiting datagram into the session; `false` when none is waiting.
+    fn receive_one(&mut self) -> bool {
+        match self.socket.recv_from(&mut self.buf) {
+            Ok((n, from)) => {
+                let now = self.now();
+                let accepted = match self.fixed_host {
+                    Some(_) => self.session.receive_from(from, &self.buf[..n], now),
+                    None => Some(self.session.receive(&self.buf[..n], now)),
+                };
+                if matches!(accepted, Some(Ok(_))) && self.fixed_host.is_none() {
+                    self.reply_to = Some(from);
+                }
+                true
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => false,
+            Err(e) => {
+                // ICMP port unreachable from an earlier send and the like: not fatal.
+                log::debug!("CIGI receive: {e}");
+                true
+            }
+        }
+    }
+
+    /// Takes every waiting datagram into the session (asynchronous mode); returns how many.
+    pub fn poll(&mut self) -> usize {
+        let mut n = 0;
+        // Bounded so a flood cannot keep a frame from ever starting.
+        while n < 100_000 && self.receive_one() {
+            n += 1;
+        }
+        n
+    }
+
+    /// Synchronous mode: waits until a datagram with a host frame other than the last one
+    /// started has been accepted (datagrams already waiting count). `Err` after the timeout.
+    pub fn wait_host_frame(&mut self) -> Result<()> {
+        let deadline = Instant::now() + self.timeout;
+        loop {
+            while self.receive_one() {
+                if self.session.host_frame.is_some() && self.session.host_frame != self.last_started
+                {
+                    self.last_started = self.session.host_frame;
+                    return Ok(());
+                }
+            }
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                return Err(Error::invalid(
+                    "--cigi-sync",
+                    format!(
+                        "no new host frame for {:.1} s (last host frame {:?}): the host is gone",
+                        self.timeout.as_secs_f64(),
+                        self.last_started
+                    ),
+                ));
+            }
+            self.wait_readable(left.min(Duration::from_millis(50)));
+        }
+    }
+
+    /// Blocks until a datagram is waiting or `d` passed.
+    fn wait_readable(&self, d: Duration) {
+        let mut probe = [0u8; 1];
+        if self.socket.set_nonblocking(false).is_ok() {
+            let _ = self
+                .socket
+                .set_read_timeout(Some(d.max(Duration::from_millis(1))));
+            let _ = self.socket.peek_from(&mut probe);
+            let _ = self.socket.set_nonblocking(true);
+        } else {
+            std::thread::sleep(d);
+        }
+    }
+
+    /// The camera for this frame: `base` (the scene's camera) with the ownship's position and
+    /// attitude at the frame's host time (interpolated by [`Session::pose_at`]) and the fov of
+    /// a View Definition with both left and right given. `None` for the position part while
+    /// the host has not placed the ownship (or placed it off the terrain: `base` kept).
+    pub fn camera_pose(
+        &mut self,
+        terrain: &Terrain,
+        base: CameraPose,
+    ) -> (CameraPose, Option<Ownship>) {
+        let others = self.session.entity_count() - usize::from(self.session.ownship().is_some());
+        if others > self.other_entities {
+            if self.other_entities == 0 {
+                log::warn!(
+                    "CIGI: {others} entities besides the ownship: other entities are not drawn yet"
+                );
+            }
+            self.other_entities = others;
+        }
+        let mut pose = base;
+        if let Some(fov) = self.view_fov() {
+            pose.fov = fov;
+        }
+        let t = self.session.host_time_at(self.now());
+        let Some(p) = self.session.pose_at(0, t) else {
+            return (pose, None);
+        };
+        let attached = self.session.ownship().is_some_and(|e| e.parent.is_some());
+        let lla = [p.lat, p.lon, p.alt];
+        match terrain
+            .geodetic_to_world("CIGI ownship", lla)
+            .ok()
+            .filter(|_| !attached)
+        {
+            Some(w) => {
+                pose.position = w;
+                pose.heading = p.yaw;
+                pose.pitch = p.pitch;
+                pose.roll = p.roll;
+                (
+                    pose,
+                    Some(Ownship {
+                        geodetic: lla,
+                        host_time: t,
+                    }),
+                )
+            }
+            None => {
+                self.off_terrain += 1;
+                if self.off_terrain == 1 {
+                    log::warn!(
+                        "CIGI ownship at {lla:?} is off the terrain (or attached): camera kept"
+                    );
+                }
+                (pose, None)
+            }
+        }
+    }
+
+    /// Horizontal fov (degrees) of the lowest view ID whose View Definition gives both the
+    /// left and right half-angles, when it is a usable pinhole fov.
+    fn view_fov(&self) -> Option<f64> {
+        self.session.views.values().find_map(|v| {
+            let d = v.definition?;
+            let fov = f64::from(d.right) - f64::from(d.left);
+            (d.left_enable && d.right_enable && fov.is_finite() && fov > 0.0 && fov <= 179.0)
+                .then_some(fov)
+        })
+    }
+
+    /// Ends IG frame `self.ig_frame`: answers the waiting queries from the CPU reference and
+    /// sends Start of Frame with the answers to the host (none known yet: nothing is sent).
+    /// Returns the IG frame number just ended.
+    pub fn end_frame(&mut self, terrain: &Terrain) -> u32 {
+        let frame = self.ig_frame;
+        let now = self.now();
+        let ticks = ((now / crate::cigi::session::TICK) as u64 & u64::from(u32::MAX)) as u32;
+        let mut msg = self.session.start_of_frame(frame, Some(ticks));
+        let queries = self.session.take_queries();
+        let host_t = self.session.host_time_at(now);
+        let c = answer::answer(terrain, &self.session, &queries, host_t, &mut msg);
+        let a = &mut self.answers;
+        a.hat_hot += c.hat_hot;
+        a.los += c.los;
+        a.position += c.position;
+        a.invalid += c.invalid;
+        a.unanswered += c.unanswered;
+        let bytes = msg.finish();
+        if let Some(to) = self.reply_to {
+            match self.socket.send_to(&bytes, to) {
+                Ok(_) => self.sent += 1,
+                Err(e) => {
+                    self.send_errors += 1;
+                    log::debug!("CIGI send to {to}: {e}");
+                }
+            }
+        }
+        self.ig_frame = self.ig_frame.wrapping_add(1);
+        frame
+    }
+
+    /// The frame's JSON part: `{"host_frame", "ig_frame", counters}`.
+    pub fn frame_json(&self, ig_frame: u32) -> serde_json::Value {
+        let c = &self.session.counters;
+        serde_json::json!({
+            "host_frame": self.session.host_frame,
+            "ig_frame": ig_frame,
+            "sync": self.sync,
+            "datagrams": c.datagrams,
+            "accepted": c.accepted,
+            "refused": c.datagrams - c.accepted,
+            "malformed": c.malformed(),
+            "entities": self.session.entity_count(),
+        })
+    }
+
+    /// One line of what the session did, for the end of a run.
+    pub fn summary(&self) -> String {
+        let c = &self.session.counters;
+        format!(
+            "cigi: {} IG frames, {} datagrams in ({} accepted, {} refused, {} from other senders, {} malformed), {} sent ({} failed); answered {} HAT/HOT, {} LOS, {} position ({} invalid, {} unanswered); {} other entities not drawn",
+            self.ig_frame,
+            c.datagrams,
+            c.accepted,
+            c.datagrams - c.accepted,
+            c.ignored_sender,
+            c.malformed(),
+            self.sent,
+            self.send_errors,
+            self.answers.hat_hot,
+            self.answers.los,
+            self.answers.position,
+            self.answers.invalid,
+            self.answers.unanswered,
+            self.other_entities,
+        )
+    }
+}

@@ -1,0 +1,105 @@
+//! `relief serve`: a headless CIGI 3.3 image generator. Each frame takes the host's datagrams
+//! into the session ([`super::cigi_ig`]), renders the ownship's view through the headless
+//! capture path (pinhole or a display channel), optionally writes the frame's files as
+//! `relief render` does (their JSON with a `cigi` part and the geodetic camera), then answers
+//! the host's queries and sends Start of Frame ([docs/cigi.md](../../docs/cigi.md)).
+
+use super::args::{parse_size, RenderToggles};
+use super::capture::{prepare, DisplayArgs, RenderJob};
+use super::cigi_ig::{CigiArgs, CigiIg};
+use crate::scene::Camera;
+use crate::{Error, Result};
+use serde_json::json;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+/// Asynchronous mode renders at most this many frames a second.
+pub const MAX_RATE_HZ: f64 = 60.0;
+
+/// Options of `relief serve`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct ServeOptions {
+    /// Scene file (TOML): terrain, sun, fog, output size; the camera until the host places
+    /// the ownship (its heading, pitch, roll and fov are the defaults).
+    pub scene: PathBuf,
+    #[command(flatten)]
+    pub cigi: CigiArgs,
+    /// Render size WxH (overrides [output]).
+    #[arg(long, value_parser = parse_size)]
+    pub size: Option<(u32, u32)>,
+    #[command(flatten)]
+    pub display: DisplayArgs,
+    /// Exit after N frames (default: run until interrupted).
+    #[arg(long)]
+    pub frames: Option<u64>,
+    /// Write every frame's files (frame_NNNN.png, depth_NNNN.tiff, frame_NNNN.json) here.
+    #[arg(long)]
+    pub capture_frames: Option<PathBuf>,
+    #[command(flatten)]
+    pub toggles: RenderToggles,
+}
+
+/// Runs the IG until `--frames` frames are done (or the synchronous host is gone); returns
+/// the session's summary line.
+pub fn run(opts: &ServeOptions) -> Result<String> {
+    if opts.cigi.cigi.is_none() {
+        return Err(Error::invalid(
+            "--cigi",
+            "give the UDP port to listen on (0: any free port)",
+        ));
+    }
+    let job = RenderJob {
+        scene: opts.scene.clone(),
+        size: opts.size,
+        frames: 1,
+        first_frame: 0,
+        out_dir: opts.capture_frames.clone().unwrap_or_default(),
+        toggles: opts.toggles,
+        display: opts.display.clone(),
+        pattern: false,
+        dome_master: None,
+    };
+    let (p, mut renderer) = prepare(&job)?;
+    if let Some(dir) = &opts.capture_frames {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    }
+    let frames = p.frames(&job);
+    let terrain = &p.world.terrain;
+    let base = p.scene.camera(0, terrain);
+    let mut ig = CigiIg::bind(&opts.cigi)?;
+    let period = Duration::from_secs_f64(1.0 / MAX_RATE_HZ);
+    let mut done = 0u64;
+    while opts.frames.is_none_or(|n| done < n) {
+        let started = Instant::now();
+        if ig.sync {
+            ig.wait_host_frame()?;
+        } else {
+            ig.poll();
+        }
+        let (pose, own) = ig.camera_pose(terrain, base.pose);
+        let cam = Camera::new(pose, base.width, base.height);
+        renderer.set_time(ig.now());
+        let out = frames.render_camera(&mut renderer, &cam)?;
+        let ig_frame = ig.ig_frame;
+        if opts.capture_frames.is_some() {
+            let geodetic = own
+                .map(|o| o.geodetic)
+                .or_else(|| terrain.world_to_geodetic(cam.pose.position));
+            let cigi = ig.frame_json(ig_frame);
+            frames.write(&out, &cam, ig_frame, |m| {
+                m["cigi"] = cigi;
+                m["camera"]["geodetic"] = json!(geodetic);
+                m["camera"]["host_time_s"] = json!(own.map(|o| o.host_time));
+            })?;
+        }
+        ig.end_frame(terrain);
+        done += 1;
+        if !ig.sync {
+            let spent = started.elapsed();
+            if spent < period {
+                std::thread::sleep(period - spent);
+            }
+        }
+    }
+    Ok(ig.summary())
+}

@@ -1,0 +1,866 @@
+//! `relief serve` obeying a CIGI host written here, over loopback only: the ownship's view
+//! against `relief render` of the same geodetic camera, HAT/HOT against the DEM's bilinear
+//! surface read from the `.hgt` by this test, line of sight against a dense march of that
+//! surface, the IG's datagrams decoded by tshark, a synchronous host, and a flood of hostile
+//! datagrams while a valid host flies. relief's `cigi` encoder writes the host's datagrams;
+//! every truth is computed here.
+
+mod common;
+
+use common::{relief_command, temp_dir, terrains, Rng};
+use relief::cigi::*;
+use std::io::{BufRead, BufReader, Read};
+use std::net::{SocketAddr, UdpSocket};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Stdio};
+use std::time::{Duration, Instant};
+
+const SIZE: &str = "160x120";
+
+/// A `relief serve` process and the host's socket.
+struct Ig {
+    child: Child,
+    addr: SocketAddr,
+    host: UdpSocket,
+}
+
+impl Ig {
+    /// Starts `relief serve SCENE --cigi 0 ARGS` and reads the port it prints.
+    fn start(scene: &Path, args: &[&str], host: UdpSocket) -> Ig {
+        Ig::start_command("serve", scene, args, host, &[])
+    }
+
+    /// `relief COMMAND SCENE --cigi 0 --size 160x120 ARGS` with `envs`.
+    fn start_command(
+        command: &str,
+        scene: &Path,
+        args: &[&str],
+        host: UdpSocket,
+        envs: &[(&str, &str)],
+    ) -> Ig {
+        let scene = scene.to_str().unwrap();
+        let mut all = vec![command, scene, "--cigi", "0", "--size", SIZE];
+        all.extend_from_slice(args);
+        let mut child = relief_command(&all, envs)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("relief serve starts");
+        let mut line = String::new();
+        let mut out = BufReader::new(child.stdout.take().unwrap());
+        out.read_line(&mut line).unwrap();
+        let addr = line
+            .trim()
+            .strip_prefix("cigi: listening on ")
+            .unwrap_or_else(|| {
+                let mut err = String::new();
+                let _ = child.stderr.take().unwrap().read_to_string(&mut err);
+                panic!("relief serve printed {line:?}; stderr: {err}")
+            })
+            .parse()
+            .unwrap();
+        child.stdout = Some(out.into_inner());
+        host.set_read_timeout(Some(Duration::from_secs(30)))
+            .unwrap();
+        Ig { child, addr, host }
+    }
+
+    fn send(&self, bytes: &[u8]) {
+        self.host.send_to(bytes, self.addr).unwrap();
+    }
+
+    /// The IG's next datagram, decoded (and its raw bytes).
+    fn receive(&self) -> (IgMessage, Vec<u8>) {
+        let mut buf = vec![0u8; 65536];
+        let (n, from) = self.host.recv_from(&mut buf).expect("the IG answers");
+        assert_eq!(from, self.addr);
+        buf.truncate(n);
+        (read_ig_message(&buf).expect("a valid IG message"), buf)
+    }
+
+    /// Sends `bytes` and returns the IG's answer for that host frame.
+    fn exchange(&self, bytes: &[u8], host_frame: u32) -> (IgMessage, Vec<u8>) {
+        self.send(bytes);
+        loop {
+            let (m, raw) = self.receive();
+            if sof(&m).last_host_frame == host_frame {
+                return (m, raw);
+            }
+        }
+    }
+
+    /// Waits for the process; its stdout and stderr, asserting success.
+    fn finish(mut self) -> String {
+        let status = self.child.wait().unwrap();
+        let mut out = String::new();
+        let mut err = String::new();
+        self.child
+            .stdout
+            .take()
+            .unwrap()
+            .read_to_string(&mut out)
+            .unwrap();
+        self.child
+            .stderr
+            .take()
+            .unwrap()
+            .read_to_string(&mut err)
+            .unwrap();
+        assert!(status.success(), "relief serve failed: {err}");
+        out
+    }
+}
+
+fn host_socket() -> UdpSocket {
+    UdpSocket::bind("127.0.0.1:0").unwrap()
+}
+
+fn sof(m: &IgMessage) -> StartOfFrame {
+    match m.packets[0] {
+        IgPacket::StartOfFrame(s) => s,
+        p => panic!("first packet {p:?}"),
+    }
+}
+
+fn ig_control(frame: u32) -> IgControl {
+    IgControl {
+        database: 0,
+        ig_mode: 1,
+        timestamp_valid: false,
+        extrapolation: false,
+        host_frame: frame,
+        timestamp: 0,
+        last_ig_frame: 0,
+    }
+}
+
+fn ownship(lla: [f64; 3], yaw: f32, pitch: f32, roll: f32) -> EntityControl {
+    EntityControl {
+        entity_id: 0,
+        entity_state: 1,
+        attach: false,
+        collision_detection: false,
+        inherit_alpha: false,
+        ground_clamp: 0,
+        animation_direction: false,
+        animation_loop: false,
+        animation_state: 0,
+        extrapolation: false,
+        alpha: 255,
+        entity_type: 0,
+        parent_id: 0,
+        roll,
+        pitch,
+        yaw,
+        lat: lla[0],
+        lon: lla[1],
+        alt: lla[2],
+    }
+}
+
+fn message(frame: u32, packets: &[HostPacket]) -> Vec<u8> {
+    let mut m = MessageBuilder::host(&ig_control(frame), ByteOrder::Big);
+    for p in packets {
+        m.push_any(p);
+    }
+    m.finish()
+}
+
+/// A scene over N47E009 (`.hgt`) with the camera at geodetic `lla`, written to `dir/NAME.toml`.
+fn scene_named(
+    dir: &Path,
+    name: &str,
+    lla: [f64; 3],
+    heading: f64,
+    pitch: f64,
+    roll: f64,
+) -> PathBuf {
+    let hgt = terrains().join("N47E009.hgt");
+    let text = format!(
+        "[terrain]\nsource = {hgt:?}\n[sun]\nazimuth = 245.0\nelevation = 24.0\n\
+         [fog]\nvisibility = 90000.0\nscale_height = 3000.0\n\
+         [camera]\ngeodetic = [{:?}, {:?}, {:?}]\nheading = {heading:?}\npitch = {pitch:?}\nroll = {roll:?}\nfov = 60.0\n\
+         [output]\nwidth = 160\nheight = 120\n",
+        lla[0], lla[1], lla[2]
+    );
+    let p = dir.join(format!("{name}.toml"));
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+fn scene(dir: &Path, lla: [f64; 3], heading: f64, pitch: f64, roll: f64) -> PathBuf {
+    scene_named(dir, "scene", lla, heading, pitch, roll)
+}
+
+/// The DEM of N47E009 read here: 1201² big-endian i16, row 0 the northern edge (48°N),
+/// column 0 the western (9°E), 3″ steps.
+struct Dem(Vec<i16>);
+
+impl Dem {
+    fn load() -> Dem {
+        let b = std::fs::read(terrains().join("N47E009.hgt")).unwrap();
+        assert_eq!(b.len(), 1201 * 1201 * 2);
+        Dem(b
+            .chunks(2)
+            .map(|c| i16::from_be_bytes([c[0], c[1]]))
+            .collect())
+    }
+
+    fn at(&self, row: usize, col: usize) -> f64 {
+        let v = self.0[row * 1201 + col];
+        assert_ne!(v, -32768, "void sample at row {row}, column {col}");
+        f64::from(v)
+    }
+
+    /// The bilinear surface (metres above MSL) at `lat`, `lon`.
+    fn height(&self, lat: f64, lon: f64) -> f64 {
+        let (r, c) = ((48.0 - lat) * 1200.0, (lon - 9.0) * 1200.0);
+        let (r0, c0) = (r.floor() as usize, c.floor() as usize);
+        let (v, u) = (r - r0 as f64, c - c0 as f64);
+        self.at(r0, c0) * (1.0 - u) * (1.0 - v)
+            + self.at(r0, c0 + 1) * u * (1.0 - v)
+            + self.at(r0 + 1, c0) * (1.0 - u) * v
+            + self.at(r0 + 1, c0 + 1) * u * v
+    }
+}
+
+/// Mean absolute difference of two RGBA8 images, in units of 1/255.
+fn mean_diff(a: &image::RgbaImage, b: &image::RgbaImage) -> f64 {
+    assert_eq!(a.dimensions(), b.dimensions());
+    let s: u64 = a
+        .as_raw()
+        .iter()
+        .zip(b.as_raw())
+        .map(|(x, y)| u64::from(x.abs_diff(*y)))
+        .sum();
+    s as f64 / a.as_raw().len() as f64
+}
+
+#[test]
+fn the_ownship_view_equals_render_of_the_same_geodetic_camera() {
+    let dir = temp_dir("cigi-serve-view");
+    let lla = [47.37, 9.31, 2300.0];
+    let (heading, pitch, roll) = (182.0f32, -6.0f32, 4.0f32);
+    let scene = scene(&dir, lla, heading.into(), pitch.into(), roll.into());
+    // The IG's scene has its camera elsewhere, looking elsewhere: only CIGI places it.
+    let elsewhere = scene_named(&dir, "elsewhere", [47.6, 9.6, 900.0], 45.0, 10.0, 0.0);
+    let served = dir.join("served");
+    let ig = Ig::start(
+        &elsewhere,
+        &[
+            "--cigi-sync",
+            "--frames",
+            "1",
+            "--capture-frames",
+            served.to_str().unwrap(),
+        ],
+        host_socket(),
+    );
+    let own = ownship(lla, heading, pitch, roll);
+    let (m, _) = ig.exchange(&message(7, &[own.into()]), 7);
+    assert_eq!(sof(&m).ig_frame, 0);
+    ig.finish();
+    let rendered = dir.join("rendered");
+    let out = relief_command(
+        &[
+            "render",
+            scene.to_str().unwrap(),
+            "--out",
+            rendered.to_str().unwrap(),
+        ],
+        &[],
+    )
+    .output()
+    .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let a = image::open(served.join("frame_0000.png"))
+        .unwrap()
+        .to_rgba8();
+    let b = image::open(rendered.join("frame_0000.png"))
+        .unwrap()
+        .to_rgba8();
+    let d = mean_diff(&a, &b);
+    eprintln!("served vs rendered: mean difference {d:.4}/255");
+    assert!(d <= 1.0, "mean difference {d}/255");
+    let j = common::read_json(&served.join("frame_0000.json"));
+    assert_eq!(j["cigi"]["host_frame"], 7);
+    assert_eq!(j["cigi"]["ig_frame"], 0);
+    let g = j["camera"]["geodetic"].as_array().unwrap();
+    for k in 0..3 {
+        assert!((g[k].as_f64().unwrap() - lla[k]).abs() < 1e-9, "{g:?}");
+    }
+}
+
+fn hat_hot(id: u16, kind: u8, lat: f64, lon: f64, alt: f64) -> HatHotRequest {
+    HatHotRequest {
+        request_id: id,
+        request_type: kind,
+        entity_frame: false,
+        update_period: 0,
+        entity_id: 0,
+        lat,
+        lon,
+        alt,
+    }
+}
+
+#[test]
+fn hat_and_hot_follow_the_dem_within_a_centimetre() {
+    let dem = Dem::load();
+    let dir = temp_dir("cigi-serve-hot");
+    let scene = scene(&dir, [47.37, 9.31, 2300.0], 182.0, -6.0, 0.0);
+    let ig = Ig::start(&scene, &["--cigi-sync", "--frames", "1"], host_socket());
+    // Säntis's flank, the Rhine valley, a point between samples near Lake Constance.
+    let points = [
+        (47.24937, 9.34331, 3000.0),
+        (47.40123, 9.61877, 1000.0),
+        (47.51234, 9.45678, 800.0),
+    ];
+    let mut packets = vec![ownship([47.37, 9.31, 2300.0], 0.0, 0.0, 0.0).into()];
+    for (i, &(lat, lon, alt)) in points.iter().enumerate() {
+        let id = 10 * i as u16;
+        packets.push(hat_hot(id, 1, lat, lon, alt).into());
+        packets.push(hat_hot(id + 1, 0, lat, lon, alt).into());
+        packets.push(hat_hot(id + 2, 2, lat, lon, alt).into());
+    }
+    let (m, _) = ig.exchange(&message(1, &packets), 1);
+    ig.finish();
+    let mut seen = 0;
+    for p in &m.packets[1..] {
+        let (id, hot, hat) = match *p {
+            IgPacket::HatHotResponse(r) => {
+                assert!(r.valid);
+                assert_eq!(r.host_frame_lsn, 1);
+                let (h, a) = if r.hot {
+                    (Some(r.height), None)
+                } else {
+                    (None, Some(r.height))
+                };
+                (r.request_id, h, a)
+            }
+            IgPacket::HatHotExtendedResponse(r) => {
+                assert!(r.valid);
+                (r.request_id, Some(r.hot), Some(r.hat))
+            }
+            p => panic!("unexpected {p:?}"),
+        };
+        let (lat, lon, alt) = points[usize::from(id / 10)];
+        let want = dem.height(lat, lon);
+        if let Some(h) = hot {
+            assert!(
+                (h - want).abs() <= 0.01,
+                "HOT at {lat}, {lon}: {h} vs DEM {want}"
+            );
+        }
+        if let Some(a) = hat {
+            assert!(
+                (a - (alt - want)).abs() <= 0.01,
+                "HAT at {lat}, {lon}: {a} vs {}",
+                alt - want
+            );
+        }
+        seen += 1;
+    }
+    assert_eq!(seen, 9);
+}
+
+/// WGS84 meridional radius of curvature (m) at latitude `lat` (degrees).
+fn meridional_radius(lat: f64) -> f64 {
+    let (a, f) = (6_378_137.0, 1.0 / 298.257_223_563);
+    let e2 = f * (2.0 - f);
+    let s = lat.to_radians().sin();
+    a * (1.0 - e2) / (1.0 - e2 * s * s).powf(1.5)
+}
+
+/// The first point of the segment (constant longitude) below the DEM by a dense march:
+/// `(fraction along the segment, step)`, or `None` when it stays above.
+fn march(
+    dem: &Dem,
+    lon: f64,
+    (lat0, alt0): (f64, f64),
+    (lat1, alt1): (f64, f64),
+) -> Option<(f64, f64)> {
+    let n = 40_000;
+    (0..=n).map(|k| k as f64 / n as f64).find_map(|s| {
+        let (lat, alt) = (lat0 + (lat1 - lat0) * s, alt0 + (alt1 - alt0) * s);
+        (alt < dem.height(lat, lon)).then_some((s, 1.0 / n as f64))
+    })
+}
+
+#[test]
+fn line_of_sight_across_the_saentis_ridge() {
+    let dem = Dem::load();
+    let dir = temp_dir("cigi-serve-los");
+    let scene = scene(&dir, [47.37, 9.31, 2300.0], 182.0, -6.0, 0.0);
+    let ig = Ig::start(&scene, &["--cigi-sync", "--frames", "1"], host_socket());
+    // North to south over the summit (2502 m), low and high.
+    let lon = 9.34331;
+    let (north, south) = (47.275, 47.225);
+    let segment = |id: u16, alt: f64, extended: bool| LosSegmentRequest {
+        request_id: id,
+        extended,
+        source_entity_frame: false,
+        destination_entity_frame: false,
+        response_entity_frame: false,
+        destination_entity_valid: false,
+        alpha_threshold: 0,
+        entity_id: 0,
+        source_lat: north,
+        source_lon: lon,
+        source_alt: alt,
+        destination_lat: south,
+        destination_lon: lon,
+        destination_alt: alt,
+        material_mask: 0,
+        update_period: 0,
+        destination_entity_id: 0,
+    };
+    let vector = LosVectorRequest {
+        request_id: 5,
+        extended: true,
+        source_entity_frame: false,
+        response_entity_frame: false,
+        alpha_threshold: 0,
+        entity_id: 0,
+        azimuth: 180.0,
+        elevation: 0.0,
+        min_range: 0.0,
+        max_range: 10_000.0,
+        source_lat: north,
+        source_lon: lon,
+        source_alt: 2300.0,
+        material_mask: 0,
+        update_period: 0,
+    };
+    let packets = vec![
+        ownship([47.37, 9.31, 2300.0], 0.0, 0.0, 0.0).into(),
+        segment(1, 2300.0, false).into(),
+        segment(2, 2300.0, true).into(),
+        segment(3, 2700.0, false).into(),
+        segment(4, 2700.0, true).into(),
+        vector.into(),
+    ];
+    let (m, _) = ig.exchange(&message(2, &packets), 2);
+    ig.finish();
+    // Metres per degree of latitude here (WGS84), and the segment's length.
+    let per_deg = meridional_radius(0.5 * (north + south)).to_radians();
+    let length = (north - south) * per_deg;
+    let low = march(&dem, lon, (north, 2300.0), (south, 2300.0))
+        .expect("the low segment meets the ridge");
+    assert!(
+        march(&dem, lon, (north, 2700.0), (south, 2700.0)).is_none(),
+        "the high one clears it"
+    );
+    let (s, step) = low;
+    let want = s * length;
+    let tol = step * length + 1e-3 * want;
+    eprintln!(
+        "march: low segment blocked at {want:.2} m (step {:.2} m)",
+        step * length
+    );
+    let mut seen = 0;
+    for p in &m.packets[1..] {
+        match *p {
+            IgPacket::LosResponse(r) => {
+                assert!(r.valid);
+                let low = r.request_id == 1;
+                assert_eq!(r.visible, !low, "request {}", r.request_id);
+                if low {
+                    assert!(
+                        (r.range - want).abs() <= tol,
+                        "range {} vs march {want}",
+                        r.range
+                    );
+                }
+            }
+            IgPacket::LosExtendedResponse(r) => {
+                assert!(r.valid);
+                let low = r.request_id != 4;
+                if r.request_id != 5 {
+                    assert_eq!(r.visible, !low, "request {}", r.request_id);
+                }
+                assert_eq!(r.range_valid, low, "request {}", r.request_id);
+                if low {
+                    assert!(
+                        (r.range - want).abs() <= tol,
+                        "{}: range {} vs march {want}",
+                        r.request_id,
+                        r.range
+                    );
+                    let lat = north + (south - north) * s;
+                    assert!(
+                        (r.lat - lat).abs() * per_deg <= tol,
+                        "{}: lat {} vs {lat}",
+                        r.request_id,
+                        r.lat
+                    );
+                    assert!((r.lon - lon).abs() < 1e-9);
+                    assert!((r.alt - 2300.0).abs() < 1e-6, "alt {}", r.alt);
+                    assert!(
+                        (r.alt - dem.height(r.lat, r.lon)).abs() < 0.05,
+                        "the hit is on the DEM"
+                    );
+                }
+            }
+            p => panic!("unexpected {p:?}"),
+        }
+        seen += 1;
+    }
+    assert_eq!(seen, 5);
+}
+
+/// tshark's `(name, show)` of every CIGI field of each packet of a pdml document.
+fn pdml(pdml: &str) -> Vec<Vec<(String, String)>> {
+    let attr = |el: &str, name: &str| -> Option<String> {
+        let key = format!(" {name}=\"");
+        let start = el.find(&key)? + key.len();
+        let len = el[start..].find('"')?;
+        Some(el[start..start + len].to_string())
+    };
+    pdml.split("<packet>")
+        .skip(1)
+        .map(|p| {
+            p.split("<field")
+                .skip(1)
+                .filter_map(|el| Some((attr(el, "name")?, attr(el, "show").unwrap_or_default())))
+                .filter(|(n, _)| n.starts_with("cigi.") || n.starts_with("_ws."))
+                .collect()
+        })
+        .collect()
+}
+
+#[test]
+fn a_synchronous_host_gets_one_ig_frame_per_host_frame_decoded_by_tshark() {
+    let dir = temp_dir("cigi-serve-sync");
+    let scene = scene(&dir, [47.37, 9.31, 2300.0], 182.0, -6.0, 0.0);
+    let frames = dir.join("frames");
+    let ig = Ig::start(
+        &scene,
+        &[
+            "--cigi-sync",
+            "--frames",
+            "10",
+            "--capture-frames",
+            frames.to_str().unwrap(),
+        ],
+        host_socket(),
+    );
+    let host_addr = ig.host.local_addr().unwrap();
+    let mut raw = Vec::new();
+    for k in 0..10u32 {
+        let hf = 1000 + 3 * k;
+        let own = ownship(
+            [47.37 - 0.001 * f64::from(k), 9.31, 2300.0],
+            182.0,
+            -6.0,
+            0.0,
+        );
+        let mut packets = vec![own.into()];
+        if k % 3 == 0 {
+            packets.push(hat_hot(k as u16, 1, 47.3, 9.4, 0.0).into());
+        }
+        let (m, bytes) = ig.exchange(&message(hf, &packets), hf);
+        let s = sof(&m);
+        assert_eq!(
+            (s.ig_frame, s.last_host_frame, s.database, s.ig_mode),
+            (k, hf, 0, 1)
+        );
+        assert_eq!(m.packets.len(), if k % 3 == 0 { 2 } else { 1 });
+        raw.push(bytes);
+    }
+    ig.finish();
+    for k in 0..10u32 {
+        let j = common::read_json(&frames.join(format!("frame_{k:04}.json")));
+        assert_eq!(j["cigi"]["host_frame"], 1000 + 3 * k, "IG frame {k}");
+        assert_eq!(j["cigi"]["ig_frame"], k);
+        let lat = j["camera"]["geodetic"][0].as_f64().unwrap();
+        assert!(
+            (lat - (47.37 - 0.001 * f64::from(k))).abs() < 1e-9,
+            "frame {k}: lat {lat}"
+        );
+    }
+    if std::process::Command::new("tshark")
+        .arg("-v")
+        .output()
+        .is_err()
+    {
+        eprintln!("Skipping the tshark part: `tshark` is not installed (.ci/run installs it)");
+        return;
+    }
+    let udp: Vec<relief::cigi::pcap::UdpFrame<'_>> = raw
+        .iter()
+        .enumerate()
+        .map(|(i, d)| relief::cigi::pcap::UdpFrame {
+            src: ([127, 0, 0, 2], 8005),
+            dst: ([127, 0, 0, 1], host_addr.port().max(1)),
+            time_us: 1_000_000 + 16_667 * i as u64,
+            payload: d,
+        })
+        .collect();
+    let pcap = dir.join("ig.pcap");
+    std::fs::write(&pcap, relief::cigi::pcap::write_pcap(&udp).unwrap()).unwrap();
+    let out = std::process::Command::new("tshark")
+        .args(["-n", "-r"])
+        .arg(&pcap)
+        .args(["-d", "udp.port==8005,cigi", "-T", "pdml"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "tshark: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let packets = pdml(&String::from_utf8_lossy(&out.stdout));
+    assert_eq!(packets.len(), 10);
+    for (k, fields) in packets.iter().enumerate() {
+        let get = |n: &str| -> Vec<&str> {
+            fields
+                .iter()
+                .filter(|(f, _)| f == n)
+                .map(|(_, v)| v.as_str())
+                .collect()
+        };
+        assert!(
+            !fields.iter().any(|(n, _)| n.starts_with("_ws.malformed")
+                || n.starts_with("_ws.expert")
+                || n == "cigi.unknown"),
+            "frame {k}: {fields:?}"
+        );
+        let hf = (1000 + 3 * k).to_string();
+        assert_eq!(
+            get("cigi.sof.ig_frame_number"),
+            [k.to_string().as_str()],
+            "frame {k}"
+        );
+        assert_eq!(
+            get("cigi.sof.last_host_frame_number"),
+            [hf.as_str()],
+            "frame {k}"
+        );
+        assert_eq!(get("cigi.sof.db_number"), ["0"], "frame {k}");
+        assert_eq!(get("cigi.sof.ig_mode"), ["1"], "frame {k}");
+        assert_eq!(get("cigi.sof.timestamp_valid"), ["1"], "frame {k}");
+        let ids = get("cigi.packet_id");
+        assert_eq!(
+            ids,
+            if k % 3 == 0 {
+                vec!["101", "102"]
+            } else {
+                vec!["101"]
+            },
+            "frame {k}"
+        );
+    }
+}
+
+/// A hostile datagram: random bytes, a valid message with bytes changed, a valid header with
+/// random packets, or a truncated valid message.
+fn hostile(rng: &mut Rng, valid: &[u8]) -> Vec<u8> {
+    let r = |rng: &mut Rng, n: usize| (rng.next_u64() % n as u64) as usize;
+    match rng.next_u64() % 4 {
+        0 => (0..r(rng, 300)).map(|_| rng.next_u64() as u8).collect(),
+        1 => {
+            let mut v = valid.to_vec();
+            for _ in 0..=r(rng, 6) {
+                let i = r(rng, v.len());
+                v[i] = rng.next_u64() as u8;
+            }
+            v
+        }
+        2 => {
+            let mut v = valid[..24].to_vec();
+            v.extend((0..r(rng, 200)).map(|_| rng.next_u64() as u8));
+            v
+        }
+        _ => valid[..r(rng, valid.len())].to_vec(),
+    }
+}
+
+#[test]
+fn twenty_thousand_hostile_datagrams_while_a_valid_host_flies() {
+    let dir = temp_dir("cigi-serve-hostile");
+    let scene = scene(&dir, [47.37, 9.31, 2300.0], 182.0, -6.0, 0.0);
+    let host = host_socket();
+    let host_addr = host.local_addr().unwrap().to_string();
+    let ig = Ig::start(
+        &scene,
+        &["--frames", "240", "--cigi-host", &host_addr],
+        host,
+    );
+    ig.host
+        .set_read_timeout(Some(Duration::from_millis(5)))
+        .unwrap();
+    let valid = |f: u32| {
+        message(
+            f,
+            &[
+                ownship([47.37, 9.31, 2300.0], 182.0, -6.0, 0.0).into(),
+                hat_hot(1, 1, 47.3, 9.4, 0.0).into(),
+            ],
+        )
+    };
+    let stranger = host_socket();
+    let mut rng = Rng::new(21);
+    let (mut sent, mut strangers, mut host_frames, mut answers) = (0u32, 0u32, 0u32, 0u32);
+    let mut buf = vec![0u8; 65536];
+    let t0 = Instant::now();
+    let mut last_answer_after_flood = None;
+    while t0.elapsed() < Duration::from_secs(60) {
+        if let Ok(Some(_)) = ig.child.try_wait_ref() {
+            break;
+        }
+        host_frames += 1;
+        ig.send(&valid(host_frames));
+        // 250 hostile datagrams per valid host frame from the host's own address, a few from
+        // a stranger, until 20,000 are out.
+        for _ in 0..250 {
+            if sent < 20_000 {
+                ig.send(&hostile(&mut rng, &valid(host_frames)));
+                sent += 1;
+            }
+        }
+        if strangers < 100 {
+            stranger.send_to(&valid(host_frames), ig.addr).unwrap();
+            strangers += 1;
+        }
+        while let Ok((n, _)) = ig.host.recv_from(&mut buf) {
+            let m = read_ig_message(&buf[..n]).expect("the IG's datagrams stay valid");
+            answers += 1;
+            if sent == 20_000 {
+                last_answer_after_flood = Some(sof(&m).last_host_frame);
+            }
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let elapsed = t0.elapsed();
+    let out = ig.finish();
+    eprintln!("{sent} hostile datagrams, {host_frames} host frames, {answers} IG datagrams in {elapsed:?}\n{out}");
+    assert_eq!(sent, 20_000, "the IG ended before the flood did");
+    assert!(answers >= 30, "frames kept coming: {answers}");
+    assert!(last_answer_after_flood.is_some(), "answers after the flood");
+    // "cigi: N IG frames, D datagrams in (A accepted, R refused, I from other senders, M malformed)"
+    let summary = out
+        .lines()
+        .find(|l| l.starts_with("cigi: "))
+        .expect("summary line");
+    let nums: Vec<u64> = summary
+        .split(|c: char| !c.is_ascii_digit())
+        .filter(|s| !s.is_empty())
+        .map(|s| s.parse().unwrap())
+        .collect();
+    let (frames, datagrams, accepted, refused, others) =
+        (nums[0], nums[1], nums[2], nums[3], nums[4]);
+    assert_eq!(frames, 240);
+    assert_eq!(accepted + refused, datagrams);
+    assert!(others >= 1 && others <= u64::from(strangers), "{summary}");
+    // Loopback may drop datagrams under the flood (the IG asks for a 4 MiB receive buffer);
+    // most arrive and a good part of them are refused.
+    let offered = u64::from(sent + host_frames + strangers);
+    assert!(
+        datagrams <= offered && datagrams >= offered * 9 / 10,
+        "{summary}"
+    );
+    assert!(refused >= (datagrams - others) / 3 + others, "{summary}");
+}
+
+trait TryWaitRef {
+    fn try_wait_ref(&self) -> std::io::Result<Option<std::process::ExitStatus>>;
+}
+
+impl TryWaitRef for Child {
+    /// Whether the process has exited, without reaping it (`/proc` state Z or gone).
+    fn try_wait_ref(&self) -> std::io::Result<Option<std::process::ExitStatus>> {
+        let stat = std::fs::read_to_string(format!("/proc/{}/stat", self.id()))?;
+        let zombie = stat
+            .rsplit(')')
+            .next()
+            .is_some_and(|s| s.trim_start().starts_with('Z'));
+        Ok(zombie.then(Default::default))
+    }
+}
+
+/// A private X server (`Xvfb -displayfd`), killed on drop; `None` (said why) without Xvfb.
+struct Xvfb(Child, String);
+
+impl Xvfb {
+    fn start() -> Option<Xvfb> {
+        let child = std::process::Command::new("Xvfb")
+            .args([
+                "-displayfd",
+                "1",
+                "-screen",
+                "0",
+                "640x480x24",
+                "-nolisten",
+                "tcp",
+            ])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn();
+        let mut child = match child {
+            Ok(c) => c,
+            Err(e) => {
+                eprintln!("Skipping the window test: cannot start Xvfb ({e}; .ci/run installs it)");
+                return None;
+            }
+        };
+        let mut line = String::new();
+        BufReader::new(child.stdout.take().unwrap())
+            .read_line(&mut line)
+            .unwrap();
+        let n: u32 = line.trim().parse().expect("Xvfb prints its display number");
+        Some(Xvfb(child, format!(":{n}")))
+    }
+}
+
+impl Drop for Xvfb {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+#[test]
+fn view_with_cigi_follows_a_synchronous_host() {
+    let Some(x) = Xvfb::start() else { return };
+    let dir = temp_dir("cigi-view");
+    let scene = scene(&dir, [47.6, 9.6, 900.0], 45.0, 10.0, 0.0);
+    let frames = dir.join("frames");
+    let ig = Ig::start_command(
+        "view",
+        &scene,
+        &[
+            "--cigi-sync",
+            "--frames",
+            "3",
+            "--capture-frames",
+            frames.to_str().unwrap(),
+        ],
+        host_socket(),
+        &[("DISPLAY", x.1.as_str())],
+    );
+    for k in 0..3u32 {
+        let own = ownship(
+            [47.37 - 0.001 * f64::from(k), 9.31, 2300.0],
+            182.0,
+            -6.0,
+            0.0,
+        );
+        let (m, _) = ig.exchange(&message(50 + k, &[own.into()]), 50 + k);
+        assert_eq!(sof(&m).ig_frame, k);
+    }
+    ig.finish();
+    for k in 0..3u32 {
+        let j = common::read_json(&frames.join(format!("frame_{k:04}.json")));
+        assert_eq!(j["cigi"]["host_frame"], 50 + k, "frame {k}");
+        let lat = j["camera"]["geodetic"][0].as_f64().unwrap();
+        assert!(
+            (lat - (47.37 - 0.001 * f64::from(k))).abs() < 1e-9,
+            "frame {k}: lat {lat}"
+        );
+    }
+}
