@@ -1,0 +1,278 @@
+//! Footprint level of detail (issue 20, `render.lod`): a ray stops descending at a pyramid cell
+//! no wider than `lod` × its pixel cone's diameter and meets that level's bilinear patch
+//! (corners: the finest samples at the cell's corners). On `terrains/alps-far.toml` (the Alps
+//! tile from its north edge, 2.5 km up, looking 110 km south), at 320x180:
+//!
+//! * the GPU with LOD on agrees with the CPU oracle with LOD on (tile pre-pass off, so both
+//!   walk the same cells): hit/miss and depth within 1e-3 relative on 99.5% of the pixels
+//!   (the oracle tolerance of `tests/curvature.rs`); pixels whose walk met no coarse patch have
+//!   the same depth as with LOD off, exactly;
+//! * the CPU oracle's mean steps per ray fall with LOD on;
+//! * representative-surface error bound: a hit on a level-L patch lies within the relief
+//!   (max − min of the finest samples) of its level-L cell of the finest surface, vertically;
+//! * the image difference against LOD off (per pixel the largest 8-bit sRGB channel
+//!   difference; mean and 99th percentile over the frame) stays below a pixel's worth: below
+//!   the difference that turning the camera by one pixel makes to the LOD-off image.
+
+mod common;
+
+use common::terrains;
+use rayon::prelude::*;
+use relief::cpu::traverse::{intersect_lod, lod_factor};
+use relief::cpu::{GridRay, TraversalStats};
+use relief::gpu::{FrameOutput, RenderSettings, TerrainRenderer};
+use relief::scene::{Camera, Scene};
+use relief::terrain::Terrain;
+use std::sync::OnceLock;
+
+const W: u32 = 320;
+const H: u32 = 180;
+/// The scale `lod = true` stands for.
+const SCALE: f64 = 1.0;
+
+fn far() -> &'static (Scene, Terrain) {
+    static S: OnceLock<(Scene, Terrain)> = OnceLock::new();
+    S.get_or_init(|| {
+        let scene = Scene::load(&terrains().join("alps-far.toml")).expect("scene");
+        let terrain = scene.load_terrain().expect("terrain");
+        (scene, terrain)
+    })
+}
+
+fn camera(heading_offset_px: f64) -> Camera {
+    let (scene, terrain) = far();
+    let mut pose = scene.camera(0, terrain).pose;
+    pose.heading += heading_offset_px * pose.fov / W as f64;
+    Camera::new(pose, W, H)
+}
+
+/// One CPU oracle ray: hit distance, steps, coarse patch tests, hit level.
+#[derive(Clone, Copy, Debug)]
+struct Oracle {
+    t: Option<f64>,
+    /// The level-0 cell reported (inside the level-L cell of a coarse hit).
+    cell: [usize; 2],
+    stats: TraversalStats,
+}
+
+/// The CPU oracle over the frame; `lod` scale (None: off); the cone from the camera (the
+/// ray table's formula).
+fn oracle(cam: &Camera, lod: Option<f64>) -> Vec<Oracle> {
+    let (_, terrain) = far();
+    (0..W * H)
+        .into_par_iter()
+        .map(|k| {
+            let (x, y) = (k % W, k / W);
+            let r = GridRay::from_world(terrain, cam.pose.position, cam.pixel_ray(x, y));
+            let lod_k = lod.map_or(0.0, |s| lod_factor(terrain, s, cam.pixel_cone(x, y)));
+            let mut stats = TraversalStats::default();
+            let hit = intersect_lod(
+                terrain,
+                &r,
+                [0.0, f64::INFINITY],
+                4096,
+                &mut stats,
+                terrain.walls,
+                lod_k,
+            );
+            Oracle {
+                t: hit.map(|h| h.0),
+                cell: hit.map_or([0, 0], |h| h.1),
+                stats,
+            }
+        })
+        .collect()
+}
+
+fn oracles() -> &'static (Vec<Oracle>, Vec<Oracle>) {
+    static O: OnceLock<(Vec<Oracle>, Vec<Oracle>)> = OnceLock::new();
+    O.get_or_init(|| {
+        (
+            oracle(&camera(0.0), None),
+            oracle(&camera(0.0), Some(SCALE)),
+        )
+    })
+}
+
+fn settings(shadows: bool, tile_prepass: bool, lod: Option<f64>) -> RenderSettings {
+    RenderSettings {
+        lod,
+        ..common::settings(shadows, tile_prepass)
+    }
+}
+
+fn render(cam: &Camera, s: RenderSettings) -> Option<FrameOutput> {
+    let g = common::gpu()?;
+    let (scene, terrain) = far();
+    let mut r = TerrainRenderer::new(g, terrain).expect("renderer");
+    Some(
+        r.capture(g, terrain, &scene.desc, cam, &s)
+            .expect("capture"),
+    )
+}
+
+/// Mean and 99th percentile over the frame of the per-pixel largest channel difference
+/// (8-bit sRGB).
+fn image_difference(a: &[u8], b: &[u8]) -> (f64, f64) {
+    let mut d: Vec<u8> = a
+        .chunks(4)
+        .zip(b.chunks(4))
+        .map(|(p, q)| (0..3).map(|c| p[c].abs_diff(q[c])).max().unwrap())
+        .collect();
+    let mean = d.iter().map(|&v| v as f64).sum::<f64>() / d.len() as f64;
+    d.sort_unstable();
+    (mean, d[(d.len() * 99) / 100] as f64)
+}
+
+/// Mean steps per ray fall with LOD on, on the CPU oracle (every pixel of the far view), at
+/// the default scale and at scale 4; pixels whose walk met no coarse patch keep their hit and
+/// their steps exactly.
+#[test]
+fn lod_takes_fewer_steps_on_the_cpu_oracle() {
+    let (off, on) = oracles();
+    let on4 = oracle(&camera(0.0), Some(4.0));
+    let mean = |v: &[Oracle]| v.iter().map(|o| o.stats.steps as f64).sum::<f64>() / v.len() as f64;
+    let m_off = mean(off);
+    let hits = off.iter().filter(|o| o.t.is_some()).count();
+    assert!(hits > (W * H / 3) as usize, "only {hits} terrain pixels");
+    // Stated margins (measured: 0.9% and 7.1% fewer, docs/database.md).
+    for (scale, on, margin) in [(SCALE, on, 0.995), (4.0, &on4, 0.95)] {
+        let m_on = mean(on);
+        let coarse_hits = on.iter().filter(|o| o.stats.hit_level > 0).count();
+        eprintln!(
+            "scale {scale}: steps per ray LOD off {m_off:.3}, on {m_on:.3} ({:.1}% fewer); {coarse_hits}/{hits} hits on a coarse patch",
+            100.0 * (1.0 - m_on / m_off)
+        );
+        assert!(
+            coarse_hits * 20 > hits,
+            "only {coarse_hits}/{hits} hits on a coarse patch: the view does not test LOD"
+        );
+        assert!(
+            m_on < margin * m_off,
+            "scale {scale}: LOD on {m_on} steps per ray, off {m_off}"
+        );
+        for (k, (a, b)) in off.iter().zip(on).enumerate() {
+            if b.stats.lod_patches == 0 {
+                assert_eq!(a.t, b.t, "pixel {k}: no coarse patch, yet a different hit");
+                assert_eq!(a.stats.steps, b.stats.steps, "pixel {k}");
+            }
+        }
+    }
+}
+
+/// The representative surface's error bound, on the CPU oracle: a hit on a level-L patch lies
+/// within the relief (max − min of the finest samples) of its level-L cell of the finest
+/// surface, vertically (+ 1e-6 relative rounding).
+#[test]
+fn coarse_hits_lie_within_their_cells_relief_of_the_finest_surface() {
+    let (_, terrain) = far();
+    let cam = camera(0.0);
+    let (_, on) = oracles();
+    let (mut worst, mut worst_ratio, mut n) = (0.0f64, 0.0f64, 0usize);
+    for (k, o) in on.iter().enumerate() {
+        let (Some(t), level) = (o.t, o.stats.hit_level as usize) else {
+            continue;
+        };
+        if level == 0 {
+            continue;
+        }
+        let (x, y) = (k as u32 % W, k as u32 / W);
+        let r = GridRay::from_world(terrain, cam.pose.position, cam.pixel_ray(x, y));
+        let p = r.at(t);
+        let fine = terrain.height_at_grid(p.x, p.y).expect("hit over the grid");
+        let s = 1usize << level;
+        let (ci, cj) = (o.cell[0] / s, o.cell[1] / s);
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for j in cj * s..=((cj + 1) * s).min(terrain.cells()[1]) {
+            for i in ci * s..=((ci + 1) * s).min(terrain.cells()[0]) {
+                let h = terrain.field.at(i, j) as f64;
+                lo = lo.min(h);
+                hi = hi.max(h);
+            }
+        }
+        let err = (p.z - fine).abs();
+        let bound = hi - lo + 1e-6 * (1.0 + t);
+        assert!(
+            err <= bound,
+            "pixel ({x}, {y}) level {level}: {err} m off the finest surface, bound {bound} m"
+        );
+        worst = worst.max(err);
+        worst_ratio = worst_ratio.max(err / bound);
+        n += 1;
+    }
+    eprintln!("{n} coarse hits: worst {worst:.2} m off the finest surface, worst error/bound {worst_ratio:.3}");
+    assert!(n > 0);
+}
+
+/// GPU with LOD on against the CPU oracle with LOD on (tile pre-pass off: the same walk):
+/// hit/miss and depth within 1e-3 relative on 99.5% of the pixels; pixels whose walk met no
+/// coarse patch have the GPU's LOD-off depth exactly.
+#[test]
+fn lod_on_the_gpu_matches_the_cpu_oracle() {
+    let _l = common::gpu_lock();
+    let cam = camera(0.0);
+    let Some(gpu_on) = render(&cam, settings(false, false, Some(SCALE))) else {
+        return;
+    };
+    let gpu_off = render(&cam, settings(false, false, None)).expect("gpu");
+    let (_, on) = oracles();
+    let (mut bad, mut worst, mut near, mut near_diff, mut same_steps) = (0, 0.0f64, 0, 0, 0);
+    for (k, o) in on.iter().enumerate() {
+        let gd = gpu_on.depth[k];
+        match (o.t, gd.is_finite()) {
+            (Some(t), true) => {
+                let rel = ((gd as f64 - t) / t).abs();
+                if rel > 1e-3 {
+                    bad += 1;
+                } else {
+                    worst = worst.max(rel);
+                }
+            }
+            (None, false) => {}
+            _ => bad += 1,
+        }
+        same_steps += (gpu_on.steps[k] == o.stats.steps) as usize;
+        if o.stats.lod_patches == 0 {
+            near += 1;
+            near_diff += (gd.to_bits() != gpu_off.depth[k].to_bits()) as usize;
+        }
+    }
+    let n = (W * H) as usize;
+    eprintln!(
+        "GPU vs CPU, LOD on: {bad}/{n} disagree, worst depth {worst:e} among the rest; steps equal on {same_steps}; {near} pixels without a coarse patch, {near_diff} of them changed"
+    );
+    if bad * 200 > n {
+        let p = common::save_failure_image("lod-gpu-vs-cpu", W, H, &gpu_on.rgba);
+        panic!("{bad} pixels disagree with the CPU ({})", p.display());
+    }
+    assert!(near > n / 10, "only {near} pixels without a coarse patch");
+    assert_eq!(near_diff, 0, "pixels without a coarse patch changed depth");
+}
+
+/// The image with LOD on (product settings: tile pre-pass and shadows) differs from LOD off
+/// by less than a pixel's worth: mean and 99th percentile of the per-pixel largest 8-bit
+/// sRGB channel difference below those between the LOD-off image and the LOD-off image with
+/// the camera turned by one pixel.
+#[test]
+fn lod_changes_the_image_by_less_than_a_pixel_shift() {
+    let _l = common::gpu_lock();
+    let cam = camera(0.0);
+    let Some(off) = render(&cam, settings(true, true, None)) else {
+        return;
+    };
+    let on = render(&cam, settings(true, true, Some(SCALE))).expect("gpu");
+    let shifted = render(&camera(1.0), settings(true, true, None)).expect("gpu");
+    let (mean, p99) = image_difference(&on.rgba, &off.rgba);
+    let (s_mean, s_p99) = image_difference(&shifted.rgba, &off.rgba);
+    let mean_steps =
+        |o: &FrameOutput| o.steps.iter().map(|&s| s as f64).sum::<f64>() / o.steps.len() as f64;
+    eprintln!(
+        "LOD on vs off: mean {mean:.3}, p99 {p99}; one-pixel turn: mean {s_mean:.3}, p99 {s_p99}; GPU steps per ray off {:.3}, on {:.3}",
+        mean_steps(&off),
+        mean_steps(&on)
+    );
+    if !(mean < s_mean && p99 <= s_p99) {
+        common::save_failure_images("lod-image", W, H, &on.rgba, &off.rgba);
+        panic!("LOD changes the image by mean {mean}, p99 {p99}; a one-pixel turn by {s_mean}, {s_p99}");
+    }
+}
