@@ -276,3 +276,39 @@ fn lod_changes_the_image_by_less_than_a_pixel_shift() {
         panic!("LOD changes the image by mean {mean}, p99 {p99}; a one-pixel turn by {s_mean}, {s_p99}");
     }
 }
+
+/// `[render] lod` takes `false`, `true` (scale 1) or a scale in (0, 64]; anything else is
+/// refused naming the key; the CLI's `--lod` takes on, off or a scale.
+#[test]
+fn lod_key_and_cli_values() {
+    use relief::scene::Lod;
+    let parse = |v: &str| {
+        let text = format!(
+            "[terrain.procedural]\nsize = 2\n[camera]\nposition = [0.0, 0.0, 100.0]\n[render]\nlod = {v}\n"
+        );
+        Scene::parse(&text, std::path::Path::new("lod.toml")).map(|s| s.desc.render.lod.scale())
+    };
+    assert_eq!(parse("false").unwrap(), None);
+    assert_eq!(parse("true").unwrap(), Some(1.0));
+    assert_eq!(parse("2.5").unwrap(), Some(2.5));
+    for bad in ["0.0", "-1.0", "65.0"] {
+        let e = parse(bad).expect_err(bad).to_string();
+        assert!(e.contains("render.lod"), "lod = {bad}: {e}");
+    }
+    assert_eq!(Lod::parse("on").unwrap().scale(), Some(1.0));
+    assert_eq!(Lod::parse("off").unwrap().scale(), None);
+    assert_eq!(Lod::parse("4").unwrap().scale(), Some(4.0));
+    for bad in ["0", "nan", "fast", "100"] {
+        assert!(Lod::parse(bad).is_err(), "--lod {bad} accepted");
+    }
+    let default = Scene::parse(
+        "[terrain.procedural]\nsize = 2\n[camera]\nposition = [0.0, 0.0, 100.0]\n",
+        std::path::Path::new("default.toml"),
+    )
+    .unwrap();
+    assert_eq!(
+        default.desc.render.lod.scale(),
+        None,
+        "LOD is off by default"
+    );
+}
