@@ -6,7 +6,7 @@
 //! * the GPU with LOD on agrees with the CPU oracle with LOD on (tile pre-pass off, so both
 //!   walk the same cells): hit/miss and depth within 1e-3 relative on 99.5% of the pixels
 //!   (the oracle tolerance of `tests/curvature.rs`); pixels whose walk met no coarse patch have
-//!   the same depth as with LOD off, exactly;
+//!   the same depth as with LOD off, exactly; on the flat and on the curved earth;
 //! * the CPU oracle's mean steps per ray fall with LOD on;
 //! * representative-surface error bound: a hit on a level-L patch lies within the relief
 //!   (max − min of the finest samples) of its level-L cell of the finest surface, vertically;
@@ -30,13 +30,24 @@ const H: u32 = 180;
 /// The scale `lod = true` stands for.
 const SCALE: f64 = 1.0;
 
+fn load(curved: bool) -> (Scene, Terrain) {
+    let mut scene = Scene::load(&terrains().join("alps-far.toml")).expect("scene");
+    scene.desc.terrain.curved = Some(curved);
+    let terrain = scene.load_terrain().expect("terrain");
+    assert_eq!(terrain.curved, curved);
+    (scene, terrain)
+}
+
+/// The far view on the flat terrain (the scene as shipped).
 fn far() -> &'static (Scene, Terrain) {
     static S: OnceLock<(Scene, Terrain)> = OnceLock::new();
-    S.get_or_init(|| {
-        let scene = Scene::load(&terrains().join("alps-far.toml")).expect("scene");
-        let terrain = scene.load_terrain().expect("terrain");
-        (scene, terrain)
-    })
+    S.get_or_init(|| load(false))
+}
+
+/// The same view on the curved WGS84 earth (the tile's georeference).
+fn far_curved() -> &'static (Scene, Terrain) {
+    static S: OnceLock<(Scene, Terrain)> = OnceLock::new();
+    S.get_or_init(|| load(true))
 }
 
 fn camera(heading_offset_px: f64) -> Camera {
@@ -57,8 +68,8 @@ struct Oracle {
 
 /// The CPU oracle over the frame; `lod` scale (None: off); the cone from the camera (the
 /// ray table's formula).
-fn oracle(cam: &Camera, lod: Option<f64>) -> Vec<Oracle> {
-    let (_, terrain) = far();
+fn oracle(view: &(Scene, Terrain), cam: &Camera, lod: Option<f64>) -> Vec<Oracle> {
+    let (_, terrain) = view;
     (0..W * H)
         .into_par_iter()
         .map(|k| {
@@ -87,10 +98,8 @@ fn oracle(cam: &Camera, lod: Option<f64>) -> Vec<Oracle> {
 fn oracles() -> &'static (Vec<Oracle>, Vec<Oracle>) {
     static O: OnceLock<(Vec<Oracle>, Vec<Oracle>)> = OnceLock::new();
     O.get_or_init(|| {
-        (
-            oracle(&camera(0.0), None),
-            oracle(&camera(0.0), Some(SCALE)),
-        )
+        let cam = camera(0.0);
+        (oracle(far(), &cam, None), oracle(far(), &cam, Some(SCALE)))
     })
 }
 
@@ -102,8 +111,12 @@ fn settings(shadows: bool, tile_prepass: bool, lod: Option<f64>) -> RenderSettin
 }
 
 fn render(cam: &Camera, s: RenderSettings) -> Option<FrameOutput> {
+    render_view(far(), cam, s)
+}
+
+fn render_view(view: &(Scene, Terrain), cam: &Camera, s: RenderSettings) -> Option<FrameOutput> {
     let g = common::gpu()?;
-    let (scene, terrain) = far();
+    let (scene, terrain) = view;
     let mut r = TerrainRenderer::new(g, terrain).expect("renderer");
     Some(
         r.capture(g, terrain, &scene.desc, cam, &s)
@@ -130,7 +143,7 @@ fn image_difference(a: &[u8], b: &[u8]) -> (f64, f64) {
 #[test]
 fn lod_takes_fewer_steps_on_the_cpu_oracle() {
     let (off, on) = oracles();
-    let on4 = oracle(&camera(0.0), Some(4.0));
+    let on4 = oracle(far(), &camera(0.0), Some(4.0));
     let mean = |v: &[Oracle]| v.iter().map(|o| o.stats.steps as f64).sum::<f64>() / v.len() as f64;
     let m_off = mean(off);
     let hits = off.iter().filter(|o| o.t.is_some()).count();
@@ -204,49 +217,63 @@ fn coarse_hits_lie_within_their_cells_relief_of_the_finest_surface() {
     assert!(n > 0);
 }
 
-/// GPU with LOD on against the CPU oracle with LOD on (tile pre-pass off: the same walk):
-/// hit/miss and depth within 1e-3 relative on 99.5% of the pixels; pixels whose walk met no
-/// coarse patch have the GPU's LOD-off depth exactly.
+/// GPU with LOD on against the CPU oracle with LOD on (tile pre-pass off: the same walk), on
+/// the flat and on the curved earth: hit/miss and depth within 1e-3 relative on 99.5% of the
+/// pixels; pixels whose walk met no coarse patch have the GPU's LOD-off depth exactly.
 #[test]
 fn lod_on_the_gpu_matches_the_cpu_oracle() {
     let _l = common::gpu_lock();
-    let cam = camera(0.0);
-    let Some(gpu_on) = render(&cam, settings(false, false, Some(SCALE))) else {
+    if common::gpu().is_none() {
         return;
-    };
-    let gpu_off = render(&cam, settings(false, false, None)).expect("gpu");
-    let (_, on) = oracles();
-    let (mut bad, mut worst, mut near, mut near_diff, mut same_steps) = (0, 0.0f64, 0, 0, 0);
-    for (k, o) in on.iter().enumerate() {
-        let gd = gpu_on.depth[k];
-        match (o.t, gd.is_finite()) {
-            (Some(t), true) => {
-                let rel = ((gd as f64 - t) / t).abs();
-                if rel > 1e-3 {
-                    bad += 1;
-                } else {
-                    worst = worst.max(rel);
+    }
+    let cam = camera(0.0);
+    for (name, view) in [("flat", far()), ("curved", far_curved())] {
+        let gpu_on = render_view(view, &cam, settings(false, false, Some(SCALE))).expect("gpu");
+        let gpu_off = render_view(view, &cam, settings(false, false, None)).expect("gpu");
+        let on = oracle(view, &cam, Some(SCALE));
+        let (mut bad, mut worst, mut near, mut near_diff, mut same_steps) = (0, 0.0f64, 0, 0, 0);
+        let coarse = on.iter().filter(|o| o.stats.hit_level > 0).count();
+        for (k, o) in on.iter().enumerate() {
+            let gd = gpu_on.depth[k];
+            match (o.t, gd.is_finite()) {
+                (Some(t), true) => {
+                    let rel = ((gd as f64 - t) / t).abs();
+                    if rel > 1e-3 {
+                        bad += 1;
+                    } else {
+                        worst = worst.max(rel);
+                    }
                 }
+                (None, false) => {}
+                _ => bad += 1,
             }
-            (None, false) => {}
-            _ => bad += 1,
+            same_steps += (gpu_on.steps[k] == o.stats.steps) as usize;
+            if o.stats.lod_patches == 0 {
+                near += 1;
+                near_diff += (gd.to_bits() != gpu_off.depth[k].to_bits()) as usize;
+            }
         }
-        same_steps += (gpu_on.steps[k] == o.stats.steps) as usize;
-        if o.stats.lod_patches == 0 {
-            near += 1;
-            near_diff += (gd.to_bits() != gpu_off.depth[k].to_bits()) as usize;
+        let n = (W * H) as usize;
+        eprintln!(
+            "{name}: GPU vs CPU, LOD on: {bad}/{n} disagree, worst depth {worst:e} among the rest; {coarse} coarse hits; steps equal on {same_steps}; {near} pixels without a coarse patch, {near_diff} of them changed"
+        );
+        assert!(coarse > n / 50, "{name}: only {coarse} coarse hits");
+        if bad * 200 > n {
+            let p = common::save_failure_image("lod-gpu-vs-cpu", W, H, &gpu_on.rgba);
+            panic!(
+                "{name}: {bad} pixels disagree with the CPU ({})",
+                p.display()
+            );
         }
+        assert!(
+            near > n / 10,
+            "{name}: only {near} pixels without a coarse patch"
+        );
+        assert_eq!(
+            near_diff, 0,
+            "{name}: pixels without a coarse patch changed depth"
+        );
     }
-    let n = (W * H) as usize;
-    eprintln!(
-        "GPU vs CPU, LOD on: {bad}/{n} disagree, worst depth {worst:e} among the rest; steps equal on {same_steps}; {near} pixels without a coarse patch, {near_diff} of them changed"
-    );
-    if bad * 200 > n {
-        let p = common::save_failure_image("lod-gpu-vs-cpu", W, H, &gpu_on.rgba);
-        panic!("{bad} pixels disagree with the CPU ({})", p.display());
-    }
-    assert!(near > n / 10, "only {near} pixels without a coarse patch");
-    assert_eq!(near_diff, 0, "pixels without a coarse patch changed depth");
 }
 
 /// The image with LOD on (product settings: tile pre-pass and shadows) differs from LOD off
@@ -270,6 +297,22 @@ fn lod_changes_the_image_by_less_than_a_pixel_shift() {
         "LOD on vs off: mean {mean:.3}, p99 {p99}; one-pixel turn: mean {s_mean:.3}, p99 {s_p99}; GPU steps per ray off {:.3}, on {:.3}",
         mean_steps(&off),
         mean_steps(&on)
+    );
+    // Depth change of pixels that hit with LOD on and off (relative), and hit/miss changes.
+    let mut rel: Vec<f64> = (off.depth.iter().zip(&on.depth))
+        .filter(|(a, b)| a.is_finite() && b.is_finite())
+        .map(|(a, b)| ((b - a) / a).abs() as f64)
+        .collect();
+    rel.sort_by(f64::total_cmp);
+    let class = (off.depth.iter().zip(&on.depth))
+        .filter(|(a, b)| a.is_finite() != b.is_finite())
+        .count();
+    eprintln!(
+        "depth change of {} hit pixels: median {:e}, p99 {:e}, max {:e} relative; {class} pixels hit/miss changed",
+        rel.len(),
+        rel[rel.len() / 2],
+        rel[rel.len() * 99 / 100],
+        rel[rel.len() - 1]
     );
     if !(mean < s_mean && p99 <= s_p99) {
         common::save_failure_images("lod-image", W, H, &on.rgba, &off.rgba);
