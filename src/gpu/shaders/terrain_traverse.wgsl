@@ -459,7 +459,8 @@ fn traverse_lod(r: Ray, t_min: f32, t_max: f32, max_steps: u32, start_level: u32
             break;
         }
         res.patches += 1u;
-        let ph = patch_hit(r, w.level, w.cell.x, w.cell.y, w.t, t_exit, under);
+        // Level 0 unless LOD (a constant then: the exact build keeps its level-0 addressing).
+        let ph = patch_hit(r, select(0u, w.level, LOD), w.cell.x, w.cell.y, w.t, t_exit, under);
         under = ph.y != 0.0;
         let th = ph.x;
         if (th >= 0.0) {
