@@ -355,3 +355,43 @@ fn lod_key_and_cli_values() {
         "LOD is off by default"
     );
 }
+
+/// `relief render --lod SCALE` renders with it (the frame JSON's settings say so); a bad
+/// value is refused naming the option.
+#[test]
+fn render_takes_the_lod_option() {
+    let _l = common::gpu_lock();
+    if common::gpu().is_none() {
+        return;
+    }
+    let out = common::temp_dir("lod-cli");
+    let scene = terrains().join("alps-far.toml");
+    let args = |lod: &'static str| {
+        vec![
+            "render".to_string(),
+            scene.display().to_string(),
+            "--size".into(),
+            "64x36".into(),
+            "--lod".into(),
+            lod.into(),
+            "--out".into(),
+            out.display().to_string(),
+        ]
+    };
+    let run = |a: &[String]| {
+        let a: Vec<&str> = a.iter().map(String::as_str).collect();
+        common::relief_cli(&a, &[])
+    };
+    let ok = run(&args("2.5"));
+    assert!(
+        ok.status.success(),
+        "{}",
+        String::from_utf8_lossy(&ok.stderr)
+    );
+    let json = common::read_json(&out.join("frame_0000.json"));
+    assert_eq!(json["settings"]["lod"].as_f64(), Some(2.5), "{json}");
+    let bad = run(&args("sometimes"));
+    assert!(!bad.status.success());
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(err.contains("--lod"), "stderr: {err}");
+}
