@@ -173,6 +173,37 @@ fn lod_takes_fewer_steps_on_the_cpu_oracle() {
     }
 }
 
+/// Vertical distance of a coarse hit at `t` on ray `r` (reported level-0 cell `cell`, level
+/// `level`) from the finest surface, and the stated bound: the relief (max − min) of the finest
+/// samples under its level-L cell, clipped to the grid, + 1e-6 relative rounding.
+fn coarse_error(
+    terrain: &Terrain,
+    r: &GridRay,
+    t: f64,
+    cell: [usize; 2],
+    level: usize,
+) -> (f64, f64) {
+    let p = r.at(t);
+    let [cw, ch] = terrain.cells();
+    let fine = terrain
+        .height_at_grid(p.x.clamp(0.0, cw as f64), p.y.clamp(0.0, ch as f64))
+        .expect("hit over the grid");
+    let s = 1usize << level;
+    let (ci, cj) = (cell[0] / s, cell[1] / s);
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for j in cj * s..=((cj + 1) * s).min(ch) {
+        for i in ci * s..=((ci + 1) * s).min(cw) {
+            let h = terrain.field.at(i, j) as f64;
+            lo = lo.min(h);
+            hi = hi.max(h);
+        }
+    }
+    (
+        (p.z - fine).abs(),
+        hi - lo + 1e-6 * (1.0 + t.abs() + hi.abs()),
+    )
+}
+
 /// The representative surface's error bound, on the CPU oracle: a hit on a level-L patch lies
 /// within the relief (max − min of the finest samples) of its level-L cell of the finest
 /// surface, vertically (+ 1e-6 relative rounding).
@@ -191,20 +222,7 @@ fn coarse_hits_lie_within_their_cells_relief_of_the_finest_surface() {
         }
         let (x, y) = (k as u32 % W, k as u32 / W);
         let r = GridRay::from_world(terrain, cam.pose.position, cam.pixel_ray(x, y));
-        let p = r.at(t);
-        let fine = terrain.height_at_grid(p.x, p.y).expect("hit over the grid");
-        let s = 1usize << level;
-        let (ci, cj) = (o.cell[0] / s, o.cell[1] / s);
-        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-        for j in cj * s..=((cj + 1) * s).min(terrain.cells()[1]) {
-            for i in ci * s..=((ci + 1) * s).min(terrain.cells()[0]) {
-                let h = terrain.field.at(i, j) as f64;
-                lo = lo.min(h);
-                hi = hi.max(h);
-            }
-        }
-        let err = (p.z - fine).abs();
-        let bound = hi - lo + 1e-6 * (1.0 + t);
+        let (err, bound) = coarse_error(terrain, &r, t, o.cell, level);
         assert!(
             err <= bound,
             "pixel ({x}, {y}) level {level}: {err} m off the finest surface, bound {bound} m"
@@ -215,6 +233,48 @@ fn coarse_hits_lie_within_their_cells_relief_of_the_finest_surface() {
     }
     eprintln!("{n} coarse hits: worst {worst:.2} m off the finest surface, worst error/bound {worst_ratio:.3}");
     assert!(n > 0);
+}
+
+/// Coarse cells over the grid's edge (a 97x97-sample grid: 96 cells, a 128-cell pyramid): the
+/// patch's far corner is clamped to the last sample, and the bound still holds there. Rays
+/// from 5 km off the grid towards its far edge, with a footprint that allows levels up to 6.
+#[test]
+fn coarse_cells_over_the_grid_edge_keep_the_bound() {
+    let terrain = common::terrain_from_fn(97, 10.0, |x, y| {
+        300.0 + 80.0 * (x * 0.013).sin() * (y * 0.021).cos() + 30.0 * (x * 0.07 + y * 0.05).sin()
+    });
+    let (mut edge_hits, mut n) = (0usize, 0usize);
+    for k in 0..400 {
+        let (a, b) = ((k % 20) as f64, (k / 20) as f64);
+        let o = glam::DVec3::new(-5000.0, 100.0 + 38.0 * a, 2000.0);
+        let target = glam::DVec3::new(960.0, 100.0 + 38.0 * a, 200.0 + 12.0 * b);
+        let r = GridRay::from_world(&terrain, o, (target - o).normalize());
+        let lod_k = lod_factor(&terrain, 8.0, 0.02);
+        let mut stats = TraversalStats::default();
+        let walls = terrain.walls;
+        let range = [0.0, f64::INFINITY];
+        let Some((t, cell)) = intersect_lod(&terrain, &r, range, 4096, &mut stats, walls, lod_k)
+        else {
+            continue;
+        };
+        let level = stats.hit_level as usize;
+        if level == 0 {
+            continue;
+        }
+        n += 1;
+        let s = 1usize << level;
+        edge_hits += ((cell[0] / s + 1) * s > 96 || (cell[1] / s + 1) * s > 96) as usize;
+        let (err, bound) = coarse_error(&terrain, &r, t, cell, level);
+        assert!(
+            err <= bound,
+            "ray {k} level {level}: {err} m off, bound {bound} m"
+        );
+    }
+    eprintln!("{n} coarse hits, {edge_hits} on cells over the grid's edge");
+    assert!(
+        edge_hits > 10,
+        "only {edge_hits} coarse hits over the grid's edge"
+    );
 }
 
 /// GPU with LOD on against the CPU oracle with LOD on (tile pre-pass off: the same walk), on

@@ -308,11 +308,13 @@ pub fn patch_hit_from_below(
 
 /// Corner heights `(h00, h10, h01, h11)` of the bilinear patch of cell `(i, j)` of pyramid
 /// level `level`: the finest samples at `(i, j) · 2^L` and `(i + 1, j + 1) · 2^L` (the
-/// decimated grid; level 0: the cell's own samples). The caller keeps the far corner on the
-/// grid. The shader's `patch_corners`.
+/// decimated grid; level 0: the cell's own samples), the far corner clamped to the grid's last
+/// sample (a coarse cell over the grid's edge). The shader's `patch_corners`.
 pub fn patch_corners(terrain: &Terrain, level: usize, i: usize, j: usize) -> [f64; 4] {
     let f = &terrain.field;
-    let (i0, j0, i1, j1) = (i << level, j << level, (i + 1) << level, (j + 1) << level);
+    let [cw, ch] = terrain.cells();
+    let (i0, j0) = (i << level, j << level);
+    let (i1, j1) = (((i + 1) << level).min(cw), ((j + 1) << level).min(ch));
     [
         f.at(i0, j0) as f64,
         f.at(i1, j0) as f64,
@@ -401,14 +403,11 @@ pub fn intersect_with_walls(
     intersect_lod(terrain, r, [t_min, t_max], max_steps, stats, walls, 0.0)
 }
 
-/// Whether a cell of `level` at `(ix, iy)` entered at `t` may stand in for its samples: its
-/// side is within the footprint (`2^L ≤ lod_k · t`, [`lod_factor`]) and its far corner on the
-/// grid (edge cells of the padded pyramid descend).
+/// Whether a cell of `level` entered at `t` may stand in for its samples: its side is within
+/// the footprint (`2^L ≤ lod_k · t`, [`lod_factor`]).
 #[inline]
-fn lod_stops(terrain: &Terrain, level: usize, ix: i64, iy: i64, t: f64, lod_k: f64) -> bool {
-    let [cw, ch] = terrain.cells();
-    let s = 1i64 << level;
-    level > 0 && (s as f64) <= lod_k * t && (ix + 1) * s <= cw as i64 && (iy + 1) * s <= ch as i64
+fn lod_stops(level: usize, t: f64, lod_k: f64) -> bool {
+    level > 0 && ((1u64 << level) as f64) <= lod_k * t
 }
 
 /// The level-0 cell under grid point `p` within cell `(ix, iy)` of `level`: the cell a hit
@@ -473,7 +472,7 @@ pub fn intersect_lod(
         let cell_max = pyr.get(level, ix, iy) as f64;
         let z_low = r.lowest(t, t_exit);
         if z_low <= cell_max + slack && cell_max > PAD as f64 {
-            if level > 0 && !lod_stops(terrain, level, ix, iy, t, lod_k) {
+            if level > 0 && !lod_stops(level, t, lod_k) {
                 // Descend to the child holding the entry point.
                 let p = r.at(t);
                 let half = s * 0.5;

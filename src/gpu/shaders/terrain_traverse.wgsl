@@ -65,15 +65,20 @@ fn cell_max(level: u32, cell: vec2<i32>) -> f32 {
 }
 
 // Corner heights (h00, h10, h01, h11) of the bilinear patch of `cell` of `level`: the finest
-// samples at cell * 2^level and (cell + 1) * 2^level (level 0: the cell's own samples; the
-// caller keeps the far corner on the grid). `patch_corners` in `src/cpu/traverse.rs`.
+// samples at cell * 2^level and (cell + 1) * 2^level (level 0: the cell's own samples), the
+// far corner clamped to the grid's last sample (a coarse cell over the grid's edge: LOD only).
+// `patch_corners` in `src/cpu/traverse.rs`.
 fn patch_corners(level: u32, cell: vec2<i32>) -> vec4<f32> {
     let w = frame.grid.x;
     let i0 = u32(cell.x) << level;
     let j0 = u32(cell.y) << level;
     let base = j0 * w + i0;
-    let di = 1u << level;
-    let dj = w << level;
+    var di = 1u << level;
+    var dj = w << level;
+    if (LOD) {
+        di = min(i0 + di, w - 1u) - i0;
+        dj = (min(j0 + (1u << level), frame.grid.y - 1u) - j0) * w;
+    }
     return vec4<f32>(heights[base], heights[base + di], heights[base + dj], heights[base + dj + di]);
 }
 
@@ -358,12 +363,12 @@ fn walk_inside(w: Walk) -> bool {
 }
 
 // Footprint LOD: the walk's cell (level > 0) may stand in for its samples, its side 2^level
-// within the footprint (`2^level <= lod_k * t`, `lod_k` = lod * 2 * cone / larger spacing)
-// and its far corner on the grid (`lod_stops` on the CPU).
+// within the footprint (`2^level <= lod_k * t`, `lod_k` = lod * 2 * cone / larger spacing;
+// `lod_stops` on the CPU). One float compare per descent: a test of the cell's far corner
+// against the grid's edge here cost 3% of the cast pass on lavapipe, so `patch_corners`
+// clamps that corner instead.
 fn lod_stops(w: Walk, lod_k: f32) -> bool {
-    let s = 1 << w.level;
-    let inside = (w.cell + vec2<i32>(1)) * s <= vec2<i32>(frame.grid.xy) - vec2<i32>(1);
-    return f32(s) <= lod_k * w.t && all(inside);
+    return f32(1u << w.level) <= lod_k * w.t;
 }
 
 // The level-0 cell under grid point p within the walk's cell (`finest_cell` on the CPU).
