@@ -218,8 +218,10 @@ fn patch_hit(r: Ray, level: u32, i: i32, j: i32, ta: f32, tb: f32, under: bool) 
     var u0 = p.x - f32(i);
     var v0 = p.y - f32(j);
     var dxy = r.d.xy;
-    if (LOD && level > 0u) {
-        let inv = 1.0 / f32(1u << level);
+    if (LOD) {
+        // Branch-free (Mesa's SIMD lanes pay for both sides of a branch): at level 0 the
+        // scale is 1 and the arithmetic the exact build's, bit for bit.
+        let inv = ldexp(1.0, -i32(level));
         u0 = p.x * inv - f32(i);
         v0 = p.y * inv - f32(j);
         dxy = r.d.xy * inv;
