@@ -226,6 +226,7 @@ fn gpu_table_matches_cpu_table_and_direct_renders_match_the_oracle() {
         shadows: false,
         tile_prepass: true,
         max_steps: 4096,
+        lod: None,
     };
     for (name, cfg) in configs() {
         for (ci, ch) in cfg.channels.iter().enumerate() {

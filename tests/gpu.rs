@@ -353,6 +353,7 @@ fn march_baseline_agrees_with_pyramid_on_most_pixels() {
         shadows: false,
         tile_prepass: false,
         max_steps: 1 << 20,
+        lod: None,
     };
     let Some(m) = render(&terrain, &scene.desc, &cam, march) else {
         return;

@@ -43,13 +43,14 @@ fn every_specialised_variant_validates_with_naga() {
     use relief::gpu::variants::ShadeFeatures;
     use relief::gpu::variants::VolumeSwitches;
     let bit = |bits: u32, k: u32| bits & (1 << k) != 0;
-    for bits in 0..32 {
+    for bits in 0..64 {
         let f = ShadeFeatures {
             shadows: bit(bits, 0),
             drape: bit(bits, 1),
             voxels: bit(bits, 2),
             volume_shadows: bit(bits, 3),
             curved: bit(bits, 4),
+            lod: bit(bits, 5),
         };
         validate(&format!("shade {f:?}"), &shaders::shade(f));
         for tables in [
@@ -83,7 +84,8 @@ fn every_specialised_variant_validates_with_naga() {
 #[test]
 fn naga_rejects_a_broken_shader() {
     // The check above can fail: a type error is reported.
-    let src = relief::gpu::shaders::cast(false).replace("let t1 = tt.y;", "let t1: u32 = tt.y;");
+    let src =
+        relief::gpu::shaders::cast(false, false).replace("let t1 = tt.y;", "let t1: u32 = tt.y;");
     let module = naga::front::wgsl::parse_str(&src);
     let invalid = match module {
         Err(_) => true,
@@ -204,7 +206,7 @@ fn full_screen_passes_never_discard() {
     for (name, src) in [
         ("raygen", shaders::raygen()),
         ("tile", shaders::tile(true)),
-        ("cast", shaders::cast(true)),
+        ("cast", shaders::cast(true, true)),
         ("shade", shaders::shade(ShadeFeatures::ALL)),
         (
             "shade (free forms)",

@@ -44,7 +44,8 @@ pub fn parse_dvec3(s: &str) -> Result<glam::DVec3, String> {
     parse_vec::<3>(s).map(glam::DVec3::from)
 }
 
-/// Sun shadows and the tile pre-pass, each on as the scene says unless turned off here.
+/// Sun shadows and the tile pre-pass, each on as the scene says unless turned off here, and
+/// footprint level of detail as the scene says unless set here.
 #[derive(Clone, Copy, Debug, Default, clap::Args)]
 pub struct RenderToggles {
     /// Turn sun shadows on surfaces off (terrain, free forms, voxel models, volumes casting onto them).
@@ -53,6 +54,9 @@ pub struct RenderToggles {
     /// Turn the screen-tile pre-pass off.
     #[arg(long)]
     pub no_tile_prepass: bool,
+    /// Footprint level of detail: on, off or a scale factor (overrides `[render] lod`).
+    #[arg(long, value_name = "on|off|SCALE", value_parser = crate::scene::Lod::parse)]
+    pub lod: Option<crate::scene::Lod>,
 }
 
 impl RenderToggles {
@@ -63,6 +67,9 @@ impl RenderToggles {
         }
         if self.no_tile_prepass {
             settings.tile_prepass = false;
+        }
+        if let Some(lod) = self.lod {
+            settings.lod = lod.scale();
         }
     }
 }

@@ -107,6 +107,23 @@ pub struct TraversalStats {
     pub patch_tests: u32,
     /// True when the step limit ended the walk.
     pub exhausted: bool,
+    /// Patch tests at a level above 0 (footprint level of detail).
+    pub lod_patches: u32,
+    /// Pyramid level of the patch that was hit (0: the finest; above 0 only with LOD).
+    pub hit_level: u32,
+}
+
+/// Footprint level of detail of one ray: a cell of level L may stand in for its samples where
+/// `2^L ≤ k · t` (t: its entry distance in metres), `k = lod · 2 · cone / max spacing` with
+/// `cone` the pixel's cone half-angle (radians, the ray table's w). `lod ≤ 0` or `cone ≤ 0`:
+/// 0, never (the shader's `lod_k`, computed in f32 there).
+pub fn lod_factor(terrain: &Terrain, lod: f64, cone: f64) -> f64 {
+    let s = terrain.frame.spacing[0].max(terrain.frame.spacing[1]);
+    if lod > 0.0 && cone > 0.0 {
+        lod * 2.0 * cone / s
+    } else {
+        0.0
+    }
 }
 
 /// Tolerance (metres) added to the box and to every cell maximum so that rounding never skips
@@ -217,7 +234,19 @@ pub fn patch_hit(
     t_a: f64,
     t_b: f64,
 ) -> Option<f64> {
-    let (qa, qb, qc) = patch_quadratic(terrain, r, i, j, t_a);
+    patch_hit_at(terrain, r, (0, i, j), t_a, t_b)
+}
+
+/// [`patch_hit`] with the bilinear patch of cell `(i, j)` of pyramid level `level`
+/// ([`patch_corners`]).
+pub fn patch_hit_at(
+    terrain: &Terrain,
+    r: &GridRay,
+    (level, i, j): (usize, usize, usize),
+    t_a: f64,
+    t_b: f64,
+) -> Option<f64> {
+    let (qa, qb, qc) = patch_quadratic(terrain, r, (level, i, j), t_a);
     if qc <= 0.0 {
         return Some(t_a);
     }
@@ -231,13 +260,12 @@ pub fn patch_hit(
 pub fn patch_hit_from_below(
     terrain: &Terrain,
     r: &GridRay,
-    i: usize,
-    j: usize,
+    (level, i, j): (usize, usize, usize),
     t_a: f64,
     t_b: f64,
     under: &mut bool,
 ) -> Option<f64> {
-    let (qa, qb, qc) = patch_quadratic(terrain, r, i, j, t_a);
+    let (qa, qb, qc) = patch_quadratic(terrain, r, (level, i, j), t_a);
     let s_max = t_b - t_a;
     if qc > 0.0 {
         *under = false;
@@ -278,28 +306,53 @@ pub fn patch_hit_from_below(
     }
 }
 
-/// The bilinear patch of cell `(i, j)` along the ray, re-centred on `t_a`: ray height above
-/// the patch is `qa s² + qb s + qc` at `t = t_a + s`.
+/// Corner heights `(h00, h10, h01, h11)` of the bilinear patch of cell `(i, j)` of pyramid
+/// level `level`: the finest samples at `(i, j) · 2^L` and `(i + 1, j + 1) · 2^L` (the
+/// decimated grid; level 0: the cell's own samples), the far corner clamped to the grid's last
+/// sample (a coarse cell over the grid's edge). The shader's `patch_corners`.
+pub fn patch_corners(terrain: &Terrain, level: usize, i: usize, j: usize) -> [f64; 4] {
+    let f = &terrain.field;
+    let [cw, ch] = terrain.cells();
+    let (i0, j0) = (i << level, j << level);
+    let (i1, j1) = (((i + 1) << level).min(cw), ((j + 1) << level).min(ch));
+    [
+        f.at(i0, j0) as f64,
+        f.at(i1, j0) as f64,
+        f.at(i0, j1) as f64,
+        f.at(i1, j1) as f64,
+    ]
+}
+
+/// The bilinear patch of cell `(i, j)` of `level` along the ray, re-centred on `t_a`: ray
+/// height above the patch is `qa s² + qb s + qc` at `t = t_a + s`. Above level 0 the patch
+/// spans 2^L samples per side: the same quadratic in the grid scaled by 2^-L (the drop terms
+/// stay in the finest grid's units).
 fn patch_quadratic(
     terrain: &Terrain,
     r: &GridRay,
-    i: usize,
-    j: usize,
+    (level, i, j): (usize, usize, usize),
     t_a: f64,
 ) -> (f64, f64, f64) {
-    let f = &terrain.field;
-    let (h00, h10, h01, h11) = (
-        f.at(i, j) as f64,
-        f.at(i + 1, j) as f64,
-        f.at(i, j + 1) as f64,
-        f.at(i + 1, j + 1) as f64,
-    );
+    let [h00, h10, h01, h11] = patch_corners(terrain, level, i, j);
     let (a, b, c, e) = (h00, h10 - h00, h01 - h00, h00 - h10 - h01 + h11);
     let p = r.at(t_a);
-    let (u0, v0) = (p.x - i as f64, p.y - j as f64);
-    let qa = -e * r.d.x * r.d.y;
-    let qb = r.d.z - b * r.d.x - c * r.d.y - e * (u0 * r.d.y + v0 * r.d.x);
-    let qc = p.z - (a + b * u0 + c * v0 + e * u0 * v0);
+    let (qa, qb, qc) = if level == 0 {
+        let (u0, v0) = (p.x - i as f64, p.y - j as f64);
+        (
+            -e * r.d.x * r.d.y,
+            r.d.z - b * r.d.x - c * r.d.y - e * (u0 * r.d.y + v0 * r.d.x),
+            p.z - (a + b * u0 + c * v0 + e * u0 * v0),
+        )
+    } else {
+        let inv = 1.0 / (1u64 << level) as f64;
+        let (u0, v0) = (p.x * inv - i as f64, p.y * inv - j as f64);
+        let (dx, dy) = (r.d.x * inv, r.d.y * inv);
+        (
+            -e * dx * dy,
+            r.d.z - b * dx - c * dy - e * (u0 * dy + v0 * dx),
+            p.z - (a + b * u0 + c * v0 + e * u0 * v0),
+        )
+    };
     if r.curv.is_flat() {
         return (qa, qb, qc);
     }
@@ -347,6 +400,39 @@ pub fn intersect_with_walls(
     stats: &mut TraversalStats,
     walls: bool,
 ) -> Option<(f64, [usize; 2])> {
+    intersect_lod(terrain, r, [t_min, t_max], max_steps, stats, walls, 0.0)
+}
+
+/// Whether a cell of `level` entered at `t` may stand in for its samples: its side is within
+/// the footprint (`2^L ≤ lod_k · t`, [`lod_factor`]).
+#[inline]
+fn lod_stops(level: usize, t: f64, lod_k: f64) -> bool {
+    level > 0 && ((1u64 << level) as f64) <= lod_k * t
+}
+
+/// The level-0 cell under grid point `p` within cell `(ix, iy)` of `level`: the cell a hit
+/// reports (the shade pass takes its normal there).
+fn finest_cell(terrain: &Terrain, level: usize, ix: i64, iy: i64, p: DVec3) -> [usize; 2] {
+    let [cw, ch] = terrain.cells();
+    let s = 1i64 << level;
+    let pick = |x: f64, i: i64, n: usize| -> usize {
+        ((x.floor() as i64).clamp(i * s, (i + 1) * s - 1) as usize).min(n - 1)
+    };
+    [pick(p.x, ix, cw), pick(p.y, iy, ch)]
+}
+
+/// [`intersect_with_walls`] with footprint level of detail: `lod_k` from [`lod_factor`]
+/// (0: off, the exact traversal). A hit on a coarse patch reports the level-0 cell under the
+/// hit point and its level in `stats.hit_level`.
+pub fn intersect_lod(
+    terrain: &Terrain,
+    r: &GridRay,
+    [t_min, t_max]: [f64; 2],
+    max_steps: u32,
+    stats: &mut TraversalStats,
+    walls: bool,
+    lod_k: f64,
+) -> Option<(f64, [usize; 2])> {
     let (t0, t1) = clip_to_box(terrain, r, t_min, t_max)?;
     // Without walls: is the ray below the surface where it enters the box?
     let mut under = !walls && {
@@ -374,21 +460,19 @@ pub fn intersect_with_walls(
     while stats.steps < max_steps {
         stats.steps += 1;
         let s = (1u64 << level) as f64;
-        let tx = if r.d.x.abs() < 1e-300 {
-            f64::INFINITY
-        } else {
-            (((ix + (sx > 0) as i64) as f64) * s - r.o.x) / r.d.x
+        let exit = |i: i64, step: i64, o: f64, d: f64| {
+            if d.abs() < 1e-300 {
+                f64::INFINITY
+            } else {
+                (((i + (step > 0) as i64) as f64) * s - o) / d
+            }
         };
-        let ty = if r.d.y.abs() < 1e-300 {
-            f64::INFINITY
-        } else {
-            (((iy + (sy > 0) as i64) as f64) * s - r.o.y) / r.d.y
-        };
+        let (tx, ty) = (exit(ix, sx, r.o.x, r.d.x), exit(iy, sy, r.o.y, r.d.y));
         let t_exit = tx.min(ty).min(t1).max(t);
         let cell_max = pyr.get(level, ix, iy) as f64;
         let z_low = r.lowest(t, t_exit);
         if z_low <= cell_max + slack && cell_max > PAD as f64 {
-            if level > 0 {
+            if level > 0 && !lod_stops(level, t, lod_k) {
                 // Descend to the child holding the entry point.
                 let p = r.at(t);
                 let half = s * 0.5;
@@ -402,14 +486,16 @@ pub fn intersect_with_walls(
                 continue;
             }
             stats.patch_tests += 1;
-            let (i, j) = (ix as usize, iy as usize);
+            stats.lod_patches += (level > 0) as u32;
+            let cell = (level, ix as usize, iy as usize);
             let hit = if under {
-                patch_hit_from_below(terrain, r, i, j, t, t_exit, &mut under)
+                patch_hit_from_below(terrain, r, cell, t, t_exit, &mut under)
             } else {
-                patch_hit(terrain, r, i, j, t, t_exit)
+                patch_hit_at(terrain, r, cell, t, t_exit)
             };
             if let Some(th) = hit {
-                return Some((th, [i, j]));
+                stats.hit_level = level as u32;
+                return Some((th, finest_cell(terrain, level, ix, iy, r.at(th))));
             }
         }
         // Advance to the next cell.

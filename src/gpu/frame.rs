@@ -19,6 +19,8 @@ pub struct RenderSettings {
     pub shadows: bool,
     pub tile_prepass: bool,
     pub max_steps: u32,
+    /// Footprint level of detail of the primary rays: its scale, `None` off (`render.lod`).
+    pub lod: Option<f64>,
 }
 
 impl RenderSettings {
@@ -29,6 +31,7 @@ impl RenderSettings {
             shadows: desc.render.shadows,
             tile_prepass: desc.render.tile_prepass,
             max_steps: desc.render.max_steps,
+            lod: desc.render.lod.scale(),
         }
     }
 }

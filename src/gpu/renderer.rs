@@ -425,7 +425,11 @@ impl TerrainRenderer {
             voxels: self.voxels.is_some(),
             volume_shadows: s.shadows && self.volumes.any_casts_shadow(),
             curved: job.terrain.curved,
+            lod: s.lod.is_some() && s.mode == TraceMode::Pyramid,
         };
+        if features.lod {
+            self.base.prepare_cast_lod(gpu);
+        }
         let shade_index = match &mut self.objects {
             Some(o) => o.shade.prepare(&gpu.device, features),
             None => self.base.shade.prepare(&gpu.device, features),
@@ -582,7 +586,7 @@ impl TerrainRenderer {
         }
         job.lap(enc, &mut times.tile_ms)?;
         let cast = if tile_on || s.mode == TraceMode::Pyramid {
-            &self.base.cast
+            self.base.cast_pipeline(s.lod.is_some())
         } else {
             &self.base.march
         };

@@ -26,16 +26,17 @@ pub fn raygen() -> String {
     [FULLSCREEN, include_str!("shaders/raygen.wgsl")].concat()
 }
 
-/// The traversal's curved-earth switch (`CURVED` in `terrain_traverse.wgsl`).
-fn curved_const(curved: bool) -> String {
-    super::variants::wgsl_bools(&[("CURVED", curved)])
+/// The traversal's switches: curved earth (`CURVED` in `terrain_traverse.wgsl`) and
+/// footprint level of detail (`LOD`).
+fn traverse_consts(curved: bool, lod: bool) -> String {
+    super::variants::wgsl_bools(&[("CURVED", curved), ("LOD", lod)])
 }
 
 /// Tile pre-pass (fragment); `curved`: the terrain's curved earth (see
 /// [`super::variants::ShadeFeatures::curved`]).
 pub fn tile(curved: bool) -> String {
     [
-        &curved_const(curved),
+        &traverse_consts(curved, false),
         FRAME,
         FULLSCREEN,
         RAY_TABLE,
@@ -46,10 +47,10 @@ pub fn tile(curved: bool) -> String {
 }
 
 /// Terrain cast pass (fragment): traversal only, writes the G-buffer; `curved` as in
-/// [`tile`].
-pub fn cast(curved: bool) -> String {
+/// [`tile`]; `lod`: footprint level of detail compiled in (`render.lod`).
+pub fn cast(curved: bool, lod: bool) -> String {
     [
-        &curved_const(curved),
+        &traverse_consts(curved, lod),
         FRAME,
         FULLSCREEN,
         RAY_TABLE,
@@ -292,8 +293,10 @@ pub fn all() -> Vec<(&'static str, String)> {
         ("raygen", raygen()),
         ("tile", tile(false)),
         ("tile (curved)", tile(true)),
-        ("cast", cast(false)),
-        ("cast (curved)", cast(true)),
+        ("cast", cast(false, false)),
+        ("cast (curved)", cast(true, false)),
+        ("cast (lod)", cast(false, true)),
+        ("cast (curved, lod)", cast(true, true)),
         ("shade", shade(ShadeFeatures::ALL)),
         ("shade (no options)", shade(ShadeFeatures::NONE)),
         ("shade_objects", shade_objects(ShadeFeatures::ALL, UNIFORM)),

@@ -189,6 +189,10 @@ pub(crate) struct TerrainPasses {
     pub raygen: RayGen,
     pub tile: wgpu::RenderPipeline,
     pub cast: wgpu::RenderPipeline,
+    /// The cast pass with footprint level of detail (`render.lod`), built on first use.
+    pub cast_lod: Option<wgpu::RenderPipeline>,
+    /// The terrain's curved earth (the switch the cast pipelines are built with).
+    pub curved: bool,
     pub march: wgpu::RenderPipeline,
     /// Terrain-only shade pipelines (with free forms, `ObjectPasses` has its own).
     pub shade: ShadePipelines,
@@ -208,7 +212,7 @@ impl TerrainPasses {
         let module = |label: &str, src: String| super::shader_module(dev, gpu.params, label, &src);
         let raygen_mod = module("raygen.wgsl", shaders::raygen());
         let tile_mod = module("tile.wgsl", shaders::tile(terrain.curved));
-        let cast_mod = module("cast.wgsl", shaders::cast(terrain.curved));
+        let cast_mod = module("cast.wgsl", shaders::cast(terrain.curved, false));
         let fullscreen = |label: &str,
                           m: &wgpu::ShaderModule,
                           entry: &str,
@@ -253,11 +257,41 @@ impl TerrainPasses {
             raygen,
             tile,
             cast,
+            cast_lod: None,
+            curved: terrain.curved,
             march,
             shade,
             raygen_mod,
             tile_mod,
         })
+    }
+
+    /// Builds the footprint-LOD cast pipeline unless it exists (0.1–0.3 s on Mesa: only
+    /// frames that ask for LOD pay for it).
+    pub fn prepare_cast_lod(&mut self, gpu: &Gpu) {
+        if self.cast_lod.is_some() {
+            return;
+        }
+        let src = shaders::cast(self.curved, true);
+        let m = super::shader_module(&gpu.device, gpu.params, "cast.wgsl (lod)", &src);
+        let target = [Some(target_state(wgpu::TextureFormat::Rgba32Uint))];
+        let p = fullscreen_pipeline(
+            &gpu.device,
+            "cast (lod)",
+            &m,
+            "fs_cast",
+            &self.bgl.cast,
+            &target,
+        );
+        self.cast_lod = Some(p);
+    }
+
+    /// The cast pipeline for a frame with (`lod`) or without footprint level of detail.
+    pub fn cast_pipeline(&self, lod: bool) -> &wgpu::RenderPipeline {
+        match (&self.cast_lod, lod) {
+            (Some(p), true) => p,
+            _ => &self.cast,
+        }
     }
 
     /// Ray generation is a compute dispatch (it writes the ray table as a storage texture).

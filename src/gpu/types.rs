@@ -35,6 +35,8 @@ pub struct FrameUniforms {
     pub stamp: [u32; 4],
     /// Curved earth: eye grid x, y, `GridCurvature::k` x, y (zero on a flat terrain).
     pub curvature: [f32; 4],
+    /// Footprint LOD: x = `render.lod` scale · 2 / larger spacing (0: off), yzw unused.
+    pub lod: [f32; 4],
     pub levels: [[u32; 4]; MAX_LEVELS],
 }
 
@@ -50,7 +52,7 @@ pub struct RayGenUniforms {
     pub eye: [f32; 4],
 }
 
-const _: () = assert!(std::mem::size_of::<FrameUniforms>() == 16 * (29 + MAX_LEVELS));
+const _: () = assert!(std::mem::size_of::<FrameUniforms>() == 16 * (30 + MAX_LEVELS));
 const _: () = assert!(std::mem::size_of::<RayGenUniforms>() == 96);
 
 /// Mirrors WGSL `FfObject` in `shaders/freeform.wgsl`: one placed free form.

@@ -141,6 +141,12 @@ pub fn frame_uniforms(
             curv.k.x as f32,
             curv.k.y as f32,
         ],
+        lod: [
+            s.lod.map_or(0.0, |scale| (scale * 2.0 / sx.max(sy)) as f32),
+            0.0,
+            0.0,
+            0.0,
+        ],
         levels,
     }
 }

@@ -35,6 +35,9 @@ pub struct ShadeFeatures {
     /// Curved earth (`terrain.curved`): the traversal, normals and heights with the drop of
     /// the datum below the eye's tangent plane (`CURVED`; flat terrains compile without it).
     pub curved: bool,
+    /// Footprint level of detail (`render.lod`, `LOD`): shadow rays of terrain hits start
+    /// above the finest surface (a coarse patch may lie below it).
+    pub lod: bool,
 }
 
 impl ShadeFeatures {
@@ -45,6 +48,7 @@ impl ShadeFeatures {
         voxels: true,
         volume_shadows: true,
         curved: true,
+        lod: true,
     };
     /// None compiled in.
     pub const NONE: ShadeFeatures = ShadeFeatures {
@@ -53,6 +57,7 @@ impl ShadeFeatures {
         voxels: false,
         volume_shadows: false,
         curved: false,
+        lod: false,
     };
 }
 
@@ -64,6 +69,7 @@ impl Switches for ShadeFeatures {
             ("VOXELS", self.voxels),
             ("VOLUME_SHADOWS", self.volume_shadows),
             ("CURVED", self.curved),
+            ("LOD", self.lod),
         ])
     }
 }

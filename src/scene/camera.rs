@@ -86,6 +86,14 @@ impl Camera {
         self.ray_dir(px as f64 + 0.5, py as f64 + 0.5)
     }
 
+    /// Cone half-angle (radians) of pixel `(px, py)`: half the angle one pixel subtends at its
+    /// centre, as the ray generation pass writes it to the ray table's w (`pinhole_ray`).
+    pub fn pixel_cone(&self, px: u32, py: u32) -> f64 {
+        let (fx, fy, cx, cy) = self.intrinsics();
+        let (u, v) = ((px as f64 + 0.5 - cx) / fx, (py as f64 + 0.5 - cy) / fy);
+        0.5 / (fx * (1.0 + u * u + v * v))
+    }
+
     /// Projects a world point to image coordinates; `None` behind the camera.
     pub fn project(&self, p: DVec3) -> Option<(f64, f64)> {
         let c = self.rotation().transpose() * (p - self.pose.position);

@@ -176,6 +176,8 @@ pub struct RenderOptions {
     pub tile_prepass: bool,
     /// Safety bound on traversal steps per ray.
     pub max_steps: u32,
+    /// Footprint level of detail of the primary rays (`false`, `true` or a scale factor).
+    pub lod: Lod,
 }
 
 impl Default for RenderOptions {
@@ -184,6 +186,59 @@ impl Default for RenderOptions {
             shadows: true,
             tile_prepass: true,
             max_steps: 4096,
+            lod: Lod::Switch(false),
+        }
+    }
+}
+
+/// `[render] lod`: footprint level of detail (docs/database.md#footprint-level-of-detail).
+/// `false`: off, every ray descends to the finest patch (exact); `true`: on at scale 1; a
+/// number: on at that scale (a cell may stand in for its samples while its side is at most
+/// scale × the pixel cone's diameter).
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(untagged)]
+pub enum Lod {
+    Switch(bool),
+    Scale(f64),
+}
+
+impl Lod {
+    /// The scale `true` stands for.
+    pub const DEFAULT_SCALE: f64 = 1.0;
+    /// Largest accepted scale (a cell 64 footprints wide is no level of detail).
+    pub const MAX_SCALE: f64 = 64.0;
+
+    /// The scale factor, `None` when off.
+    pub fn scale(self) -> Option<f64> {
+        match self {
+            Lod::Switch(false) => None,
+            Lod::Switch(true) => Some(Self::DEFAULT_SCALE),
+            Lod::Scale(s) => Some(s),
+        }
+    }
+
+    /// `on`, `off`, `true`, `false` or a scale factor (the CLI's `--lod`), validated.
+    pub fn parse(s: &str) -> std::result::Result<Lod, String> {
+        let lod = match s.trim() {
+            "on" | "true" => Lod::Switch(true),
+            "off" | "false" => Lod::Switch(false),
+            x => Lod::Scale(
+                x.parse()
+                    .map_err(|_| format!("`{s}` is not on, off or a scale factor"))?,
+            ),
+        };
+        lod.check()?;
+        Ok(lod)
+    }
+
+    /// A scale must be finite, above 0 and at most [`Lod::MAX_SCALE`].
+    pub fn check(self) -> std::result::Result<(), String> {
+        match self {
+            Lod::Scale(s) if !(s > 0.0 && s <= Self::MAX_SCALE) => Err(format!(
+                "must be true, false or a scale in (0, {}], got {s}",
+                Self::MAX_SCALE
+            )),
+            _ => Ok(()),
         }
     }
 }
@@ -427,6 +482,7 @@ impl SceneDesc {
                 format!("must be 16..=1048576, got {}", r.max_steps),
             ));
         }
+        r.lod.check().map_err(|e| Error::invalid("render.lod", e))?;
         let t = &self.terrain;
         t.height_source()?;
         check_finite("terrain.origin", &t.origin)?;

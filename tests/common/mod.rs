@@ -138,6 +138,7 @@ pub fn settings(shadows: bool, tile_prepass: bool) -> relief::gpu::RenderSetting
         shadows,
         tile_prepass,
         max_steps: 4096,
+        lod: None,
     }
 }
 

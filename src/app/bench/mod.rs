@@ -48,6 +48,10 @@ pub struct BenchArgs {
     /// Print one JSON object instead of text.
     #[arg(long)]
     pub json: bool,
+    /// Footprint level of detail: on, off or a scale factor (overrides the scene's
+    /// `[render] lod`; `terrain` and `primary`).
+    #[arg(long, value_name = "on|off|SCALE", value_parser = crate::scene::Lod::parse)]
+    pub lod: Option<crate::scene::Lod>,
 }
 
 /// The benchmark modes.
@@ -176,11 +180,12 @@ impl BenchCommand {
         let (size, frames) = (self.args().size, self.frames()?);
         let (run, details) = match self {
             BenchCommand::Terrain { dump_rays, .. } => {
-                let (run, d) = terrain::run(scene, size, frames, dump_rays.as_deref())?;
+                let (run, d) =
+                    terrain::run(scene, size, frames, self.args().lod, dump_rays.as_deref())?;
                 (run, Details::Terrain(d))
             }
             BenchCommand::Primary { .. } => {
-                let (run, d) = primary::run(scene, size, frames)?;
+                let (run, d) = primary::run(scene, size, frames, self.args().lod)?;
                 (run, Details::Primary(d))
             }
             BenchCommand::Freeforms { .. } => {

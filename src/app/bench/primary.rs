@@ -18,9 +18,18 @@ pub struct PrimaryTiming {
     pub rays_per_second: f64,
 }
 
-/// Times the primary rays of `scene_path` at `size` (`frames` timed frames), nothing else.
-pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo, PrimaryTiming)> {
-    let scene = scene_at_size(scene_path, size)?;
+/// Times the primary rays of `scene_path` at `size` (`frames` timed frames), nothing else;
+/// `lod` overrides the scene's `[render] lod`.
+pub fn run(
+    scene_path: &Path,
+    size: (u32, u32),
+    frames: u32,
+    lod: Option<crate::scene::Lod>,
+) -> Result<(RunInfo, PrimaryTiming)> {
+    let mut scene = scene_at_size(scene_path, size)?;
+    if let Some(lod) = lod {
+        scene.desc.render.lod = lod;
+    }
     let terrain = scene.load_terrain()?;
     let gpu = crate::app::gpu_options::open()?;
     let mut renderer = TerrainRenderer::new(&gpu, &terrain)?;

@@ -130,6 +130,7 @@ pub fn product_settings(scene: &Scene) -> RenderSettings {
         shadows: false,
         tile_prepass: true,
         max_steps: scene.desc.render.max_steps,
+        lod: scene.desc.render.lod.scale(),
     }
 }
 
@@ -219,14 +220,19 @@ impl Bench<'_> {
 }
 
 /// Runs the benchmark on `scene_path` at `size` with `frames` timed frames per configuration;
-/// with `dump`, writes the `pyramid+tiles` rays and depths there.
+/// `lod` overrides the scene's `[render] lod`; with `dump`, writes the `pyramid+tiles` rays and
+/// depths there.
 pub fn run(
     scene_path: &Path,
     size: (u32, u32),
     frames: u32,
+    lod: Option<crate::scene::Lod>,
     dump: Option<&Path>,
 ) -> Result<(RunInfo, TerrainBench)> {
-    let scene = scene_at_size(scene_path, size)?;
+    let mut scene = scene_at_size(scene_path, size)?;
+    if let Some(lod) = lod {
+        scene.desc.render.lod = lod;
+    }
     let terrain = scene.load_terrain()?;
     let t = Instant::now();
     let _ = crate::terrain::MaxPyramid::build(&terrain.field);

@@ -29,7 +29,13 @@ fn fs_cast(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
         t_min = bitcast<f32>(s.x);
         level = s.y;
     }
-    return encode_gbuffer(traverse_from(primary_ray(e), t_min, BIG, frame.mode.y, level));
+    // Footprint LOD: the pixel's cone (e.w, half-angle) sets where a cell may stand in for
+    // its samples.
+    var lod_k = 0.0;
+    if (LOD) {
+        lod_k = frame.lod.x * e.w;
+    }
+    return encode_gbuffer(traverse_lod(primary_ray(e), t_min, BIG, frame.mode.y, level, lod_k));
 }
 
 // Benchmark baseline: fixed-step march (its own entry point, so neither pays for the other's

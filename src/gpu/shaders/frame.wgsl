@@ -59,6 +59,9 @@ struct Frame {
     // Curved earth (`CURVED` pipelines): eye grid x, y; drop per squared grid step along x, y
     // (metres): the datum lies k.x (x - ex)^2 + k.y (y - ey)^2 below the eye's tangent plane.
     curvature: vec4<f32>,
+    // Footprint level of detail (`LOD` pipelines): x = lod scale * 2 / larger sample spacing
+    // (m), times a pixel's cone half-angle: `lod_k` of `lod_stops`; 0 = off.
+    lod: vec4<f32>,
     // Per level: cells x, cells y, row stride, offset into `pyramid`.
     levels: array<vec4<u32>, 16>,
 }

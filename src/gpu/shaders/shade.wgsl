@@ -202,6 +202,15 @@ fn shade_surface(px: vec2<u32>, g: vec4<u32>, dir_w: vec3<f32>, dl: vec3<f32>) -
         var sr: Ray;
         sr.o = p + vec3<f32>(n_geom.x * off * frame.spacing.z, n_geom.y * off * frame.spacing.w, n_geom.z * off);
         sr.d = frame.sun_grid.xyz;
+        if (LOD && !is_object && !is_voxel) {
+            // A hit on a coarse patch (footprint LOD) may lie below the finest surface: the
+            // shadow ray starts above whichever is higher, or it would meet the ground at once.
+            var ground = surface_height(p.x, p.y);
+            if (CURVED) {
+                ground -= drop_at(p.xy);
+            }
+            sr.o.z = max(sr.o.z, ground + off);
+        }
         // From level 0 in the origin's cell: the origin lies on (just above) a surface, so
         // the top-down descent would test cell after cell the ray is known to touch.
         let st = traverse_from(sr, 0.0, BIG, frame.mode.y, 0u);

@@ -1,6 +1,8 @@
 // Ray-terrain traversal through the maximum pyramid; the same algorithm as
 // `src/cpu/traverse.rs`, step for step. Expects module-scope `frame`, `heights`, `pyramid`
-// and the compile-time switch `CURVED` (curved earth, prepended by `gpu::shaders`).
+// and the compile-time switches `CURVED` (curved earth) and `LOD` (footprint level of detail),
+// prepended by `gpu::shaders`. The terrain data is read through `cell_max` and
+// `patch_corners` only (the traversal's storage interface).
 
 struct Ray {
     o: vec3<f32>,
@@ -54,6 +56,30 @@ fn pyr_get(level: u32, ix: i32, iy: i32) -> f32 {
 
 fn sample_height(i: u32, j: u32) -> f32 {
     return heights[j * frame.grid.x + i];
+}
+
+// The traversal's data access. Maximum of the samples under `cell` of pyramid `level` (PAD
+// outside the pyramid).
+fn cell_max(level: u32, cell: vec2<i32>) -> f32 {
+    return pyr_get(level, cell.x, cell.y);
+}
+
+// Corner heights (h00, h10, h01, h11) of the bilinear patch of `cell` of `level`: the finest
+// samples at cell * 2^level and (cell + 1) * 2^level (level 0: the cell's own samples), the
+// far corner clamped to the grid's last sample (a coarse cell over the grid's edge: LOD only).
+// `patch_corners` in `src/cpu/traverse.rs`.
+fn patch_corners(level: u32, cell: vec2<i32>) -> vec4<f32> {
+    let w = frame.grid.x;
+    let i0 = u32(cell.x) << level;
+    let j0 = u32(cell.y) << level;
+    let base = j0 * w + i0;
+    var di = 1u << level;
+    var dj = w << level;
+    if (LOD) {
+        di = min(i0 + di, w - 1u) - i0;
+        dj = (min(j0 + (1u << level), frame.grid.y - 1u) - j0) * w;
+    }
+    return vec4<f32>(heights[base], heights[base + di], heights[base + dj], heights[base + dj + di]);
 }
 
 fn cells_x() -> f32 {
@@ -172,26 +198,36 @@ fn clip_box(r: Ray, t_min: f32, t_max: f32) -> vec2<f32> {
     return vec2<f32>(max(max(tn.x, tn.y), max(tn.z, t_min)), min(min(tf.x, tf.y), min(tf.z, t_max)));
 }
 
-// Exact intersection with the bilinear patch of cell (i, j) over [ta, tb]: the quadratic
+// Exact intersection with the bilinear patch of cell (i, j) of `level` over [ta, tb] (above
+// level 0 only with LOD: the patch spans 2^level samples, the same quadratic in the grid scaled
+// by 2^-level, the drop terms in the finest grid's units): the quadratic
 // A s^2 + B s + C in s = t - ta (re-centred on the entry point), stable root formula.
 // `under`: the ray is below the surface (terrain without walls, `patch_hit_from_below` on the
 // CPU): it hits only after coming up through the surface, where it goes down again.
 // Returns (hit t or -1, 1 if the ray is still below the surface after the cell else 0).
-fn patch_hit(r: Ray, i: i32, j: i32, ta: f32, tb: f32, under: bool) -> vec2<f32> {
-    let w = frame.grid.x;
-    let base = u32(j) * w + u32(i);
-    let h00 = heights[base];
-    let h10 = heights[base + 1u];
-    let h01 = heights[base + w];
-    let h11 = heights[base + w + 1u];
+fn patch_hit(r: Ray, level: u32, i: i32, j: i32, ta: f32, tb: f32, under: bool) -> vec2<f32> {
+    let h = patch_corners(level, vec2<i32>(i, j));
+    let h00 = h.x;
+    let h10 = h.y;
+    let h01 = h.z;
+    let h11 = h.w;
     let b = h10 - h00;
     let c = h01 - h00;
     let e = h00 - h10 - h01 + h11;
     let p = r.o + r.d * ta;
-    let u0 = p.x - f32(i);
-    let v0 = p.y - f32(j);
-    var qa = -e * r.d.x * r.d.y;
-    var qb = r.d.z - b * r.d.x - c * r.d.y - e * (u0 * r.d.y + v0 * r.d.x);
+    var u0 = p.x - f32(i);
+    var v0 = p.y - f32(j);
+    var dxy = r.d.xy;
+    if (LOD) {
+        // Branch-free (Mesa's SIMD lanes pay for both sides of a branch): at level 0 the
+        // scale is 1 and the arithmetic the exact build's, bit for bit.
+        let inv = ldexp(1.0, -i32(level));
+        u0 = p.x * inv - f32(i);
+        v0 = p.y * inv - f32(j);
+        dxy = r.d.xy * inv;
+    }
+    var qa = -e * dxy.x * dxy.y;
+    var qb = r.d.z - b * dxy.x - c * dxy.y - e * (u0 * dxy.y + v0 * dxy.x);
     var qc = p.z - (h00 + b * u0 + c * v0 + e * u0 * v0);
     if (CURVED) {
         // The drop along the ray from p: k (p - eye + d s)^2, exact in s.
@@ -328,6 +364,23 @@ fn walk_inside(w: Walk) -> bool {
     return u32(w.cell.x) < side && u32(w.cell.y) < side;
 }
 
+// Footprint LOD: the walk's cell (level > 0) may stand in for its samples, its side 2^level
+// within the footprint (`2^level <= lod_k * t`, `lod_k` = lod * 2 * cone / larger spacing;
+// `lod_stops` on the CPU). One float compare per descent: a test of the cell's far corner
+// against the grid's edge here cost 3% of the cast pass on lavapipe, so `patch_corners`
+// clamps that corner instead.
+fn lod_stops(w: Walk, lod_k: f32) -> bool {
+    return f32(1u << w.level) <= lod_k * w.t;
+}
+
+// The level-0 cell under grid point p within the walk's cell (`finest_cell` on the CPU).
+fn finest_cell(w: Walk, p: vec2<f32>) -> vec2<i32> {
+    let s = 1 << w.level;
+    let lo = w.cell * s;
+    let f = clamp(vec2<i32>(floor(p)), lo, lo + vec2<i32>(s - 1));
+    return min(f, vec2<i32>(frame.grid.xy) - vec2<i32>(2));
+}
+
 // Top-down pyramid traversal: skip cells the ray segment stays above, descend otherwise,
 // exact patch test at level 0, climb after crossings while the parent changes.
 fn traverse(r: Ray, t_min: f32, t_max: f32, max_steps: u32) -> Trace {
@@ -337,6 +390,13 @@ fn traverse(r: Ray, t_min: f32, t_max: f32, max_steps: u32) -> Trace {
 // As `traverse`, starting at pyramid level `start_level` (≤ top) instead of the top: valid from
 // any level, since a cell is only skipped after its own maximum was tested.
 fn traverse_from(r: Ray, t_min: f32, t_max: f32, max_steps: u32, start_level: u32) -> Trace {
+    return traverse_lod(r, t_min, t_max, max_steps, start_level, 0.0);
+}
+
+// As `traverse_from` with footprint level of detail (`LOD` pipelines; `lod_k` see `lod_stops`,
+// 0: never): a cell within the ray's footprint that the ray cannot skip is intersected as
+// its level's bilinear patch instead of being descended into.
+fn traverse_lod(r: Ray, t_min: f32, t_max: f32, max_steps: u32, start_level: u32, lod_k: f32) -> Trace {
     var res: Trace;
     res.t = BIG;
     res.hit = false;
@@ -381,13 +441,13 @@ fn traverse_from(r: Ray, t_min: f32, t_max: f32, max_steps: u32, start_level: u3
             res.steps += 1u;
             exits = cell_exits(r, dir, w);
             t_exit = max(min(min(exits.x, exits.y), t1), w.t);
-            let cmax = pyr_get(w.level, w.cell.x, w.cell.y) + frame.heights_range.w;
+            let cmax = cell_max(w.level, w.cell) + frame.heights_range.w;
             var z_low = min(r.o.z + r.d.z * w.t, r.o.z + r.d.z * t_exit);
             if (CURVED) {
                 z_low = lowest_lifted(r, w.t, t_exit, lq);
             }
             if (z_low <= cmax) {
-                if (w.level > 0u) {
+                if (w.level > 0u && !(LOD && lod_stops(w, lod_k))) {
                     w = descend(r, dir, w);
                     continue;
                 }
@@ -406,13 +466,17 @@ fn traverse_from(r: Ray, t_min: f32, t_max: f32, max_steps: u32, start_level: u3
             break;
         }
         res.patches += 1u;
-        let ph = patch_hit(r, w.cell.x, w.cell.y, w.t, t_exit, under);
+        // Level 0 unless LOD (a constant then: the exact build keeps its level-0 addressing).
+        let ph = patch_hit(r, select(0u, w.level, LOD), w.cell.x, w.cell.y, w.t, t_exit, under);
         under = ph.y != 0.0;
         let th = ph.x;
         if (th >= 0.0) {
             res.hit = true;
             res.t = th;
             res.cell = w.cell;
+            if (LOD && w.level > 0u) {
+                res.cell = finest_cell(w, (r.o + r.d * th).xy);
+            }
             return res;
         }
         if (t_exit >= t1) {
