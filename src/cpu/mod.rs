@@ -6,6 +6,7 @@ pub mod database;
 pub mod distortion;
 pub mod freeform;
 pub mod march;
+pub mod paged;
 pub mod query;
 pub mod traverse;
 pub mod volume;

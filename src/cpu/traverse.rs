@@ -333,7 +333,17 @@ fn patch_quadratic(
     (level, i, j): (usize, usize, usize),
     t_a: f64,
 ) -> (f64, f64, f64) {
-    let [h00, h10, h01, h11] = patch_corners(terrain, level, i, j);
+    patch_quadratic_of(patch_corners(terrain, level, i, j), r, (level, i, j), t_a)
+}
+
+/// [`patch_quadratic`] of a patch with the corner heights `(h00, h10, h01, h11)` given (the
+/// paged terrain's corners, `cpu::paged`).
+pub fn patch_quadratic_of(
+    [h00, h10, h01, h11]: [f64; 4],
+    r: &GridRay,
+    (level, i, j): (usize, usize, usize),
+    t_a: f64,
+) -> (f64, f64, f64) {
     let (a, b, c, e) = (h00, h10 - h00, h01 - h00, h00 - h10 - h01 + h11);
     let p = r.at(t_a);
     let (qa, qb, qc) = if level == 0 {

@@ -1,0 +1,276 @@
+//! The paged terrain on the CPU: the twin of `terrain_paged.wgsl` (`finest_resident`,
+//! `cell_max`, `patch_corners`) over the pager's page table and the pool's slots, and
+//! [`intersect_paged`], the traversal with the paged stop rule: descend while the finer level
+//! is resident over the cell, else intersect the finest resident level's bilinear patch.
+//!
+//! The traversal runs on a *window* of the database's finest level (its `Terrain` gives the
+//! box, the placement and the pyramid's shape; its heights are not read): window-relative
+//! cell `(i, j)` of pyramid level `L` is global cell `(origin >> L) + (i, j)` of virtual level
+//! `L` (cells of `2^L` finest cells on the finest level's global grid). So the window's
+//! south-west sample must lie on a multiple of `2^top` finest samples ([`PagedTerrain::new`]
+//! refuses anything else): then every window cell lies inside one cell of every coarser
+//! database level, and a coarse patch restricted to it is exactly a bilinear patch.
+//!
+//! Because every cell maximum read is a bound on every finer sample in its footprint (the
+//! database's cell maxima, `docs/database.md#cell-maxima`) and every patch is made of the
+//! finest resident level's surface, a ray never passes below the surface it is tested
+//! against: where a region's fine tiles are missing the ray meets the coarser surface, and
+//! with the walls logic a step between two levels is a wall, not a crack.
+
+use super::traverse::TraversalStats;
+use super::traverse::{clip_to_box, first_root, height_slack, patch_quadratic_of, GridRay};
+use crate::db::pager::PageTable;
+use crate::db::{Tile, TileId};
+use crate::terrain::pyramid::PAD;
+use crate::terrain::Terrain;
+use crate::{Error, Result};
+use glam::DVec3;
+use std::sync::Arc;
+
+/// The resident tiles as a traversal reads them.
+pub struct PagedTerrain<'a> {
+    table: &'a PageTable,
+    /// Per pool slot the tile uploaded into it (what the GPU pool holds).
+    slots: &'a [Option<Arc<Tile>>],
+    n: u64,
+    log2n: u32,
+    /// The finest database level F.
+    fine: u32,
+    /// Global finest-level cell of the window's sample (0, 0).
+    origin: [u64; 2],
+}
+
+impl<'a> PagedTerrain<'a> {
+    /// The paged view of a window whose sample (0, 0) is sample `origin` of the finest level
+    /// (`WindowSpec::i0, j0`), of a terrain whose pyramid has `top + 1` levels, tiles of `n`
+    /// cells. Errors where the origin is not a multiple of `2^top` or negative.
+    pub fn new(
+        table: &'a PageTable,
+        slots: &'a [Option<Arc<Tile>>],
+        n: usize,
+        origin: [i64; 2],
+        top: usize,
+    ) -> Result<PagedTerrain<'a>> {
+        let align = 1i64 << top;
+        if !n.is_power_of_two() || origin.iter().any(|&o| o < 0 || o % align != 0) {
+            return Err(Error::invalid(
+                "terrain.window",
+                format!(
+                    "a paged window must start on a multiple of {align} finest samples \
+                     (its pyramid's top cell), got sample ({}, {})",
+                    origin[0], origin[1]
+                ),
+            ));
+        }
+        Ok(PagedTerrain {
+            table,
+            slots,
+            n: n as u64,
+            log2n: n.trailing_zeros(),
+            fine: table.levels().len() as u32 - 1,
+            origin: [origin[0] as u64, origin[1] as u64],
+        })
+    }
+
+    /// Global cell of window cell `(i, j)` of level `level`.
+    fn global(&self, level: u32, i: usize, j: usize) -> [u64; 2] {
+        [
+            (self.origin[0] >> level) + i as u64,
+            (self.origin[1] >> level) + j as u64,
+        ]
+    }
+
+    /// Global cell `g` of virtual level `level` on database level F − `jj`'s own cell grid.
+    fn cell_on(level: u32, g: [u64; 2], jj: u32) -> [u64; 2] {
+        if jj <= level {
+            [g[0] << (level - jj), g[1] << (level - jj)]
+        } else {
+            [g[0] >> (jj - level), g[1] >> (jj - level)]
+        }
+    }
+
+    fn tile_at(&self, jj: u32, c: [u64; 2]) -> Option<&'a Tile> {
+        let id = TileId {
+            level: self.fine - jj,
+            x: u32::try_from(c[0] >> self.log2n).ok()?,
+            y: u32::try_from(c[1] >> self.log2n).ok()?,
+        };
+        let slot = self.table.slot(id)?;
+        self.slots.get(slot as usize)?.as_deref()
+    }
+
+    /// The coarseness `jj` (database level F − jj) of the finest resident level over window
+    /// cell `(i, j)` of `level`, and its tile; `None` where nothing is resident
+    /// (`finest_resident` in WGSL).
+    pub fn finest_resident(&self, level: u32, i: usize, j: usize) -> Option<(u32, &'a Tile)> {
+        let g = self.global(level, i, j);
+        (level.saturating_sub(self.log2n)..=self.fine).find_map(|jj| {
+            let c = Self::cell_on(level, g, jj);
+            self.tile_at(jj, c).map(|t| (jj, t))
+        })
+    }
+
+    /// A bound on the terrain over window cell `(i, j)` of `level` ([`PAD`] where nothing is
+    /// resident): the finest resident level's maximum (`cell_max` in WGSL).
+    pub fn cell_max(&self, level: u32, i: usize, j: usize) -> f64 {
+        let Some((jj, tile)) = self.finest_resident(level, i, j) else {
+            return PAD as f64;
+        };
+        let c = Self::cell_on(level, self.global(level, i, j), jj);
+        let m = level.saturating_sub(jj);
+        let local = |x: u64| ((x & (self.n - 1)) >> m) as usize;
+        tile.cell_max(m, local(c[0]), local(c[1])) as f64
+    }
+
+    /// Corner heights `(h00, h10, h01, h11)` of window cell `(i, j)` of `level`: the samples
+    /// of database level F − level where resident, otherwise the cell's corners on the finest
+    /// resident coarser level's bilinear surface (`patch_corners` in WGSL). NaN where nothing
+    /// is resident.
+    pub fn patch_corners(&self, level: u32, i: usize, j: usize) -> [f64; 4] {
+        let Some((jr, _)) = self.finest_resident(level, i, j) else {
+            return [f64::NAN; 4];
+        };
+        let jj = jr.max(level);
+        let g = self.global(level, i, j);
+        let Some(tile) = self.tile_at(jj, Self::cell_on(level, g, jj)) else {
+            return [f64::NAN; 4];
+        };
+        let k = jj - level;
+        let s = (1u64 << k) as f64;
+        let base = [g[0] >> k, g[1] >> k];
+        let frac = [
+            (g[0] - (base[0] << k)) as f64 / s,
+            (g[1] - (base[1] << k)) as f64 / s,
+        ];
+        let (a, b) = (
+            (base[0] & (self.n - 1)) as usize,
+            (base[1] & (self.n - 1)) as usize,
+        );
+        let h = |di: usize, dj: usize| tile.height(a + di, b + dj) as f64;
+        let (h00, h10, h01, h11) = (h(0, 0), h(1, 0), h(0, 1), h(1, 1));
+        let at = |u: f64, v: f64| {
+            let south = h00 + (h10 - h00) * u;
+            let north = h01 + (h11 - h01) * u;
+            south + (north - south) * v
+        };
+        let inv = 1.0 / s;
+        [
+            at(frac[0], frac[1]),
+            at(frac[0] + inv, frac[1]),
+            at(frac[0], frac[1] + inv),
+            at(frac[0] + inv, frac[1] + inv),
+        ]
+    }
+
+    /// Whether a ray at window cell `(i, j)` of `level > 0` intersects this level's patch
+    /// instead of descending: the finest resident level over the cell is this one or coarser.
+    fn stops(&self, level: u32, i: usize, j: usize) -> bool {
+        level == 0
+            || self
+                .finest_resident(level, i, j)
+                .is_none_or(|(jj, _)| jj >= level)
+    }
+}
+
+/// The paged traversal of `r` over `terrain`'s box (a terrain with walls; `terrain` gives the
+/// box and the pyramid's shape, the data comes from `paged`): the first hit `(t, finest
+/// cell)`. `stats.hit_level` is the level of the patch hit (0: full resolution there).
+pub fn intersect_paged(
+    terrain: &Terrain,
+    paged: &PagedTerrain,
+    r: &GridRay,
+    [t_min, t_max]: [f64; 2],
+    max_steps: u32,
+    stats: &mut TraversalStats,
+) -> Option<(f64, [usize; 2])> {
+    let (t0, t1) = clip_to_box(terrain, r, t_min, t_max)?;
+    let pyr = &terrain.pyramid;
+    let top = pyr.top();
+    let slack = height_slack(terrain);
+    let (mut level, mut t) = (top, t0);
+    let cells = |level: usize| pyr.levels[level].cells;
+    let cell_at = |level: usize, p: DVec3| -> (i64, i64) {
+        let s = (1u64 << level) as f64;
+        let c = cells(level);
+        (
+            ((p.x / s).floor() as i64).clamp(0, c[0] as i64 - 1),
+            ((p.y / s).floor() as i64).clamp(0, c[1] as i64 - 1),
+        )
+    };
+    let (mut ix, mut iy) = cell_at(level, r.at(t));
+    let (sx, sy) = (
+        if r.d.x >= 0.0 { 1 } else { -1 },
+        if r.d.y >= 0.0 { 1 } else { -1 },
+    );
+    while stats.steps < max_steps {
+        stats.steps += 1;
+        let s = (1u64 << level) as f64;
+        let exit = |i: i64, step: i64, o: f64, d: f64| {
+            if d.abs() < 1e-300 {
+                f64::INFINITY
+            } else {
+                (((i + (step > 0) as i64) as f64) * s - o) / d
+            }
+        };
+        let (tx, ty) = (exit(ix, sx, r.o.x, r.d.x), exit(iy, sy, r.o.y, r.d.y));
+        let t_exit = tx.min(ty).min(t1).max(t);
+        let (lv, ci, cj) = (level as u32, ix as usize, iy as usize);
+        let cell_max = paged.cell_max(lv, ci, cj);
+        if r.lowest(t, t_exit) <= cell_max + slack && cell_max > PAD as f64 {
+            if !paged.stops(lv, ci, cj) {
+                let p = r.at(t);
+                let half = s * 0.5;
+                let (mx, my) = ((2 * ix + 1) as f64 * half, (2 * iy + 1) as f64 * half);
+                level -= 1;
+                let c = cells(level);
+                ix = (2 * ix + (p.x > mx || (p.x == mx && sx > 0)) as i64).min(c[0] as i64 - 1);
+                iy = (2 * iy + (p.y > my || (p.y == my && sy > 0)) as i64).min(c[1] as i64 - 1);
+                continue;
+            }
+            stats.patch_tests += 1;
+            stats.lod_patches += (level > 0) as u32;
+            let corners = paged.patch_corners(lv, ci, cj);
+            let (qa, qb, qc) = patch_quadratic_of(corners, r, (level, ci, cj), t);
+            let hit = if qc <= 0.0 {
+                Some(t)
+            } else {
+                first_root(qa, qb, qc, t_exit - t).map(|s| t + s)
+            };
+            if let Some(th) = hit {
+                stats.hit_level = lv;
+                return Some((th, finest_cell(terrain, level, ix, iy, r.at(th))));
+            }
+        }
+        if t_exit >= t1 {
+            return None;
+        }
+        let (mut ox, mut oy) = (ix, iy);
+        if tx <= ty {
+            ix += sx;
+        }
+        if ty <= tx {
+            iy += sy;
+        }
+        t = t_exit;
+        while level < top && ((ix >> 1) != (ox >> 1) || (iy >> 1) != (oy >> 1)) {
+            level += 1;
+            (ix, iy, ox, oy) = (ix >> 1, iy >> 1, ox >> 1, oy >> 1);
+        }
+        let c = cells(level);
+        if ix < 0 || iy < 0 || ix >= c[0] as i64 || iy >= c[1] as i64 {
+            return None;
+        }
+    }
+    stats.exhausted = true;
+    None
+}
+
+/// The level-0 cell under `p` within cell `(ix, iy)` of `level`.
+fn finest_cell(terrain: &Terrain, level: usize, ix: i64, iy: i64, p: DVec3) -> [usize; 2] {
+    let [cw, ch] = terrain.cells();
+    let s = 1i64 << level;
+    let pick = |x: f64, i: i64, n: usize| -> usize {
+        ((x.floor() as i64).clamp(i * s, (i + 1) * s - 1) as usize).min(n - 1)
+    };
+    [pick(p.x, ix, cw), pick(p.y, iy, ch)]
+}

@@ -1,0 +1,284 @@
+//! Paged rendering, CPU twin (issue 20's acceptance, the part that runs without a GPU): the
+//! 16x16 × 257² synthetic mosaic, an 8 MiB pool (13 slots), flown by a scripted path, each
+//! frame cast twice at 96x72 — through the pager's resident tiles (`cpu::paged`, the twin of
+//! `terrain_paged.wgsl` with the paged stop rule) and through the in-memory window of the
+//! finest level (full residency, `intersect_lod` exact). Per frame:
+//!
+//! * the pool never holds more than its budget; no update takes longer than `UPDATE_MAX`
+//!   (the pager never reads on the frame's thread: `tests/pager.rs` checks that structurally);
+//! * **no hole**: where the full-residency frame has terrain and the paged one sky, the ray
+//!   must be above the paged (finest resident) surface at the full-residency hit point — it
+//!   passed over a coarser surface, it did not fall through a crack. Required: 0 pixels
+//!   otherwise; on the hover frames looking down, 0 paged sky pixels over terrain at all;
+//! * **convergence**: after the camera stops the frame equals the full-residency one
+//!   (identical hit masks, depth within 1e-9 relative) within `CONVERGE_FRAMES` frames and
+//!   stays equal;
+//! * host memory: VmHWM printed.
+
+mod common;
+
+use glam::DVec3;
+use relief::cpu::paged::{intersect_paged, PagedTerrain};
+use relief::cpu::traverse::{intersect_lod, GridRay, TraversalStats};
+use relief::db::pager::{Pager, PagerOptions, TileStore, View};
+use relief::db::{self, Database, Tile};
+use relief::terrain::curved::GridCurvature;
+use relief::terrain::{Terrain, TerrainFrame};
+use std::path::PathBuf;
+use std::sync::Arc;
+
+const POOL: u64 = 8 << 20;
+const W: usize = 96;
+const H: usize = 72;
+const FOV: f64 = 60.0;
+const MAX_STEPS: u32 = 4096;
+/// Frames after the camera stops within which the picture must equal full residency.
+const CONVERGE_FRAMES: usize = 32;
+const UPDATE_MAX: f64 = 0.010;
+
+fn mosaic() -> PathBuf {
+    let dir = common::project_dir().join("target").join("test-output");
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = dir.join("pager-synth-16x16-257-seed1.reliefdb");
+    if Database::open(&p).is_err() {
+        db::synth(&p, &db::SynthOptions::default(), &|_, _| {}).unwrap();
+    }
+    p
+}
+
+struct Store(Database);
+
+impl TileStore for Store {
+    fn database(&self) -> &Database {
+        &self.0
+    }
+    fn read(&self, id: db::TileId) -> relief::Result<Option<Arc<Tile>>> {
+        self.0.tile(id)
+    }
+}
+
+fn hwm_kib() -> Option<u64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
+    line.split_whitespace().nth(1)?.parse().ok()
+}
+
+/// Eye in the window's grid frame (samples, metres), heading and pitch in degrees.
+#[derive(Clone, Copy, Debug)]
+struct Cam {
+    x: f64,
+    y: f64,
+    z: f64,
+    heading: f64,
+    pitch: f64,
+}
+
+fn rays(cam: Cam, spacing: [f64; 2]) -> Vec<GridRay> {
+    let (h, p) = (cam.heading.to_radians(), cam.pitch.to_radians());
+    let f = DVec3::new(h.sin() * p.cos(), h.cos() * p.cos(), p.sin());
+    let right = DVec3::new(h.cos(), -h.sin(), 0.0);
+    let up = right.cross(f);
+    let tx = (FOV.to_radians() * 0.5).tan();
+    let ty = tx * H as f64 / W as f64;
+    let mut out = Vec::with_capacity(W * H);
+    for py in 0..H {
+        for px in 0..W {
+            let u = (2.0 * (px as f64 + 0.5) / W as f64 - 1.0) * tx;
+            let v = (1.0 - 2.0 * (py as f64 + 0.5) / H as f64) * ty;
+            let m = (f + right * u + up * v).normalize();
+            out.push(GridRay {
+                o: DVec3::new(cam.x, cam.y, cam.z),
+                d: DVec3::new(m.x / spacing[0], m.y / spacing[1], m.z),
+                curv: GridCurvature::FLAT,
+            });
+        }
+    }
+    out
+}
+
+/// Height of the finest resident surface under grid point `p`.
+fn resident_height(paged: &PagedTerrain, t: &Terrain, p: DVec3) -> f64 {
+    let [cw, ch] = t.cells();
+    let i = (p.x.floor().max(0.0) as usize).min(cw - 1);
+    let j = (p.y.floor().max(0.0) as usize).min(ch - 1);
+    let [h00, h10, h01, h11] = paged.patch_corners(0, i, j);
+    let (u, v) = (
+        (p.x - i as f64).clamp(0.0, 1.0),
+        (p.y - j as f64).clamp(0.0, 1.0),
+    );
+    let s = h00 + (h10 - h00) * u;
+    let n = h01 + (h11 - h01) * u;
+    s + (n - s) * v
+}
+
+#[derive(Default, Debug)]
+struct Compare {
+    terrain: usize,
+    holes: usize,
+    coarse_sky: usize,
+    mask_diff: usize,
+    depth_diff: usize,
+    coarse_hits: usize,
+}
+
+fn compare(t: &Terrain, paged: &PagedTerrain, cam: Cam) -> Compare {
+    use rayon::prelude::*;
+    let rs = rays(cam, t.frame.spacing);
+    let per: Vec<_> = rs
+        .par_iter()
+        .map(|r| {
+            let mut a = TraversalStats::default();
+            let full = intersect_lod(t, r, [0.0, f64::INFINITY], MAX_STEPS, &mut a, true, 0.0);
+            let mut b = TraversalStats::default();
+            let pg = intersect_paged(t, paged, r, [0.0, f64::INFINITY], MAX_STEPS, &mut b);
+            assert!(!a.exhausted && !b.exhausted, "step limit");
+            let above = full.map(|(tf, _)| {
+                let p = r.at(tf);
+                p.z >= resident_height(paged, t, p) - 1e-6 * (1.0 + p.z.abs())
+            });
+            (full, pg, b.hit_level, above)
+        })
+        .collect();
+    let mut c = Compare::default();
+    for (full, pg, level, above) in per {
+        c.terrain += full.is_some() as usize;
+        match (full, pg) {
+            (Some(_), None) => {
+                c.mask_diff += 1;
+                if above == Some(true) {
+                    c.coarse_sky += 1;
+                } else {
+                    c.holes += 1;
+                }
+            }
+            (None, Some(_)) => c.mask_diff += 1,
+            (Some((a, _)), Some((b, _))) => {
+                c.depth_diff += ((a - b).abs() > 1e-9 * a.abs().max(1.0)) as usize;
+                c.coarse_hits += (level > 0) as usize;
+            }
+            (None, None) => {}
+        }
+    }
+    c
+}
+
+#[test]
+fn paged_flight_no_holes_and_converges() {
+    let path = mosaic();
+    let database = Database::open(&path).unwrap();
+    let fine = database.header().levels.len() as u32 - 1;
+    // 8° x 8° of the finest level (2049² samples), its south-west sample on a multiple of
+    // 2048: the paged window's alignment.
+    let spec = db::window::resolve(&database, Some([46.0, 12.0, 54.0, 20.0]), Some(fine)).unwrap();
+    assert_eq!((spec.width, spec.height), (2049, 2049));
+    let field = db::window::read(&database, &spec).unwrap();
+    let frame = TerrainFrame {
+        origin: DVec3::ZERO,
+        axis_x: DVec3::X,
+        axis_y: DVec3::Y,
+        normal: DVec3::Z,
+        spacing: field.spacing,
+    };
+    let geo = field.geo.expect("a database window is georeferenced");
+    let terrain = Terrain::new(field, frame, 1.0).unwrap();
+    let top = terrain.pyramid.top();
+    eprintln!(
+        "window {}x{} at sample ({}, {}), spacing {:.1} x {:.1} m, heights {}..{} m, top level {top}",
+        spec.width, spec.height, spec.i0, spec.j0, terrain.frame.spacing[0],
+        terrain.frame.spacing[1], terrain.min_height, terrain.max_height
+    );
+    let store: Arc<dyn TileStore> = Arc::new(Store(Database::open(&path).unwrap()));
+    let opts = PagerOptions {
+        pool_bytes: POOL,
+        ..PagerOptions::default()
+    };
+    let (mut pager, first) = Pager::new(store, opts).unwrap();
+    let (slots, _) = pager.slots();
+    let mut pool: Vec<Option<Arc<Tile>>> = vec![None; slots];
+    let apply = |pool: &mut Vec<Option<Arc<Tile>>>, up: &[db::pager::Upload]| {
+        for u in up {
+            pool[u.slot as usize] = Some(u.tile.clone());
+        }
+    };
+    apply(&mut pool, &first);
+    let view_of = |c: Cam| View {
+        lon: geo.lon0 + c.x * geo.dlon,
+        lat: geo.lat0 + c.y * geo.dlat,
+        height: c.z,
+        heading: c.heading,
+        pitch: c.pitch,
+        fov: FOV,
+        width: W as u32,
+        height_px: H as u32,
+    };
+    let hi = terrain.max_height as f64;
+    // Low-level flight east over the middle row of tiles, 4 km a frame (two finest tiles
+    // crossed), then a stop over the middle of a finest tile, looking down.
+    let (flight, hover) = (40usize, 40usize);
+    let mut cam = Cam {
+        x: 300.0,
+        y: 1000.0,
+        z: hi + 800.0,
+        heading: 90.0,
+        pitch: -12.0,
+    };
+    let dx = 4000.0 / terrain.frame.spacing[0];
+    let (mut worst_update, mut converged, mut worst_holes) = (0f64, None, 0usize);
+    for frame in 0..flight + hover {
+        if frame < flight {
+            cam.x += dx;
+        } else if frame == flight {
+            cam = Cam {
+                x: 1152.0 + 40.0,
+                y: 1152.0 - 90.0,
+                z: hi + 1500.0,
+                heading: 20.0,
+                pitch: -60.0,
+            };
+        }
+        let (up, st) = pager.update(&view_of(cam)).unwrap();
+        worst_update = worst_update.max(st.seconds);
+        apply(&mut pool, &up);
+        assert!(
+            st.resident_bytes <= POOL,
+            "frame {frame}: {} bytes",
+            st.resident_bytes
+        );
+        let paged =
+            PagedTerrain::new(pager.page_table(), &pool, 256, [spec.i0, spec.j0], top).unwrap();
+        let c = compare(&terrain, &paged, cam);
+        eprintln!(
+            "frame {frame:2}: resident {} ({:.1} MiB) missing {:2} | terrain {:4} coarse hits {:4} coarse sky {:3} holes {} mask diff {:3} depth diff {:4}",
+            st.resident, st.resident_bytes as f64 / 1048576.0, st.missing, c.terrain,
+            c.coarse_hits, c.coarse_sky, c.holes, c.mask_diff, c.depth_diff
+        );
+        worst_holes = worst_holes.max(c.holes);
+        assert!(c.terrain > 0, "frame {frame}: the view must see terrain");
+        if frame >= flight {
+            assert_eq!(
+                c.coarse_sky, 0,
+                "frame {frame}: sky over terrain while hovering"
+            );
+            let equal = c.mask_diff == 0 && c.depth_diff == 0;
+            match (converged, equal) {
+                (None, true) => converged = Some(frame - flight),
+                (Some(at), false) => panic!("frame {frame}: diverged after converging at {at}"),
+                _ => {}
+            }
+        }
+    }
+    let hwm = hwm_kib().unwrap_or(0);
+    eprintln!(
+        "worst update {:.2} ms; converged {converged:?} frames after the stop; holes {worst_holes}; VmHWM {} MiB",
+        worst_update * 1e3,
+        hwm / 1024
+    );
+    assert_eq!(worst_holes, 0, "a ray fell through the paged surface");
+    let at = converged.expect("the hover never matched full residency");
+    assert!(at <= CONVERGE_FRAMES, "converged after {at} frames");
+    assert!(
+        worst_update < UPDATE_MAX,
+        "an update took {:.1} ms",
+        worst_update * 1e3
+    );
+}
