@@ -233,8 +233,8 @@ fn the_paged_terrain_include_validates_with_naga() {
         "{}\n@group(0) @binding(0) var<storage, read_write> out: array<f32>;\n\
          @compute @workgroup_size(8, 8)\n\
          fn main(@builtin(global_invocation_id) id: vec3<u32>) {{\n\
-             let c = cell_max(id.z, id.xy);\n\
-             let p = patch_corners(id.z, id.xy);\n\
+             let c = paged_cell_max(id.z, id.xy);\n\
+             let p = paged_patch_corners(id.z, id.xy);\n\
              let r = finest_resident(id.z, id.xy);\n\
              out[id.x] = c + p.x + p.w + f32(r);\n\
          }}\n",
@@ -244,7 +244,7 @@ fn the_paged_terrain_include_validates_with_naga() {
     // The Rust twins of its structs have the WGSL sizes.
     assert_eq!(
         std::mem::size_of::<relief::gpu::terrain_pool::PagedParams>(),
-        16
+        32
     );
     assert_eq!(
         std::mem::size_of::<relief::gpu::terrain_pool::PagedLevel>(),

@@ -9,6 +9,13 @@ const FULLSCREEN: &str = include_str!("shaders/fullscreen.wgsl");
 const TRAVERSE: &str = include_str!("shaders/terrain_traverse.wgsl");
 /// The paged terrain's reads (`cell_max`, `patch_corners`, `finest_resident`), an include.
 pub const TERRAIN_PAGED: &str = include_str!("shaders/terrain_paged.wgsl");
+/// The traversal's window-relative storage interface over [`TERRAIN_PAGED`] (`PAGED` builds).
+const TERRAIN_PAGED_WINDOW: &str = include_str!("shaders/terrain_paged_window.wgsl");
+/// The traversal's storage interface over the heights and the pyramid (every other build).
+const TERRAIN_MEMORY: &str = include_str!("shaders/terrain_memory.wgsl");
+/// The cast pass's terrain storage (the tile and shade passes declare theirs).
+const CAST_STORAGE: &str = "@group(0) @binding(1) var<storage, read> heights: array<f32>;\n\
+                            @group(0) @binding(2) var<storage, read> pyramid: array<f32>;\n";
 const GBUFFER: &str = include_str!("shaders/gbuffer.wgsl");
 const RAY_TABLE: &str = include_str!("shaders/ray_table.wgsl");
 const FREEFORM: &str = include_str!("shaders/freeform.wgsl");
@@ -27,9 +34,9 @@ pub fn raygen() -> String {
 }
 
 /// The traversal's switches: curved earth (`CURVED` in `terrain_traverse.wgsl`) and
-/// footprint level of detail (`LOD`).
+/// footprint level of detail (`LOD`); the terrain in memory (`PAGED` false).
 fn traverse_consts(curved: bool, lod: bool) -> String {
-    super::variants::wgsl_bools(&[("CURVED", curved), ("LOD", lod)])
+    super::variants::wgsl_bools(&[("CURVED", curved), ("LOD", lod), ("PAGED", false)])
 }
 
 /// Tile pre-pass (fragment); `curved`: the terrain's curved earth (see
@@ -40,6 +47,7 @@ pub fn tile(curved: bool) -> String {
         FRAME,
         FULLSCREEN,
         RAY_TABLE,
+        TERRAIN_MEMORY,
         TRAVERSE,
         include_str!("shaders/tile.wgsl"),
     ]
@@ -52,8 +60,28 @@ pub fn cast(curved: bool, lod: bool) -> String {
     [
         &traverse_consts(curved, lod),
         FRAME,
+        CAST_STORAGE,
         FULLSCREEN,
         RAY_TABLE,
+        TERRAIN_MEMORY,
+        TRAVERSE,
+        GBUFFER,
+        include_str!("shaders/cast.wgsl"),
+    ]
+    .concat()
+}
+
+/// The paged cast pass (`PAGED`): as [`cast`] with the terrain read from the tile pool
+/// (group 3, `terrain_paged.wgsl`) and the paged stop rule; validated by naga, not yet built
+/// by the renderer (docs/database.md, "Not here yet").
+pub fn cast_paged(curved: bool) -> String {
+    [
+        &super::variants::wgsl_bools(&[("CURVED", curved), ("LOD", false), ("PAGED", true)]),
+        FRAME,
+        FULLSCREEN,
+        RAY_TABLE,
+        TERRAIN_PAGED,
+        TERRAIN_PAGED_WINDOW,
         TRAVERSE,
         GBUFFER,
         include_str!("shaders/cast.wgsl"),
@@ -69,6 +97,7 @@ pub fn shade(f: ShadeFeatures) -> String {
         FRAME,
         FULLSCREEN,
         RAY_TABLE,
+        TERRAIN_MEMORY,
         TRAVERSE,
         GBUFFER,
         SRGB,
@@ -87,6 +116,7 @@ pub fn shade_objects(f: ShadeFeatures, tables: FfTables) -> String {
         FRAME,
         FULLSCREEN,
         RAY_TABLE,
+        TERRAIN_MEMORY,
         TRAVERSE,
         GBUFFER,
         &freeform(false, tables),
@@ -297,6 +327,8 @@ pub fn all() -> Vec<(&'static str, String)> {
         ("cast (curved)", cast(true, false)),
         ("cast (lod)", cast(false, true)),
         ("cast (curved, lod)", cast(true, true)),
+        ("cast (paged)", cast_paged(false)),
+        ("cast (curved, paged)", cast_paged(true)),
         ("shade", shade(ShadeFeatures::ALL)),
         ("shade (no options)", shade(ShadeFeatures::NONE)),
         ("shade_objects", shade_objects(ShadeFeatures::ALL, UNIFORM)),

@@ -19,6 +19,10 @@ pub struct PagedParams {
     pub log2_n: u32,
     pub levels: u32,
     pub slot_floats: u32,
+    /// The traversal window's sample (0, 0) on the finest level's global grid (a multiple of
+    /// 2^top; 0 until the renderer binds the pool).
+    pub origin: [u32; 2],
+    pub pad: [u32; 2],
 }
 
 /// `PagedLevel` in `terrain_paged.wgsl`: a level's page-table offset and tile range.
@@ -63,6 +67,8 @@ pub fn layout(table: &PageTable, n: usize) -> (PagedParams, Vec<PagedLevel>) {
         log2_n: n.trailing_zeros(),
         levels: levels.len() as u32,
         slot_floats: crate::db::Tile::floats(n) as u32,
+        origin: [0; 2],
+        pad: [0; 2],
     };
     (params, levels)
 }

@@ -70,6 +70,7 @@ impl Switches for ShadeFeatures {
             ("VOLUME_SHADOWS", self.volume_shadows),
             ("CURVED", self.curved),
             ("LOD", self.lod),
+            ("PAGED", false),
         ])
     }
 }

@@ -4,8 +4,6 @@
 // instruction of its shader, so the traversal loop runs without the shading code around it.
 
 @group(0) @binding(0) var<uniform> frame: Frame;
-@group(0) @binding(1) var<storage, read> heights: array<f32>;
-@group(0) @binding(2) var<storage, read> pyramid: array<f32>;
 @group(0) @binding(4) var tile_start: texture_2d<u32>;
 
 fn primary_ray(e: vec4<f32>) -> Ray {

@@ -1,5 +1,5 @@
 // The paged terrain: database tiles in a pool of fixed slots, found through a page table
-// (src/gpu/terrain_pool.rs fills both from db::pager's uploads).
+// (src/gpu/terrain_pool.rs fills both from db::pager's uploads). CPU twin: src/cpu/paged.rs.
 //
 // Virtual levels: level 0 is the finest database level's cells, level k cells of 2^k of them;
 // cells are addressed by their index on the finest level's global cell grid (anchored at
@@ -17,6 +17,10 @@ struct PagedParams {
     log2_n: u32,
     levels: u32,       // database levels (0 the coarsest)
     slot_floats: u32,  // floats per slot
+    origin_x: u32,     // the traversal window's sample (0, 0) on the finest level's global grid
+    origin_y: u32,     // (a multiple of 2^top: see terrain_paged_window.wgsl)
+    _pad0: u32,
+    _pad1: u32,
 }
 
 struct PagedLevel {
@@ -84,7 +88,7 @@ fn finest_resident(level: u32, cell: vec2<u32>) -> u32 {
 
 // A bound on the terrain over virtual cell `cell` of level `level`: its maximum from the
 // finest resident level (a coarser cell's maximum where that is all there is).
-fn cell_max(level: u32, cell: vec2<u32>) -> f32 {
+fn paged_cell_max(level: u32, cell: vec2<u32>) -> f32 {
     let j = finest_resident(level, cell);
     if (j == PAGED_NONE) {
         return PAGED_PAD;
@@ -109,7 +113,7 @@ fn paged_height(slot: u32, i: u32, j: u32) -> f32 {
 // cell `cell` at level `level`: the samples of database level F - level where resident,
 // otherwise that cell's corners on the finest resident coarser level's bilinear surface (which
 // is continuous, so neighbouring cells meet without cracks).
-fn patch_corners(level: u32, cell: vec2<u32>) -> vec4<f32> {
+fn paged_patch_corners(level: u32, cell: vec2<u32>) -> vec4<f32> {
     let f = paged.levels - 1u;
     let j = max(finest_resident(level, cell), level);
     if (j == PAGED_NONE || level > f) {

@@ -1,8 +1,10 @@
 // Ray-terrain traversal through the maximum pyramid; the same algorithm as
 // `src/cpu/traverse.rs`, step for step. Expects module-scope `frame`, `heights`, `pyramid`
 // and the compile-time switches `CURVED` (curved earth) and `LOD` (footprint level of detail),
-// prepended by `gpu::shaders`. The terrain data is read through `cell_max` and
-// `patch_corners` only (the traversal's storage interface).
+// prepended by `gpu::shaders`. The terrain data is read through `cell_max`,
+// `patch_corners` and `surface_height` only (the traversal's storage interface): from the
+// heights and the pyramid (`terrain_memory.wgsl`) or, with `PAGED`, from the tile pool
+// (`terrain_paged.wgsl`, `terrain_paged_window.wgsl`).
 
 struct Ray {
     o: vec3<f32>,
@@ -32,77 +34,12 @@ fn level_side(level: u32) -> u32 {
     return frame.pyramid_dims.x >> level;
 }
 
-// Index of cell (ix, iy) of `level` in the square pyramid layout; NO_CELL outside it.
-const NO_CELL: u32 = 0xffffffffu;
-
-fn pyramid_index(level: u32, ix: i32, iy: i32) -> u32 {
-    let side = level_side(level);
-    if (u32(ix) >= side || u32(iy) >= side) {
-        return NO_CELL;
-    }
-    // Levels above: 4 (N² - side²) / 3 = 4 side² (4^L - 1) / 3 cells, and (4^L - 1) / 3 is
-    // L ones in base 4 (0x5555… masked): shifts and masks, no integer division per step.
-    let ones = 0x55555555u & ((1u << (2u * level)) - 1u);
-    return ((ones * side * side) << 2u) + u32(iy) * side + u32(ix);
-}
-
-fn pyr_get(level: u32, ix: i32, iy: i32) -> f32 {
-    let k = pyramid_index(level, ix, iy);
-    if (k == NO_CELL) {
-        return PAD;
-    }
-    return pyramid[k];
-}
-
-fn sample_height(i: u32, j: u32) -> f32 {
-    return heights[j * frame.grid.x + i];
-}
-
-// The traversal's data access. Maximum of the samples under `cell` of pyramid `level` (PAD
-// outside the pyramid).
-fn cell_max(level: u32, cell: vec2<i32>) -> f32 {
-    return pyr_get(level, cell.x, cell.y);
-}
-
-// Corner heights (h00, h10, h01, h11) of the bilinear patch of `cell` of `level`: the finest
-// samples at cell * 2^level and (cell + 1) * 2^level (level 0: the cell's own samples), the
-// far corner clamped to the grid's last sample (a coarse cell over the grid's edge: LOD only).
-// `patch_corners` in `src/cpu/traverse.rs`.
-fn patch_corners(level: u32, cell: vec2<i32>) -> vec4<f32> {
-    let w = frame.grid.x;
-    let i0 = u32(cell.x) << level;
-    let j0 = u32(cell.y) << level;
-    let base = j0 * w + i0;
-    var di = 1u << level;
-    var dj = w << level;
-    if (LOD) {
-        di = min(i0 + di, w - 1u) - i0;
-        dj = (min(j0 + (1u << level), frame.grid.y - 1u) - j0) * w;
-    }
-    return vec4<f32>(heights[base], heights[base + di], heights[base + dj], heights[base + dj + di]);
-}
-
 fn cells_x() -> f32 {
     return f32(frame.grid.x - 1u);
 }
 
 fn cells_y() -> f32 {
     return f32(frame.grid.y - 1u);
-}
-
-// Bilinear surface height at grid (x, y), clamped to the grid.
-fn surface_height(x: f32, y: f32) -> f32 {
-    let cx = clamp(x, 0.0, cells_x());
-    let cy = clamp(y, 0.0, cells_y());
-    let i = min(u32(cx), frame.grid.x - 2u);
-    let j = min(u32(cy), frame.grid.y - 2u);
-    let u = cx - f32(i);
-    let v = cy - f32(j);
-    let h00 = sample_height(i, j);
-    let h10 = sample_height(i + 1u, j);
-    let h01 = sample_height(i, j + 1u);
-    let h11 = sample_height(i + 1u, j + 1u);
-    return mix(mix(h00, h10, u), mix(h01, h11, u), v);
 }
 
 // Curved earth (`CURVED`, a compile-time switch: flat terrains compile without this code).
@@ -218,7 +155,7 @@ fn patch_hit(r: Ray, level: u32, i: i32, j: i32, ta: f32, tb: f32, under: bool) 
     var u0 = p.x - f32(i);
     var v0 = p.y - f32(j);
     var dxy = r.d.xy;
-    if (LOD) {
+    if (LOD || PAGED) {
         // Branch-free (Mesa's SIMD lanes pay for both sides of a branch): at level 0 the
         // scale is 1 and the arithmetic the exact build's, bit for bit.
         let inv = ldexp(1.0, -i32(level));
@@ -447,7 +384,9 @@ fn traverse_lod(r: Ray, t_min: f32, t_max: f32, max_steps: u32, start_level: u32
                 z_low = lowest_lifted(r, w.t, t_exit, lq);
             }
             if (z_low <= cmax) {
-                if (w.level > 0u && !(LOD && lod_stops(w, lod_k))) {
+                // PAGED: descend only while the finer level is resident over the cell, else
+                // intersect the finest resident level's patch (`intersect_paged` on the CPU).
+                if (w.level > 0u && !(LOD && lod_stops(w, lod_k)) && !(PAGED && paged_stops(w.level, w.cell))) {
                     w = descend(r, dir, w);
                     continue;
                 }
@@ -467,14 +406,14 @@ fn traverse_lod(r: Ray, t_min: f32, t_max: f32, max_steps: u32, start_level: u32
         }
         res.patches += 1u;
         // Level 0 unless LOD (a constant then: the exact build keeps its level-0 addressing).
-        let ph = patch_hit(r, select(0u, w.level, LOD), w.cell.x, w.cell.y, w.t, t_exit, under);
+        let ph = patch_hit(r, select(0u, w.level, LOD || PAGED), w.cell.x, w.cell.y, w.t, t_exit, under);
         under = ph.y != 0.0;
         let th = ph.x;
         if (th >= 0.0) {
             res.hit = true;
             res.t = th;
             res.cell = w.cell;
-            if (LOD && w.level > 0u) {
+            if ((LOD || PAGED) && w.level > 0u) {
                 res.cell = finest_cell(w, (r.o + r.d * th).xy);
             }
             return res;
