@@ -6,13 +6,15 @@
 //!   sample, `t` before it held at it;
 //! * else, with extrapolation/interpolation enabled (the entity's bit and IG Control's) and
 //!   two samples at different times: linear between them (angles and longitude the short way
-//!   round), extrapolated at most one sample interval past the latest, held beyond;
+//!   round), extrapolated at most two sample intervals past the latest, held beyond (an IG
+//!   reads datagrams at its frame starts, so at a 30 Hz host and a 60 Hz IG the latest sample
+//!   it holds is up to an interval and a frame old);
 //! * else the latest sample.
 
 use crate::geodesy;
 
 /// How far past the latest sample the two-sample extrapolation goes, in sample intervals.
-pub const MAX_EXTRAPOLATION: f64 = 1.0;
+pub const MAX_EXTRAPOLATION: f64 = 2.0;
 
 /// An entity's lifecycle state (destroyed entities are removed).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -97,6 +97,8 @@ pub struct CigiIg {
     pub other_entities: usize,
     /// The ownship pose was off the terrain (the camera kept its last pose), frames.
     pub off_terrain: u64,
+    /// Local time (s since the IG started) the current frame's camera is for.
+    pub frame_time: f64,
     buf: Vec<u8>,
 }
 
@@ -144,6 +146,7 @@ impl CigiIg {
             answers: Default::default(),
             other_entities: 0,
             off_terrain: 0,
+            frame_time: 0.0,
             buf: vec![0; 65536],
         })
     }
@@ -254,7 +257,8 @@ impl CigiIg {
         if let Some(fov) = self.view_fov() {
             pose.fov = fov;
         }
-        let t = self.session.host_time_at(self.now());
+        self.frame_time = self.now();
+        let t = self.session.host_time_at(self.frame_time);
         let Some(p) = self.session.pose_at(0, t) else {
             return (pose, None);
         };
@@ -338,12 +342,49 @@ impl CigiIg {
         serde_json::json!({
             "host_frame": self.session.host_frame,
             "ig_frame": ig_frame,
+            "ig_time_s": self.frame_time,
             "sync": self.sync,
             "datagrams": c.datagrams,
             "accepted": c.accepted,
             "refused": c.datagrams - c.accepted,
             "malformed": c.malformed(),
             "entities": self.session.entity_count(),
+        })
+    }
+
+    /// Every session counter and the IG's own, as one JSON object (the end of a run).
+    pub fn counters_json(&self) -> serde_json::Value {
+        let c = &self.session.counters;
+        let by_kind: serde_json::Map<String, serde_json::Value> = crate::cigi::Kind::ALL
+            .iter()
+            .filter(|k| c.of_kind(**k) > 0)
+            .map(|k| (format!("{k:?}"), c.of_kind(*k).into()))
+            .collect();
+        serde_json::json!({
+            "ig_frames": self.ig_frame,
+            "datagrams": c.datagrams,
+            "accepted": c.accepted,
+            "short": c.short,
+            "no_header": c.no_header,
+            "refused_version": c.refused_version,
+            "bad_magic": c.bad_magic,
+            "ignored_sender": c.ignored_sender,
+            "packets": c.packets,
+            "by_kind": by_kind,
+            "unknown": c.unknown,
+            "short_packets": c.short_packets,
+            "misplaced_header": c.misplaced_header,
+            "size_below_two": c.size_below_two,
+            "past_end": c.past_end,
+            "trailing": c.trailing,
+            "invalid_values": c.invalid_values,
+            "refused_capacity": c.refused_capacity,
+            "dropped_queries": c.dropped_queries,
+            "destroyed": c.destroyed,
+            "malformed": c.malformed(),
+            "entities": self.session.entity_count(),
+            "sent": self.sent,
+            "send_errors": self.send_errors,
         })
     }
 

@@ -1,0 +1,253 @@
+//! `relief serve` as the IG of issue 21's acceptance, driven by hosts written here over
+//! loopback: a 30 Hz host flying a turn against the free-running IG (smoothness, the host
+//! clock), a synchronous host driving three display channels (a cluster), a flood of
+//! malformed datagrams while the host flies, the sun and fog from the host, and entities drawn
+//! from scene templates. Every truth is computed here.
+
+mod cigi_support;
+mod common;
+
+use cigi_support::*;
+use common::temp_dir;
+use relief::cigi::*;
+use std::collections::BTreeMap;
+use std::time::{Duration, Instant};
+
+/// A coordinated turn: heading `psi0 + omega·t` (degrees, °/s), `speed` m/s horizontally,
+/// `climb` m/s, from `start` at host time 0; positions on the local flat earth at `start`.
+#[derive(Clone, Copy)]
+struct Turn {
+    start: [f64; 3],
+    psi0: f64,
+    omega: f64,
+    speed: f64,
+    climb: f64,
+}
+
+impl Turn {
+    /// Geodetic position and heading at host time `t`.
+    fn at(&self, t: f64) -> ([f64; 3], f64) {
+        let (w, p0) = (self.omega.to_radians(), self.psi0.to_radians());
+        let psi = p0 + w * t;
+        let r = self.speed / w;
+        let (north, east) = (r * (psi.sin() - p0.sin()), r * (p0.cos() - psi.cos()));
+        let (m, n) = radii(self.start[0]);
+        let lat = self.start[0] + (north / m).to_degrees();
+        let lon = self.start[1] + (east / (n * self.start[0].to_radians().cos())).to_degrees();
+        let yaw = psi.to_degrees().rem_euclid(360.0);
+        ([lat, lon, self.start[2] + self.climb * t], yaw)
+    }
+
+    /// The bank of a coordinated turn (degrees).
+    fn roll(&self) -> f64 {
+        (self.speed * self.omega.to_radians() / 9.80665)
+            .atan()
+            .to_degrees()
+    }
+}
+
+const TURN: Turn = Turn {
+    start: [47.30, 9.25, 2600.0],
+    psi0: 60.0,
+    omega: 1.5,
+    speed: 250.0,
+    climb: 10.0,
+};
+
+/// The host's datagram for host frame `frame` at host time `t` (timestamp valid,
+/// interpolation on): the ownship on `turn`, and `extra` packets.
+fn flight_message(turn: &Turn, frame: u32, t: f64, extra: &[HostPacket]) -> Vec<u8> {
+    let (lla, yaw) = turn.at(t);
+    let mut own = ownship(lla, yaw as f32, 2.0, turn.roll() as f32);
+    own.extrapolation = true;
+    let mut packets = vec![own.into()];
+    packets.extend_from_slice(extra);
+    message(ig_control(frame, Some(t), true), &packets)
+}
+
+/// Host time now, rounded to the timestamp's 10 µs ticks.
+fn host_now(t0: Instant) -> f64 {
+    (t0.elapsed().as_secs_f64() / 1e-5).round() * 1e-5
+}
+
+/// Takes every Start of Frame waiting on the host socket: IG frame → host time it arrived.
+fn drain(ig: &Ig, t0: Instant, arrived: &mut BTreeMap<u32, f64>) {
+    let mut buf = vec![0u8; 65536];
+    while let Ok((n, _)) = ig.host.recv_from(&mut buf) {
+        let m = read_ig_message(&buf[..n]).expect("the IG's datagrams stay valid");
+        arrived.insert(sof(&m).ig_frame, t0.elapsed().as_secs_f64());
+    }
+}
+
+/// One pose-log line: `(ig_frame, ig_time, host_time, geodetic, heading)`, when the ownship
+/// was placed.
+fn logged(l: &serde_json::Value) -> Option<(u32, f64, f64, [f64; 3], f64)> {
+    let g = l["geodetic"].as_array()?;
+    Some((
+        l["ig_frame"].as_u64()? as u32,
+        l["ig_time_s"].as_f64()?,
+        l["host_time_s"].as_f64()?,
+        [g[0].as_f64()?, g[1].as_f64()?, g[2].as_f64()?],
+        l["hpr"][0].as_f64()?,
+    ))
+}
+
+#[test]
+fn the_host_clock_estimate_takes_the_lowest_delay_and_never_steps() {
+    let mut c = relief::cigi::clock::HostClock::default();
+    // A host 100 s ahead of the IG's clock; datagrams every 1/30 s, read 0..16 ms late.
+    let mut rng = common::Rng::new(7);
+    let mut last: Option<(f64, f64)> = None;
+    for k in 0..300 {
+        let host = 100.0 + f64::from(k) / 30.0;
+        let now = host - 100.0 + 0.001 + rng.range(0.0, 0.016);
+        c.observe(now, host);
+        let o = c.offset_at(now).unwrap();
+        assert!(
+            o <= -99.999 + 0.016 + 1e-12,
+            "never below the true offset + the lowest delay so far"
+        );
+        if let Some((t, p)) = last.filter(|_| now > 1.1) {
+            assert!(
+                (o - p).abs() <= 0.05 * (now - t) + 1e-12,
+                "slewed, not stepped"
+            );
+        }
+        last = Some((now, o));
+    }
+    // After 10 s the offset is the lowest delay of the window (1 ms + a little).
+    let o = c.offset_at(10.0).unwrap();
+    assert!(
+        o > -100.0 + 0.001 - 1e-12 && o < -100.0 + 0.003,
+        "offset {o}"
+    );
+    // A restarted host (timestamps from 0 again: the session restarts the clock).
+    c.restart();
+    c.observe(11.0, 0.5);
+    assert!((c.offset_at(11.0).unwrap() - 10.5).abs() < 1e-12);
+    assert!((c.host_time_at(12.0).unwrap() - 1.5).abs() < 1e-12);
+}
+
+#[test]
+fn a_30_hz_host_turn_is_smooth_on_the_free_running_ig() {
+    let dir = temp_dir("cigi-smooth");
+    let scene = scene(&dir, "scene", [47.6, 9.6, 900.0], [45.0, 0.0, 0.0], "");
+    let log = dir.join("poses.jsonl");
+    let host = host_socket();
+    let host_addr = host.local_addr().unwrap().to_string();
+    let ig = Ig::start(
+        &scene,
+        &[
+            "--size",
+            "160x120",
+            "--frames",
+            "200",
+            "--cigi-host",
+            &host_addr,
+            "--pose-log",
+            log.to_str().unwrap(),
+        ],
+        host,
+    );
+    ig.host.set_nonblocking(true).unwrap();
+    let t0 = Instant::now();
+    let (mut frame, mut first_sent) = (0u32, None);
+    let mut arrived = BTreeMap::new();
+    let mut sent_at = Vec::new();
+    while !ig.exited() && t0.elapsed() < Duration::from_secs(60) {
+        let t = host_now(t0);
+        first_sent.get_or_insert(t);
+        sent_at.push(t);
+        ig.send(&flight_message(&TURN, frame, t, &[]));
+        frame += 1;
+        let next = t0 + Duration::from_secs_f64(f64::from(frame) / 30.0);
+        while Instant::now() < next {
+            drain(&ig, t0, &mut arrived);
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+    drain(&ig, t0, &mut arrived);
+    let out = ig.finish();
+    let first = first_sent.unwrap();
+    // Frames from the second sample on (one sample is held, not a trajectory).
+    let poses: Vec<_> = pose_log(&log)
+        .iter()
+        .filter_map(logged)
+        .filter(|p| p.2 >= first + 0.05)
+        .collect();
+    assert!(
+        poses.len() >= 100,
+        "{} frames with two samples: {out}",
+        poses.len()
+    );
+    let (mut worst, mut worst_yaw, mut lags) = (0.0f64, 0.0f64, Vec::new());
+    for &(k, _, h, g, yaw) in &poses {
+        let (want, want_yaw) = TURN.at(h);
+        let e = metres(g, want);
+        let el = e.iter().map(|v| v * v).sum::<f64>().sqrt();
+        if el > 0.1 {
+            let near: Vec<_> = sent_at.iter().filter(|&&s| (s - h).abs() < 0.07).collect();
+            eprintln!("IG frame {k}: {el:.3} m off at host time {h:.4}; samples sent at {near:?}");
+        }
+        worst = worst.max(el);
+        worst_yaw = worst_yaw.max(((yaw - want_yaw + 180.0).rem_euclid(360.0) - 180.0).abs());
+        if let Some(r) = arrived.get(&k) {
+            lags.push(r - h);
+        }
+    }
+    // Smoothness once the clock estimate is acquired (its first second takes the lowest
+    // measurement at once: relief::cigi::clock::ACQUIRE).
+    let settled: Vec<_> = poses
+        .iter()
+        .filter(|p| p.2 >= first + relief::cigi::clock::ACQUIRE + 0.1)
+        .collect();
+    assert!(settled.len() >= 60, "{} settled frames", settled.len());
+    let (mut speeds, mut dts, mut rates) = (Vec::new(), Vec::new(), Vec::new());
+    for w in settled.windows(2) {
+        let dt = w[1].1 - w[0].1;
+        rates.push((w[1].2 - w[0].2) / dt);
+        let d = metres(w[1].3, w[0].3);
+        speeds.push(d.iter().map(|v| v * v).sum::<f64>().sqrt() / dt);
+        dts.push(dt);
+    }
+    let truth = (TURN.speed.powi(2) + TURN.climb.powi(2)).sqrt();
+    let (lo, hi) = (
+        speeds.iter().cloned().fold(f64::MAX, f64::min),
+        speeds.iter().cloned().fold(0.0, f64::max),
+    );
+    let steps = speeds
+        .windows(2)
+        .map(|s| (s[1] - s[0]).abs())
+        .fold(0.0, f64::max);
+    eprintln!(
+        "{} IG frames at {:.1} Hz (frame interval median {:.1} ms, p99 {:.1} ms) for {} host frames at 30 Hz; \
+         pose vs trajectory at the frame's host time: worst {worst:.3} m, yaw {worst_yaw:.4}°; \
+         host clock at Start of Frame arrival − frame's host time: median {:.1} ms, max {:.1} ms ({} frames); \
+         after the first {:.1} s: speed between frames {lo:.1}..{hi:.1} m/s (truth {truth:.1}), largest change between successive frames {steps:.2} m/s ({} frames)",
+        poses.len(),
+        1.0 / percentile(&dts, 0.5),
+        1e3 * percentile(&dts, 0.5),
+        1e3 * percentile(&dts, 0.99),
+        frame,
+        1e3 * percentile(&lags, 0.5),
+        1e3 * percentile(&lags, 1.0),
+        lags.len(),
+        relief::cigi::clock::ACQUIRE + 0.1,
+        settled.len(),
+    );
+    assert!(worst <= 0.05, "pose {worst} m off the trajectory");
+    assert!(worst_yaw <= 0.01, "yaw {worst_yaw}° off");
+    assert!(lags.len() >= poses.len() / 2);
+    assert!(lags.iter().all(|&l| (0.0..=0.1).contains(&l)), "{lags:?}");
+    // The frames' host time advances at 0.95..1.05 of the IG's clock (the slewed offset) ...
+    assert!(
+        rates
+            .iter()
+            .all(|r| (0.95 - 1e-6..=1.05 + 1e-6).contains(r)),
+        "host time rate {rates:?}"
+    );
+    // ... so the ground speed between frames stays within 7 % of the truth, and changes between
+    // successive frames by at most 12 % (a slew reversing, 10 %, plus the poses' centimetres).
+    assert!(lo >= 0.93 * truth && hi <= 1.07 * truth, "speed {lo}..{hi}");
+    assert!(steps <= 0.12 * truth, "a step of {steps} m/s");
+}
