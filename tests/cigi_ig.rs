@@ -251,3 +251,162 @@ fn a_30_hz_host_turn_is_smooth_on_the_free_running_ig() {
     assert!(lo >= 0.93 * truth && hi <= 1.07 * truth, "speed {lo}..{hi}");
     assert!(steps <= 0.12 * truth, "a step of {steps} m/s");
 }
+
+/// The cylinder config of `distortion/` with its projectors at `w`x`h` (the same screen, eye,
+/// projector poses, lenses and blends), written to `dir`.
+fn small_cylinder(dir: &std::path::Path, w: u32, h: u32) -> std::path::PathBuf {
+    let text = std::fs::read_to_string(common::project_dir().join("distortion/cylinder-3ch.toml"))
+        .unwrap();
+    assert_eq!(text.matches("width = 640").count(), 3);
+    assert_eq!(text.matches("height = 400").count(), 3);
+    let text = text
+        .replace("width = 640", &format!("width = {w}"))
+        .replace("height = 400", &format!("height = {h}"));
+    let p = dir.join("cylinder-3ch-small.toml");
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+#[test]
+fn three_display_channels_obey_one_synchronous_host() {
+    let dir = temp_dir("cigi-cluster");
+    let display = small_cylinder(&dir, 160, 100);
+    let elsewhere = scene(&dir, "elsewhere", [47.6, 9.6, 900.0], [45.0, 10.0, 0.0], "");
+    let host = host_socket();
+    let igs: Vec<Ig> = (0..3)
+        .map(|c| {
+            let out = dir.join(format!("channel{c}"));
+            Ig::start(
+                &elsewhere,
+                &[
+                    "--display",
+                    display.to_str().unwrap(),
+                    "--channel",
+                    &c.to_string(),
+                    "--cigi-sync",
+                    "--frames",
+                    "6",
+                    "--capture-frames",
+                    out.to_str().unwrap(),
+                ],
+                host.try_clone().unwrap(),
+            )
+        })
+        .collect();
+    let pose = |k: u32| {
+        (
+            [
+                47.37 - 0.002 * f64::from(k),
+                9.31,
+                2300.0 + 10.0 * f64::from(k),
+            ],
+            [182.0f32 + k as f32, -6.0, 4.0],
+        )
+    };
+    let host_frames: Vec<u32> = (0..6).map(|k| 500 + 7 * k).collect();
+    for (k, &hf) in host_frames.iter().enumerate() {
+        let (lla, ypr) = pose(k as u32);
+        let bytes = message(
+            ig_control(hf, None, false),
+            &[entity(0, 0, lla, ypr).into()],
+        );
+        // The same datagram to the three IGs, then each one's Start of Frame for it.
+        for ig in &igs {
+            ig.send(&bytes);
+        }
+        let mut answered = [false; 3];
+        let mut buf = vec![0u8; 65536];
+        while answered.iter().any(|a| !a) {
+            let (n, from) = host.recv_from(&mut buf).expect("the IGs answer");
+            let m = read_ig_message(&buf[..n]).unwrap();
+            let c = igs
+                .iter()
+                .position(|ig| ig.addr == from)
+                .expect("one of the IGs");
+            if sof(&m).last_host_frame == hf {
+                assert_eq!(sof(&m).ig_frame, k as u32, "channel {c}");
+                answered[c] = true;
+            }
+        }
+    }
+    for ig in igs {
+        ig.finish();
+    }
+    // Identical host-frame sequences in the three channels' JSONs.
+    let sequence = |c: usize| -> Vec<(u64, u64)> {
+        (0..6)
+            .map(|k| {
+                let j = common::read_json(&dir.join(format!("channel{c}/frame_{k:04}.json")));
+                assert_eq!(j["display"]["channel"], c, "{j}");
+                (
+                    j["cigi"]["ig_frame"].as_u64().unwrap(),
+                    j["cigi"]["host_frame"].as_u64().unwrap(),
+                )
+            })
+            .collect()
+    };
+    let want: Vec<(u64, u64)> = host_frames
+        .iter()
+        .enumerate()
+        .map(|(k, &h)| (k as u64, u64::from(h)))
+        .collect();
+    for c in 0..3 {
+        assert_eq!(sequence(c), want, "channel {c}");
+    }
+    // Host frame 3 of each channel against `relief render --display … --channel C`.
+    let (lla, ypr) = pose(3);
+    let at = scene(
+        &dir,
+        "frame3",
+        lla,
+        [f64::from(ypr[0]), f64::from(ypr[1]), f64::from(ypr[2])],
+        "",
+    );
+    for c in 0..3 {
+        let rendered = dir.join(format!("rendered{c}"));
+        let out = common::relief_cli(
+            &[
+                "render",
+                at.to_str().unwrap(),
+                "--display",
+                display.to_str().unwrap(),
+                "--channel",
+                &c.to_string(),
+                "--out",
+                rendered.to_str().unwrap(),
+            ],
+            &[],
+        );
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let a = image::open(dir.join(format!("channel{c}/frame_0003.png")))
+            .unwrap()
+            .to_rgba8();
+        let b = image::open(rendered.join("frame_0000.png"))
+            .unwrap()
+            .to_rgba8();
+        assert_eq!(a.dimensions(), (160, 100));
+        let d = mean_diff(&a, &b);
+        let lit = a
+            .pixels()
+            .filter(|p| p.0[..3].iter().any(|&v| v > 8))
+            .count();
+        eprintln!("channel {c}: served host frame {} vs render: mean difference {d:.4}/255 ({lit} of 16000 pixels lit)", host_frames[3]);
+        assert!(d <= 1.0, "channel {c}: mean difference {d}/255");
+        assert!(lit > 4000, "channel {c} shows the terrain");
+    }
+    // The channels look different ways (left, centre, right).
+    let img = |c: usize| {
+        image::open(dir.join(format!("channel{c}/frame_0003.png")))
+            .unwrap()
+            .to_rgba8()
+    };
+    for (a, b) in [(0, 1), (1, 2)] {
+        let d = mean_diff(&img(a), &img(b));
+        eprintln!("channel {a} vs channel {b}: {d:.1}/255");
+        assert!(d > 5.0, "channels {a} and {b} differ");
+    }
+}
