@@ -410,3 +410,260 @@ fn three_display_channels_obey_one_synchronous_host() {
         assert!(d > 5.0, "channels {a} and {b} differ");
     }
 }
+
+/// Malformed datagram number `i` of the flood, category `i % 8`; `header` is the host's
+/// current IG Control (the categories with a valid header carry it, so the host's clock,
+/// frame and interpolation bit stay what the host says).
+fn malformed(i: u64, rng: &mut common::Rng, header: IgControl) -> Vec<u8> {
+    let valid = |packets: &[HostPacket]| message(header, packets);
+    match i % 8 {
+        // Random bytes, never starting with IG Control's ID.
+        0 => {
+            let n = (rng.next_u64() % 300) as usize;
+            let mut v: Vec<u8> = (0..n).map(|_| rng.next_u64() as u8).collect();
+            if let Some(b) = v.first_mut() {
+                *b = if *b == 1 { 77 } else { *b };
+            }
+            v
+        }
+        // A datagram of size 0.
+        1 => Vec::new(),
+        // A packet with size byte 0 after a valid header.
+        2 => {
+            let mut v = valid(&[]);
+            v.extend_from_slice(&[2, 0]);
+            v.extend((0..46).map(|_| rng.next_u64() as u8));
+            v
+        }
+        // Entity Control whose size byte runs past the end.
+        3 => {
+            let mut v = valid(&[entity(9, 1, [47.0, 9.0, 0.0], [0.0; 3]).into()]);
+            v[25] = 200;
+            v
+        }
+        // Versions 1, 2, 4..: IG Control's version byte.
+        4 => {
+            let mut v = valid(&[]);
+            v[2] = [1, 2, 4, 5, 255][(i / 8 % 5) as usize];
+            v
+        }
+        // IG Control's own size past the datagram's end.
+        5 => {
+            let mut v = valid(&[]);
+            v[1] = 255;
+            v
+        }
+        // Entity Control for huge entity IDs (valid packets: the session's capacity).
+        6 => valid(&[entity(
+            65535 - (i / 8 % 8000) as u16,
+            3,
+            [47.2, 9.2, 500.0],
+            [0.0; 3],
+        )
+        .into()]),
+        // A bad magic number.
+        _ => {
+            let mut v = valid(&[]);
+            v[6] = 0x12;
+            v
+        }
+    }
+}
+
+#[test]
+fn a_flood_of_100000_malformed_datagrams_while_the_host_flies() {
+    use std::sync::atomic::{AtomicBool, AtomicU32, Ordering::SeqCst};
+    use std::sync::Arc;
+    const FLOOD: u64 = 100_000;
+    let dir = temp_dir("cigi-flood");
+    let scene = scene(&dir, "scene", [47.6, 9.6, 900.0], [45.0, 0.0, 0.0], "");
+    let log = dir.join("poses.jsonl");
+    let host = host_socket();
+    let host_addr = host.local_addr().unwrap().to_string();
+    let ig = Ig::start(
+        &scene,
+        &[
+            "--size",
+            "160x120",
+            "--frames",
+            "720",
+            "--cigi-host",
+            &host_addr,
+            "--pose-log",
+            log.to_str().unwrap(),
+        ],
+        host,
+    );
+    ig.host.set_nonblocking(true).unwrap();
+    let t0 = Instant::now();
+    let frame = Arc::new(AtomicU32::new(0));
+    let go = Arc::new(AtomicBool::new(false));
+    // The flood: from the host's own address, 125 datagrams every 10 ms (12,500/s).
+    let flood = {
+        let (socket, to, frame, go) = (
+            ig.host.try_clone().unwrap(),
+            ig.addr,
+            frame.clone(),
+            go.clone(),
+        );
+        std::thread::spawn(move || {
+            while !go.load(SeqCst) {
+                std::thread::sleep(Duration::from_millis(1));
+            }
+            let start = host_now(t0);
+            let mut rng = common::Rng::new(2121);
+            let mut counts = [0u64; 8];
+            let mut short_random = 0;
+            for i in 0..FLOOD {
+                let due = start + (i / 125) as f64 * 0.01;
+                while host_now(t0) < due {
+                    std::thread::sleep(Duration::from_micros(500));
+                }
+                let f = frame.load(SeqCst);
+                let d = malformed(i, &mut rng, ig_control(f, Some(host_now(t0)), true));
+                if i % 8 == 0 && d.len() < 8 {
+                    short_random += 1;
+                }
+                counts[(i % 8) as usize] += 1;
+                socket.send_to(&d, to).unwrap();
+            }
+            (start, host_now(t0), counts, short_random)
+        })
+    };
+    let mut arrived = BTreeMap::new();
+    let mut valid = 0u64;
+    // The host flies until the IG's frame 715 (of 720) answered, so every datagram it sends
+    // is read before the IG ends.
+    while !ig.exited()
+        && t0.elapsed() < Duration::from_secs(60)
+        && arrived.keys().next_back().is_none_or(|&k| k < 715)
+    {
+        let t = host_now(t0);
+        let f = frame.fetch_add(1, SeqCst);
+        ig.send(&flight_message(&TURN, f, t, &[]));
+        valid += 1;
+        let next = t0 + Duration::from_secs_f64(f64::from(f + 1) / 30.0);
+        while Instant::now() < next {
+            drain(&ig, t0, &mut arrived);
+            if arrived.keys().next_back().is_some_and(|&k| k >= 150) {
+                go.store(true, SeqCst);
+            }
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+    go.store(true, SeqCst);
+    let (start, end, counts, short_random) = flood.join().unwrap();
+    let out = ig.finish();
+    let c = counters(&out);
+    let poses: Vec<_> = pose_log(&log).iter().filter_map(logged).collect();
+    let n = |k: &str| c[k].as_u64().unwrap();
+    eprintln!("flood of {FLOOD} from host time {start:.2} s to {end:.2} s ({:.0}/s); {valid} valid host datagrams; counters {c}", FLOOD as f64 / (end - start));
+    assert!(end - start <= 10.0, "the flood took {} s", end - start);
+    // Frame times (IG clock) before, during and after the flood (by the frames' host time).
+    let phase = |lo: f64, hi: f64| -> Vec<f64> {
+        poses
+            .windows(2)
+            .filter(|w| w[0].2 >= lo && w[1].2 < hi)
+            .map(|w| 1e3 * (w[1].1 - w[0].1))
+            .collect()
+    };
+    let first = poses.first().expect("frames").2;
+    let (before, during, after) = (
+        phase(first + 1.1, start),
+        phase(start, end),
+        phase(end, f64::MAX),
+    );
+    for (name, v) in [("before", &before), ("during", &during), ("after", &after)] {
+        eprintln!(
+            "{name} the flood: {} frames, frame time median {:.1} ms, p99 {:.1} ms, max {:.1} ms",
+            v.len(),
+            percentile(v, 0.5),
+            percentile(v, 0.99),
+            percentile(v, 1.0)
+        );
+    }
+    assert!(
+        before.len() >= 30 && after.len() >= 10,
+        "frames before and after"
+    );
+    assert!(
+        during.len() as f64 >= 20.0 * (end - start),
+        "frames kept coming: {} in {} s",
+        during.len(),
+        end - start
+    );
+    assert!(percentile(&during, 0.99) <= 100.0, "no stall");
+    // The ownship's pose during the flood: the host's trajectory at the frame's host time.
+    let mut worst = 0.0f64;
+    for &(_, _, h, g, yaw) in poses.iter().filter(|p| p.2 >= start && p.2 <= end) {
+        let (want, want_yaw) = TURN.at(h);
+        let e = metres(g, want);
+        worst = worst.max(e.iter().map(|v| v * v).sum::<f64>().sqrt());
+        assert!(((yaw - want_yaw + 180.0).rem_euclid(360.0) - 180.0).abs() < 0.01);
+    }
+    eprintln!("ownship during the flood: worst {worst:.3} m off the trajectory");
+    assert!(worst <= 0.05, "ownship {worst} m off during the flood");
+    // Counters add up; with nothing lost on loopback, exactly by category.
+    let refused =
+        n("short") + n("no_header") + n("refused_version") + n("bad_magic") + n("ignored_sender");
+    assert_eq!(n("accepted") + refused, n("datagrams"));
+    let by_kind: u64 = c["by_kind"]
+        .as_object()
+        .unwrap()
+        .values()
+        .map(|v| v.as_u64().unwrap())
+        .sum();
+    assert_eq!(
+        n("packets"),
+        by_kind + n("unknown") + n("short_packets") + n("misplaced_header")
+    );
+    assert_eq!(n("ig_frames"), 720);
+    let offered = valid + FLOOD;
+    assert!(
+        n("datagrams") <= offered && n("datagrams") >= offered * 99 / 100,
+        "{c}"
+    );
+    if n("datagrams") == offered {
+        assert_eq!(n("accepted"), valid + counts[2] + counts[3] + counts[6]);
+        assert_eq!(n("short"), short_random + counts[1] + counts[5]);
+        assert_eq!(n("no_header"), counts[0] - short_random);
+        assert_eq!(n("refused_version"), counts[4]);
+        assert_eq!(n("bad_magic"), counts[7]);
+        assert_eq!(n("size_below_two"), counts[2]);
+        assert_eq!(n("past_end"), counts[3]);
+        assert_eq!(
+            c["by_kind"]["EntityControl"].as_u64().unwrap(),
+            valid + counts[6]
+        );
+        assert_eq!(n("entities"), relief::cigi::session::MAX_ENTITIES as u64);
+        // Huge IDs 65535, 65534, … (8,000 of them, cycling): the first 4,095 join the ownship,
+        // later new ones are refused, held ones updated.
+        let mut held = std::collections::BTreeSet::new();
+        let mut refused_capacity = 0;
+        for i in (6..FLOOD).step_by(8) {
+            let id = i / 8 % 8000;
+            if held.contains(&id) || held.len() < relief::cigi::session::MAX_ENTITIES - 1 {
+                held.insert(id);
+            } else {
+                refused_capacity += 1;
+            }
+        }
+        assert_eq!(n("refused_capacity"), refused_capacity);
+    } else {
+        eprintln!(
+            "{} datagrams lost on loopback: the counts by category are bounds",
+            offered - n("datagrams")
+        );
+    }
+    assert_eq!(
+        n("malformed"),
+        n("short")
+            + n("no_header")
+            + n("bad_magic")
+            + n("size_below_two")
+            + n("past_end")
+            + n("trailing")
+            + n("short_packets")
+            + n("misplaced_header")
+    );
+}
