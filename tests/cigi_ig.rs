@@ -667,3 +667,160 @@ fn a_flood_of_100000_malformed_datagrams_while_the_host_flies() {
             + n("misplaced_header")
     );
 }
+
+/// The sun by the Astronomical Almanac's low-precision formulae (Michalsky 1988, Solar Energy
+/// 40(3) 227–235; about 0.01° for 1950–2050), a different formula set from relief's NOAA/Meeus
+/// one: `(azimuth from north, elevation)` in degrees for a UTC date and time at `lat`, `lon`.
+fn almanac_sun(y: i64, m: i64, d: i64, hour: f64, lat: f64, lon: f64) -> (f64, f64) {
+    // Days from 2000-01-01 (days-from-civil, proleptic Gregorian), then from J2000.0 (noon).
+    let (yy, mm) = if m <= 2 { (y - 1, m + 9) } else { (y, m - 3) };
+    let era = yy.div_euclid(400);
+    let yoe = yy - era * 400;
+    let doy = (153 * mm + 2) / 5 + d - 1;
+    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
+    let days_1970 = era * 146_097 + doe - 719_468;
+    let n = (days_1970 - 10_957) as f64 - 0.5 + hour / 24.0;
+    let l = (280.460 + 0.985_647_4 * n).rem_euclid(360.0);
+    let g = (357.528 + 0.985_600_3 * n).rem_euclid(360.0).to_radians();
+    let lambda = (l + 1.915 * g.sin() + 0.020 * (2.0 * g).sin()).to_radians();
+    let eps = (23.439 - 0.000_000_4 * n).to_radians();
+    let ra = (eps.cos() * lambda.sin()).atan2(lambda.cos());
+    let dec = (eps.sin() * lambda.sin()).asin();
+    let gmst = (6.697_375 + 0.065_709_824_2 * n + hour).rem_euclid(24.0);
+    let ha = ((gmst + lon / 15.0) * 15.0).to_radians() - ra;
+    let phi = lat.to_radians();
+    let el = (dec.sin() * phi.sin() + dec.cos() * phi.cos() * ha.cos()).asin();
+    let az =
+        (-ha.sin() * dec.cos()).atan2(dec.sin() * phi.cos() - dec.cos() * ha.cos() * phi.sin());
+    (az.to_degrees().rem_euclid(360.0), el.to_degrees())
+}
+
+/// Three dates and places: the Säntis at the June solstice, Sydney in December, Denver at the
+/// March equinox, and a low evening sun in Reykjavík.
+const SUN_CASES: [(i32, u32, u32, f64, f64, f64); 4] = [
+    (2024, 6, 21, 10.5, 47.25, 9.34),
+    (2023, 12, 21, 3.0, -33.87, 151.21),
+    (2025, 3, 20, 18.25, 39.74, -104.99),
+    (2022, 9, 1, 19.0, 64.15, -21.94),
+];
+
+#[test]
+fn the_sun_agrees_with_the_almanac_within_a_tenth_of_a_degree() {
+    use relief::scene::solar::{sun_position, UtcTime};
+    for (y, m, d, h, lat, lon) in SUN_CASES {
+        let t = UtcTime::new(y, m, d, h * 3600.0).unwrap();
+        let (az, el) = sun_position(t, lat, lon);
+        let (a, e) = almanac_sun(y.into(), m.into(), d.into(), h, lat, lon);
+        let daz = ((az - a + 180.0).rem_euclid(360.0) - 180.0).abs();
+        eprintln!("{y}-{m:02}-{d:02} {h:05.2} UTC at {lat}, {lon}: relief {az:.3}°/{el:.3}°, almanac {a:.3}°/{e:.3}° (Δ {daz:.4}°, {:.4}°)", (el - e).abs());
+        assert!(daz <= 0.1 && (el - e).abs() <= 0.1);
+    }
+    // Dates that do not exist.
+    assert!(UtcTime::new(2023, 2, 29, 0.0).is_none());
+    assert!(UtcTime::new(2024, 2, 29, 0.0).is_some());
+    assert!(UtcTime::new(2024, 13, 1, 0.0).is_none());
+    assert!(UtcTime::new(2024, 4, 31, 0.0).is_none());
+    assert!(UtcTime::new(2024, 4, 30, 86400.0).is_none());
+}
+
+#[test]
+fn the_hosts_date_time_and_visibility_set_sun_and_fog() {
+    let dir = temp_dir("cigi-environment");
+    let lla = [47.37, 9.31, 2300.0];
+    // The IG's scene: sun at 245°/24°, fog 90 km; the host says 21 June 2024, 07:40 UTC, and
+    // 15 km visibility.
+    let elsewhere = scene(&dir, "elsewhere", [47.6, 9.6, 900.0], [45.0, 10.0, 0.0], "");
+    let served = dir.join("served");
+    let ig = Ig::start(
+        &elsewhere,
+        &[
+            "--size",
+            "160x120",
+            "--cigi-sync",
+            "--frames",
+            "1",
+            "--capture-frames",
+            served.to_str().unwrap(),
+        ],
+        host_socket(),
+    );
+    let celestial = CelestialSphereControl {
+        hour: 7,
+        minute: 40,
+        ephemeris: true,
+        sun: true,
+        moon: false,
+        stars: false,
+        date_time_valid: true,
+        date: 6_21_2024,
+        star_intensity: 0.0,
+    };
+    let atmosphere = AtmosphereControl {
+        model_enable: true,
+        humidity: 60,
+        air_temperature: 15.0,
+        visibility: 15000.0,
+        horizontal_wind: 0.0,
+        vertical_wind: 0.0,
+        wind_direction: 0.0,
+        pressure: 1013.25,
+    };
+    let own = entity(0, 0, lla, [100.0, -4.0, 0.0]);
+    ig.exchange(
+        &message(
+            ig_control(3, None, false),
+            &[own.into(), celestial.into(), atmosphere.into()],
+        ),
+        3,
+    );
+    ig.finish();
+    let (az, el) = almanac_sun(2024, 6, 21, 7.0 + 40.0 / 60.0, lla[0], lla[1]);
+    let j = common::read_json(&served.join("frame_0000.json"));
+    let sun = &j["cigi"]["sun"];
+    let (saz, sel) = (sun[0].as_f64().unwrap(), sun[1].as_f64().unwrap());
+    eprintln!(
+        "sun from the host: relief {saz:.3}°/{sel:.3}°, almanac {az:.3}°/{el:.3}°; visibility {}",
+        j["cigi"]["visibility"]
+    );
+    assert!((saz - az).abs() <= 0.1 && (sel - el).abs() <= 0.1);
+    assert_eq!(j["cigi"]["visibility"], 15000.0);
+    // `relief render` of a scene with that sun and fog at the ownship's pose.
+    let render = |name: &str, sun: (f64, f64), vis: f64| {
+        let text = std::fs::read_to_string(scene(&dir, name, lla, [100.0, -4.0, 0.0], "")).unwrap();
+        let text = text
+            .replace(
+                "azimuth = 245.0\nelevation = 24.0",
+                &format!("azimuth = {:?}\nelevation = {:?}", sun.0, sun.1),
+            )
+            .replace("visibility = 90000.0", &format!("visibility = {vis:?}"));
+        let p = dir.join(format!("{name}.toml"));
+        std::fs::write(&p, text).unwrap();
+        let out_dir = dir.join(name);
+        let out = common::relief_cli(
+            &[
+                "render",
+                p.to_str().unwrap(),
+                "--out",
+                out_dir.to_str().unwrap(),
+            ],
+            &[],
+        );
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        image::open(out_dir.join("frame_0000.png"))
+            .unwrap()
+            .to_rgba8()
+    };
+    let a = image::open(served.join("frame_0000.png"))
+        .unwrap()
+        .to_rgba8();
+    let same = mean_diff(&a, &render("same", (az, el), 15000.0));
+    let scene_sun = mean_diff(&a, &render("scene_sun", (245.0, 24.0), 15000.0));
+    let scene_fog = mean_diff(&a, &render("scene_fog", (az, el), 90000.0));
+    eprintln!("served vs render with the almanac's sun and 15 km fog: {same:.4}/255; with the scene's sun {scene_sun:.2}/255; with the scene's fog {scene_fog:.2}/255");
+    assert!(same <= 1.0, "{same}");
+    assert!(scene_sun > 1.0 && scene_fog > 1.0, "sun and fog matter");
+}

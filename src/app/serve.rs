@@ -88,6 +88,12 @@ pub fn run(opts: &ServeOptions) -> Result<String> {
         }
         let (pose, own) = ig.camera_pose(terrain, base.pose);
         let cam = Camera::new(pose, base.width, base.height);
+        let at = own
+            .map(|o| o.geodetic)
+            .or_else(|| terrain.world_to_geodetic(cam.pose.position));
+        let mut scene = p.scene.clone();
+        ig.environment(&mut scene.desc, at);
+        let frames = frames.with_scene(&scene);
         renderer.set_time(ig.now());
         let out = frames.render_camera(&mut renderer, &cam)?;
         let ig_frame = ig.ig_frame;

@@ -2,6 +2,7 @@
 //! path. Unknown keys are errors that name the key. No GPU types live here.
 
 mod camera;
+pub mod solar;
 
 pub use camera::{Camera, CameraPath, Keyframe, Pose};
 

@@ -7,7 +7,9 @@
 pub mod answer;
 
 use crate::cigi::Session;
+use crate::scene::solar::{self, UtcTime};
 use crate::scene::Pose as CameraPose;
+use crate::scene::SceneDesc;
 use crate::terrain::Terrain;
 use crate::{Error, Result};
 use std::net::{IpAddr, SocketAddr, UdpSocket};
@@ -99,6 +101,12 @@ pub struct CigiIg {
     pub off_terrain: u64,
     /// Local time (s since the IG started) the current frame's camera is for.
     pub frame_time: f64,
+    /// The frame's sun `(azimuth, elevation)` from Celestial Sphere Control, and fog
+    /// visibility (m) from Atmosphere/Weather Control, when the host gave them.
+    pub sun: Option<(f64, f64)>,
+    pub visibility: Option<f64>,
+    /// Celestial Sphere Control with a date or time that does not exist, frames.
+    pub bad_dates: u64,
     buf: Vec<u8>,
 }
 
@@ -147,6 +155,9 @@ impl CigiIg {
             other_entities: 0,
             off_terrain: 0,
             frame_time: 0.0,
+            sun: None,
+            visibility: None,
+            bad_dates: 0,
             buf: vec![0; 65536],
         })
     }
@@ -294,6 +305,51 @@ impl CigiIg {
         }
     }
 
+    /// The host's environment into the frame's scene: the sun of Celestial Sphere Control
+    /// (date and time of day, read as UTC; its date/time-valid bit set) seen from `at` (the
+    /// ownship's geodetic position), and the session's visibility as the fog's (Koschmieder
+    /// extinction 3.912 / visibility in the frame uniforms). What the host has not sent stays
+    /// the scene's.
+    pub fn environment(&mut self, desc: &mut SceneDesc, at: Option<[f64; 3]>) {
+        self.sun = None;
+        if let (Some(c), Some([lat, lon, _])) = (self.session.celestial, at) {
+            let t = UtcTime::new(
+                (c.date % 10_000) as i32,
+                c.date / 1_000_000,
+                c.date / 10_000 % 100,
+                f64::from(c.hour) * 3600.0 + f64::from(c.minute) * 60.0,
+            );
+            match t.filter(|_| c.date_time_valid) {
+                Some(t) => {
+                    let (azimuth, elevation) = solar::sun_position(t, lat, lon);
+                    desc.sun.azimuth = azimuth;
+                    desc.sun.elevation = elevation;
+                    self.sun = Some((azimuth, elevation));
+                }
+                None if c.date_time_valid => {
+                    self.bad_dates += 1;
+                    if self.bad_dates == 1 {
+                        log::warn!(
+                            "CIGI Celestial Sphere Control: no such date/time (date {}, {}:{}); the scene's sun kept",
+                            c.date,
+                            c.hour,
+                            c.minute
+                        );
+                    }
+                }
+                None => {}
+            }
+        }
+        self.visibility = self
+            .session
+            .visibility()
+            .map(f64::from)
+            .filter(|v| v.is_finite() && *v > 0.0);
+        if let Some(v) = self.visibility {
+            desc.fog.visibility = v;
+        }
+    }
+
     /// Horizontal fov (degrees) of the lowest view ID whose View Definition gives both the
     /// left and right half-angles, when it is a usable pinhole fov.
     fn view_fov(&self) -> Option<f64> {
@@ -343,6 +399,8 @@ impl CigiIg {
             "host_frame": self.session.host_frame,
             "ig_frame": ig_frame,
             "ig_time_s": self.frame_time,
+            "sun": self.sun.map(|(a, e)| [a, e]),
+            "visibility": self.visibility,
             "sync": self.sync,
             "datagrams": c.datagrams,
             "accepted": c.accepted,

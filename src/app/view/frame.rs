@@ -117,6 +117,10 @@ impl App {
             }
             let (cam, own) = ig.camera_pose(&p.world.terrain, pose);
             pose = cam;
+            let at = own
+                .map(|o| o.geodetic)
+                .or_else(|| p.world.terrain.world_to_geodetic(pose.position));
+            ig.environment(&mut self.desc, at);
             cigi = Some((ig.frame_json(ig.ig_frame), own.map(|o| o.geodetic)));
         }
         Ok(Step {
