@@ -824,3 +824,209 @@ fn the_hosts_date_time_and_visibility_set_sun_and_fog() {
     assert!(same <= 1.0, "{same}");
     assert!(scene_sun > 1.0 && scene_fog > 1.0, "sun and fog matter");
 }
+
+/// WGS84 geodetic → ECEF (m).
+fn ecef(lla: [f64; 3]) -> [f64; 3] {
+    let (a, f) = (6_378_137.0, 1.0 / 298.257_223_563);
+    let e2 = f * (2.0 - f);
+    let (la, lo) = (lla[0].to_radians(), lla[1].to_radians());
+    let n = a / (1.0 - e2 * la.sin().powi(2)).sqrt();
+    [
+        (n + lla[2]) * la.cos() * lo.cos(),
+        (n + lla[2]) * la.cos() * lo.sin(),
+        (n * (1.0 - e2) + lla[2]) * la.sin(),
+    ]
+}
+
+/// Pixel position (x right, y down, pixel centres at i + 0.5) of geodetic `p` seen by a
+/// pinhole camera at `cam` with heading (from true north), pitch, zero roll, horizontal fov
+/// `fov` degrees, `w`x`h` pixels: the camera's local east-north-up frame, computed here.
+fn project(
+    cam: [f64; 3],
+    heading: f64,
+    pitch: f64,
+    fov: f64,
+    (w, h): (f64, f64),
+    p: [f64; 3],
+) -> (f64, f64) {
+    let (c, q) = (ecef(cam), ecef(p));
+    let d = [q[0] - c[0], q[1] - c[1], q[2] - c[2]];
+    let (la, lo) = (cam[0].to_radians(), cam[1].to_radians());
+    let east = [-lo.sin(), lo.cos(), 0.0];
+    let north = [-la.sin() * lo.cos(), -la.sin() * lo.sin(), la.cos()];
+    let up = [la.cos() * lo.cos(), la.cos() * lo.sin(), la.sin()];
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let (e, n, u) = (dot(d, east), dot(d, north), dot(d, up));
+    let (hh, pp) = (heading.to_radians(), pitch.to_radians());
+    let fwd = [hh.sin() * pp.cos(), hh.cos() * pp.cos(), pp.sin()];
+    let right = [hh.cos(), -hh.sin(), 0.0];
+    let camup = [
+        right[1] * fwd[2] - right[2] * fwd[1],
+        right[2] * fwd[0] - right[0] * fwd[2],
+        right[0] * fwd[1] - right[1] * fwd[0],
+    ];
+    let v = [e, n, u];
+    let fx = 0.5 * w / (0.5 * fov.to_radians()).tan();
+    let z = dot(v, fwd);
+    (
+        0.5 * w + fx * dot(v, right) / z,
+        0.5 * h - fx * dot(v, camup) / z,
+    )
+}
+
+/// Centroid and count of the pixels of `a` that differ from `base`.
+fn changed(a: &image::RgbaImage, base: &image::RgbaImage) -> Option<(f64, f64, usize)> {
+    let (mut sx, mut sy, mut n) = (0.0, 0.0, 0usize);
+    for (x, y, p) in a.enumerate_pixels() {
+        let q = base.get_pixel(x, y);
+        let d: u32 = (0..3).map(|c| u32::from(p.0[c].abs_diff(q.0[c]))).sum();
+        if d > 6 {
+            sx += f64::from(x) + 0.5;
+            sy += f64::from(y) + 0.5;
+            n += 1;
+        }
+    }
+    (n > 0).then(|| (sx / n as f64, sy / n as f64, n))
+}
+
+#[test]
+fn an_entity_from_a_scene_template_appears_moves_hides_and_vanishes() {
+    let dir = temp_dir("cigi-entities");
+    let cam = [47.45, 9.50, 1300.0];
+    let (heading, pitch) = (30.0, -3.0);
+    // A red ellipsoid (80 x 25 x 25 m half-axes) used as the template of entity type 7.
+    let extra = "[[objects]]\nname = \"ball\"\nshape = \"ellipsoid\"\nradii = [80.0, 25.0, 25.0]\n\
+                 geodetic = [47.2, 9.2, 3000.0]\n\
+                 material = { colour = [0.9, 0.1, 0.1], ambient = 0.6, diffuse = 0.4, specular = 0.0, shininess = 10.0 }\n\
+                 [[cigi.entity]]\ntype = 7\nfreeform = \"ball\"\nmax = 4\n";
+    let scene = scene(&dir, "scene", [47.6, 9.6, 900.0], [45.0, 0.0, 0.0], extra);
+    let frames = dir.join("frames");
+    let ig = Ig::start(
+        &scene,
+        &[
+            "--size",
+            "160x120",
+            "--no-shadows",
+            "--cigi-sync",
+            "--frames",
+            "6",
+            "--capture-frames",
+            frames.to_str().unwrap(),
+        ],
+        host_socket(),
+    );
+    // 1.5 km ahead, and 150 m to the right of that 200 m further on.
+    let ahead = |dist: f64, right: f64, alt: f64| {
+        let (m, n) = radii(cam[0]);
+        let h = (heading as f64).to_radians();
+        let (north, east) = (
+            dist * h.cos() - right * h.sin(),
+            dist * h.sin() + right * h.cos(),
+        );
+        [
+            cam[0] + (north / m).to_degrees(),
+            cam[1] + (east / (n * cam[0].to_radians().cos())).to_degrees(),
+            alt,
+        ]
+    };
+    let (p1, p2) = (ahead(1500.0, 0.0, 1250.0), ahead(1700.0, 150.0, 1300.0));
+    let own = || HostPacket::from(ownship(cam, heading as f32, pitch as f32, 0.0));
+    let ball = |lla: [f64; 3], state: u8| {
+        let mut e = entity(5, 7, lla, [45.0, 10.0, 5.0]);
+        e.entity_state = state;
+        HostPacket::from(e)
+    };
+    let steps: Vec<Vec<HostPacket>> = vec![
+        vec![own()],
+        vec![own(), ball(p1, 1)],
+        vec![own(), ball(p2, 1), entity(6, 99, p1, [0.0; 3]).into()],
+        vec![own(), ball(p2, 0)],
+        vec![own(), ball(p2, 1)],
+        vec![own(), ball(p2, 2)],
+    ];
+    for (k, packets) in steps.iter().enumerate() {
+        let hf = 10 + k as u32;
+        ig.exchange(&message(ig_control(hf, None, false), packets), hf);
+    }
+    ig.finish();
+    let img = |k: usize| {
+        image::open(frames.join(format!("frame_{k:04}.png")))
+            .unwrap()
+            .to_rgba8()
+    };
+    let json = |k: usize| common::read_json(&frames.join(format!("frame_{k:04}.json")));
+    let base = img(0);
+    for (k, at) in [
+        (1, Some(p1)),
+        (2, Some(p2)),
+        (3, None),
+        (4, Some(p2)),
+        (5, None),
+    ] {
+        let j = &json(k)["cigi"];
+        match at {
+            Some(p) => {
+                let (x, y) = project(cam, heading, pitch, 60.0, (160.0, 120.0), p);
+                let (cx, cy, n) = changed(&img(k), &base).expect("the entity is drawn");
+                let err = ((cx - x).powi(2) + (cy - y).powi(2)).sqrt();
+                eprintln!("frame {k}: entity at ({cx:.2}, {cy:.2}) over {n} pixels; projected ({x:.2}, {y:.2}); {err:.2} px; JSON drawn {} not drawn {}", j["drawn"], j["not_drawn"]);
+                assert!(err <= 1.0, "frame {k}: {err} px from the projection");
+                assert!(n >= 30, "frame {k}: {n} pixels");
+                assert_eq!(j["drawn"], 1);
+            }
+            None => {
+                let d = mean_diff(&img(k), &base);
+                eprintln!(
+                    "frame {k}: {} vs the frame without it: {d:.4}/255",
+                    if k == 3 { "hidden" } else { "destroyed" }
+                );
+                assert!(
+                    changed(&img(k), &base).is_none(),
+                    "frame {k} shows no entity"
+                );
+                assert_eq!(j["drawn"], 0);
+            }
+        }
+    }
+    assert_eq!(json(2)["cigi"]["not_drawn"], 1, "type 99 has no template");
+    // Frame 4 against `relief render` of the template as a scene object at the entity's
+    // geodetic pose (yaw 45°, pitch 10°, roll 5°): orientation and position alike.
+    let object = format!(
+        "[[objects]]\nname = \"placed\"\nshape = \"ellipsoid\"\nradii = [80.0, 25.0, 25.0]\n\
+         geodetic = [{:?}, {:?}, {:?}]\nheading = 45.0\npitch = 10.0\nroll = 5.0\n\
+         material = {{ colour = [0.9, 0.1, 0.1], ambient = 0.6, diffuse = 0.4, specular = 0.0, shininess = 10.0 }}\n",
+        p2[0], p2[1], p2[2]
+    );
+    let placed = self::scene(&dir, "placed", cam, [heading, pitch, 0.0], &object);
+    let out_dir = dir.join("rendered");
+    let out = common::relief_cli(
+        &[
+            "render",
+            placed.to_str().unwrap(),
+            "--no-shadows",
+            "--out",
+            out_dir.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rendered = image::open(out_dir.join("frame_0000.png"))
+        .unwrap()
+        .to_rgba8();
+    let d = mean_diff(&img(4), &rendered);
+    let (_, _, n) = changed(&rendered, &base).expect("the rendered object");
+    eprintln!(
+        "frame 4 vs render of the object at the entity's pose: {d:.4}/255 ({n} object pixels)"
+    );
+    assert!(d <= 1.0, "{d}/255");
+    assert_eq!(json(3)["cigi"]["hidden"], 1);
+    assert_eq!(
+        json(5)["cigi"]["entities"],
+        2,
+        "ownship and entity 6 remain"
+    );
+}

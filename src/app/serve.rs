@@ -91,6 +91,8 @@ pub fn run(opts: &ServeOptions) -> Result<String> {
         let at = own
             .map(|o| o.geodetic)
             .or_else(|| terrain.world_to_geodetic(cam.pose.position));
+        let instances = ig.instances(terrain, &p.world.templates);
+        renderer.set_instances(instances.drawn);
         let mut scene = p.scene.clone();
         ig.environment(&mut scene.desc, at);
         let frames = frames.with_scene(&scene);

@@ -95,8 +95,11 @@ pub struct CigiIg {
     pub send_errors: u64,
     /// Queries answered, by kind, since the start.
     pub answers: answer::AnswerCounts,
-    /// The largest number of entities besides the ownship seen (they are not drawn yet).
+    /// The most entities besides the ownship not drawn in one frame (no template, attached,
+    /// off the terrain, beyond the template's `max`).
     pub other_entities: usize,
+    /// This frame's entity instances: drawn, not drawn, hidden (inactive).
+    pub entities_frame: (usize, usize, usize),
     /// The ownship pose was off the terrain (the camera kept its last pose), frames.
     pub off_terrain: u64,
     /// Local time (s since the IG started) the current frame's camera is for.
@@ -153,6 +156,7 @@ impl CigiIg {
             send_errors: 0,
             answers: Default::default(),
             other_entities: 0,
+            entities_frame: (0, 0, 0),
             off_terrain: 0,
             frame_time: 0.0,
             sun: None,
@@ -255,15 +259,6 @@ impl CigiIg {
         terrain: &Terrain,
         base: CameraPose,
     ) -> (CameraPose, Option<Ownship>) {
-        let others = self.session.entity_count() - usize::from(self.session.ownship().is_some());
-        if others > self.other_entities {
-            if self.other_entities == 0 {
-                log::warn!(
-                    "CIGI: {others} entities besides the ownship: other entities are not drawn yet"
-                );
-            }
-            self.other_entities = others;
-        }
         let mut pose = base;
         if let Some(fov) = self.view_fov() {
             pose.fov = fov;
@@ -350,6 +345,28 @@ impl CigiIg {
         }
     }
 
+    /// The entities drawn from `templates` this frame, at the frame's host time (call after
+    /// [`CigiIg::camera_pose`]); the counts go to the frame's JSON and the summary.
+    pub fn instances(
+        &mut self,
+        terrain: &Terrain,
+        templates: &[crate::world::EntityTemplate],
+    ) -> crate::world::Instances {
+        let t = self.session.host_time_at(self.frame_time);
+        let i = crate::world::entity_instances(&self.session, terrain, templates, t);
+        self.entities_frame = (i.drawn.len(), i.not_drawn, i.hidden);
+        if i.not_drawn > self.other_entities {
+            if self.other_entities == 0 {
+                log::warn!(
+                    "CIGI: {} entities not drawn (no [[cigi.entity]] template for their type, attached, off the terrain or beyond the template's max)",
+                    i.not_drawn
+                );
+            }
+            self.other_entities = i.not_drawn;
+        }
+        i
+    }
+
     /// Horizontal fov (degrees) of the lowest view ID whose View Definition gives both the
     /// left and right half-angles, when it is a usable pinhole fov.
     fn view_fov(&self) -> Option<f64> {
@@ -407,6 +424,9 @@ impl CigiIg {
             "refused": c.datagrams - c.accepted,
             "malformed": c.malformed(),
             "entities": self.session.entity_count(),
+            "drawn": self.entities_frame.0,
+            "not_drawn": self.entities_frame.1,
+            "hidden": self.entities_frame.2,
         })
     }
 
