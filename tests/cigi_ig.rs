@@ -1030,3 +1030,152 @@ fn an_entity_from_a_scene_template_appears_moves_hides_and_vanishes() {
         "ownship and entity 6 remain"
     );
 }
+
+#[test]
+fn hot_and_los_on_a_database_scene_come_from_full_resolution() {
+    let dem = Dem::load();
+    let dir = temp_dir("cigi-database");
+    let db = dir.join("world.reliefdb");
+    let t = Instant::now();
+    relief::db::build(
+        &db,
+        &[
+            common::project_dir().join("tests/data/etopo20.tif"),
+            common::terrains().join("N47E009.hgt"),
+        ],
+        &relief::db::BuildOptions::default(),
+        &|_, _| {},
+    )
+    .unwrap();
+    eprintln!("database built in {:.2} s", t.elapsed().as_secs_f64());
+    // The scene renders level 7 (48″ samples); the answers must be the 3″ samples' surface.
+    let scene = dir.join("scene.toml");
+    std::fs::write(
+        &scene,
+        "[terrain]\ndatabase = \"world.reliefdb\"\nwindow = [46.5, 8.5, 48.5, 10.5]\nlevel = 7\ncurved = false\n\
+         [camera]\ngeodetic = [47.37, 9.31, 2300.0]\n[output]\nwidth = 160\nheight = 120\n",
+    )
+    .unwrap();
+    let ig = Ig::start(
+        &scene,
+        &["--size", "160x120", "--cigi-sync", "--frames", "1"],
+        host_socket(),
+    );
+    let points = [
+        (47.24937, 9.34331, 3000.0),
+        (47.40123, 9.61877, 1000.0),
+        (47.51234, 9.45678, 800.0),
+    ];
+    // What the rendered level's surface says at the Säntis flank (metres off the 3″ one).
+    let rendered = relief::scene::Scene::load(&scene)
+        .unwrap()
+        .load_terrain()
+        .unwrap();
+    let (flank, want_flank) = (points[0], dem.height(points[0].0, points[0].1));
+    let coarse =
+        relief::app::cigi_ig::answer::height_of_terrain(&rendered, flank.0, flank.1).unwrap();
+    eprintln!("level 7 at the Säntis flank: {coarse:.2} m, the 3″ surface {want_flank:.2} m");
+    assert!(
+        (coarse - want_flank).abs() > 5.0,
+        "the rendered level differs"
+    );
+    let hot = |id: u16, kind: u8, (lat, lon, alt): (f64, f64, f64)| HatHotRequest {
+        request_id: id,
+        request_type: kind,
+        entity_frame: false,
+        update_period: 0,
+        entity_id: 0,
+        lat,
+        lon,
+        alt,
+    };
+    let (lon, north, south) = (9.34331, 47.275, 47.225);
+    let segment = |id: u16, alt: f64| LosSegmentRequest {
+        request_id: id,
+        extended: true,
+        source_entity_frame: false,
+        destination_entity_frame: false,
+        response_entity_frame: false,
+        destination_entity_valid: false,
+        alpha_threshold: 0,
+        entity_id: 0,
+        source_lat: north,
+        source_lon: lon,
+        source_alt: alt,
+        destination_lat: south,
+        destination_lon: lon,
+        destination_alt: alt,
+        material_mask: 0,
+        update_period: 0,
+        destination_entity_id: 0,
+    };
+    let mut packets: Vec<HostPacket> = vec![ownship([47.37, 9.31, 2300.0], 0.0, 0.0, 0.0).into()];
+    for (i, &p) in points.iter().enumerate() {
+        packets.push(hot(10 * i as u16, 1, p).into());
+        packets.push(hot(10 * i as u16 + 2, 2, p).into());
+    }
+    packets.push(segment(100, 2300.0).into());
+    packets.push(segment(101, 2700.0).into());
+    let m = ig.exchange(&message(ig_control(4, None, false), &packets), 4);
+    ig.finish();
+    let per_deg = radii(0.5 * (north + south)).0.to_radians();
+    let length = (north - south) * per_deg;
+    let (s, step) = dem
+        .march(lon, (north, 2300.0), (south, 2300.0))
+        .expect("blocked");
+    assert!(dem.march(lon, (north, 2700.0), (south, 2700.0)).is_none());
+    let want = s * length;
+    let tol = step * length + 1e-3 * want;
+    let mut seen = 0;
+    for p in &m.packets[1..] {
+        match *p {
+            IgPacket::HatHotResponse(r) => {
+                let (lat, lon, _) = points[usize::from(r.request_id / 10)];
+                let d = r.height - dem.height(lat, lon);
+                eprintln!(
+                    "HOT at {lat}, {lon}: {:.3} m, the 3″ surface {:.3} m",
+                    r.height,
+                    dem.height(lat, lon)
+                );
+                assert!(r.valid && d.abs() <= 0.01, "HOT {d} m off the 3″ surface");
+            }
+            IgPacket::HatHotExtendedResponse(r) => {
+                let (lat, lon, alt) = points[usize::from(r.request_id / 10)];
+                assert!(r.valid && (r.hot - dem.height(lat, lon)).abs() <= 0.01);
+                assert!((r.hat - (alt - dem.height(lat, lon))).abs() <= 0.01);
+                assert!(r.normal_elevation > 0.0 && r.normal_elevation <= 90.0);
+            }
+            IgPacket::LosExtendedResponse(r) => {
+                assert!(r.valid);
+                let low = r.request_id == 100;
+                assert_eq!(
+                    (r.visible, r.range_valid),
+                    (!low, low),
+                    "request {}",
+                    r.request_id
+                );
+                if low {
+                    eprintln!(
+                        "LOS at 2300 m: range {:.2} m, march {want:.2} m (± {tol:.2})",
+                        r.range
+                    );
+                    assert!((r.range - want).abs() <= tol, "range {} vs {want}", r.range);
+                    eprintln!(
+                        "hit {:.6}, {:.6}, {:.3} m; the 3″ surface there {:.3} m",
+                        r.lat,
+                        r.lon,
+                        r.alt,
+                        dem.height(r.lat, r.lon)
+                    );
+                    assert!(
+                        (r.alt - dem.height(r.lat, r.lon)).abs() < 0.05,
+                        "the hit lies on the 3″ surface"
+                    );
+                }
+            }
+            p => panic!("unexpected {p:?}"),
+        }
+        seen += 1;
+    }
+    assert_eq!(seen, 8);
+}

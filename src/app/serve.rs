@@ -77,6 +77,7 @@ pub fn run(opts: &ServeOptions) -> Result<String> {
         None => None,
     };
     let mut ig = CigiIg::bind(&opts.cigi)?;
+    ig.open_database(&p.scene)?;
     let period = Duration::from_secs_f64(1.0 / MAX_RATE_HZ);
     let mut done = 0u64;
     while opts.frames.is_none_or(|n| done < n) {

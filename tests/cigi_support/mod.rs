@@ -239,3 +239,50 @@ pub fn percentile(v: &[f64], q: f64) -> f64 {
     s.sort_by(f64::total_cmp);
     s[((s.len() as f64 * q).ceil() as usize).clamp(1, s.len()) - 1]
 }
+
+/// The DEM of N47E009 read here: 1201² big-endian i16, row 0 the northern edge (48°N),
+/// column 0 the western (9°E), 3″ steps.
+pub struct Dem(Vec<i16>);
+
+impl Dem {
+    pub fn load() -> Dem {
+        let b = std::fs::read(terrains().join("N47E009.hgt")).unwrap();
+        assert_eq!(b.len(), 1201 * 1201 * 2);
+        Dem(b
+            .chunks(2)
+            .map(|c| i16::from_be_bytes([c[0], c[1]]))
+            .collect())
+    }
+
+    fn at(&self, row: usize, col: usize) -> f64 {
+        let v = self.0[row * 1201 + col];
+        assert_ne!(v, -32768, "void sample at row {row}, column {col}");
+        f64::from(v)
+    }
+
+    /// The bilinear surface (metres above MSL) at `lat`, `lon`.
+    pub fn height(&self, lat: f64, lon: f64) -> f64 {
+        let (r, c) = ((48.0 - lat) * 1200.0, (lon - 9.0) * 1200.0);
+        let (r0, c0) = (r.floor() as usize, c.floor() as usize);
+        let (v, u) = (r - r0 as f64, c - c0 as f64);
+        self.at(r0, c0) * (1.0 - u) * (1.0 - v)
+            + self.at(r0, c0 + 1) * u * (1.0 - v)
+            + self.at(r0 + 1, c0) * (1.0 - u) * v
+            + self.at(r0 + 1, c0 + 1) * u * v
+    }
+
+    /// The first point of a constant-longitude segment below the surface by a 40,000-step
+    /// march: `(fraction along the segment, step)`, or `None` when it stays above.
+    pub fn march(
+        &self,
+        lon: f64,
+        (lat0, alt0): (f64, f64),
+        (lat1, alt1): (f64, f64),
+    ) -> Option<(f64, f64)> {
+        let n = 40_000;
+        (0..=n).map(|k| k as f64 / n as f64).find_map(|s| {
+            let (lat, alt) = (lat0 + (lat1 - lat0) * s, alt0 + (alt1 - alt0) * s);
+            (alt < self.height(lat, lon)).then_some((s, 1.0 / n as f64))
+        })
+    }
+}

@@ -104,6 +104,9 @@ pub struct CigiIg {
     pub off_terrain: u64,
     /// Local time (s since the IG started) the current frame's camera is for.
     pub frame_time: f64,
+    /// On a database scene, the database the queries are answered from at full resolution
+    /// ([`CigiIg::open_database`]).
+    pub full: Option<crate::cpu::database::FullResolution>,
     /// The frame's sun `(azimuth, elevation)` from Celestial Sphere Control, and fog
     /// visibility (m) from Atmosphere/Weather Control, when the host gave them.
     pub sun: Option<(f64, f64)>,
@@ -159,11 +162,21 @@ impl CigiIg {
             entities_frame: (0, 0, 0),
             off_terrain: 0,
             frame_time: 0.0,
+            full: None,
             sun: None,
             visibility: None,
             bad_dates: 0,
             buf: vec![0; 65536],
         })
+    }
+
+    /// Answers queries from the database of `scene` at full resolution when its terrain is a
+    /// database (else from the scene's terrain).
+    pub fn open_database(&mut self, scene: &crate::scene::Scene) -> Result<()> {
+        let full =
+            crate::cpu::database::FullResolution::open(&scene.desc.terrain, &scene.base_dir)?;
+        self.full = full;
+        Ok(())
     }
 
     /// The socket's address.
@@ -388,7 +401,11 @@ impl CigiIg {
         let mut msg = self.session.start_of_frame(frame, Some(ticks));
         let queries = self.session.take_queries();
         let host_t = self.session.host_time_at(now);
-        let c = answer::answer(terrain, &self.session, &queries, host_t, &mut msg);
+        let ground = answer::Ground {
+            terrain,
+            full: self.full.as_ref(),
+        };
+        let c = answer::answer(&ground, &self.session, &queries, host_t, &mut msg);
         let a = &mut self.answers;
         a.hat_hot += c.hat_hot;
         a.los += c.los;
