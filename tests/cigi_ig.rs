@@ -1019,6 +1019,71 @@ fn an_entity_from_a_scene_template_appears_moves_hides_and_vanishes() {
         }
     }
     assert_eq!(json(2)["cigi"]["not_drawn"], 1, "type 99 has no template");
+    // The CPU reference: the same session state through `world::entity_instances`, every pixel
+    // of frame 2 cast through the terrain and the instances (`cpu::freeform::cast_scene`).
+    let sc = relief::scene::Scene::load(&scene).unwrap();
+    let world = relief::world::World::load(&sc).unwrap();
+    assert!(
+        world.objects.is_empty(),
+        "the template is not a scene object"
+    );
+    let mut session = Session::new();
+    session
+        .receive(&message(ig_control(1, None, false), &steps[2]), 0.0)
+        .unwrap();
+    let inst = relief::world::entity_instances(&session, &world.terrain, &world.templates, 0.0);
+    assert_eq!((inst.drawn.len(), inst.not_drawn, inst.hidden), (1, 1, 0));
+    let objects: Vec<_> = inst.drawn.iter().map(|(_, o)| o.clone()).collect();
+    let pose = relief::scene::Pose {
+        position: world.terrain.geodetic_to_world("camera", cam).unwrap(),
+        heading,
+        pitch,
+        roll: 0.0,
+        fov: 60.0,
+    };
+    let camera = relief::scene::Camera::new(pose, 160, 120);
+    let frame2 = img(2);
+    let gpu_mask = |x: u32, y: u32| {
+        let (p, q) = (frame2.get_pixel(x, y).0, base.get_pixel(x, y).0);
+        (0..3).map(|c| u32::from(p[c].abs_diff(q[c]))).sum::<u32>() > 6
+    };
+    // Rays within 20 pixels of the projection (the GPU frame changed nowhere else).
+    let (px, py) = project(cam, heading, pitch, 60.0, (160.0, 120.0), p2);
+    let near = |x: u32, y: u32| {
+        (f64::from(x) + 0.5 - px).abs() <= 20.0 && (f64::from(y) + 0.5 - py).abs() <= 20.0
+    };
+    let outside = (0..120u32)
+        .flat_map(|y| (0..160u32).map(move |x| (x, y)))
+        .filter(|&(x, y)| !near(x, y) && gpu_mask(x, y))
+        .count();
+    assert_eq!(outside, 0);
+    let (mut cpu, mut differ) = (0, 0);
+    for y in 0..120 {
+        for x in (0..160).filter(|&x| near(x, y)) {
+            let d = camera.pixel_ray(x, y);
+            let hit = relief::cpu::freeform::cast_scene(
+                &world.terrain,
+                &objects,
+                pose.position,
+                d,
+                0.0,
+                1e6,
+            );
+            let object = matches!(
+                hit.map(|h| h.surface),
+                Some(relief::cpu::freeform::Surface::Object(_))
+            );
+            cpu += usize::from(object);
+            differ += usize::from(object != gpu_mask(x, y));
+        }
+    }
+    eprintln!(
+        "CPU reference: {cpu} object pixels, {differ} pixels where it and the GPU frame disagree"
+    );
+    assert!(
+        cpu >= 30 && differ * 10 <= cpu,
+        "CPU {cpu} pixels, {differ} differ"
+    );
     // Frame 4 against `relief render` of the template as a scene object at the entity's
     // geodetic pose (yaw 45°, pitch 10°, roll 5°): orientation and position alike.
     let object = format!(
