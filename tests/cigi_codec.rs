@@ -952,14 +952,16 @@ fn ownship_is_interpolated_between_two_host_samples() {
     // Longitude and roll the short way round the date line.
     let w = s.pose_at(1, 1.25).unwrap();
     assert_eq!((w.lon, w.roll), (-180.0, -180.0));
-    // At the samples, the samples; extrapolated a quarter interval on; held one interval past.
+    // At the samples, the samples; extrapolated a quarter interval on; held two intervals past.
     assert_eq!(s.pose_at(0, 1.0).unwrap().alt, 1000.0);
     assert_eq!(s.pose_at(0, 1.5).unwrap().alt, 1100.0);
     assert_eq!(s.pose_at(0, 1.625).unwrap().alt, 1125.0);
-    assert_eq!(s.pose_at(0, 99.0).unwrap().alt, 1200.0);
+    assert_eq!(s.pose_at(0, 2.5).unwrap().alt, 1300.0);
+    assert_eq!(s.pose_at(0, 99.0).unwrap().alt, 1300.0);
     assert_eq!(s.pose_at(0, 0.0).unwrap().alt, 1000.0);
-    // Local time → host time: 0.1 s after the last arrival is host time 1.6.
-    assert!((s.host_time_at(50.8) - 1.6).abs() < 1e-12);
+    // Local time → host time: the lowest arrival − host time (50.0 − 1.0 = 49.0; the second
+    // datagram measured 49.2, later by 0.2 s) is the offset: local 50.8 is host time 1.8.
+    assert!((s.host_time_at(50.8) - 1.8).abs() < 1e-12);
     // Interpolation off (the entity's bit): the latest sample.
     let mut c = b;
     c.extrapolation = false;

@@ -829,6 +829,13 @@ fn view_with_cigi_follows_a_synchronous_host() {
     let Some(x) = Xvfb::start() else { return };
     let dir = temp_dir("cigi-view");
     let scene = scene(&dir, [47.6, 9.6, 900.0], 45.0, 10.0, 0.0);
+    // A template for entity type 7 (the sun, fog and entities from the host, as in serve).
+    let mut text = std::fs::read_to_string(&scene).unwrap();
+    text.push_str(
+        "[[objects]]\nname = \"ball\"\nshape = \"sphere\"\nradius = 40.0\n\
+         geodetic = [47.2, 9.2, 3000.0]\n[[cigi.entity]]\ntype = 7\nfreeform = \"ball\"\nmax = 2\n",
+    );
+    std::fs::write(&scene, text).unwrap();
     let frames = dir.join("frames");
     let ig = Ig::start_command(
         "view",
@@ -850,13 +857,33 @@ fn view_with_cigi_follows_a_synchronous_host() {
             -6.0,
             0.0,
         );
-        let (m, _) = ig.exchange(&message(50 + k, &[own.into()]), 50 + k);
+        let mut ball = ownship([47.33, 9.31, 2300.0], 0.0, 0.0, 0.0);
+        (ball.entity_id, ball.entity_type) = (5, 7);
+        let celestial = CelestialSphereControl {
+            hour: 7,
+            minute: 40,
+            ephemeris: true,
+            sun: true,
+            moon: false,
+            stars: false,
+            date_time_valid: true,
+            date: 6_21_2024,
+            star_intensity: 0.0,
+        };
+        let mut atmosphere = AtmosphereControl::default();
+        (atmosphere.model_enable, atmosphere.visibility) = (true, 15000.0);
+        let packets = [own.into(), ball.into(), celestial.into(), atmosphere.into()];
+        let (m, _) = ig.exchange(&message(50 + k, &packets), 50 + k);
         assert_eq!(sof(&m).ig_frame, k);
     }
     ig.finish();
     for k in 0..3u32 {
         let j = common::read_json(&frames.join(format!("frame_{k:04}.json")));
         assert_eq!(j["cigi"]["host_frame"], 50 + k, "frame {k}");
+        assert_eq!(j["cigi"]["drawn"], 1, "frame {k}: the entity drawn");
+        assert_eq!(j["cigi"]["visibility"], 15000.0, "frame {k}");
+        let sun = j["cigi"]["sun"][0].as_f64().unwrap();
+        assert!((sun - 97.96).abs() < 0.1, "frame {k}: sun azimuth {sun}");
         let lat = j["camera"]["geodetic"][0].as_f64().unwrap();
         assert!(
             (lat - (47.37 - 0.001 * f64::from(k))).abs() < 1e-9,

@@ -377,7 +377,23 @@ pub struct Frames<'a> {
     fps: f64,
 }
 
-impl Frames<'_> {
+impl<'a> Frames<'a> {
+    /// The same frames with `scene` in place of the run's (the host's sun and fog).
+    pub fn with_scene<'b>(&self, scene: &'b Scene) -> Frames<'b>
+    where
+        'a: 'b,
+    {
+        Frames {
+            job: self.job,
+            gpu: self.gpu,
+            scene,
+            terrain: self.terrain,
+            settings: self.settings,
+            projection: self.projection,
+            fps: self.fps,
+        }
+    }
+
     /// Renders frame `frame` and writes its three files (none of them when one cannot be).
     fn render(&self, renderer: &mut TerrainRenderer, frame: u32) -> Result<[PathBuf; 3]> {
         let cam = self.scene.camera(frame, self.terrain);

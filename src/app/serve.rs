@@ -35,6 +35,10 @@ pub struct ServeOptions {
     /// Write every frame's files (frame_NNNN.png, depth_NNNN.tiff, frame_NNNN.json) here.
     #[arg(long)]
     pub capture_frames: Option<PathBuf>,
+    /// Append one JSON line per frame here: IG frame, IG time, host frame, host time, the
+    /// camera's geodetic position and heading/pitch/roll, render milliseconds.
+    #[arg(long, value_name = "FILE")]
+    pub pose_log: Option<PathBuf>,
     #[command(flatten)]
     pub toggles: RenderToggles,
 }
@@ -66,7 +70,14 @@ pub fn run(opts: &ServeOptions) -> Result<String> {
     let frames = p.frames(&job);
     let terrain = &p.world.terrain;
     let base = p.scene.camera(0, terrain);
+    let mut log = match &opts.pose_log {
+        Some(p) => Some(std::io::BufWriter::new(
+            std::fs::File::create(p).map_err(|e| Error::io(p, e))?,
+        )),
+        None => None,
+    };
     let mut ig = CigiIg::bind(&opts.cigi)?;
+    ig.open_database(&p.scene)?;
     let period = Duration::from_secs_f64(1.0 / MAX_RATE_HZ);
     let mut done = 0u64;
     while opts.frames.is_none_or(|n| done < n) {
@@ -78,9 +89,30 @@ pub fn run(opts: &ServeOptions) -> Result<String> {
         }
         let (pose, own) = ig.camera_pose(terrain, base.pose);
         let cam = Camera::new(pose, base.width, base.height);
+        let at = own
+            .map(|o| o.geodetic)
+            .or_else(|| terrain.world_to_geodetic(cam.pose.position));
+        let instances = ig.instances(terrain, &p.world.templates);
+        renderer.set_instances(instances.drawn);
+        let mut scene = p.scene.clone();
+        ig.environment(&mut scene.desc, at);
+        let frames = frames.with_scene(&scene);
         renderer.set_time(ig.now());
         let out = frames.render_camera(&mut renderer, &cam)?;
         let ig_frame = ig.ig_frame;
+        if let (Some(w), Some(path)) = (log.as_mut(), &opts.pose_log) {
+            let line = json!({
+                "ig_frame": ig_frame,
+                "ig_time_s": ig.frame_time,
+                "host_frame": ig.session.host_frame,
+                "host_time_s": own.map(|o| o.host_time),
+                "geodetic": own.map(|o| o.geodetic),
+                "hpr": [cam.pose.heading, cam.pose.pitch, cam.pose.roll],
+                "busy_ms": started.elapsed().as_secs_f64() * 1e3,
+            });
+            use std::io::Write as _;
+            writeln!(w, "{line}").map_err(|e| Error::io(path, e))?;
+        }
         if opts.capture_frames.is_some() {
             let geodetic = own
                 .map(|o| o.geodetic)
@@ -101,5 +133,13 @@ pub fn run(opts: &ServeOptions) -> Result<String> {
             }
         }
     }
-    Ok(ig.summary())
+    if let (Some(mut w), Some(path)) = (log, &opts.pose_log) {
+        use std::io::Write as _;
+        w.flush().map_err(|e| Error::io(path, e))?;
+    }
+    Ok(format!(
+        "{}\ncigi-counters: {}",
+        ig.summary(),
+        ig.counters_json()
+    ))
 }

@@ -8,7 +8,7 @@ use crate::Result;
 /// A renderer for `world`: its terrain, then its free forms, volumes and voxel models.
 pub fn renderer(gpu: &Gpu, world: &World) -> Result<TerrainRenderer> {
     let mut renderer = TerrainRenderer::new(gpu, &world.terrain)?;
-    renderer.set_objects(gpu, &world.objects)?;
+    renderer.set_objects_with_templates(gpu, &world.objects, &world.template_slots())?;
     renderer.set_volumes(gpu, &world.volumes)?;
     renderer.set_voxels(gpu, &world.voxels)?;
     Ok(renderer)

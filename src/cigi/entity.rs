@@ -6,13 +6,18 @@
 //!   sample, `t` before it held at it;
 //! * else, with extrapolation/interpolation enabled (the entity's bit and IG Control's) and
 //!   two samples at different times: linear between them (angles and longitude the short way
-//!   round), extrapolated at most one sample interval past the latest, held beyond;
+//!   round), extrapolated at most two sample intervals (and at least 0.1 s) past the latest,
+//!   held beyond (an IG reads datagrams at its frame starts, so at a 30 Hz host and a 60 Hz IG
+//!   the latest sample it holds is up to an interval and a frame old; a host catching up after
+//!   a stall sends two samples closer together than its rate);
 //! * else the latest sample.
 
 use crate::geodesy;
 
 /// How far past the latest sample the two-sample extrapolation goes, in sample intervals.
-pub const MAX_EXTRAPOLATION: f64 = 1.0;
+pub const MAX_EXTRAPOLATION: f64 = 2.0;
+/// ... and at least this far (seconds).
+pub const MIN_EXTRAPOLATION_S: f64 = 0.1;
 
 /// An entity's lifecycle state (destroyed entities are removed).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -96,7 +101,8 @@ impl Entity {
                 if span <= 0.0 || !t.is_finite() {
                     return self.latest.pose;
                 }
-                let s = ((t - p.time) / span).clamp(0.0, 1.0 + MAX_EXTRAPOLATION);
+                let reach = (MAX_EXTRAPOLATION * span).max(MIN_EXTRAPOLATION_S);
+                let s = ((t - p.time) / span).clamp(0.0, 1.0 + reach / span);
                 lerp_pose(&p.pose, &self.latest.pose, s, self.parent.is_none())
             }
             _ => self.latest.pose,

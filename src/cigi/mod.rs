@@ -10,10 +10,12 @@
 //!   input), and the builder of outgoing datagrams;
 //! * [`session`], [`entity`]: the host state a stream of datagrams leaves, with counters, the
 //!   query queue and entity poses at a given time;
+//! * [`clock`]: local time → host time, without steps;
 //! * [`pcap`]: a capture writer so Wireshark/tshark can decode relief's traffic.
 
 #[macro_use]
 pub mod packet;
+pub mod clock;
 pub mod entity;
 pub mod host;
 pub mod ig;

@@ -8,6 +8,7 @@
 //! [`MAX_ENTITIES`] of them); views, weather layers and queries are capped as well, so no
 //! stream of datagrams makes the session grow without bound.
 
+use super::clock::HostClock;
 use super::entity::{Entity, EntityState, Pose, Rates, Sample};
 use super::host::*;
 use super::ig::StartOfFrame;
@@ -157,6 +158,8 @@ pub struct Session {
     pub host_time: f64,
     /// Arrival time (`now`) of the last accepted datagram.
     pub arrival: f64,
+    /// Local → host time ([`HostClock`]).
+    pub clock: HostClock,
     wraps: u64,
     entities: BTreeMap<u16, Entity>,
     pub views: BTreeMap<u16, View>,
@@ -315,10 +318,16 @@ impl Session {
                 }
             }
             self.host_timestamp = Some(p.timestamp);
-            self.host_time = ((self.wraps << 32) + u64::from(p.timestamp)) as f64 / 100_000.0;
+            let t = ((self.wraps << 32) + u64::from(p.timestamp)) as f64 / 100_000.0;
+            if t < self.host_time - super::clock::RESET {
+                // Timestamps went back (not a wrap): a restarted host, a new clock.
+                self.clock.restart();
+            }
+            self.host_time = t;
         } else {
             self.host_time = now;
         }
+        self.clock.observe(now, self.host_time);
     }
 
     /// Entering reset/standby: every entity but the ownship (0) and every pending query go.
@@ -482,10 +491,11 @@ impl Session {
         self.entities.get(&0)
     }
 
-    /// The host time (s) at local time `now`: the last datagram's host time advanced by the
-    /// time since it arrived.
+    /// The host time (s) at local time `now`: `now` minus the clock offset [`HostClock`]
+    /// estimates (the lowest `arrival − host time` of the last 2 s, slewed); before any
+    /// datagram, `now`.
     pub fn host_time_at(&self, now: f64) -> f64 {
-        self.host_time + (now - self.arrival)
+        self.clock.host_time_at(now).unwrap_or(now)
     }
 
     /// Entity `id`'s pose at host time `t` ([`Entity::pose_at`]).

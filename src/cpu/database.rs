@@ -48,6 +48,11 @@ impl FullResolution {
     /// height above mean sea level, after `sea_level`); `None` off the database.
     pub fn height_at(&self, terrain: &Terrain, p: DVec3) -> Result<Option<SurfaceSample>> {
         let [lat, lon, _] = Self::geodetic(terrain, p)?;
+        self.height_at_geodetic(lat, lon)
+    }
+
+    /// The surface at `lat`, `lon` (degrees) at full resolution, as [`Self::height_at`].
+    pub fn height_at_geodetic(&self, lat: f64, lon: f64) -> Result<Option<SurfaceSample>> {
         let s = db::height_at(&self.db, lat, lon)?;
         Ok(s.map(|mut s| {
             if let Some(sea) = self.desc.sea_level {
@@ -64,6 +69,16 @@ impl FullResolution {
     /// level spacing (degrees).
     pub fn line_of_sight(&self, terrain: &Terrain, a: DVec3, b: DVec3) -> Result<(bool, f64)> {
         let (ga, gb) = (Self::geodetic(terrain, a)?, Self::geodetic(terrain, b)?);
+        let local = self.window(ga, gb)?;
+        let spacing = local.field.geo.map_or(f64::NAN, |g| g.dlat);
+        let to_local = |g: [f64; 3]| local.geodetic_to_world("los", g);
+        Ok((line_of_sight(&local, to_local(ga)?, to_local(gb)?), spacing))
+    }
+
+    /// A terrain of the finest level of the database that fits a window around geodetic
+    /// points `ga` and `gb` (two samples of margin; the scene's terrain keys otherwise): the
+    /// surface the full-resolution queries between them run on.
+    pub fn window(&self, ga: [f64; 3], gb: [f64; 3]) -> Result<Terrain> {
         let e = self.db.header().extent;
         let finest = self.db.header().levels.last().map_or(1.0, |l| l.spacing());
         let m = 2.0 * finest;
@@ -84,9 +99,6 @@ impl FullResolution {
             level: None,
             ..self.desc.clone()
         };
-        let local = Terrain::from_desc(&desc, &self.base_dir)?;
-        let spacing = local.field.geo.map_or(f64::NAN, |g| g.dlat);
-        let to_local = |g: [f64; 3]| local.geodetic_to_world("los", g);
-        Ok((line_of_sight(&local, to_local(ga)?, to_local(gb)?), spacing))
+        Terrain::from_desc(&desc, &self.base_dir)
     }
 }

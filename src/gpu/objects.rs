@@ -31,7 +31,7 @@ pub fn pack(objects: &[FreeForm]) -> (Vec<FfObjectGpu>, Vec<FfNodeGpu>) {
     let mut recs = Vec::with_capacity(objects.len());
     let mut nodes = Vec::new();
     for ff in objects {
-        let first = nodes.len() as u32;
+        recs.push(pack_record(ff, nodes.len() as u32));
         for n in &ff.nodes {
             let c = n.q.0.map(|v| v as f32);
             nodes.push(FfNodeGpu {
@@ -40,55 +40,55 @@ pub fn pack(objects: &[FreeForm]) -> (Vec<FfObjectGpu>, Vec<FfNodeGpu>) {
                 q2: [c[8], c[9], n.weight as f32, n.depth as f32],
             });
         }
-        let rt = ff.rotation.transpose();
-        let row = |v: glam::DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0];
-        let (centre, radius) = ff.bounding_sphere();
-        let [lo, hi] = ff.bounds;
-        let m = &ff.material;
-        recs.push(FfObjectGpu {
-            local_from_world: [row(rt.row(0)), row(rt.row(1)), row(rt.row(2))],
-            position: [
-                ff.position.x as f32,
-                ff.position.y as f32,
-                ff.position.z as f32,
-                crate::cpu::freeform::object_shadow_offset(ff) as f32,
-            ],
-            box_min: [lo.x as f32, lo.y as f32, lo.z as f32, f32::from_bits(first)],
-            box_max: [
-                hi.x as f32,
-                hi.y as f32,
-                hi.z as f32,
-                f32::from_bits(ff.nodes.len() as u32),
-            ],
-            colour: [m.colour[0], m.colour[1], m.colour[2], m.shininess],
-            material: [
-                m.ambient,
-                m.diffuse,
-                m.specular,
-                if ff.is_convex() { 1.0 } else { 0.0 },
-            ],
-            sphere: [
-                centre.x as f32,
-                centre.y as f32,
-                centre.z as f32,
-                radius as f32,
-            ],
-        });
     }
     (recs, nodes)
 }
 
+/// The record of one object whose nodes start at node `first`.
+pub fn pack_record(ff: &FreeForm, first: u32) -> FfObjectGpu {
+    let rt = ff.rotation.transpose();
+    let row = |v: glam::DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0];
+    let (centre, radius) = ff.bounding_sphere();
+    let [lo, hi] = ff.bounds;
+    let m = &ff.material;
+    FfObjectGpu {
+        local_from_world: [row(rt.row(0)), row(rt.row(1)), row(rt.row(2))],
+        position: [
+            ff.position.x as f32,
+            ff.position.y as f32,
+            ff.position.z as f32,
+            crate::cpu::freeform::object_shadow_offset(ff) as f32,
+        ],
+        box_min: [lo.x as f32, lo.y as f32, lo.z as f32, f32::from_bits(first)],
+        box_max: [
+            hi.x as f32,
+            hi.y as f32,
+            hi.z as f32,
+            f32::from_bits(ff.nodes.len() as u32),
+        ],
+        colour: [m.colour[0], m.colour[1], m.colour[2], m.shininess],
+        material: [
+            m.ambient,
+            m.diffuse,
+            m.specular,
+            if ff.is_convex() { 1.0 } else { 0.0 },
+        ],
+        sphere: [
+            centre.x as f32,
+            centre.y as f32,
+            centre.z as f32,
+            radius as f32,
+        ],
+    }
+}
+
 /// Refuses more objects than the shaders address, and adapters without storage buffers in
 /// vertex shaders (the passes draw their bins from one).
-fn check_objects(gpu: &Gpu, objects: &[FreeForm]) -> Result<()> {
-    if objects.len() > crate::freeform::MAX_OBJECTS {
+fn check_objects(gpu: &Gpu, count: usize) -> Result<()> {
+    if count > crate::freeform::MAX_OBJECTS {
         return Err(Error::Limit {
-            what: "free forms".into(),
-            msg: format!(
-                "{} objects, at most {}",
-                objects.len(),
-                crate::freeform::MAX_OBJECTS
-            ),
+            what: "free forms (entity template slots included)".into(),
+            msg: format!("{count} objects, at most {}", crate::freeform::MAX_OBJECTS),
         });
     }
     if !gpu.downlevel.contains(wgpu::DownlevelFlags::VERTEX_STORAGE) {
@@ -286,7 +286,12 @@ fn binned_pipelines(
 
 /// Object buffers and the pipelines that use them.
 pub(crate) struct ObjectPasses {
+    /// Records allocated: the scene's objects, then the entity templates' slots.
     pub count: u32,
+    /// Records drawn: the scene's objects and the instances of [`ObjectPasses::set_instances`].
+    pub active: u32,
+    /// Per entity template, the first of its nodes (after the scene objects' nodes).
+    template_nodes: Vec<u32>,
     /// The object records as placed, and per object its origin and bounding-sphere centre
     /// (world, f64): what [`ObjectPasses::set_offsets`] moves.
     placed: Vec<FfObjectGpu>,
@@ -329,11 +334,32 @@ pub(crate) struct ObjectTargets {
 }
 
 impl ObjectPasses {
-    /// Uploads `objects` and builds their pipelines; `allow_uniform`: tables in uniform
-    /// buffers where they fit (else always storage buffers).
-    pub fn new(gpu: &Gpu, objects: &[FreeForm], allow_uniform: bool) -> Result<ObjectPasses> {
-        check_objects(gpu, objects)?;
-        let (recs, nodes) = pack(objects);
+    /// Uploads `statics` (drawn) with room for `max` instances of each entity template
+    /// (`(object, max)`; drawn only as [`ObjectPasses::set_instances`] places them) and
+    /// builds their pipelines; `allow_uniform`: tables in uniform buffers where they fit (else
+    /// always storage buffers).
+    pub fn with_templates(
+        gpu: &Gpu,
+        statics: &[FreeForm],
+        templates: &[(FreeForm, usize)],
+        allow_uniform: bool,
+    ) -> Result<ObjectPasses> {
+        let slots: usize = templates.iter().map(|(_, m)| m).sum();
+        check_objects(gpu, statics.len() + slots)?;
+        let objects: Vec<FreeForm> = (statics.iter().cloned())
+            .chain(templates.iter().map(|(o, _)| o.clone()))
+            .collect();
+        let objects = &objects[..];
+        let (packed, nodes) = pack(objects);
+        let template_nodes: Vec<u32> = packed[statics.len()..]
+            .iter()
+            .map(|r| r.box_min[3].to_bits())
+            .collect();
+        // The slots start as copies of their template (not drawn: `active` leaves them out).
+        let mut recs = packed[..statics.len()].to_vec();
+        for ((_, max), rec) in templates.iter().zip(&packed[statics.len()..]) {
+            recs.extend(std::iter::repeat_n(*rec, *max));
+        }
         let tables = choose_tables(gpu, &recs, &nodes, allow_uniform)?;
         let dev = &gpu.device;
         let usage = if tables.uniform() {
@@ -368,9 +394,11 @@ impl ObjectPasses {
             shade_bgl.clone(),
         );
         Ok(ObjectPasses {
-            count: objects.len() as u32,
-            placed: recs,
-            placed_points: objects
+            count: recs.len() as u32,
+            active: statics.len() as u32,
+            template_nodes,
+            placed: recs[..statics.len()].to_vec(),
+            placed_points: statics
                 .iter()
                 .map(|o| [o.position, o.bounding_sphere().0])
                 .collect(),
@@ -410,6 +438,26 @@ impl ObjectPasses {
             .collect();
         gpu.queue
             .write_buffer(&self.objects, 0, bytemuck::cast_slice(&recs));
+    }
+
+    /// Draws `instances` (`(template index, the template's object posed)`, at most the
+    /// template slots in all) after the scene's objects until the next call; returns how many
+    /// are drawn.
+    pub fn set_instances(&mut self, gpu: &Gpu, instances: &[(usize, FreeForm)]) -> usize {
+        let statics = self.placed.len();
+        let room = self.count as usize - statics;
+        let recs: Vec<FfObjectGpu> = instances
+            .iter()
+            .filter_map(|(k, ff)| Some(pack_record(ff, *self.template_nodes.get(*k)?)))
+            .take(room)
+            .collect();
+        if !recs.is_empty() {
+            let at = (statics * std::mem::size_of::<FfObjectGpu>()) as u64;
+            gpu.queue
+                .write_buffer(&self.objects, at, bytemuck::cast_slice(&recs));
+        }
+        self.active = (statics + recs.len()) as u32;
+        recs.len()
     }
 
     /// Bins, the free-form G-buffer and bind groups for a `width` x `height` frame.

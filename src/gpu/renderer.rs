@@ -20,6 +20,8 @@ use super::Gpu;
 use crate::cpu::voxel::InstanceRect;
 use crate::display::pattern::PatternParams;
 use crate::scene::{Camera, SceneDesc};
+
+mod instances;
 use crate::terrain::curved::GridCurvature;
 use crate::terrain::Terrain;
 use crate::{Error, Result};
@@ -36,6 +38,11 @@ pub struct TerrainRenderer {
     /// placed and as this frame sees them (lowered on the curved earth).
     objects_floor: f64,
     placed_floor: f64,
+    /// The scene objects' floor as this frame sees them (without the instances).
+    statics_floor: f64,
+    /// Entity instances to draw ([`Self::set_instances`]) and whether they changed.
+    instances: Vec<(usize, crate::freeform::FreeForm)>,
+    instances_dirty: bool,
     /// The curvature the objects were last moved for ([`Self::lower_objects`]); `None`: as
     /// placed.
     lowered_for: Option<GridCurvature>,
@@ -119,6 +126,9 @@ impl TerrainRenderer {
             objects: None,
             objects_floor: f64::INFINITY,
             placed_floor: f64::INFINITY,
+            statics_floor: f64::INFINITY,
+            instances: Vec::new(),
+            instances_dirty: false,
             lowered_for: None,
             volumes: VolumeSet::default(),
             blend: None,
@@ -179,11 +189,29 @@ impl TerrainRenderer {
         objects: &[crate::freeform::FreeForm],
         allow_uniform: bool,
     ) -> Result<()> {
-        self.objects = if objects.is_empty() {
+        self.upload_with_templates(gpu, objects, &[], allow_uniform)
+    }
+
+    fn upload_with_templates(
+        &mut self,
+        gpu: &Gpu,
+        objects: &[crate::freeform::FreeForm],
+        templates: &[(crate::freeform::FreeForm, usize)],
+        allow_uniform: bool,
+    ) -> Result<()> {
+        self.objects = if objects.is_empty() && templates.is_empty() {
             None
         } else {
-            Some(ObjectPasses::new(gpu, objects, allow_uniform)?)
+            let t = templates;
+            Some(ObjectPasses::with_templates(
+                gpu,
+                objects,
+                t,
+                allow_uniform,
+            )?)
         };
+        self.instances.clear();
+        self.instances_dirty = false;
         self.objects_floor = objects
             .iter()
             .map(|o| {
@@ -192,6 +220,7 @@ impl TerrainRenderer {
             })
             .fold(f64::INFINITY, f64::min);
         self.placed_floor = self.objects_floor;
+        self.statics_floor = self.objects_floor;
         self.lowered_for = None;
         self.targets = None;
         Ok(())
@@ -441,7 +470,7 @@ impl TerrainRenderer {
         self.stamp = self.stamp.wrapping_add(1).max(1);
         fu.stamp = [self.stamp, 0, 0, 0];
         if let (Some(o), Some((ot, _))) = (&self.objects, &t.objects) {
-            fu.objects = [o.count, ot.bins[0], ot.bins[1], BIN_CAPACITY];
+            fu.objects = [o.active, ot.bins[0], ot.bins[1], BIN_CAPACITY];
         }
         let data = &self.base.data;
         gpu.queue
@@ -478,6 +507,7 @@ impl TerrainRenderer {
         let terrain = job.terrain;
         let curv = terrain.curvature(job.cam.pose.position);
         if self.lowered_for == Some(curv) || (self.lowered_for.is_none() && curv.is_flat()) {
+            self.place_instances(job, false);
             return;
         }
         let offset = |anchor| terrain.curved_offset(&curv, anchor);
@@ -487,7 +517,9 @@ impl TerrainRenderer {
             deepest = offsets.iter().fold(deepest, |d, v| d.min(v.z));
             o.set_offsets(job.gpu, &offsets);
         }
-        self.objects_floor = self.placed_floor + deepest;
+        self.statics_floor = self.placed_floor + deepest;
+        self.objects_floor = self.statics_floor;
+        self.place_instances(job, true);
         for v in &mut self.volumes.passes {
             v.offset = offset(v.volume.anchor());
         }

@@ -2,6 +2,8 @@
 //! path. Unknown keys are errors that name the key. No GPU types live here.
 
 mod camera;
+pub mod cigi;
+pub mod solar;
 
 pub use camera::{Camera, CameraPath, Keyframe, Pose};
 
@@ -35,6 +37,9 @@ pub struct SceneDesc {
     /// Quadric free forms (`[[objects]]`).
     #[serde(default)]
     pub objects: Vec<crate::freeform::FreeFormDesc>,
+    /// CIGI entity templates (`[cigi]`).
+    #[serde(default, skip_serializing_if = "cigi::CigiDesc::is_empty")]
+    pub cigi: cigi::CigiDesc,
     /// Density volumes (`[[volumes]]`).
     #[serde(default)]
     pub volumes: Vec<crate::volume::VolumeDesc>,
@@ -397,6 +402,7 @@ impl Scene {
 impl SceneDesc {
     /// Checks ranges and consistency; errors name the field.
     pub fn validate(&self) -> Result<()> {
+        self.cigi.validate(&self.objects)?;
         let c = &self.camera;
         if c.position.is_some() == c.geodetic.is_some() {
             return Err(camera_position_error());

@@ -15,6 +15,12 @@
 //!   parent-relative for an attached one. Other object classes (parts, views, groups, trackers)
 //!   and unknown entities get no response (counted).
 //!
+//! On a **database scene** (`[terrain] database`) every answer comes from the database at full
+//! resolution (`cpu::database::FullResolution`), whatever level the scene renders: HOT from the
+//! finest tile at the point, the normal, lines of sight and intersections over a window of the
+//! finest level that fits around the query. Tiles come through the database's bounded host
+//! cache and are read synchronously when not cached.
+//!
 //! Requests in an entity's frame (HAT/HOT `entity_frame`, LOS `source_entity_frame`, …) are
 //! answered `valid = false`: relative queries are not modelled yet. So is a point off the
 //! terrain's georeferenced window.
@@ -24,6 +30,7 @@ use crate::cigi::{
     LosSegmentRequest, LosVectorRequest, MessageBuilder, PositionRequest, PositionResponse, Query,
     Session,
 };
+use crate::cpu::database::FullResolution;
 use crate::cpu::query::{cast_ray, line_of_sight};
 use crate::cpu::Hit;
 use crate::terrain::Terrain;
@@ -88,9 +95,42 @@ fn normal_below(t: &Terrain, lat: f64, lon: f64) -> Option<DVec3> {
     cast_ray(t, o, -t.frame.normal, 0.0, span).map(|h| h.normal)
 }
 
+/// What the queries are answered on: the scene's terrain, or on a database scene the database
+/// at full resolution (`full`).
+#[derive(Clone, Copy)]
+pub struct Ground<'a> {
+    pub terrain: &'a Terrain,
+    pub full: Option<&'a FullResolution>,
+}
+
+impl Ground<'_> {
+    /// Height above MSL at `lat`, `lon`: the scene terrain's bilinear surface, or the
+    /// database's finest tile there.
+    fn hot(&self, lat: f64, lon: f64) -> Option<f64> {
+        match self.full {
+            None => height_of_terrain(self.terrain, lat, lon),
+            Some(f) => f
+                .height_at_geodetic(lat, lon)
+                .map_err(|e| log::debug!("CIGI HOT at {lat}, {lon}: {e}"))
+                .ok()
+                .flatten()
+                .map(|s| s.height),
+        }
+    }
+
+    /// The database's finest-level window around geodetic `a` and `b` (`None` without a
+    /// database: the scene's terrain is used; `Some(Err)`: off the database).
+    fn window(&self, a: [f64; 3], b: [f64; 3]) -> Option<Result<Terrain, ()>> {
+        let f = self.full?;
+        Some(f.window(a, b).map_err(|e| {
+            log::debug!("CIGI query window around {a:?}, {b:?}: {e}");
+        }))
+    }
+}
+
 /// Answers every query of `queries` onto `msg`; `now_host` is the host time of the frame.
 pub fn answer(
-    t: &Terrain,
+    t: &Ground,
     session: &Session,
     queries: &[Query],
     now_host: f64,
@@ -124,17 +164,23 @@ pub fn answer(
 }
 
 /// One HAT/HOT response; `false` when it is answered invalid.
-fn hat_hot(t: &Terrain, r: &HatHotRequest, frame: u32, msg: &mut MessageBuilder) -> bool {
-    let hot = (!r.entity_frame)
-        .then(|| height_of_terrain(t, r.lat, r.lon))
-        .flatten();
+fn hat_hot(g: &Ground, r: &HatHotRequest, frame: u32, msg: &mut MessageBuilder) -> bool {
+    let hot = (!r.entity_frame).then(|| g.hot(r.lat, r.lon)).flatten();
     let valid = hot.is_some();
     let hot = hot.unwrap_or(0.0);
     let hat = if valid { r.alt - hot } else { 0.0 };
     if r.request_type & 3 == 2 {
-        let (az, el) = normal_below(t, r.lat, r.lon)
+        let at = [r.lat, r.lon, r.alt];
+        let window = g.window(at, at);
+        let t = match &window {
+            Some(Ok(w)) => Some(w),
+            Some(Err(())) => None,
+            None => Some(g.terrain),
+        };
+        let (az, el) = t
             .filter(|_| valid)
-            .map_or((0.0, 90.0), |n| azimuth_elevation(t, n));
+            .and_then(|t| Some((t, normal_below(t, r.lat, r.lon)?)))
+            .map_or((0.0, 90.0), |(t, n)| azimuth_elevation(t, n));
         msg.push(&HatHotExtendedResponse {
             request_id: r.request_id,
             valid,
@@ -209,14 +255,22 @@ fn push_los(t: &Terrain, id: u16, extended: bool, frame: u32, los: &Los, msg: &m
     }
 }
 
-fn los_segment(t: &Terrain, r: &LosSegmentRequest, frame: u32, msg: &mut MessageBuilder) -> bool {
-    let ends = (!r.source_entity_frame && !r.destination_entity_frame)
-        .then(|| {
-            let a = world(t, [r.source_lat, r.source_lon, r.source_alt])?;
-            let b = world(t, [r.destination_lat, r.destination_lon, r.destination_alt])?;
-            Some((a, b))
-        })
+fn los_segment(g: &Ground, r: &LosSegmentRequest, frame: u32, msg: &mut MessageBuilder) -> bool {
+    let (ga, gb) = (
+        [r.source_lat, r.source_lon, r.source_alt],
+        [r.destination_lat, r.destination_lon, r.destination_alt],
+    );
+    let window = (!r.source_entity_frame && !r.destination_entity_frame)
+        .then(|| g.window(ga, gb))
         .flatten();
+    let t = match &window {
+        Some(Ok(w)) => w,
+        _ => g.terrain,
+    };
+    let ends = (!r.source_entity_frame && !r.destination_entity_frame)
+        .then(|| Some((world(t, ga)?, world(t, gb)?)))
+        .flatten()
+        .filter(|_| !matches!(window, Some(Err(()))));
     let los = match ends {
         Some((a, b)) => {
             let len = (b - a).length();
@@ -239,15 +293,33 @@ fn los_segment(t: &Terrain, r: &LosSegmentRequest, frame: u32, msg: &mut Message
     los.valid
 }
 
-fn los_vector(t: &Terrain, r: &LosVectorRequest, frame: u32, msg: &mut MessageBuilder) -> bool {
-    let src = (!r.source_entity_frame)
-        .then(|| world(t, [r.source_lat, r.source_lon, r.source_alt]))
-        .flatten();
+fn los_vector(g: &Ground, r: &LosVectorRequest, frame: u32, msg: &mut MessageBuilder) -> bool {
     let ranges_ok = r.min_range.is_finite()
         && r.max_range.is_finite()
         && r.min_range >= 0.0
         && r.max_range >= r.min_range;
     let dir_ok = r.azimuth.is_finite() && r.elevation.is_finite();
+    let gs = [r.source_lat, r.source_lon, r.source_alt];
+    // On a database: the window around the source and the far end (placed on the scene's
+    // terrain); the ray is cast in the window's frame.
+    let window = (!r.source_entity_frame && ranges_ok && dir_ok)
+        .then(|| {
+            let s = world(g.terrain, gs)?;
+            let d = direction(g.terrain, f64::from(r.azimuth), f64::from(r.elevation));
+            let end = g
+                .terrain
+                .world_to_geodetic(s + d * f64::from(r.max_range))?;
+            g.window(gs, end)
+        })
+        .flatten();
+    let t = match &window {
+        Some(Ok(w)) => w,
+        _ => g.terrain,
+    };
+    let src = (!r.source_entity_frame)
+        .then(|| world(t, gs))
+        .flatten()
+        .filter(|_| !matches!(window, Some(Err(()))));
     let los = match src.filter(|_| ranges_ok && dir_ok) {
         Some(a) => {
             let d = direction(t, f64::from(r.azimuth), f64::from(r.elevation));

@@ -7,7 +7,9 @@
 pub mod answer;
 
 use crate::cigi::Session;
+use crate::scene::solar::{self, UtcTime};
 use crate::scene::Pose as CameraPose;
+use crate::scene::SceneDesc;
 use crate::terrain::Terrain;
 use crate::{Error, Result};
 use std::net::{IpAddr, SocketAddr, UdpSocket};
@@ -93,10 +95,24 @@ pub struct CigiIg {
     pub send_errors: u64,
     /// Queries answered, by kind, since the start.
     pub answers: answer::AnswerCounts,
-    /// The largest number of entities besides the ownship seen (they are not drawn yet).
+    /// The most entities besides the ownship not drawn in one frame (no template, attached,
+    /// off the terrain, beyond the template's `max`).
     pub other_entities: usize,
+    /// This frame's entity instances: drawn, not drawn, hidden (inactive).
+    pub entities_frame: (usize, usize, usize),
     /// The ownship pose was off the terrain (the camera kept its last pose), frames.
     pub off_terrain: u64,
+    /// Local time (s since the IG started) the current frame's camera is for.
+    pub frame_time: f64,
+    /// On a database scene, the database the queries are answered from at full resolution
+    /// ([`CigiIg::open_database`]).
+    pub full: Option<crate::cpu::database::FullResolution>,
+    /// The frame's sun `(azimuth, elevation)` from Celestial Sphere Control, and fog
+    /// visibility (m) from Atmosphere/Weather Control, when the host gave them.
+    pub sun: Option<(f64, f64)>,
+    pub visibility: Option<f64>,
+    /// Celestial Sphere Control with a date or time that does not exist, frames.
+    pub bad_dates: u64,
     buf: Vec<u8>,
 }
 
@@ -143,9 +159,24 @@ impl CigiIg {
             send_errors: 0,
             answers: Default::default(),
             other_entities: 0,
+            entities_frame: (0, 0, 0),
             off_terrain: 0,
+            frame_time: 0.0,
+            full: None,
+            sun: None,
+            visibility: None,
+            bad_dates: 0,
             buf: vec![0; 65536],
         })
+    }
+
+    /// Answers queries from the database of `scene` at full resolution when its terrain is a
+    /// database (else from the scene's terrain).
+    pub fn open_database(&mut self, scene: &crate::scene::Scene) -> Result<()> {
+        let full =
+            crate::cpu::database::FullResolution::open(&scene.desc.terrain, &scene.base_dir)?;
+        self.full = full;
+        Ok(())
     }
 
     /// The socket's address.
@@ -241,20 +272,12 @@ impl CigiIg {
         terrain: &Terrain,
         base: CameraPose,
     ) -> (CameraPose, Option<Ownship>) {
-        let others = self.session.entity_count() - usize::from(self.session.ownship().is_some());
-        if others > self.other_entities {
-            if self.other_entities == 0 {
-                log::warn!(
-                    "CIGI: {others} entities besides the ownship: other entities are not drawn yet"
-                );
-            }
-            self.other_entities = others;
-        }
         let mut pose = base;
         if let Some(fov) = self.view_fov() {
             pose.fov = fov;
         }
-        let t = self.session.host_time_at(self.now());
+        self.frame_time = self.now();
+        let t = self.session.host_time_at(self.frame_time);
         let Some(p) = self.session.pose_at(0, t) else {
             return (pose, None);
         };
@@ -290,6 +313,73 @@ impl CigiIg {
         }
     }
 
+    /// The host's environment into the frame's scene: the sun of Celestial Sphere Control
+    /// (date and time of day, read as UTC; its date/time-valid bit set) seen from `at` (the
+    /// ownship's geodetic position), and the session's visibility as the fog's (Koschmieder
+    /// extinction 3.912 / visibility in the frame uniforms). What the host has not sent stays
+    /// the scene's.
+    pub fn environment(&mut self, desc: &mut SceneDesc, at: Option<[f64; 3]>) {
+        self.sun = None;
+        if let (Some(c), Some([lat, lon, _])) = (self.session.celestial, at) {
+            let t = UtcTime::new(
+                (c.date % 10_000) as i32,
+                c.date / 1_000_000,
+                c.date / 10_000 % 100,
+                f64::from(c.hour) * 3600.0 + f64::from(c.minute) * 60.0,
+            );
+            match t.filter(|_| c.date_time_valid) {
+                Some(t) => {
+                    let (azimuth, elevation) = solar::sun_position(t, lat, lon);
+                    desc.sun.azimuth = azimuth;
+                    desc.sun.elevation = elevation;
+                    self.sun = Some((azimuth, elevation));
+                }
+                None if c.date_time_valid => {
+                    self.bad_dates += 1;
+                    if self.bad_dates == 1 {
+                        log::warn!(
+                            "CIGI Celestial Sphere Control: no such date/time (date {}, {}:{}); the scene's sun kept",
+                            c.date,
+                            c.hour,
+                            c.minute
+                        );
+                    }
+                }
+                None => {}
+            }
+        }
+        self.visibility = self
+            .session
+            .visibility()
+            .map(f64::from)
+            .filter(|v| v.is_finite() && *v > 0.0);
+        if let Some(v) = self.visibility {
+            desc.fog.visibility = v;
+        }
+    }
+
+    /// The entities drawn from `templates` this frame, at the frame's host time (call after
+    /// [`CigiIg::camera_pose`]); the counts go to the frame's JSON and the summary.
+    pub fn instances(
+        &mut self,
+        terrain: &Terrain,
+        templates: &[crate::world::EntityTemplate],
+    ) -> crate::world::Instances {
+        let t = self.session.host_time_at(self.frame_time);
+        let i = crate::world::entity_instances(&self.session, terrain, templates, t);
+        self.entities_frame = (i.drawn.len(), i.not_drawn, i.hidden);
+        if i.not_drawn > self.other_entities {
+            if self.other_entities == 0 {
+                log::warn!(
+                    "CIGI: {} entities not drawn (no [[cigi.entity]] template for their type, attached, off the terrain or beyond the template's max)",
+                    i.not_drawn
+                );
+            }
+            self.other_entities = i.not_drawn;
+        }
+        i
+    }
+
     /// Horizontal fov (degrees) of the lowest view ID whose View Definition gives both the
     /// left and right half-angles, when it is a usable pinhole fov.
     fn view_fov(&self) -> Option<f64> {
@@ -311,7 +401,11 @@ impl CigiIg {
         let mut msg = self.session.start_of_frame(frame, Some(ticks));
         let queries = self.session.take_queries();
         let host_t = self.session.host_time_at(now);
-        let c = answer::answer(terrain, &self.session, &queries, host_t, &mut msg);
+        let ground = answer::Ground {
+            terrain,
+            full: self.full.as_ref(),
+        };
+        let c = answer::answer(&ground, &self.session, &queries, host_t, &mut msg);
         let a = &mut self.answers;
         a.hat_hot += c.hat_hot;
         a.los += c.los;
@@ -338,12 +432,54 @@ impl CigiIg {
         serde_json::json!({
             "host_frame": self.session.host_frame,
             "ig_frame": ig_frame,
+            "ig_time_s": self.frame_time,
+            "sun": self.sun.map(|(a, e)| [a, e]),
+            "visibility": self.visibility,
             "sync": self.sync,
             "datagrams": c.datagrams,
             "accepted": c.accepted,
             "refused": c.datagrams - c.accepted,
             "malformed": c.malformed(),
             "entities": self.session.entity_count(),
+            "drawn": self.entities_frame.0,
+            "not_drawn": self.entities_frame.1,
+            "hidden": self.entities_frame.2,
+        })
+    }
+
+    /// Every session counter and the IG's own, as one JSON object (the end of a run).
+    pub fn counters_json(&self) -> serde_json::Value {
+        let c = &self.session.counters;
+        let by_kind: serde_json::Map<String, serde_json::Value> = crate::cigi::Kind::ALL
+            .iter()
+            .filter(|k| c.of_kind(**k) > 0)
+            .map(|k| (format!("{k:?}"), c.of_kind(*k).into()))
+            .collect();
+        serde_json::json!({
+            "ig_frames": self.ig_frame,
+            "datagrams": c.datagrams,
+            "accepted": c.accepted,
+            "short": c.short,
+            "no_header": c.no_header,
+            "refused_version": c.refused_version,
+            "bad_magic": c.bad_magic,
+            "ignored_sender": c.ignored_sender,
+            "packets": c.packets,
+            "by_kind": by_kind,
+            "unknown": c.unknown,
+            "short_packets": c.short_packets,
+            "misplaced_header": c.misplaced_header,
+            "size_below_two": c.size_below_two,
+            "past_end": c.past_end,
+            "trailing": c.trailing,
+            "invalid_values": c.invalid_values,
+            "refused_capacity": c.refused_capacity,
+            "dropped_queries": c.dropped_queries,
+            "destroyed": c.destroyed,
+            "malformed": c.malformed(),
+            "entities": self.session.entity_count(),
+            "sent": self.sent,
+            "send_errors": self.send_errors,
         })
     }
 

@@ -32,6 +32,8 @@ struct Step {
     overlay: Option<Vec<String>>,
     /// `--cigi`: the frame's `cigi` JSON part and the ownship's geodetic position.
     cigi: Option<(serde_json::Value, Option<[f64; 3]>)>,
+    /// `--cigi`: the entities drawn from the scene's templates.
+    instances: Option<Vec<(usize, crate::freeform::FreeForm)>>,
 }
 
 /// What drawing the windows took.
@@ -106,7 +108,7 @@ impl App {
         (self.prep.motion).step(t, if n == 0 { 0.0 } else { dt }, &c, terrain);
         let eye = self.eye_for(n)?;
         let mut pose = self.prep.motion.pose;
-        let mut cigi = None;
+        let (mut cigi, mut instances) = (None, None);
         let p = &mut self.prep;
         if let Some(ig) = &mut p.cigi {
             // The same per-frame session update as `relief serve`.
@@ -117,6 +119,11 @@ impl App {
             }
             let (cam, own) = ig.camera_pose(&p.world.terrain, pose);
             pose = cam;
+            let at = own
+                .map(|o| o.geodetic)
+                .or_else(|| p.world.terrain.world_to_geodetic(pose.position));
+            ig.environment(&mut self.desc, at);
+            instances = Some(ig.instances(&p.world.terrain, &p.world.templates).drawn);
             cigi = Some((ig.frame_json(ig.ig_frame), own.map(|o| o.geodetic)));
         }
         Ok(Step {
@@ -124,6 +131,7 @@ impl App {
             t,
             pose,
             cigi,
+            instances,
             eye,
             screenshot: std::mem::take(&mut self.screenshot),
             grab: self.prep.opts.grab == Some(n),
@@ -347,6 +355,9 @@ impl Draw<'_> {
         let cam = Camera::new(step.pose, rw, rh);
         // Animated voxel models follow the simulation clock.
         w.renderer.set_time(step.t);
+        if let Some(i) = &step.instances {
+            w.renderer.set_instances(i.clone());
+        }
         let dirs: Vec<PathBuf> = (prep.opts.capture_frames.iter().cloned())
             .chain(step.screenshot.then(|| prep.opts.screenshot_dir.clone()))
             .map(|d| {

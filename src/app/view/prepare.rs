@@ -95,7 +95,11 @@ pub fn prepare(opts: &ViewOptions) -> Result<Prepared> {
         .map(StatsCsv::create)
         .transpose()?;
     let cigi = match opts.cigi.cigi {
-        Some(_) => Some(crate::app::cigi_ig::CigiIg::bind(&opts.cigi)?),
+        Some(_) => {
+            let mut ig = crate::app::cigi_ig::CigiIg::bind(&opts.cigi)?;
+            ig.open_database(&scene)?;
+            Some(ig)
+        }
         None => None,
     };
     Ok(Prepared {

@@ -1,0 +1,288 @@
+//! A CIGI host for the IG tests of `tests/cigi_ig.rs`: `relief serve` processes started with
+//! `--cigi 0`, the host's socket, datagrams written with relief's encoder, scenes over
+//! N47E009 and WGS84 radii computed here (independently of `relief::geodesy`).
+#![allow(dead_code)]
+
+use crate::common::{relief_command, terrains};
+use relief::cigi::*;
+use std::io::{BufRead, BufReader, Read};
+use std::net::{SocketAddr, UdpSocket};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Stdio};
+use std::time::Duration;
+
+/// A `relief serve` process and the host's socket.
+pub struct Ig {
+    pub child: Child,
+    pub addr: SocketAddr,
+    pub host: UdpSocket,
+}
+
+impl Ig {
+    /// `relief serve SCENE --cigi 0 ARGS` (give `--size` or `--display` in `args`); reads the
+    /// port it prints.
+    pub fn start(scene: &Path, args: &[&str], host: UdpSocket) -> Ig {
+        let scene = scene.to_str().unwrap();
+        let mut all = vec!["serve", scene, "--cigi", "0"];
+        all.extend_from_slice(args);
+        let mut child = relief_command(&all, &[])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("relief serve starts");
+        let mut line = String::new();
+        let mut out = BufReader::new(child.stdout.take().unwrap());
+        out.read_line(&mut line).unwrap();
+        let addr = line
+            .trim()
+            .strip_prefix("cigi: listening on ")
+            .unwrap_or_else(|| {
+                let mut err = String::new();
+                let _ = child.stderr.take().unwrap().read_to_string(&mut err);
+                panic!("relief serve printed {line:?}; stderr: {err}")
+            })
+            .parse()
+            .unwrap();
+        child.stdout = Some(out.into_inner());
+        host.set_read_timeout(Some(Duration::from_secs(60)))
+            .unwrap();
+        Ig { child, addr, host }
+    }
+
+    pub fn send(&self, bytes: &[u8]) {
+        self.host.send_to(bytes, self.addr).unwrap();
+    }
+
+    /// The IG's next datagram, decoded.
+    pub fn receive(&self) -> IgMessage {
+        let mut buf = vec![0u8; 65536];
+        let (n, from) = self.host.recv_from(&mut buf).expect("the IG answers");
+        assert_eq!(from, self.addr);
+        read_ig_message(&buf[..n]).expect("a valid IG message")
+    }
+
+    /// Sends `bytes` and returns the IG's answer for that host frame.
+    pub fn exchange(&self, bytes: &[u8], host_frame: u32) -> IgMessage {
+        self.send(bytes);
+        loop {
+            let m = self.receive();
+            if sof(&m).last_host_frame == host_frame {
+                return m;
+            }
+        }
+    }
+
+    /// Whether the process has exited, without reaping it (`/proc` state Z or gone).
+    pub fn exited(&self) -> bool {
+        match std::fs::read_to_string(format!("/proc/{}/stat", self.child.id())) {
+            Ok(stat) => stat
+                .rsplit(')')
+                .next()
+                .is_some_and(|s| s.trim_start().starts_with('Z')),
+            Err(_) => true,
+        }
+    }
+
+    /// Waits for the process; its stdout, asserting success.
+    pub fn finish(mut self) -> String {
+        let status = self.child.wait().unwrap();
+        let mut out = String::new();
+        let mut err = String::new();
+        self.child
+            .stdout
+            .take()
+            .unwrap()
+            .read_to_string(&mut out)
+            .unwrap();
+        self.child
+            .stderr
+            .take()
+            .unwrap()
+            .read_to_string(&mut err)
+            .unwrap();
+        assert!(status.success(), "relief serve failed: {err}");
+        out
+    }
+}
+
+/// The `cigi-counters: {…}` line of a `relief serve` run's stdout.
+pub fn counters(out: &str) -> serde_json::Value {
+    let line = out
+        .lines()
+        .find_map(|l| l.strip_prefix("cigi-counters: "))
+        .unwrap_or_else(|| panic!("no counters line in {out:?}"));
+    serde_json::from_str(line).unwrap()
+}
+
+/// The lines of a `--pose-log` file.
+pub fn pose_log(path: &Path) -> Vec<serde_json::Value> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
+}
+
+pub fn host_socket() -> UdpSocket {
+    UdpSocket::bind("127.0.0.1:0").unwrap()
+}
+
+pub fn sof(m: &IgMessage) -> StartOfFrame {
+    match m.packets[0] {
+        IgPacket::StartOfFrame(s) => s,
+        p => panic!("first packet {p:?}"),
+    }
+}
+
+/// IG Control in operate mode; `timestamp` (seconds of host time) valid when given, and the
+/// global interpolation/extrapolation bit.
+pub fn ig_control(frame: u32, timestamp: Option<f64>, extrapolation: bool) -> IgControl {
+    IgControl {
+        database: 0,
+        ig_mode: 1,
+        timestamp_valid: timestamp.is_some(),
+        extrapolation,
+        host_frame: frame,
+        timestamp: timestamp.map_or(0, |t| (t / 1e-5).round() as u64 as u32),
+        last_ig_frame: 0,
+    }
+}
+
+/// Entity Control for a top-level entity, active.
+pub fn entity(id: u16, entity_type: u16, lla: [f64; 3], ypr: [f32; 3]) -> EntityControl {
+    EntityControl {
+        entity_id: id,
+        entity_state: 1,
+        attach: false,
+        collision_detection: false,
+        inherit_alpha: false,
+        ground_clamp: 0,
+        animation_direction: false,
+        animation_loop: false,
+        animation_state: 0,
+        extrapolation: false,
+        alpha: 255,
+        entity_type,
+        parent_id: 0,
+        roll: ypr[2],
+        pitch: ypr[1],
+        yaw: ypr[0],
+        lat: lla[0],
+        lon: lla[1],
+        alt: lla[2],
+    }
+}
+
+pub fn ownship(lla: [f64; 3], yaw: f32, pitch: f32, roll: f32) -> EntityControl {
+    entity(0, 0, lla, [yaw, pitch, roll])
+}
+
+pub fn message(control: IgControl, packets: &[HostPacket]) -> Vec<u8> {
+    let mut m = MessageBuilder::host(&control, ByteOrder::Big);
+    for p in packets {
+        m.push_any(p);
+    }
+    m.finish()
+}
+
+/// A scene over N47E009 (`.hgt`) with the camera at geodetic `lla`, `extra` TOML appended,
+/// written to `dir/NAME.toml`.
+pub fn scene(dir: &Path, name: &str, lla: [f64; 3], hpr: [f64; 3], extra: &str) -> PathBuf {
+    let hgt = terrains().join("N47E009.hgt");
+    let [heading, pitch, roll] = hpr;
+    let text = format!(
+        "[terrain]\nsource = {hgt:?}\n[sun]\nazimuth = 245.0\nelevation = 24.0\n\
+         [fog]\nvisibility = 90000.0\nscale_height = 3000.0\n\
+         [camera]\ngeodetic = [{:?}, {:?}, {:?}]\nheading = {heading:?}\npitch = {pitch:?}\nroll = {roll:?}\nfov = 60.0\n\
+         [output]\nwidth = 160\nheight = 120\n{extra}",
+        lla[0], lla[1], lla[2]
+    );
+    let p = dir.join(format!("{name}.toml"));
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+/// Mean absolute difference of two RGBA8 images, in units of 1/255.
+pub fn mean_diff(a: &image::RgbaImage, b: &image::RgbaImage) -> f64 {
+    assert_eq!(a.dimensions(), b.dimensions());
+    let s: u64 = a
+        .as_raw()
+        .iter()
+        .zip(b.as_raw())
+        .map(|(x, y)| u64::from(x.abs_diff(*y)))
+        .sum();
+    s as f64 / a.as_raw().len() as f64
+}
+
+/// WGS84 radii of curvature (m) at latitude `lat` (degrees): meridional and prime vertical.
+pub fn radii(lat: f64) -> (f64, f64) {
+    let (a, f) = (6_378_137.0, 1.0 / 298.257_223_563);
+    let e2 = f * (2.0 - f);
+    let s = lat.to_radians().sin();
+    let w = 1.0 - e2 * s * s;
+    (a * (1.0 - e2) / w.powf(1.5), a / w.sqrt())
+}
+
+/// `p − q` of two geodetic points in metres north, east, up (local flat earth at `q`).
+pub fn metres(p: [f64; 3], q: [f64; 3]) -> [f64; 3] {
+    let (m, n) = radii(q[0]);
+    [
+        (p[0] - q[0]).to_radians() * (m + q[2]),
+        (p[1] - q[1]).to_radians() * (n + q[2]) * q[0].to_radians().cos(),
+        p[2] - q[2],
+    ]
+}
+
+/// Percentile `q` (0..1) of `v` (sorted copy, nearest rank).
+pub fn percentile(v: &[f64], q: f64) -> f64 {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    s[((s.len() as f64 * q).ceil() as usize).clamp(1, s.len()) - 1]
+}
+
+/// The DEM of N47E009 read here: 1201² big-endian i16, row 0 the northern edge (48°N),
+/// column 0 the western (9°E), 3″ steps.
+pub struct Dem(Vec<i16>);
+
+impl Dem {
+    pub fn load() -> Dem {
+        let b = std::fs::read(terrains().join("N47E009.hgt")).unwrap();
+        assert_eq!(b.len(), 1201 * 1201 * 2);
+        Dem(b
+            .chunks(2)
+            .map(|c| i16::from_be_bytes([c[0], c[1]]))
+            .collect())
+    }
+
+    fn at(&self, row: usize, col: usize) -> f64 {
+        let v = self.0[row * 1201 + col];
+        assert_ne!(v, -32768, "void sample at row {row}, column {col}");
+        f64::from(v)
+    }
+
+    /// The bilinear surface (metres above MSL) at `lat`, `lon`.
+    pub fn height(&self, lat: f64, lon: f64) -> f64 {
+        let (r, c) = ((48.0 - lat) * 1200.0, (lon - 9.0) * 1200.0);
+        let (r0, c0) = (r.floor() as usize, c.floor() as usize);
+        let (v, u) = (r - r0 as f64, c - c0 as f64);
+        self.at(r0, c0) * (1.0 - u) * (1.0 - v)
+            + self.at(r0, c0 + 1) * u * (1.0 - v)
+            + self.at(r0 + 1, c0) * (1.0 - u) * v
+            + self.at(r0 + 1, c0 + 1) * u * v
+    }
+
+    /// The first point of a constant-longitude segment below the surface by a 40,000-step
+    /// march: `(fraction along the segment, step)`, or `None` when it stays above.
+    pub fn march(
+        &self,
+        lon: f64,
+        (lat0, alt0): (f64, f64),
+        (lat1, alt1): (f64, f64),
+    ) -> Option<(f64, f64)> {
+        let n = 40_000;
+        (0..=n).map(|k| k as f64 / n as f64).find_map(|s| {
+            let (lat, alt) = (lat0 + (lat1 - lat0) * s, alt0 + (alt1 - alt0) * s);
+            (alt < self.height(lat, lon)).then_some((s, 1.0 / n as f64))
+        })
+    }
+}
