@@ -72,8 +72,8 @@ pub fn cast(curved: bool, lod: bool) -> String {
 }
 
 /// The paged cast pass (`PAGED`): as [`cast`] with the terrain read from the tile pool
-/// (group 3, `terrain_paged.wgsl`) and the paged stop rule; validated by naga, not yet built
-/// by the renderer (docs/database.md, "Not here yet").
+/// (group 3, `terrain_paged.wgsl`) and the paged stop rule; built by the renderer in paged
+/// mode (`TerrainRenderer::new_paged`).
 pub fn cast_paged(curved: bool) -> String {
     [
         &super::variants::wgsl_bools(&[("CURVED", curved), ("LOD", false), ("PAGED", true)]),
@@ -89,6 +89,28 @@ pub fn cast_paged(curved: bool) -> String {
     .concat()
 }
 
+/// The shade pass's terrain reads: the heights and the pyramid, or with `paged` the tile pool
+/// (the window-relative interface and `sample_height` on the finest resident surface).
+fn shade_terrain(paged: bool) -> String {
+    if paged {
+        [TERRAIN_PAGED, TERRAIN_PAGED_WINDOW, PAGED_SAMPLES].concat()
+    } else {
+        TERRAIN_MEMORY.to_string()
+    }
+}
+
+/// `sample_height(i, j)` of the paged build: sample (i, j) of the window on the finest
+/// resident surface (a corner of the level-0 patch, `patch_corners`), for the shade pass's
+/// normals.
+const PAGED_SAMPLES: &str = "
+fn sample_height(i: u32, j: u32) -> f32 {
+    let ci = min(i, frame.grid.x - 2u);
+    let cj = min(j, frame.grid.y - 2u);
+    let h = patch_corners(0u, vec2<i32>(i32(ci), i32(cj)));
+    return select(select(h.x, h.y, i > ci), select(h.z, h.w, i > ci), j > cj);
+}
+";
+
 /// Shade pass (fragment): lighting, shadow rays, fog, sky from the G-buffer, with the
 /// optional features `f` compiled in.
 pub fn shade(f: ShadeFeatures) -> String {
@@ -97,7 +119,7 @@ pub fn shade(f: ShadeFeatures) -> String {
         FRAME,
         FULLSCREEN,
         RAY_TABLE,
-        TERRAIN_MEMORY,
+        &shade_terrain(f.paged),
         TRAVERSE,
         GBUFFER,
         SRGB,
@@ -116,7 +138,7 @@ pub fn shade_objects(f: ShadeFeatures, tables: FfTables) -> String {
         FRAME,
         FULLSCREEN,
         RAY_TABLE,
-        TERRAIN_MEMORY,
+        &shade_terrain(f.paged),
         TRAVERSE,
         GBUFFER,
         &freeform(false, tables),
@@ -331,6 +353,13 @@ pub fn all() -> Vec<(&'static str, String)> {
         ("cast (curved, paged)", cast_paged(true)),
         ("shade", shade(ShadeFeatures::ALL)),
         ("shade (no options)", shade(ShadeFeatures::NONE)),
+        (
+            "shade (paged)",
+            shade(ShadeFeatures {
+                paged: true,
+                ..ShadeFeatures::ALL
+            }),
+        ),
         ("shade_objects", shade_objects(ShadeFeatures::ALL, UNIFORM)),
         (
             "shade_objects (no options, storage tables)",
