@@ -183,8 +183,15 @@ fn window(path: &std::path::Path) -> (Terrain, [i64; 2], relief::terrain::GeoRef
     let terrain = Terrain::new(field, frame, 1.0).unwrap();
     eprintln!(
         "window {}x{} at sample ({}, {}), spacing {:.1} x {:.1} m, heights {}..{} m, top level {}",
-        spec.width, spec.height, spec.i0, spec.j0, terrain.frame.spacing[0],
-        terrain.frame.spacing[1], terrain.min_height, terrain.max_height, terrain.pyramid.top()
+        spec.width,
+        spec.height,
+        spec.i0,
+        spec.j0,
+        terrain.frame.spacing[0],
+        terrain.frame.spacing[1],
+        terrain.min_height,
+        terrain.max_height,
+        terrain.pyramid.top()
     );
     (terrain, [spec.i0, spec.j0], geo)
 }
@@ -258,8 +265,7 @@ fn paged_flight_no_holes_and_converges() {
             "frame {frame}: {} bytes",
             st.resident_bytes
         );
-        let paged =
-            PagedTerrain::new(pager.page_table(), &pool, 256, origin, top).unwrap();
+        let paged = PagedTerrain::new(pager.page_table(), &pool, 256, origin, top).unwrap();
         let c = compare(&terrain, &paged, cam);
         eprintln!(
             "frame {frame:2}: resident {} ({:.1} MiB) missing {:2} | terrain {:4} coarse hits {:4} coarse sky {:3} holes {} mask diff {:3} depth diff {:4}",
@@ -383,7 +389,8 @@ fn gpu_compare(
             (false, false) => {}
         }
         for ch in 0..3 {
-            colour += (gp.rgba[4 * k + ch] as i32 - full.rgba[4 * k + ch] as i32).unsigned_abs() as u64;
+            colour +=
+                (gp.rgba[4 * k + ch] as i32 - full.rgba[4 * k + ch] as i32).unsigned_abs() as u64;
         }
     }
     c.colour_mean = colour as f64 / (3 * n) as f64 / 255.0;
@@ -408,7 +415,8 @@ fn paged_gpu_flight_matches_twin_and_converges() {
     let gpu_pool =
         relief::gpu::terrain_pool::TerrainPool::new(gpu, pager.page_table(), 256, slots).unwrap();
     assert!(gpu_pool.size().1 <= POOL, "GPU pool over the budget");
-    let mut paged_r = relief::gpu::TerrainRenderer::new_paged(gpu, &terrain, gpu_pool, origin).unwrap();
+    let mut paged_r =
+        relief::gpu::TerrainRenderer::new_paged(gpu, &terrain, gpu_pool, origin).unwrap();
     let mut full_r = relief::gpu::TerrainRenderer::new(gpu, &terrain).unwrap();
     let apply = |pool: &mut Vec<Option<Arc<Tile>>>, up: &[db::pager::Upload]| {
         for u in up {
@@ -432,12 +440,20 @@ fn paged_gpu_flight_matches_twin_and_converges() {
             height_px: GH,
         };
         let (up, st) = pager.update(&view).unwrap();
-        assert!(st.resident_bytes <= POOL, "frame {frame}: {} bytes", st.resident_bytes);
+        assert!(
+            st.resident_bytes <= POOL,
+            "frame {frame}: {} bytes",
+            st.resident_bytes
+        );
         apply(&mut pool, &up);
         paged_r.apply_pages(gpu, &up, pager.page_table());
         let cam = gpu_camera(&terrain, c);
-        let gp = paged_r.capture(gpu, &terrain, &scene, &cam, &settings).unwrap();
-        let full = full_r.capture(gpu, &terrain, &scene, &cam, &settings).unwrap();
+        let gp = paged_r
+            .capture(gpu, &terrain, &scene, &cam, &settings)
+            .unwrap();
+        let full = full_r
+            .capture(gpu, &terrain, &scene, &cam, &settings)
+            .unwrap();
         let paged = PagedTerrain::new(pager.page_table(), &pool, 256, origin, top).unwrap();
         let g = gpu_compare(&terrain, &paged, &cam, &gp, &full);
         eprintln!(
@@ -472,4 +488,60 @@ fn paged_gpu_flight_matches_twin_and_converges() {
     assert_eq!(worst_holes, 0, "a GPU ray fell through the paged surface");
     let at = converged.expect("the GPU hover never matched full residency");
     assert!(at <= CONVERGE_FRAMES, "converged after {at} frames");
+}
+
+/// `relief render --terrain-memory`: a database scene renders one frame through an 8 MB pool
+/// after its view's tiles are resident (the frame JSON's `paging`); a scene without a
+/// database, a zero budget and a window not at the finest level are one-line errors.
+#[test]
+fn render_terrain_memory_cli() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let _lock = common::gpu_lock();
+    let db_path = mosaic();
+    let dir = common::temp_dir("paged-cli");
+    let scene = |window: &str, extra: &str| {
+        format!(
+            "[terrain]\ndatabase = {:?}\nwindow = {window}\ncurved = false\n{extra}\n[camera]\nposition = [120000.0, 434000.0, 3700.0]\nheading = 90.0\npitch = -12.0\nfov = 60.0\n[output]\nwidth = 96\nheight = 72\n",
+            db_path.display().to_string()
+        )
+    };
+    let good = dir.join("mosaic.toml");
+    std::fs::write(&good, scene("[46.0, 12.0, 54.0, 20.0]", "")).unwrap();
+    let out = dir.join("out");
+    let (g, o) = (good.to_str().unwrap(), out.to_str().unwrap());
+    let r = common::relief_cli(&["render", g, "--terrain-memory", "8", "--out", o], &[]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let meta = common::read_json(&out.join("frame_0000.json"));
+    let paging = &meta["paging"];
+    eprintln!("paging: {paging}");
+    assert_eq!(
+        paging["missing"], 0,
+        "rendered before the view was resident"
+    );
+    assert!(paging["resident_bytes"].as_u64().unwrap() <= 8 << 20);
+    let fail = |args: &[&str], want: &str| {
+        let r = common::relief_cli(args, &[]);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(!r.status.success() && err.contains(want), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+    };
+    let hgt = common::terrains().join("alps-far.toml");
+    let h = hgt.to_str().unwrap();
+    fail(
+        &["render", h, "--terrain-memory", "8", "--out", o],
+        "has no `[terrain] database`",
+    );
+    fail(
+        &["render", g, "--terrain-memory", "0", "--out", o],
+        "--terrain-memory",
+    );
+    let coarse = dir.join("coarse.toml");
+    std::fs::write(&coarse, scene("[46.0, 12.0, 54.0, 20.0]", "level = 5")).unwrap();
+    let c = coarse.to_str().unwrap();
+    fail(
+        &["render", c, "--terrain-memory", "8", "--out", o],
+        "finest level",
+    );
 }

@@ -58,6 +58,8 @@ pub fn run(opts: &ServeOptions) -> Result<String> {
         display: opts.display.clone(),
         pattern: false,
         dome_master: None,
+        terrain_memory: None,
+        wait_resident: false,
     };
     let (p, mut renderer) = prepare(&job)?;
     if let Some(dir) = &opts.capture_frames {
