@@ -99,15 +99,36 @@ fn shade_terrain(paged: bool) -> String {
     }
 }
 
-/// `sample_height(i, j)` of the paged build: sample (i, j) of the window on the finest
-/// resident surface (a corner of the level-0 patch, `patch_corners`), for the shade pass's
-/// normals.
+/// The shade pass's samples in the paged build: `shape_hint` takes the finest resident level
+/// over the shaded cell from the G-buffer (`gbuffer_hint` in the cast pass) and its tile;
+/// `sample_height(i, j)` reads sample (i, j) of the window on that level's bilinear surface,
+/// clamped to that tile (loop-free: a neighbour across the tile's edge gives a one-sided
+/// difference there).
 const PAGED_SAMPLES: &str = "
+var<private> paged_k: u32 = 0u;
+var<private> paged_hint_slot: u32 = 0u;
+var<private> paged_tile0: vec2<u32> = vec2<u32>(0u);
+
+fn shape_hint(g: vec4<u32>, i: i32, j: i32) {
+    let k = min(g.z >> 24u, paged.levels - 1u);
+    let c = vec2<u32>(paged.origin_x + u32(i), paged.origin_y + u32(j)) >> vec2<u32>(k);
+    let t = c >> vec2<u32>(paged.log2_n);
+    let slot = paged_slot(paged.levels - 1u - k, t.x, t.y);
+    paged_k = k;
+    paged_hint_slot = select(slot, 0u, slot == PAGED_NONE);
+    paged_tile0 = t << vec2<u32>(paged.log2_n);
+}
+
 fn sample_height(i: u32, j: u32) -> f32 {
-    let ci = min(i, frame.grid.x - 2u);
-    let cj = min(j, frame.grid.y - 2u);
-    let h = patch_corners(0u, vec2<i32>(i32(ci), i32(cj)));
-    return select(select(h.x, h.y, i > ci), select(h.z, h.w, i > ci), j > cj);
+    let n = f32(paged.tile_n);
+    let g = vec2<f32>(vec2<u32>(paged.origin_x + i, paged.origin_y + j));
+    let p = clamp(g / f32(1u << paged_k) - vec2<f32>(paged_tile0), vec2<f32>(0.0), vec2<f32>(n));
+    let a = min(vec2<u32>(p), vec2<u32>(paged.tile_n - 1u));
+    let uv = p - vec2<f32>(a);
+    let slot = paged_hint_slot;
+    let s = mix(paged_height(slot, a.x, a.y), paged_height(slot, a.x + 1u, a.y), uv.x);
+    let m = mix(paged_height(slot, a.x, a.y + 1u), paged_height(slot, a.x + 1u, a.y + 1u), uv.x);
+    return mix(s, m, uv.y);
 }
 ";
 

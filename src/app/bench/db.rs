@@ -262,6 +262,7 @@ fn fly(
     size: (u32, u32),
     a: &DbBenchArgs,
 ) -> Result<DbBench> {
+    let mosaic = &std::fs::canonicalize(mosaic).map_err(|e| Error::io(mosaic, e))?;
     let h = Database::open(mosaic)?.header().clone();
     let window = aligned_window(&h)?;
     let flight_toml = dir.join("flight.toml");
