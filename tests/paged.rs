@@ -14,6 +14,14 @@
 //!   (identical hit masks, depth within 1e-9 relative) within `CONVERGE_FRAMES` frames and
 //!   stays equal;
 //! * host memory: VmHWM printed.
+//!
+//! On the GPU (`paged_gpu_flight_matches_twin_and_converges`, lavapipe and GL): the same
+//! script rendered through the pool (`TerrainRenderer::new_paged`, shadows on), every frame
+//! against the CPU twin over the same page table and pool contents (hit masks and depth within
+//! the oracle tolerance of `tests/lod.rs`), with no hole against the GPU's full-residency
+//! render (same definition, GPU depth), and after the stop equal to it (identical hit masks,
+//! depth within 1e-5 relative, colour mean ≤ 1/255) within `CONVERGE_FRAMES` frames.
+//! `render_terrain_memory_cli`: `relief render --terrain-memory` and its errors.
 
 mod common;
 
@@ -363,11 +371,11 @@ fn gpu_compare(
         .collect();
     let mut c = GpuCompare::default();
     let mut colour = 0u64;
-    for k in 0..n {
+    for (k, &tw) in twin.iter().enumerate() {
         let (g, f) = (gp.depth[k] as f64, full.depth[k] as f64);
         let (gh, fh) = (g.is_finite(), f.is_finite());
         c.terrain += fh as usize;
-        match (twin[k], gh) {
+        match (tw, gh) {
             (Some(t), true) => c.twin_depth += ((t - g).abs() > GPU_CPU_DEPTH * t) as usize,
             (None, false) => {}
             _ => c.twin_mask += 1,
