@@ -21,7 +21,8 @@
 //! the oracle tolerance of `tests/lod.rs`), with no hole against the GPU's full-residency
 //! render (same definition, GPU depth), and after the stop equal to it (identical hit masks,
 //! depth within 1e-5 relative, colour mean ≤ 1/255) within `CONVERGE_FRAMES` frames.
-//! `render_terrain_memory_cli`: `relief render --terrain-memory` and its errors.
+//! `paged_gpu_curved_hover_converges`: the hover on the curved earth, GPU paged against GPU
+//! full residency. `render_terrain_memory_cli`: `relief render --terrain-memory` and its errors.
 
 mod common;
 
@@ -552,4 +553,87 @@ fn render_terrain_memory_cli() {
         &["render", c, "--terrain-memory", "8", "--out", o],
         "finest level",
     );
+}
+
+/// The curved earth (`CURVED` in the paged cast and shade): hovering over the window with
+/// `curved = true`, the GPU frame through the pool converges to the GPU's full-residency
+/// render (identical hit masks, depth within 1e-5 relative, colour mean ≤ 1/255) within
+/// `CONVERGE_FRAMES` frames and stays there. (The CPU twin is flat-earth only.)
+#[test]
+fn paged_gpu_curved_hover_converges() {
+    let Some(gpu) = common::gpu() else { return };
+    let _lock = common::gpu_lock();
+    let path = mosaic();
+    let (mut terrain, origin, geo) = window(&path);
+    terrain.curved = true;
+    let store: Arc<dyn TileStore> = Arc::new(Store(Database::open(&path).unwrap()));
+    let opts = PagerOptions {
+        pool_bytes: POOL,
+        ..PagerOptions::default()
+    };
+    let (mut pager, first) = Pager::new(store, opts).unwrap();
+    let (slots, _) = pager.slots();
+    let gpu_pool =
+        relief::gpu::terrain_pool::TerrainPool::new(gpu, pager.page_table(), 256, slots).unwrap();
+    let mut paged_r =
+        relief::gpu::TerrainRenderer::new_paged(gpu, &terrain, gpu_pool, origin).unwrap();
+    let mut full_r = relief::gpu::TerrainRenderer::new(gpu, &terrain).unwrap();
+    paged_r.apply_pages(gpu, &first, pager.page_table());
+    let scene = common::synthetic_scene(GW, GH, "position = [0.0, 0.0, 5000.0]");
+    let settings = common::settings(true, false);
+    let c = *script(&terrain).last().unwrap();
+    let cam = gpu_camera(&terrain, c);
+    let view = View {
+        lon: geo.lon0 + c.x * geo.dlon,
+        lat: geo.lat0 + c.y * geo.dlat,
+        height: c.z,
+        heading: c.heading,
+        pitch: c.pitch,
+        fov: FOV,
+        width: GW,
+        height_px: GH,
+    };
+    let full = full_r
+        .capture(gpu, &terrain, &scene, &cam, &settings)
+        .unwrap();
+    let mut converged = None;
+    for frame in 0..HOVER {
+        let (up, st) = pager.update(&view).unwrap();
+        assert!(st.resident_bytes <= POOL);
+        paged_r.apply_pages(gpu, &up, pager.page_table());
+        let gp = paged_r
+            .capture(gpu, &terrain, &scene, &cam, &settings)
+            .unwrap();
+        let (mut mask, mut depth, mut colour, mut terrain_px) = (0, 0, 0u64, 0);
+        for k in 0..(GW * GH) as usize {
+            let (g, f) = (gp.depth[k] as f64, full.depth[k] as f64);
+            terrain_px += f.is_finite() as usize;
+            match (g.is_finite(), f.is_finite()) {
+                (true, true) => depth += ((f - g).abs() > 1e-5 * f) as usize,
+                (false, false) => {}
+                _ => mask += 1,
+            }
+            for ch in 0..3 {
+                let d = gp.rgba[4 * k + ch] as i32 - full.rgba[4 * k + ch] as i32;
+                colour += d.unsigned_abs() as u64;
+            }
+        }
+        let mean = colour as f64 / (3 * GW * GH) as f64 / 255.0;
+        eprintln!(
+            "curved hover frame {frame:2}: resident {:2} missing {:2} | terrain {terrain_px} mask {mask} depth {depth} colour mean {mean:.5}",
+            st.resident, st.missing
+        );
+        assert!(terrain_px > 0);
+        let equal = mask == 0 && depth == 0 && mean <= 1.0 / 255.0;
+        match (converged, equal) {
+            (None, true) => converged = Some(frame),
+            (Some(at), false) => panic!("frame {frame}: diverged after converging at {at}"),
+            _ => {}
+        }
+        // Give the workers the time a real frame would (the GPU frames here are short).
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    let at = converged.expect("the curved hover never matched full residency");
+    eprintln!("curved: converged after {at} frames");
+    assert!(at <= CONVERGE_FRAMES, "converged after {at} frames");
 }
