@@ -22,7 +22,8 @@
 //! render (same definition, GPU depth), and after the stop equal to it (identical hit masks,
 //! depth within 1e-5 relative, colour mean ≤ 1/255) within `CONVERGE_FRAMES` frames.
 //! `paged_gpu_curved_hover_converges`: the hover on the curved earth, GPU paged against GPU
-//! full residency. `render_terrain_memory_cli`: `relief render --terrain-memory` and its errors.
+//! full residency. `render_terrain_memory_cli`: `relief render --terrain-memory` (and `serve`)
+//! and its errors.
 
 mod common;
 
@@ -530,6 +531,31 @@ fn render_terrain_memory_cli() {
         "rendered before the view was resident"
     );
     assert!(paging["resident_bytes"].as_u64().unwrap() <= 8 << 20);
+    // `serve` pages each frame without waiting (no CIGI host: the scene's camera).
+    let served = dir.join("served");
+    let sv = served.to_str().unwrap();
+    let r = common::relief_cli(
+        &[
+            "serve",
+            g,
+            "--cigi",
+            "0",
+            "--frames",
+            "20",
+            "--terrain-memory",
+            "8",
+            "--capture-frames",
+            sv,
+        ],
+        &[],
+    );
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let last = common::read_json(&served.join("frame_0019.json"));
+    assert!(
+        last["paging"]["resident"].as_u64().unwrap() > 0,
+        "{}",
+        last["paging"]
+    );
     let fail = |args: &[&str], want: &str| {
         let r = common::relief_cli(args, &[]);
         let err = String::from_utf8_lossy(&r.stderr);

@@ -404,7 +404,8 @@ impl Frames<'_> {
     fn render(&self, renderer: &mut TerrainRenderer, frame: u32) -> Result<[PathBuf; 3]> {
         let cam = self.scene.camera(frame, self.terrain);
         renderer.set_time(frame as f64 / self.fps);
-        let paging = self.page(renderer, &cam)?;
+        let wait = self.job.frames == 1 || self.job.wait_resident;
+        let paging = self.page(renderer, &cam, wait)?;
         let out = self.render_camera(renderer, &cam)?;
         self.write(&out, &cam, frame, |m| {
             if let Some(p) = paging {
@@ -413,14 +414,19 @@ impl Frames<'_> {
         })
     }
 
-    /// Paged mode: the pager's step for `cam` before the frame (waiting for residency for a
-    /// single frame or with --wait-resident); the statistics for the frame JSON.
-    fn page(&self, renderer: &TerrainRenderer, cam: &Camera) -> Result<Option<serde_json::Value>> {
+    /// Paged mode: the pager's step for `cam` before the frame (with `wait`, until the view's
+    /// tiles are resident); the statistics for the frame JSON. Nothing without paging.
+    pub fn page(
+        &self,
+        renderer: &TerrainRenderer,
+        cam: &Camera,
+        wait: bool,
+    ) -> Result<Option<serde_json::Value>> {
         let Some(p) = self.paging else {
             return Ok(None);
         };
         let mut p = p.borrow_mut();
-        if self.job.frames == 1 || self.job.wait_resident {
+        if wait {
             let limit = std::time::Duration::from_secs(60);
             let (st, steps) = p.settle(self.gpu, renderer, self.terrain, cam, limit)?;
             if st.missing > 0 {
