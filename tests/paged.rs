@@ -572,6 +572,19 @@ fn render_terrain_memory_cli() {
         &["render", g, "--terrain-memory", "0", "--out", o],
         "--terrain-memory",
     );
+    // `[terrain] memory` in the scene does what --terrain-memory does.
+    let keyed = dir.join("keyed.toml");
+    std::fs::write(&keyed, scene("[46.0, 12.0, 54.0, 20.0]", "memory = 8")).unwrap();
+    let out2 = dir.join("out2");
+    let (k, o2) = (keyed.to_str().unwrap(), out2.to_str().unwrap());
+    let r = common::relief_cli(&["render", k, "--out", o2], &[]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let meta = common::read_json(&out2.join("frame_0000.json"));
+    assert_eq!(meta["paging"]["missing"], 0, "{}", meta["paging"]);
+    fail(
+        &["render", h, "--wait-resident", "--out", o],
+        "--wait-resident",
+    );
     let coarse = dir.join("coarse.toml");
     std::fs::write(&coarse, scene("[46.0, 12.0, 54.0, 20.0]", "level = 5")).unwrap();
     let c = coarse.to_str().unwrap();

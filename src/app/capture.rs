@@ -144,9 +144,9 @@ pub struct RenderJob {
     /// with --frames N each frame renders what is resident then (unless --wait-resident).
     #[arg(long, value_name = "MB")]
     pub terrain_memory: Option<u64>,
-    /// With --terrain-memory: every frame waits (up to 60 s) until its view's tiles are
-    /// resident.
-    #[arg(long, requires = "terrain_memory")]
+    /// With --terrain-memory (or `[terrain] memory`): every frame waits (up to 60 s) until
+    /// its view's tiles are resident.
+    #[arg(long)]
     pub wait_resident: bool,
 }
 
@@ -219,10 +219,16 @@ pub fn prepare(job: &RenderJob) -> Result<(Prepared, TerrainRenderer)> {
     let world = World::load(&scene)?;
     let gpu = crate::app::gpu_options::open()?;
     log::info!("adapter: {}", gpu.describe());
-    let (mut renderer, paging) = match job.terrain_memory {
+    let (mut renderer, paging) = match job.terrain_memory.or(scene.desc.terrain.memory) {
         Some(mb) => {
             let (r, p) = super::paged::renderer(&gpu, &scene, &world, mb)?;
             (r, Some(RefCell::new(p)))
+        }
+        None if job.wait_resident => {
+            return Err(Error::invalid(
+                "--wait-resident",
+                "applies to a paged terrain: give --terrain-memory MB or `[terrain] memory`",
+            ))
         }
         None => (super::upload::renderer(&gpu, &world)?, None),
     };

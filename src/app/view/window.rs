@@ -323,7 +323,8 @@ impl App {
             view_formats: vec![],
         };
         let (prep, mut paging) = (&self.prep, None);
-        let mut renderer = match prep.opts.terrain_memory {
+        let memory = prep.opts.terrain_memory.or(prep.scene.desc.terrain.memory);
+        let mut renderer = match memory {
             Some(mb) => {
                 let (r, p) = crate::app::paged::renderer(gpu, &prep.scene, &prep.world, mb)?;
                 paging = Some(p);
