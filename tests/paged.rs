@@ -14,6 +14,16 @@
 //!   (identical hit masks, depth within 1e-9 relative) within `CONVERGE_FRAMES` frames and
 //!   stays equal;
 //! * host memory: VmHWM printed.
+//!
+//! On the GPU (`paged_gpu_flight_matches_twin_and_converges`, lavapipe and GL): the same
+//! script rendered through the pool (`TerrainRenderer::new_paged`, shadows on), every frame
+//! against the CPU twin over the same page table and pool contents (hit masks and depth within
+//! the oracle tolerance of `tests/lod.rs`), with no hole against the GPU's full-residency
+//! render (same definition, GPU depth), and after the stop equal to it (identical hit masks,
+//! depth within 1e-5 relative, colour mean ≤ 1/255) within `CONVERGE_FRAMES` frames.
+//! `paged_gpu_curved_hover_converges`: the hover on the curved earth, GPU paged against GPU
+//! full residency. `render_terrain_memory_cli`: `relief render --terrain-memory` (and `serve`)
+//! and its errors.
 
 mod common;
 
@@ -162,10 +172,10 @@ fn compare(t: &Terrain, paged: &PagedTerrain, cam: Cam) -> Compare {
     c
 }
 
-#[test]
-fn paged_flight_no_holes_and_converges() {
-    let path = mosaic();
-    let database = Database::open(&path).unwrap();
+/// The test's window: 8° x 8° of the finest level (2049² samples), its south-west sample on a
+/// multiple of 2048 (the paged window's alignment); its origin sample and georeference.
+fn window(path: &std::path::Path) -> (Terrain, [i64; 2], relief::terrain::GeoRef) {
+    let database = Database::open(path).unwrap();
     let fine = database.header().levels.len() as u32 - 1;
     // 8° x 8° of the finest level (2049² samples), its south-west sample on a multiple of
     // 2048: the paged window's alignment.
@@ -181,12 +191,55 @@ fn paged_flight_no_holes_and_converges() {
     };
     let geo = field.geo.expect("a database window is georeferenced");
     let terrain = Terrain::new(field, frame, 1.0).unwrap();
-    let top = terrain.pyramid.top();
     eprintln!(
-        "window {}x{} at sample ({}, {}), spacing {:.1} x {:.1} m, heights {}..{} m, top level {top}",
-        spec.width, spec.height, spec.i0, spec.j0, terrain.frame.spacing[0],
-        terrain.frame.spacing[1], terrain.min_height, terrain.max_height
+        "window {}x{} at sample ({}, {}), spacing {:.1} x {:.1} m, heights {}..{} m, top level {}",
+        spec.width,
+        spec.height,
+        spec.i0,
+        spec.j0,
+        terrain.frame.spacing[0],
+        terrain.frame.spacing[1],
+        terrain.min_height,
+        terrain.max_height,
+        terrain.pyramid.top()
     );
+    (terrain, [spec.i0, spec.j0], geo)
+}
+
+/// Flight frames, then hover frames.
+const FLIGHT: usize = 40;
+const HOVER: usize = 40;
+
+/// The scripted camera: a low-level flight east over the middle row of tiles, 4 km a frame
+/// (two finest tiles crossed), then a stop over the middle of a finest tile, looking down.
+fn script(terrain: &Terrain) -> Vec<Cam> {
+    let hi = terrain.max_height as f64;
+    let dx = 4000.0 / terrain.frame.spacing[0];
+    let mut out: Vec<Cam> = (1..=FLIGHT)
+        .map(|k| Cam {
+            x: 300.0 + dx * k as f64,
+            y: 1000.0,
+            z: hi + 800.0,
+            heading: 90.0,
+            pitch: -12.0,
+        })
+        .collect();
+    let hover = Cam {
+        x: 1152.0 + 40.0,
+        y: 1152.0 - 90.0,
+        z: hi + 1500.0,
+        heading: 20.0,
+        pitch: -60.0,
+    };
+    out.extend(std::iter::repeat_n(hover, HOVER));
+    out
+}
+
+#[test]
+fn paged_flight_no_holes_and_converges() {
+    let path = mosaic();
+    let (terrain, origin, geo) = window(&path);
+    let top = terrain.pyramid.top();
     let store: Arc<dyn TileStore> = Arc::new(Store(Database::open(&path).unwrap()));
     let opts = PagerOptions {
         pool_bytes: POOL,
@@ -211,31 +264,9 @@ fn paged_flight_no_holes_and_converges() {
         width: W as u32,
         height_px: H as u32,
     };
-    let hi = terrain.max_height as f64;
-    // Low-level flight east over the middle row of tiles, 4 km a frame (two finest tiles
-    // crossed), then a stop over the middle of a finest tile, looking down.
-    let (flight, hover) = (40usize, 40usize);
-    let mut cam = Cam {
-        x: 300.0,
-        y: 1000.0,
-        z: hi + 800.0,
-        heading: 90.0,
-        pitch: -12.0,
-    };
-    let dx = 4000.0 / terrain.frame.spacing[0];
+    let flight = FLIGHT;
     let (mut worst_update, mut converged, mut worst_holes) = (0f64, None, 0usize);
-    for frame in 0..flight + hover {
-        if frame < flight {
-            cam.x += dx;
-        } else if frame == flight {
-            cam = Cam {
-                x: 1152.0 + 40.0,
-                y: 1152.0 - 90.0,
-                z: hi + 1500.0,
-                heading: 20.0,
-                pitch: -60.0,
-            };
-        }
+    for (frame, &cam) in script(&terrain).iter().enumerate() {
         let (up, st) = pager.update(&view_of(cam)).unwrap();
         worst_update = worst_update.max(st.seconds);
         apply(&mut pool, &up);
@@ -244,8 +275,7 @@ fn paged_flight_no_holes_and_converges() {
             "frame {frame}: {} bytes",
             st.resident_bytes
         );
-        let paged =
-            PagedTerrain::new(pager.page_table(), &pool, 256, [spec.i0, spec.j0], top).unwrap();
+        let paged = PagedTerrain::new(pager.page_table(), &pool, 256, origin, top).unwrap();
         let c = compare(&terrain, &paged, cam);
         eprintln!(
             "frame {frame:2}: resident {} ({:.1} MiB) missing {:2} | terrain {:4} coarse hits {:4} coarse sky {:3} holes {} mask diff {:3} depth diff {:4}",
@@ -281,4 +311,368 @@ fn paged_flight_no_holes_and_converges() {
         "an update took {:.1} ms",
         worst_update * 1e3
     );
+}
+
+// ---------------------------------------------------------------------------------------------
+// The GPU through the pool (`TerrainRenderer::new_paged`): the same mosaic, budget and script.
+
+/// GPU frame size (≤ 128x96: lavapipe and GL in CI).
+const GW: u32 = 96;
+const GH: u32 = 72;
+/// GPU (f32) against the CPU twin (f64) over the same page table: hit masks may differ on at
+/// most this fraction of the pixels (grazing rays), depth within `GPU_CPU_DEPTH` relative on
+/// the rest (the oracle tolerance of `tests/lod.rs`).
+const GPU_CPU_MASK: f64 = 0.005;
+const GPU_CPU_DEPTH: f64 = 1e-3;
+
+fn gpu_camera(terrain: &Terrain, c: Cam) -> relief::scene::Camera {
+    let pose = relief::scene::Pose {
+        position: terrain.frame.grid_to_world(DVec3::new(c.x, c.y, c.z)),
+        heading: c.heading,
+        pitch: c.pitch,
+        roll: 0.0,
+        fov: FOV,
+    };
+    relief::scene::Camera::new(pose, GW, GH)
+}
+
+/// Per frame: GPU paged against the CPU twin over the same resident tiles, and against the
+/// GPU's full-residency render of the in-memory window.
+#[derive(Default, Debug)]
+struct GpuCompare {
+    terrain: usize,
+    /// GPU paged vs CPU `intersect_paged`: hit masks differing; depth beyond tolerance.
+    twin_mask: usize,
+    twin_depth: usize,
+    /// GPU paged vs GPU full residency.
+    holes: usize,
+    coarse_sky: usize,
+    mask_diff: usize,
+    depth_diff: usize,
+    colour_mean: f64,
+}
+
+fn gpu_compare(
+    terrain: &Terrain,
+    paged: &PagedTerrain,
+    cam: &relief::scene::Camera,
+    gp: &relief::gpu::FrameOutput,
+    full: &relief::gpu::FrameOutput,
+) -> GpuCompare {
+    use rayon::prelude::*;
+    let n = (GW * GH) as usize;
+    let twin: Vec<Option<f64>> = (0..n)
+        .into_par_iter()
+        .map(|k| {
+            let (x, y) = (k as u32 % GW, k as u32 / GW);
+            let r = GridRay::from_world(terrain, cam.pose.position, cam.pixel_ray(x, y));
+            let mut st = TraversalStats::default();
+            let hit = intersect_paged(terrain, paged, &r, [0.0, f64::INFINITY], MAX_STEPS, &mut st);
+            hit.map(|(t, _)| t)
+        })
+        .collect();
+    let mut c = GpuCompare::default();
+    let mut colour = 0u64;
+    for (k, &tw) in twin.iter().enumerate() {
+        let (g, f) = (gp.depth[k] as f64, full.depth[k] as f64);
+        let (gh, fh) = (g.is_finite(), f.is_finite());
+        c.terrain += fh as usize;
+        match (tw, gh) {
+            (Some(t), true) => c.twin_depth += ((t - g).abs() > GPU_CPU_DEPTH * t) as usize,
+            (None, false) => {}
+            _ => c.twin_mask += 1,
+        }
+        match (fh, gh) {
+            (true, false) => {
+                c.mask_diff += 1;
+                let (x, y) = (k as u32 % GW, k as u32 / GW);
+                let r = GridRay::from_world(terrain, cam.pose.position, cam.pixel_ray(x, y));
+                let p = r.at(f);
+                if p.z >= resident_height(paged, terrain, p) - 1e-3 * (1.0 + p.z.abs()) {
+                    c.coarse_sky += 1;
+                } else {
+                    c.holes += 1;
+                }
+            }
+            (false, true) => c.mask_diff += 1,
+            (true, true) => c.depth_diff += ((f - g).abs() > 1e-5 * f) as usize,
+            (false, false) => {}
+        }
+        for ch in 0..3 {
+            colour +=
+                (gp.rgba[4 * k + ch] as i32 - full.rgba[4 * k + ch] as i32).unsigned_abs() as u64;
+        }
+    }
+    c.colour_mean = colour as f64 / (3 * n) as f64 / 255.0;
+    c
+}
+
+#[test]
+fn paged_gpu_flight_matches_twin_and_converges() {
+    let Some(gpu) = common::gpu() else { return };
+    let _lock = common::gpu_lock();
+    let path = mosaic();
+    let (terrain, origin, geo) = window(&path);
+    let top = terrain.pyramid.top();
+    let store: Arc<dyn TileStore> = Arc::new(Store(Database::open(&path).unwrap()));
+    let opts = PagerOptions {
+        pool_bytes: POOL,
+        ..PagerOptions::default()
+    };
+    let (mut pager, first) = Pager::new(store, opts).unwrap();
+    let (slots, _) = pager.slots();
+    let mut pool: Vec<Option<Arc<Tile>>> = vec![None; slots];
+    let gpu_pool =
+        relief::gpu::terrain_pool::TerrainPool::new(gpu, pager.page_table(), 256, slots).unwrap();
+    assert!(gpu_pool.size().1 <= POOL, "GPU pool over the budget");
+    let mut paged_r =
+        relief::gpu::TerrainRenderer::new_paged(gpu, &terrain, gpu_pool, origin).unwrap();
+    let mut full_r = relief::gpu::TerrainRenderer::new(gpu, &terrain).unwrap();
+    let apply = |pool: &mut Vec<Option<Arc<Tile>>>, up: &[db::pager::Upload]| {
+        for u in up {
+            pool[u.slot as usize] = Some(u.tile.clone());
+        }
+    };
+    apply(&mut pool, &first);
+    paged_r.apply_pages(gpu, &first, pager.page_table());
+    let scene = common::synthetic_scene(GW, GH, "position = [0.0, 0.0, 5000.0]");
+    let settings = common::settings(true, false);
+    let (mut converged, mut worst_holes, mut worst_twin) = (None, 0usize, 0f64);
+    for (frame, &c) in script(&terrain).iter().enumerate() {
+        let view = View {
+            lon: geo.lon0 + c.x * geo.dlon,
+            lat: geo.lat0 + c.y * geo.dlat,
+            height: c.z,
+            heading: c.heading,
+            pitch: c.pitch,
+            fov: FOV,
+            width: GW,
+            height_px: GH,
+        };
+        let (up, st) = pager.update(&view).unwrap();
+        assert!(
+            st.resident_bytes <= POOL,
+            "frame {frame}: {} bytes",
+            st.resident_bytes
+        );
+        apply(&mut pool, &up);
+        paged_r.apply_pages(gpu, &up, pager.page_table());
+        let cam = gpu_camera(&terrain, c);
+        let gp = paged_r
+            .capture(gpu, &terrain, &scene, &cam, &settings)
+            .unwrap();
+        let full = full_r
+            .capture(gpu, &terrain, &scene, &cam, &settings)
+            .unwrap();
+        let paged = PagedTerrain::new(pager.page_table(), &pool, 256, origin, top).unwrap();
+        let g = gpu_compare(&terrain, &paged, &cam, &gp, &full);
+        eprintln!(
+            "GPU frame {frame:2}: resident {:2} missing {:2} | terrain {:4} | vs CPU twin: mask {:3} depth {:3} | vs full: holes {} coarse sky {:3} mask {:3} depth {:4} colour mean {:.5}",
+            st.resident, st.missing, g.terrain, g.twin_mask, g.twin_depth, g.holes, g.coarse_sky,
+            g.mask_diff, g.depth_diff, g.colour_mean
+        );
+        let n = (GW * GH) as f64;
+        let twin_bad = (g.twin_mask + g.twin_depth) as f64 / n;
+        worst_twin = worst_twin.max(twin_bad);
+        worst_holes = worst_holes.max(g.holes);
+        assert!(g.terrain > 0, "frame {frame}: the view must see terrain");
+        assert!(
+            twin_bad <= GPU_CPU_MASK,
+            "frame {frame}: GPU paged disagrees with the CPU twin on {} pixels",
+            g.twin_mask + g.twin_depth
+        );
+        if frame >= FLIGHT {
+            let equal = g.mask_diff == 0 && g.depth_diff == 0 && g.colour_mean <= 1.0 / 255.0;
+            match (converged, equal) {
+                (None, true) => converged = Some(frame - FLIGHT),
+                (Some(at), false) => panic!("frame {frame}: diverged after converging at {at}"),
+                _ => {}
+            }
+        }
+    }
+    eprintln!(
+        "GPU: converged {converged:?} frames after the stop; holes {worst_holes}; worst twin disagreement {:.3}%; VmHWM {} MiB",
+        worst_twin * 100.0,
+        hwm_kib().unwrap_or(0) / 1024
+    );
+    assert_eq!(worst_holes, 0, "a GPU ray fell through the paged surface");
+    let at = converged.expect("the GPU hover never matched full residency");
+    assert!(at <= CONVERGE_FRAMES, "converged after {at} frames");
+}
+
+/// `relief render --terrain-memory`: a database scene renders one frame through an 8 MB pool
+/// after its view's tiles are resident (the frame JSON's `paging`); a scene without a
+/// database, a zero budget and a window not at the finest level are one-line errors.
+#[test]
+fn render_terrain_memory_cli() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let _lock = common::gpu_lock();
+    let db_path = mosaic();
+    let dir = common::temp_dir("paged-cli");
+    let scene = |window: &str, extra: &str| {
+        format!(
+            "[terrain]\ndatabase = {:?}\nwindow = {window}\ncurved = false\n{extra}\n[camera]\nposition = [120000.0, 434000.0, 3700.0]\nheading = 90.0\npitch = -12.0\nfov = 60.0\n[output]\nwidth = 96\nheight = 72\n",
+            db_path.display().to_string()
+        )
+    };
+    let good = dir.join("mosaic.toml");
+    std::fs::write(&good, scene("[46.0, 12.0, 54.0, 20.0]", "")).unwrap();
+    let out = dir.join("out");
+    let (g, o) = (good.to_str().unwrap(), out.to_str().unwrap());
+    let r = common::relief_cli(&["render", g, "--terrain-memory", "8", "--out", o], &[]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let meta = common::read_json(&out.join("frame_0000.json"));
+    let paging = &meta["paging"];
+    eprintln!("paging: {paging}");
+    assert_eq!(
+        paging["missing"], 0,
+        "rendered before the view was resident"
+    );
+    assert!(paging["resident_bytes"].as_u64().unwrap() <= 8 << 20);
+    // `serve` pages each frame without waiting (no CIGI host: the scene's camera).
+    let served = dir.join("served");
+    let sv = served.to_str().unwrap();
+    let r = common::relief_cli(
+        &[
+            "serve",
+            g,
+            "--cigi",
+            "0",
+            "--frames",
+            "20",
+            "--terrain-memory",
+            "8",
+            "--capture-frames",
+            sv,
+        ],
+        &[],
+    );
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let last = common::read_json(&served.join("frame_0019.json"));
+    assert!(
+        last["paging"]["resident"].as_u64().unwrap() > 0,
+        "{}",
+        last["paging"]
+    );
+    let fail = |args: &[&str], want: &str| {
+        let r = common::relief_cli(args, &[]);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(!r.status.success() && err.contains(want), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+    };
+    let hgt = common::terrains().join("alps-far.toml");
+    let h = hgt.to_str().unwrap();
+    fail(
+        &["render", h, "--terrain-memory", "8", "--out", o],
+        "has no `[terrain] database`",
+    );
+    fail(
+        &["render", g, "--terrain-memory", "0", "--out", o],
+        "--terrain-memory",
+    );
+    // `[terrain] memory` in the scene does what --terrain-memory does.
+    let keyed = dir.join("keyed.toml");
+    std::fs::write(&keyed, scene("[46.0, 12.0, 54.0, 20.0]", "memory = 8")).unwrap();
+    let out2 = dir.join("out2");
+    let (k, o2) = (keyed.to_str().unwrap(), out2.to_str().unwrap());
+    let r = common::relief_cli(&["render", k, "--out", o2], &[]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let meta = common::read_json(&out2.join("frame_0000.json"));
+    assert_eq!(meta["paging"]["missing"], 0, "{}", meta["paging"]);
+    fail(
+        &["render", h, "--wait-resident", "--out", o],
+        "--wait-resident",
+    );
+    let coarse = dir.join("coarse.toml");
+    std::fs::write(&coarse, scene("[46.0, 12.0, 54.0, 20.0]", "level = 5")).unwrap();
+    let c = coarse.to_str().unwrap();
+    fail(
+        &["render", c, "--terrain-memory", "8", "--out", o],
+        "finest level",
+    );
+}
+
+/// The curved earth (`CURVED` in the paged cast and shade): hovering over the window with
+/// `curved = true`, the GPU frame through the pool converges to the GPU's full-residency
+/// render (identical hit masks, depth within 1e-5 relative, colour mean ≤ 1/255) within
+/// `CONVERGE_FRAMES` frames and stays there. (The CPU twin is flat-earth only.)
+#[test]
+fn paged_gpu_curved_hover_converges() {
+    let Some(gpu) = common::gpu() else { return };
+    let _lock = common::gpu_lock();
+    let path = mosaic();
+    let (mut terrain, origin, geo) = window(&path);
+    terrain.curved = true;
+    let store: Arc<dyn TileStore> = Arc::new(Store(Database::open(&path).unwrap()));
+    let opts = PagerOptions {
+        pool_bytes: POOL,
+        ..PagerOptions::default()
+    };
+    let (mut pager, first) = Pager::new(store, opts).unwrap();
+    let (slots, _) = pager.slots();
+    let gpu_pool =
+        relief::gpu::terrain_pool::TerrainPool::new(gpu, pager.page_table(), 256, slots).unwrap();
+    let mut paged_r =
+        relief::gpu::TerrainRenderer::new_paged(gpu, &terrain, gpu_pool, origin).unwrap();
+    let mut full_r = relief::gpu::TerrainRenderer::new(gpu, &terrain).unwrap();
+    paged_r.apply_pages(gpu, &first, pager.page_table());
+    let scene = common::synthetic_scene(GW, GH, "position = [0.0, 0.0, 5000.0]");
+    let settings = common::settings(true, false);
+    let c = *script(&terrain).last().unwrap();
+    let cam = gpu_camera(&terrain, c);
+    let view = View {
+        lon: geo.lon0 + c.x * geo.dlon,
+        lat: geo.lat0 + c.y * geo.dlat,
+        height: c.z,
+        heading: c.heading,
+        pitch: c.pitch,
+        fov: FOV,
+        width: GW,
+        height_px: GH,
+    };
+    let full = full_r
+        .capture(gpu, &terrain, &scene, &cam, &settings)
+        .unwrap();
+    let mut converged = None;
+    for frame in 0..HOVER {
+        let (up, st) = pager.update(&view).unwrap();
+        assert!(st.resident_bytes <= POOL);
+        paged_r.apply_pages(gpu, &up, pager.page_table());
+        let gp = paged_r
+            .capture(gpu, &terrain, &scene, &cam, &settings)
+            .unwrap();
+        let (mut mask, mut depth, mut colour, mut terrain_px) = (0, 0, 0u64, 0);
+        for k in 0..(GW * GH) as usize {
+            let (g, f) = (gp.depth[k] as f64, full.depth[k] as f64);
+            terrain_px += f.is_finite() as usize;
+            match (g.is_finite(), f.is_finite()) {
+                (true, true) => depth += ((f - g).abs() > 1e-5 * f) as usize,
+                (false, false) => {}
+                _ => mask += 1,
+            }
+            for ch in 0..3 {
+                let d = gp.rgba[4 * k + ch] as i32 - full.rgba[4 * k + ch] as i32;
+                colour += d.unsigned_abs() as u64;
+            }
+        }
+        let mean = colour as f64 / (3 * GW * GH) as f64 / 255.0;
+        eprintln!(
+            "curved hover frame {frame:2}: resident {:2} missing {:2} | terrain {terrain_px} mask {mask} depth {depth} colour mean {mean:.5}",
+            st.resident, st.missing
+        );
+        assert!(terrain_px > 0);
+        let equal = mask == 0 && depth == 0 && mean <= 1.0 / 255.0;
+        match (converged, equal) {
+            (None, true) => converged = Some(frame),
+            (Some(at), false) => panic!("frame {frame}: diverged after converging at {at}"),
+            _ => {}
+        }
+        // Give the workers the time a real frame would (the GPU frames here are short).
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    let at = converged.expect("the curved hover never matched full residency");
+    eprintln!("curved: converged after {at} frames");
+    assert!(at <= CONVERGE_FRAMES, "converged after {at} frames");
 }

@@ -43,7 +43,7 @@ fn every_specialised_variant_validates_with_naga() {
     use relief::gpu::variants::ShadeFeatures;
     use relief::gpu::variants::VolumeSwitches;
     let bit = |bits: u32, k: u32| bits & (1 << k) != 0;
-    for bits in 0..64 {
+    for bits in 0..128 {
         let f = ShadeFeatures {
             shadows: bit(bits, 0),
             drape: bit(bits, 1),
@@ -51,6 +51,7 @@ fn every_specialised_variant_validates_with_naga() {
             volume_shadows: bit(bits, 3),
             curved: bit(bits, 4),
             lod: bit(bits, 5),
+            paged: bit(bits, 6),
         };
         validate(&format!("shade {f:?}"), &shaders::shade(f));
         for tables in [

@@ -1028,3 +1028,65 @@ fn view_keeps_memory_and_wgpu_objects_flat() {
         "wgpu objects changed between frames 100 and 500: {memory}"
     );
 }
+
+/// `relief view --terrain-memory 8` on a database scene (the 16x16 × 257² synthetic mosaic of
+/// `tests/paged.rs`, its finest level): the window pages each frame without waiting; once the
+/// view's tiles are resident its frame equals the headless `render --terrain-memory 8` (which
+/// waits for them) within a mean error of 1/255.
+#[test]
+fn paged_window_matches_headless_paged_render() {
+    let Some((x, _lock)) = window_env() else {
+        return;
+    };
+    let db_dir = common::project_dir().join("target").join("test-output");
+    std::fs::create_dir_all(&db_dir).unwrap();
+    let db = db_dir.join("pager-synth-16x16-257-seed1.reliefdb");
+    if relief::db::Database::open(&db).is_err() {
+        relief::db::synth(&db, &relief::db::SynthOptions::default(), &|_, _| {}).unwrap();
+    }
+    let dir = temp_dir("paged-view");
+    let scene = dir.join("mosaic.toml");
+    let text = format!(
+        "[terrain]\ndatabase = {:?}\nwindow = [46.0, 12.0, 54.0, 20.0]\ncurved = false\n[camera]\nposition = [120000.0, 434000.0, 3700.0]\nheading = 90.0\npitch = -12.0\nfov = 60.0\n[output]\nwidth = 160\nheight = 120\n",
+        s(&db)
+    );
+    std::fs::write(&scene, text).unwrap();
+    let cap = dir.join("cap");
+    let o = relief(
+        &[
+            "view",
+            &s(&scene),
+            "--size",
+            "160x120",
+            "--frames",
+            "60",
+            "--no-overlay",
+            "--terrain-memory",
+            "8",
+            "--capture-frames",
+            &s(&cap),
+        ],
+        Some(&x.display),
+        &[],
+    );
+    check_ok("relief view --terrain-memory", &o);
+    let head = dir.join("head");
+    let r = relief(
+        &[
+            "render",
+            &s(&scene),
+            "--terrain-memory",
+            "8",
+            "--out",
+            &s(&head),
+        ],
+        None,
+        &[],
+    );
+    check_ok("relief render --terrain-memory", &r);
+    assert_matches(
+        "paged-view",
+        &cap.join("frame_0059.png"),
+        &head.join("frame_0000.png"),
+    );
+}

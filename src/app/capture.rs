@@ -5,6 +5,7 @@
 
 use super::args::{parse_size, parse_vec, RenderToggles};
 use super::output::{frame_paths, write_frame_files};
+use super::paged::Paging;
 use super::two_pass::{render_two_pass, view_points, TwoPass};
 use crate::display::blend::ChannelBlend;
 use crate::gpu::{FrameOutput, Gpu, RenderSettings, TerrainRenderer};
@@ -13,6 +14,7 @@ use crate::terrain::Terrain;
 use crate::world::World;
 use crate::{fileio, Error, Result};
 use serde_json::json;
+use std::cell::RefCell;
 use std::path::{Path, PathBuf};
 
 // The writers lived here before `output`; their paths stay.
@@ -137,6 +139,15 @@ pub struct RenderJob {
     /// hemisphere; zenith at the centre, forward at the bottom) instead of a pinhole view.
     #[arg(long, conflicts_with = "display")]
     pub dome_master: Option<f64>,
+    /// Render a database scene through a paged tile pool of this many MB on the GPU (the
+    /// window is not uploaded whole). One frame waits until its view's tiles are resident;
+    /// with --frames N each frame renders what is resident then (unless --wait-resident).
+    #[arg(long, value_name = "MB")]
+    pub terrain_memory: Option<u64>,
+    /// With --terrain-memory (or `[terrain] memory`): every frame waits (up to 60 s) until
+    /// its view's tiles are resident.
+    #[arg(long)]
+    pub wait_resident: bool,
 }
 
 /// The display part of a render job: render through a distortion table.
@@ -176,6 +187,8 @@ pub struct Prepared {
     pub gpu: Gpu,
     projection: Projection,
     pub settings: RenderSettings,
+    /// The pager of a paged renderer (`--terrain-memory`).
+    pub paging: Option<RefCell<Paging>>,
 }
 
 impl Prepared {
@@ -189,6 +202,7 @@ impl Prepared {
             settings: &self.settings,
             projection: &self.projection,
             fps: self.scene.desc.path.as_ref().map_or(30.0, |p| p.fps),
+            paging: self.paging.as_ref(),
         }
     }
 }
@@ -205,7 +219,19 @@ pub fn prepare(job: &RenderJob) -> Result<(Prepared, TerrainRenderer)> {
     let world = World::load(&scene)?;
     let gpu = crate::app::gpu_options::open()?;
     log::info!("adapter: {}", gpu.describe());
-    let mut renderer = super::upload::renderer(&gpu, &world)?;
+    let (mut renderer, paging) = match job.terrain_memory.or(scene.desc.terrain.memory) {
+        Some(mb) => {
+            let (r, p) = super::paged::renderer(&gpu, &scene, &world, mb)?;
+            (r, Some(RefCell::new(p)))
+        }
+        None if job.wait_resident => {
+            return Err(Error::invalid(
+                "--wait-resident",
+                "applies to a paged terrain: give --terrain-memory MB or `[terrain] memory`",
+            ))
+        }
+        None => (super::upload::renderer(&gpu, &world)?, None),
+    };
     let mut projection = Projection::default();
     if let Some(config) = &job.display.display {
         projection = through_channel(job, config, &gpu, &mut renderer, &mut scene)?;
@@ -221,6 +247,7 @@ pub fn prepare(job: &RenderJob) -> Result<(Prepared, TerrainRenderer)> {
         gpu,
         projection,
         settings,
+        paging,
     };
     Ok((prepared, renderer))
 }
@@ -375,6 +402,7 @@ pub struct Frames<'a> {
     settings: &'a RenderSettings,
     projection: &'a Projection,
     fps: f64,
+    paging: Option<&'a RefCell<Paging>>,
 }
 
 impl<'a> Frames<'a> {
@@ -398,8 +426,42 @@ impl<'a> Frames<'a> {
     fn render(&self, renderer: &mut TerrainRenderer, frame: u32) -> Result<[PathBuf; 3]> {
         let cam = self.scene.camera(frame, self.terrain);
         renderer.set_time(frame as f64 / self.fps);
+        let wait = self.job.frames == 1 || self.job.wait_resident;
+        let paging = self.page(renderer, &cam, wait)?;
         let out = self.render_camera(renderer, &cam)?;
-        self.write(&out, &cam, frame, |_| {})
+        self.write(&out, &cam, frame, |m| {
+            if let Some(p) = paging {
+                m["paging"] = p;
+            }
+        })
+    }
+
+    /// Paged mode: the pager's step for `cam` before the frame (with `wait`, until the view's
+    /// tiles are resident); the statistics for the frame JSON. Nothing without paging.
+    pub fn page(
+        &self,
+        renderer: &TerrainRenderer,
+        cam: &Camera,
+        wait: bool,
+    ) -> Result<Option<serde_json::Value>> {
+        let Some(p) = self.paging else {
+            return Ok(None);
+        };
+        let mut p = p.borrow_mut();
+        if wait {
+            let limit = std::time::Duration::from_secs(60);
+            let (st, steps) = p.settle(self.gpu, renderer, self.terrain, cam, limit)?;
+            if st.missing > 0 {
+                log::warn!(
+                    "{} wanted tile(s) still not resident after 60 s: rendering with coarser levels there",
+                    st.missing
+                );
+            }
+            log::info!("paging: resident after {steps} pager step(s)");
+        } else {
+            p.step(self.gpu, renderer, self.terrain, cam)?;
+        }
+        Ok(Some(p.json()))
     }
 
     /// Renders through `cam` (the job's projection and pattern) and returns the pixels.

@@ -9,6 +9,7 @@
 //! * [`figures`]: median, percentile, slope, memory window, resident set size;
 //! * [`gpu_options`]: `--kernels` and `--trace-passes`, and the adapter opened with them;
 //! * [`output`]: the file writers (PNG, depth TIFF, JSON, a frame's files all or nothing);
+//! * [`paged`]: `--terrain-memory`: a database scene through the paged tile pool;
 //! * [`pattern_rig`]: the warp test pattern rendered through ray tables;
 //! * [`sampling`]: bilinear sampling of RGBA8 images;
 //! * [`scenes`]: the demo scenes in `terrains/`, found at run time;
@@ -29,6 +30,7 @@ pub mod db;
 pub mod figures;
 pub mod gpu_options;
 pub mod output;
+pub mod paged;
 pub mod pattern_rig;
 pub mod sampling;
 pub mod scenes;

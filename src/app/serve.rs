@@ -41,6 +41,10 @@ pub struct ServeOptions {
     pub pose_log: Option<PathBuf>,
     #[command(flatten)]
     pub toggles: RenderToggles,
+    /// Render a database scene through a paged tile pool of this many MB (each frame pages
+    /// for its view, never waiting; as `relief view --terrain-memory`).
+    #[arg(long, value_name = "MB")]
+    pub terrain_memory: Option<u64>,
 }
 
 /// Runs the IG until `--frames` frames are done (or the synchronous host is gone); returns
@@ -62,6 +66,8 @@ pub fn run(opts: &ServeOptions) -> Result<String> {
         display: opts.display.clone(),
         pattern: false,
         dome_master: None,
+        terrain_memory: opts.terrain_memory,
+        wait_resident: false,
     };
     let (p, mut renderer) = prepare(&job)?;
     if let Some(dir) = &opts.capture_frames {
@@ -98,6 +104,7 @@ pub fn run(opts: &ServeOptions) -> Result<String> {
         ig.environment(&mut scene.desc, at);
         let frames = frames.with_scene(&scene);
         renderer.set_time(ig.now());
+        let paging = frames.page(&renderer, &cam, false)?;
         let out = frames.render_camera(&mut renderer, &cam)?;
         let ig_frame = ig.ig_frame;
         if let (Some(w), Some(path)) = (log.as_mut(), &opts.pose_log) {
@@ -122,6 +129,9 @@ pub fn run(opts: &ServeOptions) -> Result<String> {
                 m["cigi"] = cigi;
                 m["camera"]["geodetic"] = json!(geodetic);
                 m["camera"]["host_time_s"] = json!(own.map(|o| o.host_time));
+                if let Some(p) = paging {
+                    m["paging"] = p;
+                }
             })?;
         }
         ig.end_frame(terrain);

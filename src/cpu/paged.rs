@@ -51,15 +51,11 @@ impl<'a> PagedTerrain<'a> {
         origin: [i64; 2],
         top: usize,
     ) -> Result<PagedTerrain<'a>> {
-        let align = 1i64 << top;
-        if !n.is_power_of_two() || origin.iter().any(|&o| o < 0 || o % align != 0) {
+        check_origin(origin, top)?;
+        if !n.is_power_of_two() {
             return Err(Error::invalid(
-                "terrain.window",
-                format!(
-                    "a paged window must start on a multiple of {align} finest samples \
-                     (its pyramid's top cell), got sample ({}, {})",
-                    origin[0], origin[1]
-                ),
+                "tile size",
+                format!("tiles of {n} cells: not a power of two"),
             ));
         }
         Ok(PagedTerrain {
@@ -170,6 +166,23 @@ impl<'a> PagedTerrain<'a> {
                 .finest_resident(level, i, j)
                 .is_none_or(|(jj, _)| jj >= level)
     }
+}
+
+/// Refuses a paged window whose sample (0, 0), sample `origin` of the finest level, is
+/// negative or not a multiple of `2^top` finest samples (its pyramid's top cell).
+pub fn check_origin(origin: [i64; 2], top: usize) -> Result<()> {
+    let align = 1i64 << top.min(62);
+    if origin.iter().any(|&o| o < 0 || o % align != 0) {
+        return Err(Error::invalid(
+            "terrain.window",
+            format!(
+                "a paged window must start on a multiple of {align} finest samples \
+                 (its pyramid's top cell), got sample ({}, {})",
+                origin[0], origin[1]
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// The paged traversal of `r` over `terrain`'s box (a terrain with walls; `terrain` gives the

@@ -42,6 +42,12 @@ pub fn dilate_square_pyramid(data: &[f32], n: u32) -> Vec<f32> {
     out
 }
 
+/// The side of [`square_pyramid`]'s level 0, without building it.
+pub fn square_side(terrain: &Terrain) -> u32 {
+    let cells = terrain.pyramid.levels[0].cells;
+    cells[0].max(cells[1]).next_power_of_two()
+}
+
 /// The maximum pyramid re-laid for the GPU as a square power-of-two mip chain: level L has side
 /// `N >> L` (N = the next power of two of the larger cell count), starts at
 /// `4 (N² − (N >> L)²) / 3` and is padded with [`crate::terrain::pyramid::PAD`]. Returns the data and N.

@@ -12,7 +12,7 @@ use super::table::TableMode;
 use super::targets::{TargetPasses, Targets};
 use super::terrain_passes::{RayGen, TerrainPasses};
 use super::uniforms::{frame_uniforms, raygen_uniforms, table_raygen_uniforms};
-use super::util::encode_fullscreen;
+use super::util::{encode_fullscreen, encode_fullscreen_with};
 use super::variants::ShadeFeatures;
 use super::volume_set::VolumeSet;
 use super::voxels::VoxelPasses;
@@ -26,6 +26,9 @@ use crate::terrain::curved::GridCurvature;
 use crate::terrain::Terrain;
 use crate::{Error, Result};
 use std::time::Instant;
+
+#[path = "renderer_paged.rs"]
+mod paged;
 
 // Names this file held before the gpu room was split, still reachable at their old paths.
 
@@ -57,6 +60,8 @@ pub struct TerrainRenderer {
     /// Frames run so far (wrapping, never 0): the frame's stamp in the uniforms.
     stamp: u32,
     targets: Option<Targets>,
+    /// The paged terrain's tile pool (group 3), in paged mode ([`Self::new_paged`]).
+    paged: Option<super::terrain_pool::TerrainPool>,
 }
 
 /// One frame being recorded: what it shows, how far it goes and whether its passes are timed.
@@ -121,7 +126,7 @@ impl TerrainRenderer {
         kernels: KernelPath,
     ) -> Result<TerrainRenderer> {
         Ok(TerrainRenderer {
-            base: TerrainPasses::new(gpu, terrain, kernels)?,
+            base: TerrainPasses::new(gpu, terrain, kernels, None)?,
             table: None,
             objects: None,
             objects_floor: f64::INFINITY,
@@ -137,6 +142,7 @@ impl TerrainRenderer {
             time: 0.0,
             stamp: 0,
             targets: None,
+            paged: None,
         })
     }
 
@@ -199,6 +205,7 @@ impl TerrainRenderer {
         templates: &[(crate::freeform::FreeForm, usize)],
         allow_uniform: bool,
     ) -> Result<()> {
+        self.refuse_paged_objects(objects.len() + templates.len())?;
         self.objects = if objects.is_empty() && templates.is_empty() {
             None
         } else {
@@ -454,7 +461,8 @@ impl TerrainRenderer {
             voxels: self.voxels.is_some(),
             volume_shadows: s.shadows && self.volumes.any_casts_shadow(),
             curved: job.terrain.curved,
-            lod: s.lod.is_some() && s.mode == TraceMode::Pyramid,
+            lod: s.lod.is_some() && s.mode == TraceMode::Pyramid && self.paged.is_none(),
+            paged: self.paged.is_some(),
         };
         if features.lod {
             self.base.prepare_cast_lod(gpu);
@@ -467,6 +475,8 @@ impl TerrainRenderer {
         let t = self.targets.as_ref().expect("targets just ensured");
         let mut fu = frame_uniforms(job.terrain, job.scene, job.cam, s, t.tiles);
         fu.pyramid_dims = [self.base.data.pyramid_side, 0, 0, 0];
+        // Paged: no tile pre-pass (it reads the pyramid); every ray starts at the top.
+        fu.mode[3] &= self.paged.is_none() as u32;
         self.stamp = self.stamp.wrapping_add(1).max(1);
         fu.stamp = [self.stamp, 0, 0, 0];
         if let (Some(o), Some((ot, _))) = (&self.objects, &t.objects) {
@@ -606,7 +616,7 @@ impl TerrainRenderer {
         voxel_rects: Option<&VoxelRects>,
     ) -> Result<()> {
         let s = job.s;
-        let tile_on = s.tile_prepass && s.mode == TraceMode::Pyramid;
+        let tile_on = s.tile_prepass && s.mode == TraceMode::Pyramid && self.paged.is_none();
         if tile_on {
             encode_fullscreen(
                 enc,
@@ -622,7 +632,9 @@ impl TerrainRenderer {
         } else {
             &self.base.march
         };
-        encode_fullscreen(enc, "cast", cast, &t.cast_bg, &[&t.gbuffer_view]);
+        let pool = self.paged.as_ref().map(|p| &p.bind_group);
+        let g = &[&t.gbuffer_view];
+        encode_fullscreen_with(enc, "cast", cast, &t.cast_bg, pool, g);
         job.lap(enc, &mut times.cast_ms)?;
         if let Some((o, (ot, _))) = self.objects.as_ref().zip(t.objects.as_ref()) {
             o.encode_cast(job.gpu, enc, ot, &t.gbuffer, &t.gbuffer_view);
@@ -678,7 +690,9 @@ impl TerrainRenderer {
             .zip(t.composite.as_ref())
             .filter(|_| !self.volumes.hidden);
         let shaded = volumes.map_or(&t.colour_view, |(_, ct)| &ct.under_view);
-        encode_fullscreen(enc, "shade", pipeline, bg, &[shaded, &t.data_view]);
+        let pool = self.paged.as_ref().map(|p| &p.bind_group);
+        let views = &[shaded, &t.data_view];
+        encode_fullscreen_with(enc, "shade", pipeline, bg, pool, views);
         job.lap(enc, &mut times.shade_ms)?;
         if let Some(composite) = volumes {
             let pipelines = &prepared.volume_pipelines;

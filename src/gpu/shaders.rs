@@ -72,8 +72,8 @@ pub fn cast(curved: bool, lod: bool) -> String {
 }
 
 /// The paged cast pass (`PAGED`): as [`cast`] with the terrain read from the tile pool
-/// (group 3, `terrain_paged.wgsl`) and the paged stop rule; validated by naga, not yet built
-/// by the renderer (docs/database.md, "Not here yet").
+/// (group 3, `terrain_paged.wgsl`) and the paged stop rule; built by the renderer in paged
+/// mode (`TerrainRenderer::new_paged`).
 pub fn cast_paged(curved: bool) -> String {
     [
         &super::variants::wgsl_bools(&[("CURVED", curved), ("LOD", false), ("PAGED", true)]),
@@ -89,6 +89,49 @@ pub fn cast_paged(curved: bool) -> String {
     .concat()
 }
 
+/// The shade pass's terrain reads: the heights and the pyramid, or with `paged` the tile pool
+/// (the window-relative interface and `sample_height` on the finest resident surface).
+fn shade_terrain(paged: bool) -> String {
+    if paged {
+        [TERRAIN_PAGED, TERRAIN_PAGED_WINDOW, PAGED_SAMPLES].concat()
+    } else {
+        TERRAIN_MEMORY.to_string()
+    }
+}
+
+/// The shade pass's samples in the paged build: `shape_hint` takes the finest resident level
+/// over the shaded cell from the G-buffer (`gbuffer_hint` in the cast pass) and its tile;
+/// `sample_height(i, j)` reads sample (i, j) of the window on that level's bilinear surface,
+/// clamped to that tile (loop-free: a neighbour across the tile's edge gives a one-sided
+/// difference there).
+const PAGED_SAMPLES: &str = "
+var<private> paged_k: u32 = 0u;
+var<private> paged_hint_slot: u32 = 0u;
+var<private> paged_tile0: vec2<u32> = vec2<u32>(0u);
+
+fn shape_hint(g: vec4<u32>, i: i32, j: i32) {
+    let k = min(g.z >> 24u, paged.levels - 1u);
+    let c = vec2<u32>(paged.origin_x + u32(i), paged.origin_y + u32(j)) >> vec2<u32>(k);
+    let t = c >> vec2<u32>(paged.log2_n);
+    let slot = paged_slot(paged.levels - 1u - k, t.x, t.y);
+    paged_k = k;
+    paged_hint_slot = select(slot, 0u, slot == PAGED_NONE);
+    paged_tile0 = t << vec2<u32>(paged.log2_n);
+}
+
+fn sample_height(i: u32, j: u32) -> f32 {
+    let n = f32(paged.tile_n);
+    let g = vec2<f32>(vec2<u32>(paged.origin_x + i, paged.origin_y + j));
+    let p = clamp(g / f32(1u << paged_k) - vec2<f32>(paged_tile0), vec2<f32>(0.0), vec2<f32>(n));
+    let a = min(vec2<u32>(p), vec2<u32>(paged.tile_n - 1u));
+    let uv = p - vec2<f32>(a);
+    let slot = paged_hint_slot;
+    let s = mix(paged_height(slot, a.x, a.y), paged_height(slot, a.x + 1u, a.y), uv.x);
+    let m = mix(paged_height(slot, a.x, a.y + 1u), paged_height(slot, a.x + 1u, a.y + 1u), uv.x);
+    return mix(s, m, uv.y);
+}
+";
+
 /// Shade pass (fragment): lighting, shadow rays, fog, sky from the G-buffer, with the
 /// optional features `f` compiled in.
 pub fn shade(f: ShadeFeatures) -> String {
@@ -97,7 +140,7 @@ pub fn shade(f: ShadeFeatures) -> String {
         FRAME,
         FULLSCREEN,
         RAY_TABLE,
-        TERRAIN_MEMORY,
+        &shade_terrain(f.paged),
         TRAVERSE,
         GBUFFER,
         SRGB,
@@ -116,7 +159,7 @@ pub fn shade_objects(f: ShadeFeatures, tables: FfTables) -> String {
         FRAME,
         FULLSCREEN,
         RAY_TABLE,
-        TERRAIN_MEMORY,
+        &shade_terrain(f.paged),
         TRAVERSE,
         GBUFFER,
         &freeform(false, tables),
@@ -331,6 +374,13 @@ pub fn all() -> Vec<(&'static str, String)> {
         ("cast (curved, paged)", cast_paged(true)),
         ("shade", shade(ShadeFeatures::ALL)),
         ("shade (no options)", shade(ShadeFeatures::NONE)),
+        (
+            "shade (paged)",
+            shade(ShadeFeatures {
+                paged: true,
+                ..ShadeFeatures::ALL
+            }),
+        ),
         ("shade_objects", shade_objects(ShadeFeatures::ALL, UNIFORM)),
         (
             "shade_objects (no options, storage tables)",

@@ -12,7 +12,7 @@
 //! (Constants in the source rather than pipeline `override`s: one source per variant is what
 //! the naga validation test checks, and every variant is a complete, valid module.)
 
-use super::util::render_pipeline;
+use super::util::{pipeline_layout_with, render_pipeline_in};
 use super::variants::Switches;
 use super::ParamSpace;
 
@@ -24,6 +24,8 @@ pub struct SpecialisedPipelines<S: Switches> {
     entry: &'static str,
     bgl: wgpu::BindGroupLayout,
     targets: Vec<Option<wgpu::ColorTargetState>>,
+    /// Bind group 3 of every pipeline (the paged terrain's tile pool), if any.
+    group3: Option<wgpu::BindGroupLayout>,
     built: Vec<(S, wgpu::RenderPipeline)>,
 }
 
@@ -46,8 +48,16 @@ impl<S: Switches> SpecialisedPipelines<S> {
             entry,
             bgl,
             targets,
+            group3: None,
             built: Vec::new(),
         }
+    }
+
+    /// The same pipelines with bind group 3 `bgl` in their layout (the paged terrain).
+    pub fn with_group3(mut self, bgl: wgpu::BindGroupLayout) -> SpecialisedPipelines<S> {
+        self.group3 = Some(bgl);
+        self.built.clear();
+        self
     }
 
     /// Builds the pipeline for `switches` unless it exists; returns its index for
@@ -57,12 +67,13 @@ impl<S: Switches> SpecialisedPipelines<S> {
             return i;
         }
         let module = super::shader_module(dev, self.space, self.label, &(self.source)(switches));
-        let pipeline = render_pipeline(
+        let layout = pipeline_layout_with(dev, &self.bgl, self.group3.as_ref());
+        let pipeline = render_pipeline_in(
             dev,
             self.label,
             &module,
             ["vs_fullscreen", self.entry],
-            &self.bgl,
+            &layout,
             &self.targets,
             None,
         );

@@ -4,12 +4,13 @@
 //! terrain-only shade pass.
 
 use super::device::KernelPath;
-use super::pyramid::{dilate_square_pyramid, square_pyramid};
+use super::pyramid::{dilate_square_pyramid, square_pyramid, square_side};
 use super::shade::{shade_pipelines, ShadePipelines};
 use super::types::{FrameUniforms, RayGenUniforms, MAX_LEVELS};
 use super::util::{
-    check_buffer_limit, float_texture_entry, fullscreen_pipeline, pipeline_layout, storage_entry,
-    target_state, uint_texture_entry, uniform_entry,
+    check_buffer_limit, float_texture_entry, fullscreen_pipeline, pipeline_layout,
+    pipeline_layout_with, render_pipeline_in, storage_entry, target_state, uint_texture_entry,
+    uniform_entry,
 };
 use super::{shaders, Gpu, PARAM_USAGE};
 use crate::terrain::Terrain;
@@ -34,8 +35,10 @@ pub(crate) struct TerrainData {
 }
 
 impl TerrainData {
-    /// Checks the terrain against the shaders' and the adapter's limits and uploads it.
-    pub fn upload(gpu: &Gpu, terrain: &Terrain) -> Result<TerrainData> {
+    /// Checks the terrain against the shaders' and the adapter's limits and uploads it;
+    /// `paged`: the heights and pyramid stay on the host (the tile pool replaces them; the
+    /// bindings get 4-byte placeholders).
+    pub fn upload(gpu: &Gpu, terrain: &Terrain, paged: bool) -> Result<TerrainData> {
         let dev = &gpu.device;
         if terrain.pyramid.levels.len() > MAX_LEVELS {
             return Err(Error::Limit {
@@ -49,19 +52,6 @@ impl TerrainData {
                 ),
             });
         }
-        check_buffer_limit(
-            gpu,
-            "height table",
-            terrain.field.heights.len() as u64 * 4,
-            HEIGHT_MAP_FIX,
-        )?;
-        let (pyramid_data, pyramid_side) = square_pyramid(terrain);
-        check_buffer_limit(
-            gpu,
-            "maximum pyramid",
-            pyramid_data.len() as u64 * 4,
-            HEIGHT_MAP_FIX,
-        )?;
         let storage = |label: &str, contents: &[u8]| {
             dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some(label),
@@ -69,10 +59,30 @@ impl TerrainData {
                 usage: wgpu::BufferUsages::STORAGE,
             })
         };
-        let heights = storage("heights", bytemuck::cast_slice(&terrain.field.heights));
-        let pyramid = storage("max pyramid", bytemuck::cast_slice(&pyramid_data));
-        let dilated_data = dilate_square_pyramid(&pyramid_data, pyramid_side);
-        let dilated = storage("dilated max pyramid", bytemuck::cast_slice(&dilated_data));
+        let (heights, pyramid, dilated, pyramid_side) = if paged {
+            let none = || storage("paged placeholder", &[0u8; 4]);
+            let side = square_side(terrain);
+            (none(), none(), none(), side)
+        } else {
+            check_buffer_limit(
+                gpu,
+                "height table",
+                terrain.field.heights.len() as u64 * 4,
+                HEIGHT_MAP_FIX,
+            )?;
+            let (pyramid_data, side) = square_pyramid(terrain);
+            check_buffer_limit(
+                gpu,
+                "maximum pyramid",
+                pyramid_data.len() as u64 * 4,
+                HEIGHT_MAP_FIX,
+            )?;
+            let heights = storage("heights", bytemuck::cast_slice(&terrain.field.heights));
+            let pyramid = storage("max pyramid", bytemuck::cast_slice(&pyramid_data));
+            let dilated_data = dilate_square_pyramid(&pyramid_data, side);
+            let dilated = storage("dilated max pyramid", bytemuck::cast_slice(&dilated_data));
+            (heights, pyramid, dilated, side)
+        };
         let drape_words: Vec<u32> = match &terrain.drape {
             Some((d, _)) => {
                 check_buffer_limit(
@@ -203,16 +213,26 @@ pub(crate) struct TerrainPasses {
 
 impl TerrainPasses {
     /// Uploads the terrain (heights, pyramid, drape) and builds the pipelines, ray generation
-    /// on the `kernels` path.
-    pub fn new(gpu: &Gpu, terrain: &Terrain, kernels: KernelPath) -> Result<TerrainPasses> {
-        let data = TerrainData::upload(gpu, terrain)?;
+    /// on the `kernels` path. `paged`: group 3's layout of the tile pool; the cast (and march)
+    /// and shade pipelines read the terrain from it (`shaders::cast_paged`, `PAGED`) and the
+    /// heights and pyramid are not uploaded.
+    pub fn new(
+        gpu: &Gpu,
+        terrain: &Terrain,
+        kernels: KernelPath,
+        paged: Option<&wgpu::BindGroupLayout>,
+    ) -> Result<TerrainPasses> {
+        let data = TerrainData::upload(gpu, terrain, paged.is_some())?;
         let raygen_compute = kernels == KernelPath::Compute;
         let bgl = TerrainLayouts::new(gpu, raygen_compute);
         let dev = &gpu.device;
         let module = |label: &str, src: String| super::shader_module(dev, gpu.params, label, &src);
         let raygen_mod = module("raygen.wgsl", shaders::raygen());
         let tile_mod = module("tile.wgsl", shaders::tile(terrain.curved));
-        let cast_mod = module("cast.wgsl", shaders::cast(terrain.curved, false));
+        let cast_mod = match paged {
+            Some(_) => module("cast.wgsl (paged)", shaders::cast_paged(terrain.curved)),
+            None => module("cast.wgsl", shaders::cast(terrain.curved, false)),
+        };
         let fullscreen = |label: &str,
                           m: &wgpu::ShaderModule,
                           entry: &str,
@@ -247,10 +267,18 @@ impl TerrainPasses {
                 wgpu::TextureFormat::Rgba32Uint,
             ))
         };
-        let g = wgpu::TextureFormat::Rgba32Uint;
-        let cast = fullscreen("cast", &cast_mod, "fs_cast", &bgl.cast, g);
-        let march = fullscreen("march", &cast_mod, "fs_cast_march", &bgl.cast, g);
-        let shade = shade_pipelines(gpu.params, "shade", shaders::shade, bgl.shade.clone());
+        let g = [Some(target_state(wgpu::TextureFormat::Rgba32Uint))];
+        let cast_layout = pipeline_layout_with(dev, &bgl.cast, paged);
+        let cast_pipeline = |label: &str, entry: &str| {
+            let entries = ["vs_fullscreen", entry];
+            render_pipeline_in(dev, label, &cast_mod, entries, &cast_layout, &g, None)
+        };
+        let cast = cast_pipeline("cast", "fs_cast");
+        let march = cast_pipeline("march", "fs_cast_march");
+        let mut shade = shade_pipelines(gpu.params, "shade", shaders::shade, bgl.shade.clone());
+        if let Some(p) = paged {
+            shade = shade.with_group3(p.clone());
+        }
         Ok(TerrainPasses {
             data,
             bgl,

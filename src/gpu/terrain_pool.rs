@@ -3,8 +3,8 @@
 //! keeps each frame's uploads within its byte budget), read by `terrain_paged.wgsl`
 //! (`cell_max`, `patch_corners`, `finest_resident`).
 //!
-//! Not yet bound by the renderer: the traversal (`terrain_traverse.wgsl`) is being factored
-//! to call exactly those functions, after which the paged buffers replace the pyramid.
+//! Bound as group 3 of the paged cast and shade pipelines
+//! ([`super::TerrainRenderer::new_paged`]).
 
 use super::util::check_buffer_limit;
 use super::Gpu;
@@ -43,8 +43,29 @@ pub struct TerrainPool {
     pub levels: wgpu::Buffer,
     pub table: wgpu::Buffer,
     pub pool: wgpu::Buffer,
+    /// Group 3's layout and bind group (the four buffers above).
+    pub bgl: wgpu::BindGroupLayout,
+    pub bind_group: wgpu::BindGroup,
+    params_host: PagedParams,
     slot_floats: u64,
+    slots: usize,
     n: usize,
+}
+
+/// Group 3's layout: `PagedParams` (uniform), levels, page table and pool (storage).
+fn pool_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
+    use super::util::{storage_entry, uniform_entry};
+    let fs = wgpu::ShaderStages::FRAGMENT;
+    gpu.device
+        .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("terrain pool"),
+            entries: &[
+                uniform_entry(gpu.params, 0, fs),
+                storage_entry(1, fs, true),
+                storage_entry(2, fs, true),
+                storage_entry(3, fs, true),
+            ],
+        })
 }
 
 /// The level records and parameters for `table` with tiles of `n` cells.
@@ -96,23 +117,56 @@ impl TerrainPool {
                 usage,
             })
         };
+        let params_buf = init(
+            "paged params",
+            bytemuck::bytes_of(&params),
+            super::PARAM_USAGE,
+        );
+        let levels_buf = init("paged levels", bytemuck::cast_slice(&levels), storage);
+        let table_buf = init("paged table", bytemuck::cast_slice(table.raw()), storage);
+        let pool = dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("terrain pool"),
+            size: bytes.max(4),
+            usage: storage,
+            mapped_at_creation: false,
+        });
+        let bgl = pool_layout(gpu);
+        use super::util::buf;
+        let bind_group = dev.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("terrain pool"),
+            layout: &bgl,
+            entries: &[
+                buf(0, &params_buf),
+                buf(1, &levels_buf),
+                buf(2, &table_buf),
+                buf(3, &pool),
+            ],
+        });
         Ok(TerrainPool {
-            params: init(
-                "paged params",
-                bytemuck::bytes_of(&params),
-                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            ),
-            levels: init("paged levels", bytemuck::cast_slice(&levels), storage),
-            table: init("paged table", bytemuck::cast_slice(table.raw()), storage),
-            pool: dev.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("terrain pool"),
-                size: bytes.max(4),
-                usage: storage,
-                mapped_at_creation: false,
-            }),
+            params: params_buf,
+            levels: levels_buf,
+            table: table_buf,
+            pool,
+            bgl,
+            bind_group,
+            params_host: params,
             slot_floats,
+            slots,
             n,
         })
+    }
+
+    /// Sets the traversal window's sample (0, 0) on the finest level's global grid (a
+    /// multiple of 2^top: `cpu::paged::check_origin`).
+    pub fn set_origin(&mut self, gpu: &Gpu, origin: [u32; 2]) {
+        self.params_host.origin = origin;
+        gpu.queue
+            .write_buffer(&self.params, 0, bytemuck::bytes_of(&self.params_host));
+    }
+
+    /// Slots in the pool and their bytes on the GPU.
+    pub fn size(&self) -> (usize, u64) {
+        (self.slots, self.slots as u64 * self.slot_floats * 4)
     }
 
     /// Copies this frame's uploads into their slots and the page table as it now stands.

@@ -180,10 +180,41 @@ pub(crate) fn render_pipeline(
     targets: &[Option<wgpu::ColorTargetState>],
     depth_stencil: Option<wgpu::DepthStencilState>,
 ) -> wgpu::RenderPipeline {
+    let layout = pipeline_layout(dev, bgl);
+    render_pipeline_in(dev, label, m, entries, &layout, targets, depth_stencil)
+}
+
+/// The pipeline layout of group 0 `bgl` and, where given, group 3 `group3` (the paged
+/// terrain's tile pool, `terrain_paged.wgsl`; groups 1 and 2 empty).
+pub(crate) fn pipeline_layout_with(
+    dev: &wgpu::Device,
+    bgl: &wgpu::BindGroupLayout,
+    group3: Option<&wgpu::BindGroupLayout>,
+) -> wgpu::PipelineLayout {
+    match group3 {
+        None => pipeline_layout(dev, bgl),
+        Some(g3) => dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: None,
+            bind_group_layouts: &[Some(bgl), None, None, Some(g3)],
+            immediate_size: 0,
+        }),
+    }
+}
+
+/// [`render_pipeline`] with an explicit pipeline layout.
+pub(crate) fn render_pipeline_in(
+    dev: &wgpu::Device,
+    label: &str,
+    m: &wgpu::ShaderModule,
+    entries: [&str; 2],
+    layout: &wgpu::PipelineLayout,
+    targets: &[Option<wgpu::ColorTargetState>],
+    depth_stencil: Option<wgpu::DepthStencilState>,
+) -> wgpu::RenderPipeline {
     let [vertex, entry] = entries;
     dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some(label),
-        layout: Some(&pipeline_layout(dev, bgl)),
+        layout: Some(layout),
         vertex: wgpu::VertexState {
             module: m,
             entry_point: Some(vertex),
@@ -226,6 +257,18 @@ pub(crate) fn encode_fullscreen(
     bg: &wgpu::BindGroup,
     views: &[&wgpu::TextureView],
 ) {
+    encode_fullscreen_with(enc, label, pipeline, bg, None, views);
+}
+
+/// [`encode_fullscreen`] with bind group 3 `group3` (the paged terrain's tile pool) set too.
+pub(crate) fn encode_fullscreen_with(
+    enc: &mut wgpu::CommandEncoder,
+    label: &str,
+    pipeline: &wgpu::RenderPipeline,
+    bg: &wgpu::BindGroup,
+    group3: Option<&wgpu::BindGroup>,
+    views: &[&wgpu::TextureView],
+) {
     let attachments: Vec<_> = views
         .iter()
         .map(|v| {
@@ -254,6 +297,9 @@ pub(crate) fn encode_fullscreen(
     });
     pass.set_pipeline(pipeline);
     pass.set_bind_group(0, bg, &[]);
+    if let Some(g3) = group3 {
+        pass.set_bind_group(3, g3, &[]);
+    }
     pass.draw(0..3, 0..1);
 }
 

@@ -38,6 +38,9 @@ pub struct ShadeFeatures {
     /// Footprint level of detail (`render.lod`, `LOD`): shadow rays of terrain hits start
     /// above the finest surface (a coarse patch may lie below it).
     pub lod: bool,
+    /// The terrain is read from the paged tile pool (`PAGED`, group 3): normals from the
+    /// finest resident surface, shadow rays through the paged traversal.
+    pub paged: bool,
 }
 
 impl ShadeFeatures {
@@ -49,6 +52,7 @@ impl ShadeFeatures {
         volume_shadows: true,
         curved: true,
         lod: true,
+        paged: false,
     };
     /// None compiled in.
     pub const NONE: ShadeFeatures = ShadeFeatures {
@@ -58,6 +62,7 @@ impl ShadeFeatures {
         volume_shadows: false,
         curved: false,
         lod: false,
+        paged: false,
     };
 }
 
@@ -70,7 +75,7 @@ impl Switches for ShadeFeatures {
             ("VOLUME_SHADOWS", self.volume_shadows),
             ("CURVED", self.curved),
             ("LOD", self.lod),
-            ("PAGED", false),
+            ("PAGED", self.paged),
         ])
     }
 }

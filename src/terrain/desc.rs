@@ -23,6 +23,9 @@ pub struct TerrainDesc {
     /// Database only: the level to read, 0 the coarsest (default: the finest level at which
     /// the window fits 16384 samples a side).
     pub level: Option<u32>,
+    /// Database only: render through a paged GPU tile pool of this many MB instead of the
+    /// window uploaded whole (`--terrain-memory` overrides it).
+    pub memory: Option<u64>,
     /// Sample spacing in metres `[dx, dy]`; overrides the file's georeference (required for PNG).
     pub cell_size: Option<[f64; 2]>,
     /// No-data value; overrides GDAL_NODATA.
@@ -93,6 +96,7 @@ impl TerrainDesc {
             for (key, set) in [
                 ("window", self.window.is_some()),
                 ("level", self.level.is_some()),
+                ("memory", self.memory.is_some()),
             ] {
                 if set {
                     return Err(Error::invalid(

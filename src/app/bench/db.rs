@@ -3,21 +3,18 @@
 //! scripted flight over a mosaic through the pager (frame cost crossing tiles against
 //! hovering, pool and host memory, frames with a wanted tile missing).
 //!
-//! The flight's frame cost is the pager's update plus copying its uploads into the GPU pool
-//! (`gpu::terrain_pool`) and waiting for the queue: the traversal does not read the pool yet,
-//! so this is the paging overhead a frame pays, not a rendered frame.
+//! The flight's frame cost is the pager's update, copying its uploads into the GPU pool
+//! (`gpu::terrain_pool`) and the frame rendered through the pool (`TerrainRenderer::new_paged`),
+//! submit to GPU idle.
 
 use super::table::{Figures, Row, RunInfo, Table};
 use super::terrain::product_settings;
 use super::timing::{scene_at_size, FrameSetup};
-use crate::db::pager::{Pager, PagerOptions, View};
 use crate::db::{self, Database};
-use crate::gpu::terrain_pool::TerrainPool;
 use crate::gpu::{Gpu, Stage, TerrainRenderer};
 use crate::{Error, Result};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 use std::time::Instant;
 
 /// Options of `relief bench db` beyond the shared ones.
@@ -55,12 +52,18 @@ pub struct DbBench {
     pub crossing_p99_ms: f64,
     pub hover_p50_ms: f64,
     pub hover_p99_ms: f64,
+    /// The hover view rendered with the whole window in memory (ms, median).
+    pub resident_ms: f64,
     pub pool_bytes: u64,
     pub max_staged_bytes: u64,
     pub db_cache_bytes: u64,
     pub max_rss_kib: u64,
+    /// Peak resident set of the whole run (VmHWM; the window in host memory included).
+    pub vm_hwm_kib: u64,
     pub frames_missing: u64,
     pub uploads: u64,
+    /// The flight's window (samples, degrees).
+    pub window: String,
     pub mosaic: String,
 }
 
@@ -69,6 +72,17 @@ fn rss_kib() -> u64 {
         .ok()
         .and_then(|s| {
             let l = s.lines().find(|l| l.starts_with("VmRSS:"))?.to_string();
+            l.split_whitespace().nth(1)?.parse().ok()
+        })
+        .unwrap_or(0)
+}
+
+/// The process's peak resident set (VmHWM), KiB.
+fn hwm_kib() -> u64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            let l = s.lines().find(|l| l.starts_with("VmHWM:"))?.to_string();
             l.split_whitespace().nth(1)?.parse().ok()
         })
         .unwrap_or(0)
@@ -174,7 +188,7 @@ fn measure(
     let database_ms = frame_ms(gpu, &db_scene, size, frames)?;
     // The flight.
     let mosaic = a.mosaic.clone().unwrap_or(synth);
-    let flight = fly(gpu, &mosaic, size, a)?;
+    let flight = fly(gpu, dir, scene_path, &mosaic, size, a)?;
     Ok(DbBench {
         build_samples: built.samples,
         build_seconds,
@@ -186,48 +200,108 @@ fn measure(
     })
 }
 
-/// The scripted flight: `flight_frames / 2` frames crossing east at `speed` (60 frames a
-/// second) 300 m above the mosaic's highest point, looking ahead and down, then as many
-/// hovering, paced at 60 frames a second (the frame cost excludes the wait).
-fn fly(gpu: &Gpu, mosaic: &Path, size: (u32, u32), a: &DbBenchArgs) -> Result<DbBench> {
-    let mut database = Database::open(mosaic)?;
-    database.set_cache_bytes(64 << 20);
-    let store = Arc::new(database);
-    let h = store.header().clone();
-    let opts = PagerOptions {
-        pool_bytes: a.terrain_memory << 20,
-        ..PagerOptions::default()
-    };
-    let (mut pager, first) = Pager::new(store.clone(), opts)?;
-    let (slots, slot_bytes) = pager.slots();
-    let n = store.tile_cells();
-    let pool = TerrainPool::new(gpu, pager.page_table(), n, slots)?;
-    pool.apply(gpu, &first, pager.page_table());
-    gpu.wait()?;
+/// The largest window of the finest level that lies within the mosaic's extent and starts on
+/// a multiple of its own side (the paged window's alignment): `[lat_s, lon_w, lat_n, lon_e]`.
+fn aligned_window(h: &db::format::Header) -> Result<[f64; 4]> {
+    let fine = h.levels[h.levels.len() - 1];
+    let d = fine.per_degree;
     let e = h.extent;
-    let lat = 0.5 * (e.lat_min + e.lat_max);
-    let (mx, _) = crate::terrain::heightfield::metres_per_degree(lat);
-    let mut view = View {
-        lon: e.lon_min + 0.1 * (e.lon_max - e.lon_min),
-        lat,
-        height: h.heights[1] as f64 + 300.0,
+    let lo = |deg: f64, base: f64| ((deg + base) * d - 1e-6).ceil() as i64;
+    let hi = |deg: f64, base: f64| ((deg + base) * d + 1e-6).floor() as i64;
+    let (i_lo, i_hi) = (lo(e.lon_min, 180.0), hi(e.lon_max, 180.0));
+    let (j_lo, j_hi) = (lo(e.lat_min, 90.0), hi(e.lat_max, 90.0));
+    for k in (4..=14).rev() {
+        let side = 1i64 << k;
+        let (i0, j0) = (
+            (i_lo + side - 1) / side * side,
+            (j_lo + side - 1) / side * side,
+        );
+        if i0 + side <= i_hi && j0 + side <= j_hi {
+            return Ok([
+                fine.lat(j0),
+                fine.lon(i0),
+                fine.lat(j0 + side),
+                fine.lon(i0 + side),
+            ]);
+        }
+    }
+    Err(Error::invalid(
+        "--mosaic",
+        "no aligned window of at least 16 cells fits the mosaic's finest level",
+    ))
+}
+
+/// The flight's window as a scene over `mosaic` (flat base plane) and the scene `base`'s sun,
+/// sky and fog.
+fn flight_scene(base: &Path, mosaic: &Path, window: [f64; 4], out: &Path) -> Result<()> {
+    let text = crate::fileio::read_to_string(base, 1 << 20)?;
+    let mut v: toml::Table =
+        toml::from_str(&text).map_err(|e| Error::format(base, e.to_string()))?;
+    let mut t = toml::Table::new();
+    t.insert("database".into(), mosaic.display().to_string().into());
+    t.insert("curved".into(), false.into());
+    let w: Vec<toml::Value> = window.iter().map(|&x| x.into()).collect();
+    t.insert("window".into(), w.into());
+    v.insert("terrain".into(), t.into());
+    v.remove("path");
+    let body = toml::to_string(&v).map_err(|e| Error::format(out, e.to_string()))?;
+    std::fs::write(out, body).map_err(|e| Error::io(out, e))
+}
+
+/// The scripted flight, rendered through the paged pool (`--terrain-memory`): the largest
+/// aligned window of the mosaic's finest level, `flight_frames / 2` frames crossing east at
+/// `speed` (at 60 frames a second of flight time) 300 m above the window's highest point,
+/// looking ahead and down, then as many hovering. A frame's cost is the pager's update, the
+/// uploads into the pool and the rendered frame (full shading, the scene's settings), submit
+/// to GPU idle; every frame renders what is resident then (no waiting).
+fn fly(
+    gpu: &Gpu,
+    dir: &Path,
+    scene_path: &Path,
+    mosaic: &Path,
+    size: (u32, u32),
+    a: &DbBenchArgs,
+) -> Result<DbBench> {
+    let mosaic = &std::fs::canonicalize(mosaic).map_err(|e| Error::io(mosaic, e))?;
+    let h = Database::open(mosaic)?.header().clone();
+    let window = aligned_window(&h)?;
+    let flight_toml = dir.join("flight.toml");
+    flight_scene(scene_path, mosaic, window, &flight_toml)?;
+    let scene = scene_at_size(&flight_toml, size)?;
+    let world = crate::world::World::load(&scene)?;
+    let terrain = &world.terrain;
+    let (mut r, mut paging) = crate::app::paged::renderer(gpu, &scene, &world, a.terrain_memory)?;
+    let s = product_settings(&scene);
+    let geo = terrain
+        .field
+        .geo
+        .expect("a database window is georeferenced");
+    let spacing = terrain.frame.spacing;
+    let mut grid = glam::DVec3::new(
+        0.1 * terrain.cells()[0] as f64,
+        0.5 * terrain.cells()[1] as f64,
+        terrain.max_height as f64 + 300.0,
+    );
+    let mut pose = crate::scene::Pose {
+        position: glam::DVec3::ZERO,
         heading: 90.0,
         pitch: -10.0,
+        roll: 0.0,
         fov: 60.0,
-        width: size.0,
-        height_px: size.1,
     };
     let half = (a.flight_frames / 2).max(1);
     let (mut crossing, mut hover) = (Vec::new(), Vec::new());
-    let (mut max_staged, mut max_rss, mut uploads) = (0u64, 0u64, 0u64);
-    let mut frames_missing = 0;
+    let (mut max_staged, mut max_rss, mut uploads, mut frames_missing) = (0u64, 0u64, 0u64, 0);
+    let mut cam = crate::scene::Camera::new(pose, size.0, size.1);
     for frame in 0..2 * half {
-        let t = Instant::now();
         if frame < half {
-            view.lon += a.speed / 60.0 / mx;
+            grid.x += a.speed / 60.0 / spacing[0];
         }
-        let (up, st) = pager.update(&view)?;
-        pool.apply(gpu, &up, pager.page_table());
+        pose.position = terrain.frame.grid_to_world(grid);
+        cam = crate::scene::Camera::new(pose, size.0, size.1);
+        let t = Instant::now();
+        let st = paging.step(gpu, &r, terrain, &cam)?;
+        r.render(gpu, terrain, &scene.desc, &cam, &s, Stage::Shade)?;
         gpu.wait()?;
         let ms = t.elapsed().as_secs_f64() * 1e3;
         if frame < half {
@@ -237,15 +311,29 @@ fn fly(gpu: &Gpu, mosaic: &Path, size: (u32, u32), a: &DbBenchArgs) -> Result<Db
         }
         .push(ms);
         max_staged = max_staged.max(st.staged_bytes);
-        uploads += up.len() as u64;
+        uploads += st.uploads as u64;
         frames_missing = st.frames_missing;
         max_rss = max_rss.max(rss_kib());
-        // Frames paced at 60 a second, as a frame loop's present would.
-        if let Some(rest) = std::time::Duration::from_secs_f64(1.0 / 60.0).checked_sub(t.elapsed())
-        {
-            std::thread::sleep(rest);
-        }
     }
+    // The hover view with the whole window in memory (tile pre-pass on, as a scene renders).
+    let mut full = TerrainRenderer::new(gpu, terrain)?;
+    let f = FrameSetup {
+        gpu,
+        terrain,
+        desc: &scene.desc,
+        cam: &cam,
+        settings: &s,
+        frames: 20,
+    };
+    f.capture(&mut full)?;
+    let resident_ms = f.median_ms(&mut full, Stage::Shade)?;
+    log::info!(
+        "flight window {window:?} of {}: {}x{} samples, lon0 {:.4}",
+        mosaic.display(),
+        terrain.field.width,
+        terrain.field.height,
+        geo.lon0
+    );
     Ok(DbBench {
         build_samples: 0,
         build_seconds: 0.0,
@@ -256,12 +344,18 @@ fn fly(gpu: &Gpu, mosaic: &Path, size: (u32, u32), a: &DbBenchArgs) -> Result<Db
         crossing_p99_ms: pct(crossing, 0.99),
         hover_p50_ms: pct(hover.clone(), 0.5),
         hover_p99_ms: pct(hover, 0.99),
-        pool_bytes: slots as u64 * slot_bytes,
+        resident_ms,
+        pool_bytes: r.pool().map_or(0, |p| p.size().1),
         max_staged_bytes: max_staged,
-        db_cache_bytes: store.cached_bytes(),
+        db_cache_bytes: 0,
         max_rss_kib: max_rss,
+        vm_hwm_kib: hwm_kib(),
         frames_missing,
         uploads,
+        window: format!(
+            "{}x{} samples, {window:?}",
+            terrain.field.width, terrain.field.height
+        ),
         mosaic: String::new(),
     })
 }
@@ -278,6 +372,7 @@ impl DbBench {
                 Row::new("flight crossing p99", ms(self.crossing_p99_ms)),
                 Row::new("flight hover p50", ms(self.hover_p50_ms)),
                 Row::new("flight hover p99", ms(self.hover_p99_ms)),
+                Row::new("hover, window in memory", ms(self.resident_ms)),
             ],
             summary: Figures::default()
                 .with("build_samples_per_second", self.build_samples_per_second)
@@ -288,11 +383,13 @@ impl DbBench {
                 .with("max_staged_bytes", self.max_staged_bytes as f64)
                 .with("db_cache_bytes", self.db_cache_bytes as f64)
                 .with("max_rss_kib", self.max_rss_kib as f64)
+                .with("vm_hwm_kib", self.vm_hwm_kib as f64)
+                .with("resident_ms", self.resident_ms)
                 .with("frames_missing", self.frames_missing as f64)
                 .with("uploads", self.uploads as f64),
             notes: vec![
                 format!("build: {} samples in {:.2} s (synthetic mosaic)", self.build_samples, self.build_seconds),
-                format!("flight over {}: frame cost = pager update + uploads into the GPU pool + queue wait; the traversal does not read the pool yet", self.mosaic),
+                format!("flight over {} (window {}): frame cost = pager update + uploads into the GPU pool + the frame rendered through the pool (submit to GPU idle)", self.mosaic, self.window),
             ],
         }
     }

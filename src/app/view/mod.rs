@@ -122,6 +122,10 @@ pub struct ViewOptions {
     /// Start with the text overlay hidden (H toggles it).
     #[arg(long)]
     pub no_overlay: bool,
+    /// Render a database scene through a paged tile pool of this many MB on the GPU: each
+    /// frame pages for its view (never waiting) and renders what is resident.
+    #[arg(long, value_name = "MB")]
+    pub terrain_memory: Option<u64>,
     #[command(flatten)]
     pub toggles: RenderToggles,
     /// `--cigi PORT` and its options: the camera obeys a CIGI host (as `relief serve`).

@@ -62,6 +62,8 @@ pub(super) struct Win {
     pub(super) hidden: bool,
     /// The swap-chain images can be copied from (`--grab`).
     pub(super) copy_src: bool,
+    /// The pager feeding a paged renderer (`--terrain-memory`).
+    pub(super) paging: Option<crate::app::paged::Paging>,
 }
 
 impl Win {
@@ -320,7 +322,16 @@ impl App {
             alpha_mode: alpha,
             view_formats: vec![],
         };
-        let mut renderer = crate::app::upload::renderer(gpu, &self.prep.world)?;
+        let (prep, mut paging) = (&self.prep, None);
+        let memory = prep.opts.terrain_memory.or(prep.scene.desc.terrain.memory);
+        let mut renderer = match memory {
+            Some(mb) => {
+                let (r, p) = crate::app::paged::renderer(gpu, &prep.scene, &prep.world, mb)?;
+                paging = Some(p);
+                r
+            }
+            None => crate::app::upload::renderer(gpu, &prep.world)?,
+        };
         if let Some(c) = spec.channel {
             let c = &self.prep.channels[c];
             renderer.set_display(gpu, &c.points, c.eye)?;
@@ -338,6 +349,7 @@ impl App {
             renderer,
             channel: spec.channel,
             hidden: false,
+            paging,
         };
         let size = win.window.inner_size();
         win.configure(

@@ -33,7 +33,13 @@ fn fs_cast(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
     if (LOD) {
         lod_k = frame.lod.x * e.w;
     }
-    return encode_gbuffer(traverse_lod(primary_ray(e), t_min, BIG, frame.mode.y, level, lod_k));
+    let tr = traverse_lod(primary_ray(e), t_min, BIG, frame.mode.y, level, lod_k);
+    var g = encode_gbuffer(tr);
+    if (PAGED && tr.hit) {
+        // The paged build: the finest resident level over the hit cell for the shade pass.
+        g.z = min(g.z, 0xffffffu) | gbuffer_hint(tr.cell);
+    }
+    return g;
 }
 
 // Benchmark baseline: fixed-step march (its own entry point, so neither pays for the other's

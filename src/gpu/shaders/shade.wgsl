@@ -185,6 +185,7 @@ fn shade_surface(px: vec2<u32>, g: vec4<u32>, dir_w: vec3<f32>, dl: vec3<f32>) -
         let j = i32(g.y >> 16u);
         let u = clamp(p.x - f32(i), 0.0, 1.0);
         let v = clamp(p.y - f32(j), 0.0, 1.0);
+        shape_hint(g, i, j);
         let cell = cell_shape(i, j, u, v);
         let h = cell.h;
         let e = h.x - h.y - h.z + h.w;
@@ -238,7 +239,7 @@ fn shade_surface(px: vec2<u32>, g: vec4<u32>, dir_w: vec3<f32>, dl: vec3<f32>) -
         let base = albedo(p_msl, n);
         let diffuse = frame.sun_colour.xyz * (frame.sun_local.w * max(dot(n, sun), 0.0) * lit);
         c = base * (diffuse + ambient_light(n));
-        out.data = vec4<u32>(g.x, g.z, min(patches, 0xffffu) | (min(shadow_steps, 0xffffu) << 16u), flags);
+        out.data = vec4<u32>(g.x, gbuffer_steps(g.z), min(patches, 0xffffu) | (min(shadow_steps, 0xffffu) << 16u), flags);
     }
     out.colour = vec4<f32>(aerial_perspective(c, t, p_msl.z, dl), 1.0);
     return out;

@@ -29,6 +29,18 @@ fn pyr_get(level: u32, ix: i32, iy: i32) -> f32 {
     return pyramid[k];
 }
 
+// The paged build's hints through the G-buffer (terrain_paged_window.wgsl); nothing here.
+fn shape_hint(g: vec4<u32>, i: i32, j: i32) {
+}
+
+fn gbuffer_hint(cell: vec2<i32>) -> u32 {
+    return 0u;
+}
+
+fn gbuffer_steps(z: u32) -> u32 {
+    return z;
+}
+
 fn sample_height(i: u32, j: u32) -> f32 {
     return heights[j * frame.grid.x + i];
 }

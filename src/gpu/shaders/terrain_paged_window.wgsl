@@ -22,6 +22,17 @@ fn paged_stops(level: u32, cell: vec2<i32>) -> bool {
     return j == PAGED_NONE || j >= level;
 }
 
+// The finest resident level's coarseness over hit cell `cell` (level 0) in the G-buffer's
+// steps word, bits 24..31: the shade pass reads its normals there without a search loop
+// (loops in the shade pass cost lavapipe ~150 ms a 160x120 frame, whatever they do).
+fn gbuffer_hint(cell: vec2<i32>) -> u32 {
+    return min(finest_resident(0u, paged_global(0u, cell)), 255u) << 24u;
+}
+
+fn gbuffer_steps(z: u32) -> u32 {
+    return z & 0xffffffu;
+}
+
 // Bilinear height of the finest resident surface at grid (x, y), clamped to the grid.
 fn surface_height(x: f32, y: f32) -> f32 {
     let cx = clamp(x, 0.0, cells_x());

@@ -1,0 +1,176 @@
+//! `--terrain-memory MB`: a database scene rendered through the paged tile pool
+//! (`gpu::terrain_pool`, `TerrainRenderer::new_paged`) instead of its window uploaded whole.
+//! [`Paging`] drives the host pager once a frame: `Pager::update` for the camera's view, then
+//! the uploads copied into the GPU pool (queue writes; neither blocks on a read).
+
+use crate::db::pager::{FrameStats, Pager, PagerOptions, TileStore, View};
+use crate::db::{self, Database};
+use crate::gpu::terrain_pool::TerrainPool;
+use crate::gpu::{Gpu, TerrainRenderer};
+use crate::scene::{Camera, Scene};
+use crate::terrain::desc::HeightSource;
+use crate::terrain::{GeoRef, Terrain};
+use crate::world::World;
+use crate::{Error, Result};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// The host pager of a paged renderer and what maps a camera to its view.
+pub struct Paging {
+    pager: Pager,
+    geo: GeoRef,
+    /// The pool's budget in bytes.
+    pub pool_bytes: u64,
+    /// The last frame's statistics.
+    pub last: FrameStats,
+}
+
+/// Refuses `--terrain-memory` of 0 or more than 1 TiB.
+fn pool_bytes(mb: u64) -> Result<u64> {
+    if mb == 0 || mb > 1 << 20 {
+        return Err(Error::invalid(
+            "--terrain-memory",
+            format!("{mb} MB: give the tile pool's size in MB, 1..=1048576"),
+        ));
+    }
+    Ok(mb << 20)
+}
+
+/// A paged renderer of `world` (the window of `scene`'s database, its finest level) with a
+/// pool of `mb` MB, its free forms, volumes and voxel models, and the pager feeding it (the
+/// floor already uploaded). A scene without a database is an error naming
+/// `--terrain-memory`.
+pub fn renderer(
+    gpu: &Gpu,
+    scene: &Scene,
+    world: &World,
+    mb: u64,
+) -> Result<(TerrainRenderer, Paging)> {
+    let pool_bytes = pool_bytes(mb)?;
+    let HeightSource::Database {
+        path,
+        window,
+        level,
+    } = scene.desc.terrain.height_source()?
+    else {
+        return Err(Error::invalid(
+            "--terrain-memory",
+            format!(
+                "pages a terrain database; {} has no `[terrain] database` (height files and procedural terrains are uploaded whole)",
+                scene.path.display()
+            ),
+        ));
+    };
+    let database = Database::open(&scene.base_dir.join(path))?;
+    let fine = database.header().levels.len() as u32 - 1;
+    let spec = db::window::resolve(&database, window, level)?;
+    if spec.level != fine {
+        return Err(Error::invalid(
+            "terrain.level",
+            format!(
+                "paged rendering (--terrain-memory) reads the database's finest level {fine}; the scene's window renders level {} (set `level = {fine}` with a window that fits 16384 samples a side)",
+                spec.level
+            ),
+        ));
+    }
+    let terrain = &world.terrain;
+    let geo = terrain.field.geo.ok_or_else(|| {
+        Error::invalid(
+            "terrain",
+            "a database window has no georeference".to_string(),
+        )
+    })?;
+    let n = database.tile_cells();
+    let store: Arc<dyn TileStore> = Arc::new(database);
+    let opts = PagerOptions {
+        pool_bytes,
+        ..PagerOptions::default()
+    };
+    let (pager, first) = Pager::new(store, opts)?;
+    let (slots, _) = pager.slots();
+    let pool = TerrainPool::new(gpu, pager.page_table(), n, slots)?;
+    let mut r = TerrainRenderer::new_paged(gpu, terrain, pool, [spec.i0, spec.j0])?;
+    r.apply_pages(gpu, &first, pager.page_table());
+    r.set_objects(gpu, &world.objects)?;
+    r.set_volumes(gpu, &world.volumes)?;
+    r.set_voxels(gpu, &world.voxels)?;
+    let paging = Paging {
+        pager,
+        geo,
+        pool_bytes,
+        last: FrameStats::default(),
+    };
+    Ok((r, paging))
+}
+
+impl Paging {
+    /// The pager's view of `cam` over `terrain` (eye longitude, latitude and height through
+    /// the window's georeference; heading and pitch as the camera's).
+    pub fn view(&self, terrain: &Terrain, cam: &Camera) -> View {
+        let g = terrain.frame.world_to_grid(cam.pose.position);
+        View {
+            lon: self.geo.lon0 + g.x * self.geo.dlon,
+            lat: self.geo.lat0 + g.y * self.geo.dlat,
+            height: g.z,
+            heading: cam.pose.heading,
+            pitch: cam.pose.pitch,
+            fov: cam.pose.fov,
+            width: cam.width,
+            height_px: cam.height,
+        }
+    }
+
+    /// One frame's paging before its cast: the pager's update for `cam` and its uploads
+    /// copied into the pool. Never waits for a read.
+    pub fn step(
+        &mut self,
+        gpu: &Gpu,
+        r: &TerrainRenderer,
+        terrain: &Terrain,
+        cam: &Camera,
+    ) -> Result<FrameStats> {
+        let (uploads, stats) = self.pager.update(&self.view(terrain, cam))?;
+        r.apply_pages(gpu, &uploads, self.pager.page_table());
+        self.last = stats.clone();
+        Ok(stats)
+    }
+
+    /// The last frame's statistics as frame metadata (`paging` in the frame JSON).
+    pub fn json(&self) -> serde_json::Value {
+        let s = &self.last;
+        serde_json::json!({
+            "pool_bytes": self.pool_bytes,
+            "resident": s.resident,
+            "resident_bytes": s.resident_bytes,
+            "wanted": s.wanted,
+            "missing": s.missing,
+            "reads_in_flight": s.pending,
+            "staged": s.staged,
+            "uploads": s.uploads,
+            "frames_missing": s.frames_missing,
+        })
+    }
+
+    /// Steps (2 ms apart) until `cam`'s wanted tiles are all resident and nothing is being
+    /// read or waiting, or `timeout` passes; returns the last statistics and the steps taken.
+    pub fn settle(
+        &mut self,
+        gpu: &Gpu,
+        r: &TerrainRenderer,
+        terrain: &Terrain,
+        cam: &Camera,
+        timeout: Duration,
+    ) -> Result<(FrameStats, u32)> {
+        let start = Instant::now();
+        let mut steps = 0;
+        loop {
+            let st = self.step(gpu, r, terrain, cam)?;
+            steps += 1;
+            let settled = st.missing == 0 && st.pending == 0 && st.staged == 0;
+            if settled || start.elapsed() > timeout {
+                return Ok((st, steps));
+            }
+            std::thread::sleep(Duration::from_millis(2));
+        }
+    }
+}

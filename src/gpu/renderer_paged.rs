@@ -1,0 +1,71 @@
+//! Paged mode of [`TerrainRenderer`]: the terrain read from the tile pool
+//! ([`TerrainPool`], group 3) instead of the heights and pyramid, which are not uploaded.
+//! The cast pass is `shaders::cast_paged` (the paged stop rule), the shade pass reads its
+//! normals from the finest resident surface and casts its shadow rays through the same paged
+//! traversal; the tile pre-pass (which reads the pyramid) is off. The window's `Terrain` gives
+//! the box, placement and pyramid shape only.
+
+use super::super::terrain_passes::TerrainPasses;
+use super::super::terrain_pool::TerrainPool;
+use super::super::Gpu;
+use super::TerrainRenderer;
+use crate::db::pager::{PageTable, Upload};
+use crate::terrain::Terrain;
+use crate::{Error, Result};
+
+impl TerrainRenderer {
+    /// A renderer of the window `terrain` (a window of the database's finest level whose sample
+    /// (0, 0) is sample `origin` of that level) through `pool`. Errors where the origin is not
+    /// a multiple of the window pyramid's top cell (`cpu::paged::PagedTerrain::new`'s rule) or
+    /// the terrain has walls off (the paged traversal is walls-on only).
+    pub fn new_paged(
+        gpu: &Gpu,
+        terrain: &Terrain,
+        mut pool: TerrainPool,
+        origin: [i64; 2],
+    ) -> Result<TerrainRenderer> {
+        crate::cpu::paged::check_origin(origin, terrain.pyramid.top())?;
+        if !terrain.walls {
+            return Err(Error::invalid(
+                "terrain.walls",
+                "a paged terrain renders with walls on (the paged traversal has no walls-off mode)",
+            ));
+        }
+        pool.set_origin(gpu, [origin[0] as u32, origin[1] as u32]);
+        let kernels = gpu.options.kernels.path(&gpu.info);
+        let mut r = Self::with_kernels(gpu, terrain, kernels)?;
+        // Replace the in-memory passes before anything else holds their buffers.
+        r.base = TerrainPasses::new(gpu, terrain, kernels, Some(&pool.bgl))?;
+        r.paged = Some(pool);
+        Ok(r)
+    }
+
+    /// Whether the terrain is read from a tile pool.
+    pub fn is_paged(&self) -> bool {
+        self.paged.is_some()
+    }
+
+    /// The tile pool of a paged renderer.
+    pub fn pool(&self) -> Option<&TerrainPool> {
+        self.paged.as_ref()
+    }
+
+    /// Copies a frame's uploads into the pool and the page table as it now stands
+    /// ([`TerrainPool::apply`]); nothing without a pool. Queue writes only: never blocks.
+    pub fn apply_pages(&self, gpu: &Gpu, uploads: &[Upload], table: &PageTable) {
+        if let Some(p) = &self.paged {
+            p.apply(gpu, uploads, table);
+        }
+    }
+
+    /// Free forms are not drawn over a paged terrain (their shade pass reads the heights).
+    pub(super) fn refuse_paged_objects(&self, count: usize) -> Result<()> {
+        if self.paged.is_some() && count > 0 {
+            return Err(Error::invalid(
+                "objects",
+                "free forms ([[objects]]) are not supported with a paged terrain (--terrain-memory) yet",
+            ));
+        }
+        Ok(())
+    }
+}
