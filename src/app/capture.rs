@@ -419,6 +419,7 @@ impl<'a> Frames<'a> {
             settings: self.settings,
             projection: self.projection,
             fps: self.fps,
+            paging: self.paging,
         }
     }
 
