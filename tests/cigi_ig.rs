@@ -547,6 +547,8 @@ fn a_flood_of_100000_malformed_datagrams_while_the_host_flies() {
     let mut arrived = BTreeMap::new();
     let mut valid = 0u64;
     let mut sent_at = Vec::new();
+    // The IG's resident set: when the flood starts, and the most seen during and after it.
+    let (mut rss_before, mut rss_most) = (None, 0u64);
     // The host flies until the IG's frame 715 (of 720) answered, so every datagram it sends
     // is read before the IG ends.
     while !ig.exited()
@@ -558,10 +560,16 @@ fn a_flood_of_100000_malformed_datagrams_while_the_host_flies() {
         ig.send(&flight_message(&TURN, f, t, &[]));
         sent_at.push(t);
         valid += 1;
+        if rss_before.is_some() {
+            rss_most = rss_most.max(ig.rss().unwrap_or(0));
+        }
         let next = t0 + Duration::from_secs_f64(f64::from(f + 1) / 30.0);
         while Instant::now() < next {
             drain(&ig, t0, &mut arrived);
             if arrived.keys().next_back().is_some_and(|&k| k >= 150) {
+                if rss_before.is_none() {
+                    rss_before = ig.rss();
+                }
                 go.store(true, SeqCst);
             }
             std::thread::sleep(Duration::from_millis(1));
@@ -569,7 +577,21 @@ fn a_flood_of_100000_malformed_datagrams_while_the_host_flies() {
     }
     go.store(true, SeqCst);
     let (start, end, counts, short_random) = flood.join().unwrap();
+    rss_most = rss_most.max(ig.rss().unwrap_or(0));
     let out = ig.finish();
+    // RSS growth stays bounded: the session's maps are capped (4,096 entities, 1,024 queries)
+    // and a datagram is read into one fixed buffer, so a flood may not grow the process.
+    const RSS_BOUND: u64 = 32 << 20;
+    let rss_before = rss_before.expect("VmRSS read when the flood started");
+    let growth = rss_most.saturating_sub(rss_before);
+    eprintln!(
+        "VmRSS: {} KiB when the flood started, at most {} KiB during and after it: growth {} KiB (bound {} MiB)",
+        rss_before >> 10,
+        rss_most >> 10,
+        growth >> 10,
+        RSS_BOUND >> 20
+    );
+    assert!(growth < RSS_BOUND, "VmRSS grew by {growth} bytes during the flood");
     let c = counters(&out);
     let poses: Vec<_> = pose_log(&log).iter().filter_map(logged).collect();
     let n = |k: &str| c[k].as_u64().unwrap();
