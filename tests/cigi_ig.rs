@@ -591,7 +591,10 @@ fn a_flood_of_100000_malformed_datagrams_while_the_host_flies() {
         growth >> 10,
         RSS_BOUND >> 20
     );
-    assert!(growth < RSS_BOUND, "VmRSS grew by {growth} bytes during the flood");
+    assert!(
+        growth < RSS_BOUND,
+        "VmRSS grew by {growth} bytes during the flood"
+    );
     let c = counters(&out);
     let poses: Vec<_> = pose_log(&log).iter().filter_map(logged).collect();
     let n = |k: &str| c[k].as_u64().unwrap();

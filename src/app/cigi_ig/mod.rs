@@ -120,6 +120,17 @@ impl CigiIg {
     /// Binds the socket of `args` (`args.cigi` must be set) and prints the address it listens
     /// on as one line on stdout.
     pub fn bind(args: &CigiArgs) -> Result<CigiIg> {
+        let ig = CigiIg::open(args)?;
+        if let Some(local) = ig.local_addr() {
+            println!("cigi: listening on {local}");
+            use std::io::Write as _;
+            let _ = std::io::stdout().flush();
+        }
+        Ok(ig)
+    }
+
+    /// [`CigiIg::bind`] without the line on stdout (an IG inside another command).
+    pub fn open(args: &CigiArgs) -> Result<CigiIg> {
         let port = args
             .cigi
             .ok_or_else(|| Error::invalid("--cigi", "give the UDP port to listen on"))?;
@@ -137,10 +148,6 @@ impl CigiIg {
         let socket = UdpSocket::bind(at).map_err(io)?;
         socket.set_nonblocking(true).map_err(io)?;
         grow_receive_buffer(&socket);
-        let local = socket.local_addr().map_err(io)?;
-        println!("cigi: listening on {local}");
-        use std::io::Write as _;
-        let _ = std::io::stdout().flush();
         let session = match args.cigi_host {
             Some(h) => Session::with_host(h),
             None => Session::new(),
