@@ -1299,3 +1299,157 @@ fn hot_and_los_on_a_database_scene_come_from_full_resolution() {
     }
     assert_eq!(seen, 8);
 }
+
+/// Body → north-east-down rotation of yaw, pitch, roll (degrees; z-y-x, the aerospace
+/// convention CIGI uses: body x forward, y right, z down).
+fn dcm([yaw, pitch, roll]: [f64; 3]) -> [[f64; 3]; 3] {
+    let (sy, cy) = yaw.to_radians().sin_cos();
+    let (sp, cp) = pitch.to_radians().sin_cos();
+    let (sr, cr) = roll.to_radians().sin_cos();
+    [
+        [cp * cy, sr * sp * cy - cr * sy, cr * sp * cy + sr * sy],
+        [cp * sy, sr * sp * sy + cr * cy, cr * sp * sy - sr * cy],
+        [-sp, sr * cp, cr * cp],
+    ]
+}
+
+fn mat_mul(a: [[f64; 3]; 3], b: [[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let mut m = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            m[i][j] = (0..3).map(|k| a[i][k] * b[k][j]).sum();
+        }
+    }
+    m
+}
+
+/// Yaw, pitch, roll (degrees) of a body → NED rotation.
+fn euler(m: [[f64; 3]; 3]) -> [f64; 3] {
+    [
+        m[1][0].atan2(m[0][0]).to_degrees(),
+        (-m[2][0]).asin().to_degrees(),
+        m[2][1].atan2(m[2][2]).to_degrees(),
+    ]
+}
+
+#[test]
+fn a_view_control_offset_moves_and_turns_the_eye() {
+    let dir = temp_dir("cigi-view-offset");
+    let lla = [47.37, 9.31, 2300.0];
+    let own = [182.0, -6.0, 4.0];
+    let (xyz, ypr) = ([60.0, -40.0, -25.0], [25.0, -10.0, 8.0]);
+    // The eye, computed here: the offset through the ownship's rotation into north-east-down
+    // metres, then degrees by the WGS84 radii; its attitude the two rotations composed.
+    let r = dcm(own);
+    let ned: Vec<f64> = (0..3)
+        .map(|i| (0..3).map(|k| r[i][k] * xyz[k]).sum())
+        .collect();
+    let (m, n) = radii(lla[0]);
+    let eye = [
+        lla[0] + (ned[0] / (m + lla[2])).to_degrees(),
+        lla[1] + (ned[1] / ((n + lla[2]) * lla[0].to_radians().cos())).to_degrees(),
+        lla[2] - ned[2],
+    ];
+    let [h, p, ro] = euler(mat_mul(r, dcm(ypr)));
+    eprintln!("eye at {eye:?}, heading {h:.3}, pitch {p:.3}, roll {ro:.3}");
+    let elsewhere = scene(&dir, "elsewhere", [47.6, 9.6, 900.0], [45.0, 10.0, 0.0], "");
+    let served = dir.join("served");
+    let ig = Ig::start(
+        &elsewhere,
+        &[
+            "--size",
+            "160x120",
+            "--cigi-sync",
+            "--frames",
+            "3",
+            "--capture-frames",
+            served.to_str().unwrap(),
+        ],
+        host_socket(),
+    );
+    let ownship = ownship(lla, own[0] as f32, own[1] as f32, own[2] as f32);
+    let view = |x_enable: bool, yaw_enable: bool, x: f32, yaw: f32| ViewControl {
+        view_id: 0,
+        group_id: 0,
+        x_enable,
+        y_enable: x_enable,
+        z_enable: x_enable,
+        roll_enable: yaw_enable,
+        pitch_enable: yaw_enable,
+        yaw_enable,
+        entity_id: 0,
+        x,
+        y: xyz[1] as f32,
+        z: xyz[2] as f32,
+        roll: ypr[2] as f32,
+        pitch: ypr[1] as f32,
+        yaw,
+    };
+    ig.exchange(&message(ig_control(1, None, false), &[ownship.into()]), 1);
+    let full = view(true, true, xyz[0] as f32, ypr[0] as f32);
+    ig.exchange(
+        &message(ig_control(2, None, false), &[ownship.into(), full.into()]),
+        2,
+    );
+    // Enable bits clear: those offsets keep their values (the ICD: the IG ignores them).
+    let ignored = view(false, false, 999.0, 999.0);
+    ig.exchange(
+        &message(
+            ig_control(3, None, false),
+            &[ownship.into(), ignored.into()],
+        ),
+        3,
+    );
+    ig.finish();
+    let rendered = dir.join("rendered");
+    let at = scene(&dir, "eye", eye, [h, p, ro], "");
+    let out = common::relief_cli(
+        &[
+            "render",
+            at.to_str().unwrap(),
+            "--out",
+            rendered.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let img = |p: std::path::PathBuf| image::open(p).unwrap().to_rgba8();
+    let truth = img(rendered.join("frame_0000.png"));
+    let plain = img(served.join("frame_0000.png"));
+    let (offset, kept) = (
+        img(served.join("frame_0001.png")),
+        img(served.join("frame_0002.png")),
+    );
+    let (d, d_kept, d_plain) = (
+        mean_diff(&offset, &truth),
+        mean_diff(&kept, &truth),
+        mean_diff(&plain, &truth),
+    );
+    eprintln!("offset frame vs render of the eye: {d:.4}/255; with the enable bits clear {d_kept:.4}/255; without the offset {d_plain:.2}/255");
+    assert!(d <= 1.0 && d_kept <= 1.0, "{d} {d_kept}");
+    assert!(d_plain > 5.0, "the offset changes the frame: {d_plain}");
+    // The translation is seen too: the eye turned but not moved is another frame.
+    let turned_dir = dir.join("turned");
+    let turned = scene(&dir, "turned", lla, [h, p, ro], "");
+    let out = common::relief_cli(
+        &[
+            "render",
+            turned.to_str().unwrap(),
+            "--out",
+            turned_dir.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let d_turned = mean_diff(&offset, &img(turned_dir.join("frame_0000.png")));
+    eprintln!("offset frame vs the eye turned but not moved: {d_turned:.3}/255");
+    assert!(d_turned > 10.0 * d.max(0.01), "{d_turned}");
+}
