@@ -1453,3 +1453,114 @@ fn a_view_control_offset_moves_and_turns_the_eye() {
     eprintln!("offset frame vs the eye turned but not moved: {d_turned:.3}/255");
     assert!(d_turned > 10.0 * d.max(0.01), "{d_turned}");
 }
+
+#[test]
+fn an_entity_from_a_voxel_template_appears_hides_and_vanishes() {
+    let dir = temp_dir("cigi-voxel-entities");
+    let cam = [47.45, 9.50, 1300.0];
+    let (heading, pitch) = (30.0f64, -3.0f64);
+    let axes = common::terrains().join("voxels/axes.vox");
+    // axes.vox (40³ voxels) at 3 m a voxel, the template of entity type 8; placed far away in
+    // the scene (not drawn there).
+    let model = |at: [f64; 3], hpr: [f64; 3]| {
+        format!(
+            "[[voxels]]\nname = \"axes\"\nfile = {axes:?}\nvoxel_size = 3.0\n\
+             geodetic = [{:?}, {:?}, {:?}]\nheading = {:?}\npitch = {:?}\nroll = {:?}\n",
+            at[0], at[1], at[2], hpr[0], hpr[1], hpr[2]
+        )
+    };
+    let extra = model([47.2, 9.2, 3000.0], [0.0; 3])
+        + "[[cigi.entity]]\ntype = 8\nvoxels = \"axes\"\nmax = 2\n";
+    let scene = scene(&dir, "scene", [47.6, 9.6, 900.0], [45.0, 0.0, 0.0], &extra);
+    let frames = dir.join("frames");
+    let ig = Ig::start(
+        &scene,
+        &[
+            "--size",
+            "160x120",
+            "--no-shadows",
+            "--cigi-sync",
+            "--frames",
+            "4",
+            "--capture-frames",
+            frames.to_str().unwrap(),
+        ],
+        host_socket(),
+    );
+    // 1.2 km ahead.
+    let (m, n) = radii(cam[0]);
+    let h = heading.to_radians();
+    let p1 = [
+        cam[0] + (1200.0 * h.cos() / m).to_degrees(),
+        cam[1] + (1200.0 * h.sin() / (n * cam[0].to_radians().cos())).to_degrees(),
+        1200.0,
+    ];
+    let ypr = [45.0f32, 10.0, 5.0];
+    let own = || HostPacket::from(ownship(cam, heading as f32, pitch as f32, 0.0));
+    let axes_at = |state: u8| {
+        let mut e = entity(5, 8, p1, ypr);
+        e.entity_state = state;
+        HostPacket::from(e)
+    };
+    let steps = [
+        vec![own()],
+        vec![own(), axes_at(1)],
+        vec![own(), axes_at(0)],
+        vec![own(), axes_at(2)],
+    ];
+    for (k, packets) in steps.iter().enumerate() {
+        let hf = 20 + k as u32;
+        ig.exchange(&message(ig_control(hf, None, false), packets), hf);
+    }
+    ig.finish();
+    let img = |k: usize| {
+        image::open(frames.join(format!("frame_{k:04}.png")))
+            .unwrap()
+            .to_rgba8()
+    };
+    let json = |k: usize| common::read_json(&frames.join(format!("frame_{k:04}.json")));
+    let base = img(0);
+    let (cx, cy, count) = changed(&img(1), &base).expect("the voxel entity is drawn");
+    let (x, y) = project(cam, heading, pitch, 60.0, (160.0, 120.0), p1);
+    eprintln!("voxel entity over {count} pixels, centroid ({cx:.1}, {cy:.1}); its bottom centre projects to ({x:.1}, {y:.1})");
+    assert!(count >= 30, "{count} pixels");
+    assert!((cx - x).abs() < 20.0 && (cy - y).abs() < 20.0);
+    assert_eq!(json(1)["cigi"]["drawn"], 1);
+    for k in [2, 3] {
+        let d = mean_diff(&img(k), &base);
+        eprintln!(
+            "frame {k} ({}) vs the frame without it: {d:.4}/255",
+            if k == 2 { "inactive" } else { "destroyed" }
+        );
+        assert!(
+            changed(&img(k), &base).is_none(),
+            "frame {k} shows no entity"
+        );
+        assert_eq!(json(k)["cigi"]["drawn"], 0);
+    }
+    // The same model placed by the scene at the entity's pose, rendered by `relief render`.
+    let hpr = [f64::from(ypr[0]), f64::from(ypr[1]), f64::from(ypr[2])];
+    let truth_scene = cigi_support::scene(&dir, "truth", cam, [heading, pitch, 0.0], &model(p1, hpr));
+    let rendered = dir.join("rendered");
+    let out = common::relief_cli(
+        &[
+            "render",
+            truth_scene.to_str().unwrap(),
+            "--no-shadows",
+            "--out",
+            rendered.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let truth = image::open(rendered.join("frame_0000.png"))
+        .unwrap()
+        .to_rgba8();
+    let d = mean_diff(&img(1), &truth);
+    eprintln!("voxel entity frame vs relief render of the model at its pose: {d:.4}/255");
+    assert!(d <= 1.0, "{d}");
+}

@@ -107,6 +107,7 @@ pub fn run_with(
             .or_else(|| terrain.world_to_geodetic(cam.pose.position));
         let instances = ig.instances(terrain, &p.world.templates);
         renderer.set_instances(instances.drawn);
+        renderer.set_voxel_instances(instances.voxels);
         let mut scene = p.scene.clone();
         ig.environment(&mut scene.desc, at);
         let frames = frames.with_scene(&scene);

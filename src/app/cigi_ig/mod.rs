@@ -384,11 +384,11 @@ impl CigiIg {
     pub fn instances(
         &mut self,
         terrain: &Terrain,
-        templates: &[crate::world::EntityTemplate],
+        templates: &crate::world::Templates,
     ) -> crate::world::Instances {
         let t = self.session.host_time_at(self.frame_time);
         let i = crate::world::entity_instances(&self.session, terrain, templates, t);
-        self.entities_frame = (i.drawn.len(), i.not_drawn, i.hidden);
+        self.entities_frame = (i.drawn.len() + i.voxels.len(), i.not_drawn, i.hidden);
         if i.not_drawn > self.other_entities {
             if self.other_entities == 0 {
                 log::warn!(
