@@ -1540,7 +1540,8 @@ fn an_entity_from_a_voxel_template_appears_hides_and_vanishes() {
     }
     // The same model placed by the scene at the entity's pose, rendered by `relief render`.
     let hpr = [f64::from(ypr[0]), f64::from(ypr[1]), f64::from(ypr[2])];
-    let truth_scene = cigi_support::scene(&dir, "truth", cam, [heading, pitch, 0.0], &model(p1, hpr));
+    let truth_scene =
+        cigi_support::scene(&dir, "truth", cam, [heading, pitch, 0.0], &model(p1, hpr));
     let rendered = dir.join("rendered");
     let out = common::relief_cli(
         &[
@@ -1563,4 +1564,39 @@ fn an_entity_from_a_voxel_template_appears_hides_and_vanishes() {
     let d = mean_diff(&img(1), &truth);
     eprintln!("voxel entity frame vs relief render of the model at its pose: {d:.4}/255");
     assert!(d <= 1.0, "{d}");
+}
+
+#[test]
+fn voxel_templates_are_checked_when_the_scene_loads() {
+    let dir = temp_dir("cigi-voxel-template-errors");
+    let axes = common::terrains().join("voxels/axes.vox");
+    let model = format!(
+        "[[voxels]]\nname = \"axes\"\nfile = {axes:?}\nvoxel_size = 3.0\ngeodetic = [47.2, 9.2, 3000.0]\n\
+         [[objects]]\nname = \"ball\"\nshape = \"sphere\"\nradius = 5.0\ngeodetic = [47.2, 9.2, 3000.0]\n"
+    );
+    for (k, (entity, want)) in [
+        (
+            "voxels = \"axes\"\nfreeform = \"ball\"",
+            "cigi.entity[0].freeform/voxels",
+        ),
+        ("max = 2", "cigi.entity[0].freeform/voxels"),
+        ("voxels = \"tree\"", "no [[voxels]] entry is named \"tree\""),
+        ("voxels = \"axes\"\nmax = 64", "add up to 65, at most 64"),
+    ]
+    .iter()
+    .enumerate()
+    {
+        let extra = format!("{model}[[cigi.entity]]\ntype = 8\n{entity}\n");
+        let path = scene(&dir, &format!("s{k}"), [47.6, 9.6, 900.0], [0.0; 3], &extra);
+        let e = relief::scene::Scene::load(&path).err().expect("refused");
+        let msg = format!("{e:#}");
+        assert!(msg.contains(want), "{entity:?}: {msg}");
+    }
+    // The valid one loads, and the template leaves the scene's models.
+    let extra = format!("{model}[[cigi.entity]]\ntype = 8\nvoxels = \"axes\"\nmax = 3\n");
+    let path = scene(&dir, "ok", [47.6, 9.6, 900.0], [0.0; 3], &extra);
+    let world = relief::world::World::load(&relief::scene::Scene::load(&path).unwrap()).unwrap();
+    assert!(world.voxels.is_empty());
+    assert_eq!(world.templates.voxels.len(), 1);
+    assert_eq!(world.voxel_template_slots()[0].1, 3);
 }
