@@ -1588,7 +1588,7 @@ fn voxel_templates_are_checked_when_the_scene_loads() {
     {
         let extra = format!("{model}[[cigi.entity]]\ntype = 8\n{entity}\n");
         let path = scene(&dir, &format!("s{k}"), [47.6, 9.6, 900.0], [0.0; 3], &extra);
-        let e = relief::scene::Scene::load(&path).err().expect("refused");
+        let e = relief::scene::Scene::load(&path).expect_err("refused");
         let msg = format!("{e:#}");
         assert!(msg.contains(want), "{entity:?}: {msg}");
     }
