@@ -7,7 +7,8 @@
 //! * `quiet`: no queries: host-datagram-to-Start-of-Frame latency and the IG's Start of
 //!   Frame period;
 //! * `hat_hot`, `los`: a batch of 100 HAT/HOT requests (HOT and HAT alternating) or LOS
-//!   segment requests per host frame: responses received per second;
+//!   segment requests per host frame: responses received per second; `hat_hot_1000`,
+//!   `los_1000` likewise with 1,000;
 //! * `flood`: as quiet, with 10,000 malformed datagrams a second from the host's own address
 //!   on another thread (random bytes never starting with IG Control, IG Control of version 9:
 //!   both refused whole).
@@ -33,6 +34,9 @@ use std::time::{Duration, Instant};
 
 /// Queries per host frame in the query phases.
 pub const BATCH: usize = 100;
+/// Queries per host frame in the heavy query phases (a LOS batch fills a datagram: 64,072
+/// bytes; the session holds at most 1,024 waiting queries).
+pub const BIG_BATCH: usize = 1000;
 /// Malformed datagrams a second in the flood phase.
 pub const FLOOD_PER_S: f64 = 10_000.0;
 /// Host frames a second.
@@ -74,6 +78,9 @@ pub struct CigiBench {
     pub oracle_los_per_s: f64,
     /// Of the oracle's answers, `valid = false` ones (points off the terrain: none expected).
     pub oracle_invalid: u64,
+    /// Queries the session dropped at its cap of 1,024 waiting (two 1,000-query datagrams
+    /// read in one IG frame).
+    pub dropped_queries: u64,
     /// The IG's counters at the end (`relief serve`'s `cigi-counters`).
     pub summary: String,
 }
@@ -213,7 +220,14 @@ impl Host {
     }
 
     /// Flies `frames` host frames carrying `load`; returns the phase's figures.
-    fn phase(&mut self, name: &str, frames: u32, load: Load, flood: Option<&Flood>) -> Phase {
+    fn phase(
+        &mut self,
+        name: &str,
+        frames: u32,
+        load: (Load, usize),
+        flood: Option<&Flood>,
+    ) -> Phase {
+        let (load, batch) = load;
         let (sent0, sofs0, responses0) = (self.sent.len(), self.sofs.len(), self.responses);
         let flooded0 = flood.map_or(0, |f| f.sent.load(Relaxed));
         let (start, period) = (self.now(), 1.0 / HOST_HZ);
@@ -222,7 +236,7 @@ impl Host {
             let t = self.now();
             let mut m = MessageBuilder::host(&control(self.frame, t), ByteOrder::Big);
             m.push_any(&HostPacket::EntityControl(self.ownship));
-            for i in 0..BATCH {
+            for i in 0..batch {
                 if let Some(q) = query(load, i, at) {
                     m.push_any(&q);
                 }
@@ -427,12 +441,15 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo,
                 responses: 0,
                 buf: vec![0; 65536],
             };
-            host.phase("warm-up", WARM_UP, Load::Nothing, None);
-            let mut phases = vec![host.phase("quiet", frames, Load::Nothing, None)];
-            phases.push(host.phase("hat_hot", frames, Load::HatHot, None));
-            phases.push(host.phase("los", frames, Load::Los, None));
+            let none = (Load::Nothing, 0);
+            host.phase("warm-up", WARM_UP, none, None);
+            let mut phases = vec![host.phase("quiet", frames, none, None)];
+            phases.push(host.phase("hat_hot", frames, (Load::HatHot, BATCH), None));
+            phases.push(host.phase("los", frames, (Load::Los, BATCH), None));
+            phases.push(host.phase("hat_hot_1000", frames, (Load::HatHot, BIG_BATCH), None));
+            phases.push(host.phase("los_1000", frames, (Load::Los, BIG_BATCH), None));
             flood.on.store(true, Relaxed);
-            phases.push(host.phase("flood", frames, Load::Nothing, Some(&flood)));
+            phases.push(host.phase("flood", frames, none, Some(&flood)));
             flood.done.store(true, Relaxed);
             let _ = flooder.join();
             Ok::<_, Error>((info, phases))
@@ -445,7 +462,13 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo,
             measured.ok_or_else(|| Error::invalid("bench cigi", "the IG did not start"))??;
         let hat_hot = oracle_rate(&world.terrain, lla, Load::HatHot);
         let los = oracle_rate(&world.terrain, lla, Load::Los);
+        let counters = summary
+            .lines()
+            .find_map(|l| l.strip_prefix("cigi-counters: "));
+        let counters: serde_json::Value =
+            serde_json::from_str(counters.unwrap_or("{}")).unwrap_or_default();
         let bench = CigiBench {
+            dropped_queries: counters["dropped_queries"].as_u64().unwrap_or(0),
             host_hz: HOST_HZ,
             batch: BATCH,
             phases,
@@ -495,12 +518,15 @@ impl CigiBench {
         let summary = Figures::default()
             .with("hat_hot_per_s", rate("hat_hot"))
             .with("los_per_s", rate("los"))
+            .with("hat_hot_1000_per_s", rate("hat_hot_1000"))
+            .with("los_1000_per_s", rate("los_1000"))
+            .with("dropped_queries", self.dropped_queries as f64)
             .with("oracle_hat_hot_per_s", self.oracle_hat_hot_per_s)
             .with("oracle_los_per_s", self.oracle_los_per_s);
         let unreported: u32 = self.phases.iter().map(|p| p.unreported).sum();
         let notes = vec![
             format!(
-                "host at {} Hz, {} queries per host frame in hat_hot and los; the IG asynchronous (at most {} Hz)",
+                "host at {} Hz, {} queries per host frame in hat_hot and los, {BIG_BATCH} in the _1000 phases; the IG asynchronous (at most {} Hz)",
                 self.host_hz, self.batch, MAX_RATE_HZ
             ),
             format!(
