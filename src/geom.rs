@@ -28,6 +28,30 @@ pub fn attitude_matrix(heading: f64, pitch: f64, roll: f64) -> DMat3 {
     DMat3::from_cols(right, fwd, -down)
 }
 
+/// The heading, pitch and roll (degrees) of a rotation as [`attitude_matrix`] makes it (columns
+/// right, forward, up): the inverse of `attitude_matrix` for pitch within (−90°, 90°); at ±90°
+/// the roll is taken as 0. Heading in [0, 360).
+pub fn attitude_angles(m: DMat3) -> (f64, f64, f64) {
+    let (right, fwd) = (m.x_axis, m.y_axis);
+    let pitch = fwd.z.clamp(-1.0, 1.0).asin();
+    let horizontal = fwd.x.hypot(fwd.y);
+    if horizontal < 1e-12 {
+        // Straight up or down: the heading is where the up vector's opposite points.
+        let up = m.z_axis * -pitch.signum();
+        let heading = up.x.atan2(up.y).to_degrees().rem_euclid(360.0);
+        return (heading, pitch.to_degrees(), 0.0);
+    }
+    let h = fwd.x.atan2(fwd.y);
+    let right0 = DVec3::new(h.cos(), -h.sin(), 0.0);
+    let up0 = right0.cross(fwd);
+    let roll = (-right.dot(up0)).atan2(right.dot(right0));
+    (
+        h.to_degrees().rem_euclid(360.0),
+        pitch.to_degrees(),
+        roll.to_degrees(),
+    )
+}
+
 /// [`attitude_matrix`] after checking the angles are finite; the error names
 /// `field("heading/pitch/roll")`.
 pub fn checked_attitude(

@@ -547,6 +547,8 @@ fn a_flood_of_100000_malformed_datagrams_while_the_host_flies() {
     let mut arrived = BTreeMap::new();
     let mut valid = 0u64;
     let mut sent_at = Vec::new();
+    // The IG's resident set: when the flood starts, and the most seen during and after it.
+    let (mut rss_before, mut rss_most) = (None, 0u64);
     // The host flies until the IG's frame 715 (of 720) answered, so every datagram it sends
     // is read before the IG ends.
     while !ig.exited()
@@ -558,10 +560,16 @@ fn a_flood_of_100000_malformed_datagrams_while_the_host_flies() {
         ig.send(&flight_message(&TURN, f, t, &[]));
         sent_at.push(t);
         valid += 1;
+        if rss_before.is_some() {
+            rss_most = rss_most.max(ig.rss().unwrap_or(0));
+        }
         let next = t0 + Duration::from_secs_f64(f64::from(f + 1) / 30.0);
         while Instant::now() < next {
             drain(&ig, t0, &mut arrived);
             if arrived.keys().next_back().is_some_and(|&k| k >= 150) {
+                if rss_before.is_none() {
+                    rss_before = ig.rss();
+                }
                 go.store(true, SeqCst);
             }
             std::thread::sleep(Duration::from_millis(1));
@@ -569,7 +577,24 @@ fn a_flood_of_100000_malformed_datagrams_while_the_host_flies() {
     }
     go.store(true, SeqCst);
     let (start, end, counts, short_random) = flood.join().unwrap();
+    rss_most = rss_most.max(ig.rss().unwrap_or(0));
     let out = ig.finish();
+    // RSS growth stays bounded: the session's maps are capped (4,096 entities, 1,024 queries)
+    // and a datagram is read into one fixed buffer, so a flood may not grow the process.
+    const RSS_BOUND: u64 = 32 << 20;
+    let rss_before = rss_before.expect("VmRSS read when the flood started");
+    let growth = rss_most.saturating_sub(rss_before);
+    eprintln!(
+        "VmRSS: {} KiB when the flood started, at most {} KiB during and after it: growth {} KiB (bound {} MiB)",
+        rss_before >> 10,
+        rss_most >> 10,
+        growth >> 10,
+        RSS_BOUND >> 20
+    );
+    assert!(
+        growth < RSS_BOUND,
+        "VmRSS grew by {growth} bytes during the flood"
+    );
     let c = counters(&out);
     let poses: Vec<_> = pose_log(&log).iter().filter_map(logged).collect();
     let n = |k: &str| c[k].as_u64().unwrap();
@@ -1273,4 +1298,305 @@ fn hot_and_los_on_a_database_scene_come_from_full_resolution() {
         seen += 1;
     }
     assert_eq!(seen, 8);
+}
+
+/// Body → north-east-down rotation of yaw, pitch, roll (degrees; z-y-x, the aerospace
+/// convention CIGI uses: body x forward, y right, z down).
+fn dcm([yaw, pitch, roll]: [f64; 3]) -> [[f64; 3]; 3] {
+    let (sy, cy) = yaw.to_radians().sin_cos();
+    let (sp, cp) = pitch.to_radians().sin_cos();
+    let (sr, cr) = roll.to_radians().sin_cos();
+    [
+        [cp * cy, sr * sp * cy - cr * sy, cr * sp * cy + sr * sy],
+        [cp * sy, sr * sp * sy + cr * cy, cr * sp * sy - sr * cy],
+        [-sp, sr * cp, cr * cp],
+    ]
+}
+
+fn mat_mul(a: [[f64; 3]; 3], b: [[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let mut m = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            m[i][j] = (0..3).map(|k| a[i][k] * b[k][j]).sum();
+        }
+    }
+    m
+}
+
+/// Yaw, pitch, roll (degrees) of a body → NED rotation.
+fn euler(m: [[f64; 3]; 3]) -> [f64; 3] {
+    [
+        m[1][0].atan2(m[0][0]).to_degrees(),
+        (-m[2][0]).asin().to_degrees(),
+        m[2][1].atan2(m[2][2]).to_degrees(),
+    ]
+}
+
+#[test]
+fn a_view_control_offset_moves_and_turns_the_eye() {
+    let dir = temp_dir("cigi-view-offset");
+    let lla = [47.37, 9.31, 2300.0];
+    let own = [182.0, -6.0, 4.0];
+    let (xyz, ypr) = ([60.0, -40.0, -25.0], [25.0, -10.0, 8.0]);
+    // The eye, computed here: the offset through the ownship's rotation into north-east-down
+    // metres, then degrees by the WGS84 radii; its attitude the two rotations composed.
+    let r = dcm(own);
+    let ned: Vec<f64> = (0..3)
+        .map(|i| (0..3).map(|k| r[i][k] * xyz[k]).sum())
+        .collect();
+    let (m, n) = radii(lla[0]);
+    let eye = [
+        lla[0] + (ned[0] / (m + lla[2])).to_degrees(),
+        lla[1] + (ned[1] / ((n + lla[2]) * lla[0].to_radians().cos())).to_degrees(),
+        lla[2] - ned[2],
+    ];
+    let [h, p, ro] = euler(mat_mul(r, dcm(ypr)));
+    eprintln!("eye at {eye:?}, heading {h:.3}, pitch {p:.3}, roll {ro:.3}");
+    let elsewhere = scene(&dir, "elsewhere", [47.6, 9.6, 900.0], [45.0, 10.0, 0.0], "");
+    let served = dir.join("served");
+    let ig = Ig::start(
+        &elsewhere,
+        &[
+            "--size",
+            "160x120",
+            "--cigi-sync",
+            "--frames",
+            "3",
+            "--capture-frames",
+            served.to_str().unwrap(),
+        ],
+        host_socket(),
+    );
+    let ownship = ownship(lla, own[0] as f32, own[1] as f32, own[2] as f32);
+    let view = |x_enable: bool, yaw_enable: bool, x: f32, yaw: f32| ViewControl {
+        view_id: 0,
+        group_id: 0,
+        x_enable,
+        y_enable: x_enable,
+        z_enable: x_enable,
+        roll_enable: yaw_enable,
+        pitch_enable: yaw_enable,
+        yaw_enable,
+        entity_id: 0,
+        x,
+        y: xyz[1] as f32,
+        z: xyz[2] as f32,
+        roll: ypr[2] as f32,
+        pitch: ypr[1] as f32,
+        yaw,
+    };
+    ig.exchange(&message(ig_control(1, None, false), &[ownship.into()]), 1);
+    let full = view(true, true, xyz[0] as f32, ypr[0] as f32);
+    ig.exchange(
+        &message(ig_control(2, None, false), &[ownship.into(), full.into()]),
+        2,
+    );
+    // Enable bits clear: those offsets keep their values (the ICD: the IG ignores them).
+    let ignored = view(false, false, 999.0, 999.0);
+    ig.exchange(
+        &message(
+            ig_control(3, None, false),
+            &[ownship.into(), ignored.into()],
+        ),
+        3,
+    );
+    ig.finish();
+    let rendered = dir.join("rendered");
+    let at = scene(&dir, "eye", eye, [h, p, ro], "");
+    let out = common::relief_cli(
+        &[
+            "render",
+            at.to_str().unwrap(),
+            "--out",
+            rendered.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let img = |p: std::path::PathBuf| image::open(p).unwrap().to_rgba8();
+    let truth = img(rendered.join("frame_0000.png"));
+    let plain = img(served.join("frame_0000.png"));
+    let (offset, kept) = (
+        img(served.join("frame_0001.png")),
+        img(served.join("frame_0002.png")),
+    );
+    let (d, d_kept, d_plain) = (
+        mean_diff(&offset, &truth),
+        mean_diff(&kept, &truth),
+        mean_diff(&plain, &truth),
+    );
+    eprintln!("offset frame vs render of the eye: {d:.4}/255; with the enable bits clear {d_kept:.4}/255; without the offset {d_plain:.2}/255");
+    assert!(d <= 1.0 && d_kept <= 1.0, "{d} {d_kept}");
+    assert!(d_plain > 5.0, "the offset changes the frame: {d_plain}");
+    // The translation is seen too: the eye turned but not moved is another frame.
+    let turned_dir = dir.join("turned");
+    let turned = scene(&dir, "turned", lla, [h, p, ro], "");
+    let out = common::relief_cli(
+        &[
+            "render",
+            turned.to_str().unwrap(),
+            "--out",
+            turned_dir.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let d_turned = mean_diff(&offset, &img(turned_dir.join("frame_0000.png")));
+    eprintln!("offset frame vs the eye turned but not moved: {d_turned:.3}/255");
+    assert!(d_turned > 10.0 * d.max(0.01), "{d_turned}");
+}
+
+#[test]
+fn an_entity_from_a_voxel_template_appears_hides_and_vanishes() {
+    let dir = temp_dir("cigi-voxel-entities");
+    let cam = [47.45, 9.50, 1300.0];
+    let (heading, pitch) = (30.0f64, -3.0f64);
+    let axes = common::terrains().join("voxels/axes.vox");
+    // axes.vox (40³ voxels) at 3 m a voxel, the template of entity type 8; placed far away in
+    // the scene (not drawn there).
+    let model = |at: [f64; 3], hpr: [f64; 3]| {
+        format!(
+            "[[voxels]]\nname = \"axes\"\nfile = {axes:?}\nvoxel_size = 3.0\n\
+             geodetic = [{:?}, {:?}, {:?}]\nheading = {:?}\npitch = {:?}\nroll = {:?}\n",
+            at[0], at[1], at[2], hpr[0], hpr[1], hpr[2]
+        )
+    };
+    let extra = model([47.2, 9.2, 3000.0], [0.0; 3])
+        + "[[cigi.entity]]\ntype = 8\nvoxels = \"axes\"\nmax = 2\n";
+    let scene = scene(&dir, "scene", [47.6, 9.6, 900.0], [45.0, 0.0, 0.0], &extra);
+    let frames = dir.join("frames");
+    let ig = Ig::start(
+        &scene,
+        &[
+            "--size",
+            "160x120",
+            "--no-shadows",
+            "--cigi-sync",
+            "--frames",
+            "4",
+            "--capture-frames",
+            frames.to_str().unwrap(),
+        ],
+        host_socket(),
+    );
+    // 1.2 km ahead.
+    let (m, n) = radii(cam[0]);
+    let h = heading.to_radians();
+    let p1 = [
+        cam[0] + (1200.0 * h.cos() / m).to_degrees(),
+        cam[1] + (1200.0 * h.sin() / (n * cam[0].to_radians().cos())).to_degrees(),
+        1200.0,
+    ];
+    let ypr = [45.0f32, 10.0, 5.0];
+    let own = || HostPacket::from(ownship(cam, heading as f32, pitch as f32, 0.0));
+    let axes_at = |state: u8| {
+        let mut e = entity(5, 8, p1, ypr);
+        e.entity_state = state;
+        HostPacket::from(e)
+    };
+    let steps = [
+        vec![own()],
+        vec![own(), axes_at(1)],
+        vec![own(), axes_at(0)],
+        vec![own(), axes_at(2)],
+    ];
+    for (k, packets) in steps.iter().enumerate() {
+        let hf = 20 + k as u32;
+        ig.exchange(&message(ig_control(hf, None, false), packets), hf);
+    }
+    ig.finish();
+    let img = |k: usize| {
+        image::open(frames.join(format!("frame_{k:04}.png")))
+            .unwrap()
+            .to_rgba8()
+    };
+    let json = |k: usize| common::read_json(&frames.join(format!("frame_{k:04}.json")));
+    let base = img(0);
+    let (cx, cy, count) = changed(&img(1), &base).expect("the voxel entity is drawn");
+    let (x, y) = project(cam, heading, pitch, 60.0, (160.0, 120.0), p1);
+    eprintln!("voxel entity over {count} pixels, centroid ({cx:.1}, {cy:.1}); its bottom centre projects to ({x:.1}, {y:.1})");
+    assert!(count >= 30, "{count} pixels");
+    assert!((cx - x).abs() < 20.0 && (cy - y).abs() < 20.0);
+    assert_eq!(json(1)["cigi"]["drawn"], 1);
+    for k in [2, 3] {
+        let d = mean_diff(&img(k), &base);
+        eprintln!(
+            "frame {k} ({}) vs the frame without it: {d:.4}/255",
+            if k == 2 { "inactive" } else { "destroyed" }
+        );
+        assert!(
+            changed(&img(k), &base).is_none(),
+            "frame {k} shows no entity"
+        );
+        assert_eq!(json(k)["cigi"]["drawn"], 0);
+    }
+    // The same model placed by the scene at the entity's pose, rendered by `relief render`.
+    let hpr = [f64::from(ypr[0]), f64::from(ypr[1]), f64::from(ypr[2])];
+    let truth_scene =
+        cigi_support::scene(&dir, "truth", cam, [heading, pitch, 0.0], &model(p1, hpr));
+    let rendered = dir.join("rendered");
+    let out = common::relief_cli(
+        &[
+            "render",
+            truth_scene.to_str().unwrap(),
+            "--no-shadows",
+            "--out",
+            rendered.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let truth = image::open(rendered.join("frame_0000.png"))
+        .unwrap()
+        .to_rgba8();
+    let d = mean_diff(&img(1), &truth);
+    eprintln!("voxel entity frame vs relief render of the model at its pose: {d:.4}/255");
+    assert!(d <= 1.0, "{d}");
+}
+
+#[test]
+fn voxel_templates_are_checked_when_the_scene_loads() {
+    let dir = temp_dir("cigi-voxel-template-errors");
+    let axes = common::terrains().join("voxels/axes.vox");
+    let model = format!(
+        "[[voxels]]\nname = \"axes\"\nfile = {axes:?}\nvoxel_size = 3.0\ngeodetic = [47.2, 9.2, 3000.0]\n\
+         [[objects]]\nname = \"ball\"\nshape = \"sphere\"\nradius = 5.0\ngeodetic = [47.2, 9.2, 3000.0]\n"
+    );
+    for (k, (entity, want)) in [
+        (
+            "voxels = \"axes\"\nfreeform = \"ball\"",
+            "cigi.entity[0].freeform/voxels",
+        ),
+        ("max = 2", "cigi.entity[0].freeform/voxels"),
+        ("voxels = \"tree\"", "no [[voxels]] entry is named \"tree\""),
+        ("voxels = \"axes\"\nmax = 64", "add up to 65, at most 64"),
+    ]
+    .iter()
+    .enumerate()
+    {
+        let extra = format!("{model}[[cigi.entity]]\ntype = 8\n{entity}\n");
+        let path = scene(&dir, &format!("s{k}"), [47.6, 9.6, 900.0], [0.0; 3], &extra);
+        let e = relief::scene::Scene::load(&path).expect_err("refused");
+        let msg = format!("{e:#}");
+        assert!(msg.contains(want), "{entity:?}: {msg}");
+    }
+    // The valid one loads, and the template leaves the scene's models.
+    let extra = format!("{model}[[cigi.entity]]\ntype = 8\nvoxels = \"axes\"\nmax = 3\n");
+    let path = scene(&dir, "ok", [47.6, 9.6, 900.0], [0.0; 3], &extra);
+    let world = relief::world::World::load(&relief::scene::Scene::load(&path).unwrap()).unwrap();
+    assert!(world.voxels.is_empty());
+    assert_eq!(world.templates.voxels.len(), 1);
+    assert_eq!(world.voxel_template_slots()[0].1, 3);
 }

@@ -7,7 +7,7 @@
 
 mod common;
 
-use common::{relief_command, temp_dir, terrains, Rng};
+use common::{relief_cli, relief_command, temp_dir, terrains, Rng};
 use relief::cigi::*;
 use std::io::{BufRead, BufReader, Read};
 use std::net::{SocketAddr, UdpSocket};
@@ -890,4 +890,74 @@ fn view_with_cigi_follows_a_synchronous_host() {
             "frame {k}: lat {lat}"
         );
     }
+}
+
+/// `relief bench cigi` at 160x120 with short phases: the report's schema and figures a
+/// working IG must give (every batch answered, frames reported, the flood sent).
+#[test]
+fn bench_cigi_reports_query_rates_latency_and_frame_period() {
+    let o = relief_cli(
+        &[
+            "bench",
+            "cigi",
+            "terrains/alps.toml",
+            "--size",
+            "160x120",
+            "--frames",
+            "60",
+            "--json",
+        ],
+        &[],
+    );
+    assert!(
+        o.status.success(),
+        "relief bench cigi failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let r: serde_json::Value = serde_json::from_slice(&o.stdout).expect("one JSON object");
+    eprintln!("{}", r["rows"]);
+    assert_eq!(r["bench"], "cigi");
+    let names: Vec<_> = (r["rows"].as_array().unwrap().iter())
+        .map(|row| row["name"].as_str().unwrap().to_string())
+        .collect();
+    assert_eq!(
+        names,
+        [
+            "quiet",
+            "hat_hot",
+            "los",
+            "hat_hot_1000",
+            "los_1000",
+            "flood"
+        ]
+    );
+    let d = &r["details"];
+    assert_eq!(d["oracle_invalid"], 0);
+    for k in ["oracle_hat_hot_per_s", "oracle_los_per_s"] {
+        assert!(d[k].as_f64().unwrap() > 1000.0, "{k}");
+    }
+    let phases = d["phases"].as_array().unwrap();
+    let f = |i: usize, k: &str| r["rows"][i][k].as_f64().unwrap();
+    // 100 queries a host frame, 60 host frames a phase: 6,000 offered, every one answered
+    // (the last frames' answers may arrive in the next phase).
+    let answered = |i: usize| phases[i]["responses"].as_u64().unwrap();
+    assert!((5700..=6000).contains(&answered(1)), "{}", answered(1));
+    assert!((5700..=6300).contains(&answered(2)), "{}", answered(2));
+    for (i, phase) in phases.iter().enumerate() {
+        assert!(f(i, "latency_ms_p50") > 0.0 && f(i, "latency_ms_p99") < 500.0);
+        assert!(f(i, "latency_frames_p50") >= 1.0);
+        assert!(f(i, "sof_ms_p50") > 10.0 && f(i, "sof_ms_p50") < 100.0);
+        assert!(phase["unreported"].as_u64().unwrap() <= 3);
+    }
+    // 1,000 a host frame: 60,000 offered, less what the session's cap of 1,024 waiting
+    // queries dropped when two host datagrams fell in one IG frame.
+    let dropped = d["dropped_queries"].as_u64().unwrap();
+    for i in [3, 4] {
+        assert!(
+            answered(i) + dropped >= 54_000,
+            "{} + {dropped}",
+            answered(i)
+        );
+    }
+    assert!(f(5, "flood_per_s") > 5000.0, "{}", f(5, "flood_per_s"));
 }

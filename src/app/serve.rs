@@ -11,6 +11,7 @@ use crate::scene::Camera;
 use crate::{Error, Result};
 use serde_json::json;
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 /// Asynchronous mode renders at most this many frames a second.
@@ -50,6 +51,18 @@ pub struct ServeOptions {
 /// Runs the IG until `--frames` frames are done (or the synchronous host is gone); returns
 /// the session's summary line.
 pub fn run(opts: &ServeOptions) -> Result<String> {
+    let never = AtomicBool::new(false);
+    run_with(opts, &never, |_| CigiIg::bind(&opts.cigi))
+}
+
+/// [`run`] for an IG inside another command (`relief bench cigi`): `open` binds the socket
+/// once the renderer is ready (given the adapter), and the loop also ends after the frame in
+/// which `stop` is set.
+pub fn run_with(
+    opts: &ServeOptions,
+    stop: &AtomicBool,
+    open: impl FnOnce(&crate::gpu::Gpu) -> Result<CigiIg>,
+) -> Result<String> {
     if opts.cigi.cigi.is_none() {
         return Err(Error::invalid(
             "--cigi",
@@ -82,11 +95,11 @@ pub fn run(opts: &ServeOptions) -> Result<String> {
         )),
         None => None,
     };
-    let mut ig = CigiIg::bind(&opts.cigi)?;
+    let mut ig = open(&p.gpu)?;
     ig.open_database(&p.scene)?;
     let period = Duration::from_secs_f64(1.0 / MAX_RATE_HZ);
     let mut done = 0u64;
-    while opts.frames.is_none_or(|n| done < n) {
+    while opts.frames.is_none_or(|n| done < n) && !stop.load(Ordering::Relaxed) {
         let started = Instant::now();
         if ig.sync {
             ig.wait_host_frame()?;
@@ -100,6 +113,7 @@ pub fn run(opts: &ServeOptions) -> Result<String> {
             .or_else(|| terrain.world_to_geodetic(cam.pose.position));
         let instances = ig.instances(terrain, &p.world.templates);
         renderer.set_instances(instances.drawn);
+        renderer.set_voxel_instances(instances.voxels);
         let mut scene = p.scene.clone();
         ig.environment(&mut scene.desc, at);
         let frames = frames.with_scene(&scene);

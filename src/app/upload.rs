@@ -10,6 +10,6 @@ pub fn renderer(gpu: &Gpu, world: &World) -> Result<TerrainRenderer> {
     let mut renderer = TerrainRenderer::new(gpu, &world.terrain)?;
     renderer.set_objects_with_templates(gpu, &world.objects, &world.template_slots())?;
     renderer.set_volumes(gpu, &world.volumes)?;
-    renderer.set_voxels(gpu, &world.voxels)?;
+    renderer.set_voxels_with_templates(gpu, &world.voxels, &world.voxel_template_slots())?;
     Ok(renderer)
 }

@@ -135,6 +135,25 @@ pub struct View {
     pub definition: Option<ViewDefinition>,
 }
 
+/// View Control `new` over what the view held: an offset whose enable bit is clear keeps its
+/// earlier value (and enable bit), as the ICD says the IG ignores it; a new entity starts
+/// afresh.
+fn merge_view_control(old: Option<ViewControl>, new: ViewControl) -> ViewControl {
+    let Some(o) = old.filter(|o| o.entity_id == new.entity_id) else {
+        return new;
+    };
+    let pick =
+        |on: bool, n: f32, was_on: bool, was: f32| if on { (true, n) } else { (was_on, was) };
+    let mut m = new;
+    (m.x_enable, m.x) = pick(new.x_enable, new.x, o.x_enable, o.x);
+    (m.y_enable, m.y) = pick(new.y_enable, new.y, o.y_enable, o.y);
+    (m.z_enable, m.z) = pick(new.z_enable, new.z, o.z_enable, o.z);
+    (m.roll_enable, m.roll) = pick(new.roll_enable, new.roll, o.roll_enable, o.roll);
+    (m.pitch_enable, m.pitch) = pick(new.pitch_enable, new.pitch, o.pitch_enable, o.pitch);
+    (m.yaw_enable, m.yaw) = pick(new.yaw_enable, new.yaw, o.yaw_enable, o.yaw);
+    m
+}
+
 /// The IG's view of a CIGI host.
 #[derive(Clone, Debug, Default)]
 pub struct Session {
@@ -263,8 +282,11 @@ impl Session {
                 }
             }
             HostPacket::ViewControl(p) => {
-                if let Some(v) = self.view_mut(p.view_id) {
-                    v.control = Some(*p);
+                let offsets = [p.x, p.y, p.z, p.roll, p.pitch, p.yaw];
+                if !offsets.iter().all(|v| v.is_finite()) {
+                    self.counters.invalid_values += 1;
+                } else if let Some(v) = self.view_mut(p.view_id) {
+                    v.control = Some(merge_view_control(v.control, *p));
                 }
             }
             HostPacket::ViewDefinition(p) => {

@@ -46,6 +46,10 @@ pub struct TerrainRenderer {
     /// Entity instances to draw ([`Self::set_instances`]) and whether they changed.
     instances: Vec<(usize, crate::freeform::FreeForm)>,
     instances_dirty: bool,
+    /// CIGI entities drawn from voxel templates (`(template, model posed)`), and whether
+    /// they changed since placed.
+    voxel_instances: Vec<(usize, crate::voxel::VoxelInstance)>,
+    voxel_instances_dirty: bool,
     /// The curvature the objects were last moved for ([`Self::lower_objects`]); `None`: as
     /// placed.
     lowered_for: Option<GridCurvature>,
@@ -134,6 +138,8 @@ impl TerrainRenderer {
             statics_floor: f64::INFINITY,
             instances: Vec::new(),
             instances_dirty: false,
+            voxel_instances: Vec::new(),
+            voxel_instances_dirty: false,
             lowered_for: None,
             volumes: VolumeSet::default(),
             blend: None,
@@ -251,19 +257,6 @@ impl TerrainRenderer {
     /// the volume pass against the CPU integral over that image, and for diagnostics).
     pub fn set_volumes_hidden(&mut self, hidden: bool) {
         self.volumes.hidden = hidden;
-    }
-
-    /// Uploads the scene's voxel models (none: no voxel passes). Refuses models over the
-    /// adapter's storage-buffer limits with the limit in the message.
-    pub fn set_voxels(&mut self, gpu: &Gpu, models: &[crate::voxel::VoxelInstance]) -> Result<()> {
-        self.voxels = if models.is_empty() {
-            None
-        } else {
-            Some(VoxelPasses::new(gpu, models)?)
-        };
-        self.lowered_for = None;
-        self.targets = None;
-        Ok(())
     }
 
     /// Reclassifies the volumes with a new transfer function (table and brick occupancy are
@@ -573,19 +566,24 @@ impl TerrainRenderer {
         let v = self.voxels.as_ref()?;
         let (cam, s) = (job.cam, job.s);
         let pinhole = self.table.is_none();
-        let full = |n| vec![InstanceRect::full(cam.width, cam.height, n)];
-        let n = v.instances().len();
+        let full = || {
+            vec![InstanceRect {
+                rect: crate::cpu::voxel::PixelRect::full(cam.width, cam.height),
+                instances: v.active_mask(),
+            }]
+        };
+        let boxes = v.active_boxes();
         let cast = if pinhole {
-            crate::cpu::voxel::primary_rects(v.instances(), v.cover_boxes(), cam)
+            crate::cpu::voxel::primary_rects(v.instances(), &boxes, cam)
         } else {
-            full(n)
+            full()
         };
         let shadows = if job.stage != Stage::Shade || !s.shadows {
             Vec::new()
         } else if pinhole {
             crate::cpu::voxel::shadow_rects(
                 v.instances(),
-                v.cover_boxes(),
+                &boxes,
                 cam,
                 job.scene.sun.direction(),
                 // No surface lies lower: the terrain's lowest point, the free
@@ -600,7 +598,7 @@ impl TerrainRenderer {
                     - 1.0,
             )
         } else {
-            full(n)
+            full()
         };
         Some((cast, shadows))
     }

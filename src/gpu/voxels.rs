@@ -219,6 +219,11 @@ pub(crate) struct VoxelPasses {
     instances: Vec<VoxelInstance>,
     /// Boxes the screen rectangles come from (`cpu::voxel::cover_boxes`), once per upload.
     cover: Vec<Vec<[glam::DVec3; 2]>>,
+    /// Per instance, whether it is drawn: the scene's models always, the entity templates'
+    /// slots when placed ([`VoxelPasses::set_slots`]).
+    active: Vec<bool>,
+    /// The instances of each entity template (after the scene's models).
+    slots: Vec<std::ops::Range<usize>>,
     frames: Vec<Vec<FrameRef>>,
     instance_buf: wgpu::Buffer,
     /// One `VoxDrawGpu` per drawn rectangle, `draw_stride` bytes apart: the cast's first,
@@ -312,6 +317,8 @@ impl VoxelPasses {
             placed: instances.to_vec(),
             instances: instances.to_vec(),
             cover: crate::cpu::voxel::cover_boxes(instances),
+            active: vec![true; instances.len()],
+            slots: Vec::new(),
             frames,
             instance_buf,
             draws,
@@ -398,6 +405,70 @@ impl VoxelPasses {
         &self.instances
     }
 
+    /// The scene's `models`, then `max` slots for each entity template `(model, max)`: the
+    /// slots are not drawn until [`Self::set_slots`] places them.
+    pub fn with_templates(
+        gpu: &Gpu,
+        models: &[VoxelInstance],
+        templates: &[(VoxelInstance, usize)],
+    ) -> Result<VoxelPasses> {
+        let mut all = models.to_vec();
+        let mut slots = Vec::new();
+        for (model, max) in templates {
+            slots.push(all.len()..all.len() + max);
+            all.extend(std::iter::repeat_n(model.clone(), *max));
+        }
+        let mut passes = VoxelPasses::new(gpu, &all)?;
+        for r in &slots {
+            passes.active[r.clone()].fill(false);
+        }
+        passes.slots = slots;
+        Ok(passes)
+    }
+
+    /// Places entity instances `(template, model at its pose)` in their templates' slots (the
+    /// rest are not drawn), each moved by `offset(position)` (the curved earth's drop).
+    pub fn set_slots(
+        &mut self,
+        placed: &[(usize, VoxelInstance)],
+        offset: impl Fn(glam::DVec3) -> glam::DVec3,
+    ) {
+        let mut next: Vec<usize> = self.slots.iter().map(|r| r.start).collect();
+        for r in &self.slots {
+            self.active[r.clone()].fill(false);
+        }
+        for (k, m) in placed {
+            let Some(range) = self.slots.get(*k) else {
+                continue;
+            };
+            let i = next[*k];
+            if i >= range.end {
+                continue;
+            }
+            next[*k] += 1;
+            self.placed[i].position = m.position;
+            self.placed[i].rotation = m.rotation;
+            self.instances[i].rotation = m.rotation;
+            self.instances[i].position = m.position + offset(m.position);
+            self.active[i] = true;
+        }
+    }
+
+    /// Per instance, the boxes its screen rectangles come from (`cpu::voxel::cover_boxes`);
+    /// none for the instances not drawn.
+    pub fn active_boxes(&self) -> Vec<Vec<[glam::DVec3; 2]>> {
+        (self.cover.iter().zip(&self.active))
+            .map(|(b, &on)| if on { b.clone() } else { Vec::new() })
+            .collect()
+    }
+
+    /// The mask of the instances drawn.
+    pub fn active_mask(&self) -> u64 {
+        (self.active.iter().enumerate())
+            .filter(|(_, &on)| on)
+            .fold(0, |m, (i, _)| m | 1 << i)
+    }
+
     /// The models as placed (before [`Self::set_offsets`]).
     pub fn placed(&self) -> &[VoxelInstance] {
         &self.placed
@@ -409,11 +480,6 @@ impl VoxelPasses {
         for ((m, p), o) in self.instances.iter_mut().zip(&self.placed).zip(offsets) {
             m.position = p.position + *o;
         }
-    }
-
-    /// Per model, the boxes its screen rectangles come from (`cpu::voxel::cover_boxes`).
-    pub fn cover_boxes(&self) -> &[Vec<[glam::DVec3; 2]>] {
-        &self.cover
     }
 
     /// Targets for a frame size; the passes update the G-buffer the shade pass reads.

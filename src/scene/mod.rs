@@ -402,7 +402,7 @@ impl Scene {
 impl SceneDesc {
     /// Checks ranges and consistency; errors name the field.
     pub fn validate(&self) -> Result<()> {
-        self.cigi.validate(&self.objects)?;
+        self.cigi.validate(&self.objects, &self.voxels)?;
         let c = &self.camera;
         if c.position.is_some() == c.geodetic.is_some() {
             return Err(camera_position_error());

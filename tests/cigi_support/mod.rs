@@ -83,6 +83,14 @@ impl Ig {
         }
     }
 
+    /// The process's resident set (VmRSS of `/proc/PID/status`), bytes; `None` once it is gone.
+    pub fn rss(&self) -> Option<u64> {
+        let status = std::fs::read_to_string(format!("/proc/{}/status", self.child.id())).ok()?;
+        let line = status.lines().find(|l| l.starts_with("VmRSS:"))?;
+        let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+        Some(kb * 1024)
+    }
+
     /// Waits for the process; its stdout, asserting success.
     pub fn finish(mut self) -> String {
         let status = self.child.wait().unwrap();

@@ -8,11 +8,13 @@
 //! * [`volume`]: the density-volume pass, skipping and early termination vs plain marching;
 //! * [`voxels`]: voxel models vs terrain only, and the paper's model sizes;
 //! * [`display`]: a display channel's table regeneration and direct frame vs pinhole;
+//! * [`cigi`]: the CIGI IG under an in-process host: query rates, latency, frame period;
 //! * [`soak`]: a long run watching memory, wgpu objects and frame times;
 //! * [`report`]: the report, its JSON and its printed form;
 //! * [`table`]: what every report has: the run, rows of figures, summary, notes;
 //! * [`timing`]: the scene at the benchmark's size, frame timing.
 
+pub mod cigi;
 pub mod db;
 pub mod display;
 pub mod freeforms;
@@ -110,6 +112,15 @@ pub enum BenchCommand {
         #[command(flatten)]
         args: BenchArgs,
     },
+    /// The CIGI IG (`relief serve`'s loop on a thread) under a host in the same process over
+    /// loopback: HAT/HOT and LOS responses a second (100 and 1,000 queries per host frame), the CPU
+    /// oracle's own rates, host-datagram-to-Start-of-Frame latency and the Start of Frame
+    /// period, quiet and under 10,000 malformed datagrams a second; --frames host frames per
+    /// phase (default 240, at 60 Hz) (default scene: terrains/alps.toml).
+    Cigi {
+        #[command(flatten)]
+        args: BenchArgs,
+    },
     /// The terrain database: build throughput (synthetic mosaic), the scene through a database
     /// against its .hgt, and a scripted flight through the pager.
     Db {
@@ -131,6 +142,7 @@ impl BenchCommand {
             | BenchCommand::Voxels { args }
             | BenchCommand::Display { args, .. }
             | BenchCommand::Soak { args }
+            | BenchCommand::Cigi { args }
             | BenchCommand::Db { args, .. } => args,
         }
     }
@@ -153,12 +165,12 @@ impl BenchCommand {
         }
     }
 
-    /// Timed frames: as given, else 10 (600 for soak).
+    /// Timed frames: as given, else 10 (600 for soak, 240 host frames a phase for cigi).
     pub fn frames(&self) -> Result<u32> {
-        let default = if matches!(self, BenchCommand::Soak { .. }) {
-            600
-        } else {
-            10
+        let default = match self {
+            BenchCommand::Soak { .. } => 600,
+            BenchCommand::Cigi { .. } => 240,
+            _ => 10,
         };
         match self.args().frames.unwrap_or(default) {
             0 => Err(Error::invalid("--frames", "must be at least 1")),
@@ -209,6 +221,10 @@ impl BenchCommand {
             BenchCommand::Soak { .. } => {
                 let (run, d) = soak::run(scene, size, frames)?;
                 (run, Details::Soak(d))
+            }
+            BenchCommand::Cigi { .. } => {
+                let (run, d) = cigi::run(scene, size, frames)?;
+                (run, Details::Cigi(d))
             }
             BenchCommand::Db { db: a, .. } => {
                 let (run, d) = db::run(scene, size, frames, a)?;

@@ -13,6 +13,7 @@
 //! printed), `summary` the headline figures, `notes` what is not a number, `details` the
 //! mode's whole result ([`Details`]).
 
+use super::cigi::CigiBench;
 use super::db::DbBench;
 use super::display::DisplayBench;
 use super::freeforms::FreeFormBench;
@@ -38,6 +39,7 @@ pub enum Details {
     Display(DisplayBench),
     Soak(SoakBench),
     Db(DbBench),
+    Cigi(CigiBench),
 }
 
 impl Details {
@@ -52,6 +54,7 @@ impl Details {
             Details::Display(_) => "display",
             Details::Soak(_) => "soak",
             Details::Db(_) => "db",
+            Details::Cigi(_) => "cigi",
         }
     }
 
@@ -66,6 +69,7 @@ impl Details {
             Details::Display(d) => d.table(),
             Details::Soak(d) => d.table(),
             Details::Db(d) => d.table(),
+            Details::Cigi(d) => d.table(),
         }
     }
 }
@@ -73,7 +77,7 @@ impl Details {
 /// What every benchmark mode reports.
 #[derive(Clone, Debug, Serialize)]
 pub struct BenchReport {
-    /// The mode: `terrain`, `primary`, `freeforms`, `volume`, `voxels`, `display` or `soak`.
+    /// The mode: `terrain`, `primary`, `freeforms`, `volume`, `voxels`, `display`, `soak`, `db` or `cigi`.
     pub bench: &'static str,
     #[serde(flatten)]
     pub run: RunInfo,

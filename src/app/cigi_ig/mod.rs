@@ -75,6 +75,17 @@ fn grow_receive_buffer(socket: &UdpSocket) {
     let _ = socket;
 }
 
+/// Moves `pose` (the ownship's) by a View Control offset: `xyz` metres along its forward,
+/// right and down axes, then turns it by `ypr` (yaw, pitch, roll in degrees) in its own frame.
+pub fn offset_view(pose: &mut CameraPose, xyz: [f64; 3], ypr: [f64; 3]) {
+    use crate::geom::{attitude_angles, attitude_basis, attitude_matrix};
+    let (right, down, fwd) = attitude_basis(pose.heading, pose.pitch, pose.roll);
+    pose.position += fwd * xyz[0] + right * xyz[1] + down * xyz[2];
+    let m = attitude_matrix(pose.heading, pose.pitch, pose.roll)
+        * attitude_matrix(ypr[0], ypr[1], ypr[2]);
+    (pose.heading, pose.pitch, pose.roll) = attitude_angles(m);
+}
+
 /// A CIGI IG: socket, session, frame counter.
 pub struct CigiIg {
     socket: UdpSocket,
@@ -120,6 +131,17 @@ impl CigiIg {
     /// Binds the socket of `args` (`args.cigi` must be set) and prints the address it listens
     /// on as one line on stdout.
     pub fn bind(args: &CigiArgs) -> Result<CigiIg> {
+        let ig = CigiIg::open(args)?;
+        if let Some(local) = ig.local_addr() {
+            println!("cigi: listening on {local}");
+            use std::io::Write as _;
+            let _ = std::io::stdout().flush();
+        }
+        Ok(ig)
+    }
+
+    /// [`CigiIg::bind`] without the line on stdout (an IG inside another command).
+    pub fn open(args: &CigiArgs) -> Result<CigiIg> {
         let port = args
             .cigi
             .ok_or_else(|| Error::invalid("--cigi", "give the UDP port to listen on"))?;
@@ -137,10 +159,6 @@ impl CigiIg {
         let socket = UdpSocket::bind(at).map_err(io)?;
         socket.set_nonblocking(true).map_err(io)?;
         grow_receive_buffer(&socket);
-        let local = socket.local_addr().map_err(io)?;
-        println!("cigi: listening on {local}");
-        use std::io::Write as _;
-        let _ = std::io::stdout().flush();
         let session = match args.cigi_host {
             Some(h) => Session::with_host(h),
             None => Session::new(),
@@ -293,6 +311,9 @@ impl CigiIg {
                 pose.heading = p.yaw;
                 pose.pitch = p.pitch;
                 pose.roll = p.roll;
+                if let Some((xyz, ypr)) = self.view_offset() {
+                    offset_view(&mut pose, xyz, ypr);
+                }
                 (
                     pose,
                     Some(Ownship {
@@ -363,11 +384,11 @@ impl CigiIg {
     pub fn instances(
         &mut self,
         terrain: &Terrain,
-        templates: &[crate::world::EntityTemplate],
+        templates: &crate::world::Templates,
     ) -> crate::world::Instances {
         let t = self.session.host_time_at(self.frame_time);
         let i = crate::world::entity_instances(&self.session, terrain, templates, t);
-        self.entities_frame = (i.drawn.len(), i.not_drawn, i.hidden);
+        self.entities_frame = (i.drawn.len() + i.voxels.len(), i.not_drawn, i.hidden);
         if i.not_drawn > self.other_entities {
             if self.other_entities == 0 {
                 log::warn!(
@@ -378,6 +399,28 @@ impl CigiIg {
             self.other_entities = i.not_drawn;
         }
         i
+    }
+
+    /// The eye's offset from the ownship of the lowest view ID whose View Control names entity
+    /// 0: `[x, y, z]` metres in the ownship's body frame (forward, right, down) and `[yaw,
+    /// pitch, roll]` degrees relative to it; offsets never enabled are 0.
+    pub fn view_offset(&self) -> Option<([f64; 3], [f64; 3])> {
+        self.session.views.values().find_map(|v| {
+            let c = v.control.filter(|c| c.entity_id == 0)?;
+            let on = |e: bool, x: f32| if e { f64::from(x) } else { 0.0 };
+            Some((
+                [
+                    on(c.x_enable, c.x),
+                    on(c.y_enable, c.y),
+                    on(c.z_enable, c.z),
+                ],
+                [
+                    on(c.yaw_enable, c.yaw),
+                    on(c.pitch_enable, c.pitch),
+                    on(c.roll_enable, c.roll),
+                ],
+            ))
+        })
     }
 
     /// Horizontal fov (degrees) of the lowest view ID whose View Definition gives both the

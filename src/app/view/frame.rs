@@ -33,7 +33,7 @@ struct Step {
     /// `--cigi`: the frame's `cigi` JSON part and the ownship's geodetic position.
     cigi: Option<(serde_json::Value, Option<[f64; 3]>)>,
     /// `--cigi`: the entities drawn from the scene's templates.
-    instances: Option<Vec<(usize, crate::freeform::FreeForm)>>,
+    instances: Option<crate::world::Instances>,
 }
 
 /// What drawing the windows took.
@@ -123,7 +123,7 @@ impl App {
                 .map(|o| o.geodetic)
                 .or_else(|| p.world.terrain.world_to_geodetic(pose.position));
             ig.environment(&mut self.desc, at);
-            instances = Some(ig.instances(&p.world.terrain, &p.world.templates).drawn);
+            instances = Some(ig.instances(&p.world.terrain, &p.world.templates));
             cigi = Some((ig.frame_json(ig.ig_frame), own.map(|o| o.geodetic)));
         }
         Ok(Step {
@@ -356,7 +356,8 @@ impl Draw<'_> {
         // Animated voxel models follow the simulation clock.
         w.renderer.set_time(step.t);
         if let Some(i) = &step.instances {
-            w.renderer.set_instances(i.clone());
+            w.renderer.set_instances(i.drawn.clone());
+            w.renderer.set_voxel_instances(i.voxels.clone());
         }
         let dirs: Vec<PathBuf> = (prep.opts.capture_frames.iter().cloned())
             .chain(step.screenshot.then(|| prep.opts.screenshot_dir.clone()))
