@@ -137,6 +137,7 @@ fn the_host_clock_estimate_takes_the_lowest_delay_and_never_steps() {
 
 #[test]
 fn a_30_hz_host_turn_is_smooth_on_the_free_running_ig() {
+    let _serial = one_ig_test_at_a_time();
     let dir = temp_dir("cigi-smooth");
     let scene = scene(&dir, "scene", [47.6, 9.6, 900.0], [45.0, 0.0, 0.0], "");
     let log = dir.join("poses.jsonl");
@@ -283,6 +284,7 @@ fn small_cylinder(dir: &std::path::Path, w: u32, h: u32) -> std::path::PathBuf {
 
 #[test]
 fn three_display_channels_obey_one_synchronous_host() {
+    let _serial = one_ig_test_at_a_time();
     let dir = temp_dir("cigi-cluster");
     let display = small_cylinder(&dir, 160, 100);
     let elsewhere = scene(&dir, "elsewhere", [47.6, 9.6, 900.0], [45.0, 10.0, 0.0], "");
@@ -486,6 +488,7 @@ fn malformed(i: u64, rng: &mut common::Rng, header: IgControl) -> Vec<u8> {
 
 #[test]
 fn a_flood_of_100000_malformed_datagrams_while_the_host_flies() {
+    let _serial = one_ig_test_at_a_time();
     use std::sync::atomic::{AtomicBool, AtomicU32, Ordering::SeqCst};
     use std::sync::Arc;
     const FLOOD: u64 = 100_000;
@@ -780,6 +783,7 @@ fn the_sun_agrees_with_the_almanac_within_a_tenth_of_a_degree() {
 
 #[test]
 fn the_hosts_date_time_and_visibility_set_sun_and_fog() {
+    let _serial = one_ig_test_at_a_time();
     let dir = temp_dir("cigi-environment");
     let lla = [47.37, 9.31, 2300.0];
     // The IG's scene: sun at 245°/24°, fog 90 km; the host says 21 June 2024, 07:40 UTC, and
@@ -946,6 +950,7 @@ fn changed(a: &image::RgbaImage, base: &image::RgbaImage) -> Option<(f64, f64, u
 
 #[test]
 fn an_entity_from_a_scene_template_appears_moves_hides_and_vanishes() {
+    let _serial = one_ig_test_at_a_time();
     let dir = temp_dir("cigi-entities");
     let cam = [47.45, 9.50, 1300.0];
     let (heading, pitch) = (30.0, -3.0);
@@ -1153,6 +1158,7 @@ fn an_entity_from_a_scene_template_appears_moves_hides_and_vanishes() {
 
 #[test]
 fn hot_and_los_on_a_database_scene_come_from_full_resolution() {
+    let _serial = one_ig_test_at_a_time();
     let dem = Dem::load();
     let dir = temp_dir("cigi-database");
     let db = dir.join("world.reliefdb");
@@ -1334,6 +1340,7 @@ fn euler(m: [[f64; 3]; 3]) -> [f64; 3] {
 
 #[test]
 fn a_view_control_offset_moves_and_turns_the_eye() {
+    let _serial = one_ig_test_at_a_time();
     let dir = temp_dir("cigi-view-offset");
     let lla = [47.37, 9.31, 2300.0];
     let own = [182.0, -6.0, 4.0];
@@ -1456,6 +1463,7 @@ fn a_view_control_offset_moves_and_turns_the_eye() {
 
 #[test]
 fn an_entity_from_a_voxel_template_appears_hides_and_vanishes() {
+    let _serial = one_ig_test_at_a_time();
     let dir = temp_dir("cigi-voxel-entities");
     let cam = [47.45, 9.50, 1300.0];
     let (heading, pitch) = (30.0f64, -3.0f64);

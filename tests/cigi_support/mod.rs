@@ -294,3 +294,11 @@ impl Dem {
         })
     }
 }
+
+/// Serialises the tests of one binary that run IG processes: each renders on the same two
+/// software-rasteriser cores, and the smoothing and flood tests time frames (a host-to-frame
+/// lag, frame-time percentiles), which IGs of other tests running beside them would distort.
+pub fn one_ig_test_at_a_time() -> std::sync::MutexGuard<'static, ()> {
+    static LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    LOCK.lock().unwrap_or_else(|e| e.into_inner())
+}
