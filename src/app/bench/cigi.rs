@@ -408,6 +408,7 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo,
         capture_frames: None,
         pose_log: None,
         toggles: Default::default(),
+        terrain_memory: None,
     };
     let stop = AtomicBool::new(false);
     let flood = Flood {
