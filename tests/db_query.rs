@@ -137,6 +137,44 @@ fn database_queries_answer_at_full_resolution_through_the_tile_cache() {
     );
     println!("100 lines of sight: {blocked} blocked, all as on the .hgt; the 48″ level differs on {differ_from_coarse}");
 
+    // The data's edges and corners answer from the finest level too (the cell east or north
+    // of an edge sample has no data: the cell before it has the same samples there).
+    let alps = dir.join("alps.reliefdb");
+    relief::db::build(
+        &alps,
+        &[hgt.clone()],
+        &relief::db::BuildOptions::default(),
+        &|_, _| {},
+    )
+    .unwrap();
+    let alps = relief::db::Database::open(&alps).unwrap();
+    let finest = alps.header().levels.len() as u32 - 1;
+    let mut edge = vec![(47.0, 9.0), (47.0, 10.0), (48.0, 9.0), (48.0, 10.0)];
+    for k in 0..20 {
+        let f = (k as f64 + next()) / 20.0;
+        edge.extend([
+            (47.0 + f, 10.0),
+            (48.0, 9.0 + f),
+            (47.0 + f, 9.0),
+            (47.0, 9.0 + f),
+        ]);
+    }
+    for (lat, lon) in edge {
+        let h = relief::db::height_at(&alps, lat, lon)
+            .unwrap()
+            .expect("on the tile's edge");
+        assert_eq!(h.level, finest, "({lat}, {lon})");
+        let truth = srtm_height(&srtm, lat, lon);
+        assert!(
+            (h.height - truth).abs() < 1e-6,
+            "({lat}, {lon}): {} vs {truth}",
+            h.height
+        );
+    }
+    assert!(relief::db::height_at(&alps, 48.001, 10.0)
+        .unwrap()
+        .is_none());
+
     // The CLI says which level answered.
     let out = relief_cli(
         &[

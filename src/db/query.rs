@@ -32,43 +32,68 @@ pub fn height_at(db: &Database, lat: f64, lon: f64) -> Result<Option<SurfaceSamp
         if !(gi >= 0.0 && gj >= 0.0) {
             continue;
         }
-        // The cell holding the position; on a tile border either tile has the samples.
-        let (ci, cj) = (gi.floor() as i64, gj.floor() as i64);
-        let (tx, ty) = (ci.div_euclid(n), cj.div_euclid(n));
-        if tx > u32::MAX as i64 || ty > u32::MAX as i64 {
-            continue;
+        // The cell holding the position. On a sample line the cell before it has the same
+        // samples there: it answers where the cell after has no data (the data's east and
+        // north edges) or no tile.
+        let (fi, fj) = (gi.floor() as i64, gj.floor() as i64);
+        let on_x = gi == fi as f64 && fi > 0;
+        let on_y = gj == fj as f64 && fj > 0;
+        for (a, b) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+            if (a == 1 && !on_x) || (b == 1 && !on_y) {
+                continue;
+            }
+            let (ci, cj) = (fi - a, fj - b);
+            if let Some(height) = cell_height(db, level as u32, n, ci, cj, gi, gj)? {
+                return Ok(Some(SurfaceSample {
+                    height,
+                    level: level as u32,
+                    spacing: l.spacing(),
+                }));
+            }
         }
-        let id = TileId {
-            level: level as u32,
-            x: tx as u32,
-            y: ty as u32,
-        };
-        if !db.has_tile(id) {
-            continue;
-        }
-        let Some(tile) = db.tile(id)? else {
-            continue;
-        };
-        let (i, j) = ((ci - tx * n) as usize, (cj - ty * n) as usize);
-        let (u, v) = (gi - ci as f64, gj - cj as f64);
-        let h = [
-            tile.height(i, j),
-            tile.height(i + 1, j),
-            tile.height(i, j + 1),
-            tile.height(i + 1, j + 1),
-        ];
-        if h.iter().any(|x| x.is_nan()) {
-            continue;
-        }
-        let [h00, h10, h01, h11] = h.map(f64::from);
-        return Ok(Some(SurfaceSample {
-            height: h00 * (1.0 - u) * (1.0 - v)
-                + h10 * u * (1.0 - v)
-                + h01 * (1.0 - u) * v
-                + h11 * u * v,
-            level: level as u32,
-            spacing: l.spacing(),
-        }));
     }
     Ok(None)
+}
+
+/// The bilinear height at level position (`gi`, `gj`) from the samples of cell (`ci`, `cj`) of
+/// `level`; `None` where its tile is not stored or a corner has no data.
+fn cell_height(
+    db: &Database,
+    level: u32,
+    n: i64,
+    ci: i64,
+    cj: i64,
+    gi: f64,
+    gj: f64,
+) -> Result<Option<f64>> {
+    let (tx, ty) = (ci.div_euclid(n), cj.div_euclid(n));
+    if tx > u32::MAX as i64 || ty > u32::MAX as i64 {
+        return Ok(None);
+    }
+    let id = TileId {
+        level,
+        x: tx as u32,
+        y: ty as u32,
+    };
+    if !db.has_tile(id) {
+        return Ok(None);
+    }
+    let Some(tile) = db.tile(id)? else {
+        return Ok(None);
+    };
+    let (i, j) = ((ci - tx * n) as usize, (cj - ty * n) as usize);
+    let (u, v) = (gi - ci as f64, gj - cj as f64);
+    let h = [
+        tile.height(i, j),
+        tile.height(i + 1, j),
+        tile.height(i, j + 1),
+        tile.height(i + 1, j + 1),
+    ];
+    if h.iter().any(|x| x.is_nan()) {
+        return Ok(None);
+    }
+    let [h00, h10, h01, h11] = h.map(f64::from);
+    Ok(Some(
+        h00 * (1.0 - u) * (1.0 - v) + h10 * u * (1.0 - v) + h01 * (1.0 - u) * v + h11 * u * v,
+    ))
 }
