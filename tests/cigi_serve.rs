@@ -5,133 +5,30 @@
 //! datagrams while a valid host flies. relief's `cigi` encoder writes the host's datagrams;
 //! every truth is computed here.
 
+mod cigi_support;
 mod common;
 
+use cigi_support::{host_socket, ig_control, sof, Ig};
 use common::{relief_cli, relief_command, temp_dir, terrains, Rng};
 use relief::cigi::*;
-use std::io::{BufRead, BufReader, Read};
-use std::net::{SocketAddr, UdpSocket};
+use std::io::{BufRead, BufReader};
+use std::net::UdpSocket;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Stdio};
 use std::time::{Duration, Instant};
 
 const SIZE: &str = "160x120";
 
-/// A `relief serve` process and the host's socket.
-struct Ig {
-    child: Child,
-    addr: SocketAddr,
-    host: UdpSocket,
+/// `relief serve SCENE --cigi 0 --size 160x120 ARGS`.
+fn start_ig(scene: &Path, args: &[&str], host: UdpSocket) -> Ig {
+    Ig::start(scene, &with_size(args), host)
 }
 
-impl Ig {
-    /// Starts `relief serve SCENE --cigi 0 ARGS` and reads the port it prints.
-    fn start(scene: &Path, args: &[&str], host: UdpSocket) -> Ig {
-        Ig::start_command("serve", scene, args, host, &[])
-    }
-
-    /// `relief COMMAND SCENE --cigi 0 --size 160x120 ARGS` with `envs`.
-    fn start_command(
-        command: &str,
-        scene: &Path,
-        args: &[&str],
-        host: UdpSocket,
-        envs: &[(&str, &str)],
-    ) -> Ig {
-        let scene = scene.to_str().unwrap();
-        let mut all = vec![command, scene, "--cigi", "0", "--size", SIZE];
-        all.extend_from_slice(args);
-        let mut child = relief_command(&all, envs)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .expect("relief serve starts");
-        let mut line = String::new();
-        let mut out = BufReader::new(child.stdout.take().unwrap());
-        out.read_line(&mut line).unwrap();
-        let addr = line
-            .trim()
-            .strip_prefix("cigi: listening on ")
-            .unwrap_or_else(|| {
-                let mut err = String::new();
-                let _ = child.stderr.take().unwrap().read_to_string(&mut err);
-                panic!("relief serve printed {line:?}; stderr: {err}")
-            })
-            .parse()
-            .unwrap();
-        child.stdout = Some(out.into_inner());
-        host.set_read_timeout(Some(Duration::from_secs(30)))
-            .unwrap();
-        Ig { child, addr, host }
-    }
-
-    fn send(&self, bytes: &[u8]) {
-        self.host.send_to(bytes, self.addr).unwrap();
-    }
-
-    /// The IG's next datagram, decoded (and its raw bytes).
-    fn receive(&self) -> (IgMessage, Vec<u8>) {
-        let mut buf = vec![0u8; 65536];
-        let (n, from) = self.host.recv_from(&mut buf).expect("the IG answers");
-        assert_eq!(from, self.addr);
-        buf.truncate(n);
-        (read_ig_message(&buf).expect("a valid IG message"), buf)
-    }
-
-    /// Sends `bytes` and returns the IG's answer for that host frame.
-    fn exchange(&self, bytes: &[u8], host_frame: u32) -> (IgMessage, Vec<u8>) {
-        self.send(bytes);
-        loop {
-            let (m, raw) = self.receive();
-            if sof(&m).last_host_frame == host_frame {
-                return (m, raw);
-            }
-        }
-    }
-
-    /// Waits for the process; its stdout and stderr, asserting success.
-    fn finish(mut self) -> String {
-        let status = self.child.wait().unwrap();
-        let mut out = String::new();
-        let mut err = String::new();
-        self.child
-            .stdout
-            .take()
-            .unwrap()
-            .read_to_string(&mut out)
-            .unwrap();
-        self.child
-            .stderr
-            .take()
-            .unwrap()
-            .read_to_string(&mut err)
-            .unwrap();
-        assert!(status.success(), "relief serve failed: {err}");
-        out
-    }
-}
-
-fn host_socket() -> UdpSocket {
-    UdpSocket::bind("127.0.0.1:0").unwrap()
-}
-
-fn sof(m: &IgMessage) -> StartOfFrame {
-    match m.packets[0] {
-        IgPacket::StartOfFrame(s) => s,
-        p => panic!("first packet {p:?}"),
-    }
-}
-
-fn ig_control(frame: u32) -> IgControl {
-    IgControl {
-        database: 0,
-        ig_mode: 1,
-        timestamp_valid: false,
-        extrapolation: false,
-        host_frame: frame,
-        timestamp: 0,
-        last_ig_frame: 0,
-    }
+/// `--size 160x120` and `args`.
+fn with_size<'a>(args: &[&'a str]) -> Vec<&'a str> {
+    let mut all = vec!["--size", SIZE];
+    all.extend_from_slice(args);
+    all
 }
 
 fn ownship(lla: [f64; 3], yaw: f32, pitch: f32, roll: f32) -> EntityControl {
@@ -159,7 +56,7 @@ fn ownship(lla: [f64; 3], yaw: f32, pitch: f32, roll: f32) -> EntityControl {
 }
 
 fn message(frame: u32, packets: &[HostPacket]) -> Vec<u8> {
-    let mut m = MessageBuilder::host(&ig_control(frame), ByteOrder::Big);
+    let mut m = MessageBuilder::host(&ig_control(frame, None, false), ByteOrder::Big);
     for p in packets {
         m.push_any(p);
     }
@@ -245,7 +142,7 @@ fn the_ownship_view_equals_render_of_the_same_geodetic_camera() {
     // The IG's scene has its camera elsewhere, looking elsewhere: only CIGI places it.
     let elsewhere = scene_named(&dir, "elsewhere", [47.6, 9.6, 900.0], 45.0, 10.0, 0.0);
     let served = dir.join("served");
-    let ig = Ig::start(
+    let ig = start_ig(
         &elsewhere,
         &[
             "--cigi-sync",
@@ -257,7 +154,7 @@ fn the_ownship_view_equals_render_of_the_same_geodetic_camera() {
         host_socket(),
     );
     let own = ownship(lla, heading, pitch, roll);
-    let (m, _) = ig.exchange(&message(7, &[own.into()]), 7);
+    let (m, _) = ig.exchange_raw(&message(7, &[own.into()]), 7);
     assert_eq!(sof(&m).ig_frame, 0);
     ig.finish();
     let rendered = dir.join("rendered");
@@ -313,7 +210,7 @@ fn hat_and_hot_follow_the_dem_within_a_centimetre() {
     let dem = Dem::load();
     let dir = temp_dir("cigi-serve-hot");
     let scene = scene(&dir, [47.37, 9.31, 2300.0], 182.0, -6.0, 0.0);
-    let ig = Ig::start(&scene, &["--cigi-sync", "--frames", "1"], host_socket());
+    let ig = start_ig(&scene, &["--cigi-sync", "--frames", "1"], host_socket());
     // Säntis's flank, the Rhine valley, a point between samples near Lake Constance.
     let points = [
         (47.24937, 9.34331, 3000.0),
@@ -327,7 +224,7 @@ fn hat_and_hot_follow_the_dem_within_a_centimetre() {
         packets.push(hat_hot(id + 1, 0, lat, lon, alt).into());
         packets.push(hat_hot(id + 2, 2, lat, lon, alt).into());
     }
-    let (m, _) = ig.exchange(&message(1, &packets), 1);
+    let (m, _) = ig.exchange_raw(&message(1, &packets), 1);
     ig.finish();
     let mut seen = 0;
     for p in &m.packets[1..] {
@@ -396,7 +293,7 @@ fn line_of_sight_across_the_saentis_ridge() {
     let dem = Dem::load();
     let dir = temp_dir("cigi-serve-los");
     let scene = scene(&dir, [47.37, 9.31, 2300.0], 182.0, -6.0, 0.0);
-    let ig = Ig::start(&scene, &["--cigi-sync", "--frames", "1"], host_socket());
+    let ig = start_ig(&scene, &["--cigi-sync", "--frames", "1"], host_socket());
     // North to south over the summit (2502 m), low and high.
     let lon = 9.34331;
     let (north, south) = (47.275, 47.225);
@@ -444,7 +341,7 @@ fn line_of_sight_across_the_saentis_ridge() {
         segment(4, 2700.0, true).into(),
         vector.into(),
     ];
-    let (m, _) = ig.exchange(&message(2, &packets), 2);
+    let (m, _) = ig.exchange_raw(&message(2, &packets), 2);
     ig.finish();
     // Metres per degree of latitude here (WGS84), and the segment's length.
     let per_deg = meridional_radius(0.5 * (north + south)).to_radians();
@@ -538,7 +435,7 @@ fn a_synchronous_host_gets_one_ig_frame_per_host_frame_decoded_by_tshark() {
     let dir = temp_dir("cigi-serve-sync");
     let scene = scene(&dir, [47.37, 9.31, 2300.0], 182.0, -6.0, 0.0);
     let frames = dir.join("frames");
-    let ig = Ig::start(
+    let ig = start_ig(
         &scene,
         &[
             "--cigi-sync",
@@ -563,7 +460,7 @@ fn a_synchronous_host_gets_one_ig_frame_per_host_frame_decoded_by_tshark() {
         if k % 3 == 0 {
             packets.push(hat_hot(k as u16, 1, 47.3, 9.4, 0.0).into());
         }
-        let (m, bytes) = ig.exchange(&message(hf, &packets), hf);
+        let (m, bytes) = ig.exchange_raw(&message(hf, &packets), hf);
         let s = sof(&m);
         assert_eq!(
             (s.ig_frame, s.last_host_frame, s.database, s.ig_mode),
@@ -686,7 +583,7 @@ fn twenty_thousand_hostile_datagrams_while_a_valid_host_flies() {
     let scene = scene(&dir, [47.37, 9.31, 2300.0], 182.0, -6.0, 0.0);
     let host = host_socket();
     let host_addr = host.local_addr().unwrap().to_string();
-    let ig = Ig::start(
+    let ig = start_ig(
         &scene,
         &["--frames", "240", "--cigi-host", &host_addr],
         host,
@@ -710,7 +607,7 @@ fn twenty_thousand_hostile_datagrams_while_a_valid_host_flies() {
     let t0 = Instant::now();
     let mut last_answer_after_flood = None;
     while t0.elapsed() < Duration::from_secs(60) {
-        if let Ok(Some(_)) = ig.child.try_wait_ref() {
+        if ig.exited() {
             break;
         }
         host_frames += 1;
@@ -765,22 +662,6 @@ fn twenty_thousand_hostile_datagrams_while_a_valid_host_flies() {
         "{summary}"
     );
     assert!(refused >= (datagrams - others) / 3 + others, "{summary}");
-}
-
-trait TryWaitRef {
-    fn try_wait_ref(&self) -> std::io::Result<Option<std::process::ExitStatus>>;
-}
-
-impl TryWaitRef for Child {
-    /// Whether the process has exited, without reaping it (`/proc` state Z or gone).
-    fn try_wait_ref(&self) -> std::io::Result<Option<std::process::ExitStatus>> {
-        let stat = std::fs::read_to_string(format!("/proc/{}/stat", self.id()))?;
-        let zombie = stat
-            .rsplit(')')
-            .next()
-            .is_some_and(|s| s.trim_start().starts_with('Z'));
-        Ok(zombie.then(Default::default))
-    }
 }
 
 /// A private X server (`Xvfb -displayfd`), killed on drop; `None` (said why) without Xvfb.
@@ -840,13 +721,13 @@ fn view_with_cigi_follows_a_synchronous_host() {
     let ig = Ig::start_command(
         "view",
         &scene,
-        &[
+        &with_size(&[
             "--cigi-sync",
             "--frames",
             "3",
             "--capture-frames",
             frames.to_str().unwrap(),
-        ],
+        ]),
         host_socket(),
         &[("DISPLAY", x.1.as_str())],
     );
@@ -873,7 +754,7 @@ fn view_with_cigi_follows_a_synchronous_host() {
         let mut atmosphere = AtmosphereControl::default();
         (atmosphere.model_enable, atmosphere.visibility) = (true, 15000.0);
         let packets = [own.into(), ball.into(), celestial.into(), atmosphere.into()];
-        let (m, _) = ig.exchange(&message(50 + k, &packets), 50 + k);
+        let (m, _) = ig.exchange_raw(&message(50 + k, &packets), 50 + k);
         assert_eq!(sof(&m).ig_frame, k);
     }
     ig.finish();

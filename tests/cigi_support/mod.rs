@@ -1,4 +1,4 @@
-//! A CIGI host for the IG tests of `tests/cigi_ig.rs`: `relief serve` processes started with
+//! A CIGI host for the IG tests of `tests/cigi_ig.rs` and `tests/cigi_serve.rs`: `relief serve` processes started with
 //! `--cigi 0`, the host's socket, datagrams written with relief's encoder, scenes over
 //! N47E009 and WGS84 radii computed here (independently of `relief::geodesy`).
 #![allow(dead_code)]
@@ -22,14 +22,26 @@ impl Ig {
     /// `relief serve SCENE --cigi 0 ARGS` (give `--size` or `--display` in `args`); reads the
     /// port it prints.
     pub fn start(scene: &Path, args: &[&str], host: UdpSocket) -> Ig {
+        Ig::start_command("serve", scene, args, host, &[])
+    }
+
+    /// `relief COMMAND SCENE --cigi 0 ARGS` with `envs` (`serve`, or `view` under Xvfb); reads
+    /// the port it prints.
+    pub fn start_command(
+        command: &str,
+        scene: &Path,
+        args: &[&str],
+        host: UdpSocket,
+        envs: &[(&str, &str)],
+    ) -> Ig {
         let scene = scene.to_str().unwrap();
-        let mut all = vec!["serve", scene, "--cigi", "0"];
+        let mut all = vec![command, scene, "--cigi", "0"];
         all.extend_from_slice(args);
-        let mut child = relief_command(&all, &[])
+        let mut child = relief_command(&all, envs)
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
             .spawn()
-            .expect("relief serve starts");
+            .expect("relief starts");
         let mut line = String::new();
         let mut out = BufReader::new(child.stdout.take().unwrap());
         out.read_line(&mut line).unwrap();
@@ -39,7 +51,7 @@ impl Ig {
             .unwrap_or_else(|| {
                 let mut err = String::new();
                 let _ = child.stderr.take().unwrap().read_to_string(&mut err);
-                panic!("relief serve printed {line:?}; stderr: {err}")
+                panic!("relief {command} printed {line:?}; stderr: {err}")
             })
             .parse()
             .unwrap();
@@ -55,19 +67,30 @@ impl Ig {
 
     /// The IG's next datagram, decoded.
     pub fn receive(&self) -> IgMessage {
+        self.receive_raw().0
+    }
+
+    /// The IG's next datagram, decoded, and its bytes.
+    pub fn receive_raw(&self) -> (IgMessage, Vec<u8>) {
         let mut buf = vec![0u8; 65536];
         let (n, from) = self.host.recv_from(&mut buf).expect("the IG answers");
         assert_eq!(from, self.addr);
-        read_ig_message(&buf[..n]).expect("a valid IG message")
+        buf.truncate(n);
+        (read_ig_message(&buf).expect("a valid IG message"), buf)
     }
 
     /// Sends `bytes` and returns the IG's answer for that host frame.
     pub fn exchange(&self, bytes: &[u8], host_frame: u32) -> IgMessage {
+        self.exchange_raw(bytes, host_frame).0
+    }
+
+    /// As [`Ig::exchange`], with the answer's bytes.
+    pub fn exchange_raw(&self, bytes: &[u8], host_frame: u32) -> (IgMessage, Vec<u8>) {
         self.send(bytes);
         loop {
-            let m = self.receive();
+            let (m, raw) = self.receive_raw();
             if sof(&m).last_host_frame == host_frame {
-                return m;
+                return (m, raw);
             }
         }
     }
