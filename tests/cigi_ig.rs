@@ -1184,7 +1184,7 @@ fn hot_and_los_on_a_database_scene_come_from_full_resolution() {
     .unwrap();
     let ig = Ig::start(
         &scene,
-        &["--size", "160x120", "--cigi-sync", "--frames", "1"],
+        &["--size", "160x120", "--cigi-sync", "--frames", "5"],
         host_socket(),
     );
     let points = [
@@ -1242,8 +1242,48 @@ fn hot_and_los_on_a_database_scene_come_from_full_resolution() {
     }
     packets.push(segment(100, 2300.0).into());
     packets.push(segment(101, 2700.0).into());
-    let m = ig.exchange(&message(ig_control(4, None, false), &packets), 4);
-    ig.finish();
+    // Host frame 4: the IG's database cache is cold, so no query is answered in frame 4's
+    // message (its frame never waits for the disk); all come in frame 5's, once each, with
+    // frame 5's LSN (the last IG Control before they were calculated).
+    let ms = |t: Instant| t.elapsed().as_secs_f64() * 1e3;
+    // Host frame 3 places the ownship (the first frame sets the renderer up).
+    let m3 = ig.exchange(&message(ig_control(3, None, false), &packets[..1]), 3);
+    assert_eq!(m3.packets.len(), 1);
+    let sent = Instant::now();
+    let m4 = ig.exchange(&message(ig_control(4, None, false), &packets), 4);
+    let frame4_ms = ms(sent);
+    assert_eq!(
+        m4.packets.len(),
+        1,
+        "cold: nothing answered in frame 4: {m4:?}"
+    );
+    let t5 = Instant::now();
+    let m5 = ig.exchange(&message(ig_control(5, None, false), &[]), 5);
+    let (frame5_ms, cold_ms) = (ms(t5), ms(sent));
+    // Host frame 6: the same queries again, their tiles now resident: answered in frame 6.
+    let sent = Instant::now();
+    let m6 = ig.exchange(&message(ig_control(6, None, false), &packets), 6);
+    let warm_ms = ms(sent);
+    eprintln!(
+        "cold queries answered {cold_ms:.1} ms after sending, in the next frame (frame 4 \
+         {frame4_ms:.1} ms, frame 5 {frame5_ms:.1} ms); warm ones {warm_ms:.1} ms, in the same frame"
+    );
+    // Host frame 7, the run's last: two HOTs on tiles not read yet are kept, and answered in
+    // one more datagram when the run ends.
+    let late = [(47.9, 9.9, 1500.0), (47.05, 9.05, 1500.0)];
+    let late_packets: Vec<HostPacket> = late
+        .iter()
+        .enumerate()
+        .map(|(i, &p)| hot(200 + i as u16, 1, p).into())
+        .collect();
+    let m7 = ig.exchange(&message(ig_control(7, None, false), &late_packets), 7);
+    assert_eq!(
+        m7.packets.len(),
+        1,
+        "cold: nothing answered in frame 7: {m7:?}"
+    );
+    let last = ig.receive();
+    let out = ig.finish();
     let per_deg = radii(0.5 * (north + south)).0.to_radians();
     let length = (north - south) * per_deg;
     let (s, step) = dem
@@ -1252,58 +1292,100 @@ fn hot_and_los_on_a_database_scene_come_from_full_resolution() {
     assert!(dem.march(lon, (north, 2700.0), (south, 2700.0)).is_none());
     let want = s * length;
     let tol = step * length + 1e-3 * want;
-    let mut seen = 0;
-    for p in &m.packets[1..] {
-        match *p {
-            IgPacket::HatHotResponse(r) => {
-                let (lat, lon, _) = points[usize::from(r.request_id / 10)];
-                let d = r.height - dem.height(lat, lon);
-                eprintln!(
-                    "HOT at {lat}, {lon}: {:.3} m, the 3″ surface {:.3} m",
-                    r.height,
-                    dem.height(lat, lon)
-                );
-                assert!(r.valid && d.abs() <= 0.01, "HOT {d} m off the 3″ surface");
-            }
-            IgPacket::HatHotExtendedResponse(r) => {
-                let (lat, lon, alt) = points[usize::from(r.request_id / 10)];
-                assert!(r.valid && (r.hot - dem.height(lat, lon)).abs() <= 0.01);
-                assert!((r.hat - (alt - dem.height(lat, lon))).abs() <= 0.01);
-                assert!(r.normal_elevation > 0.0 && r.normal_elevation <= 90.0);
-            }
-            IgPacket::LosExtendedResponse(r) => {
-                assert!(r.valid);
-                let low = r.request_id == 100;
-                assert_eq!(
-                    (r.visible, r.range_valid),
-                    (!low, low),
-                    "request {}",
+    let check = |m: &IgMessage, lsn: u8| -> Vec<u16> {
+        let mut ids = Vec::new();
+        for p in &m.packets[1..] {
+            let id = match *p {
+                IgPacket::HatHotResponse(r) => {
+                    assert_eq!(r.host_frame_lsn, lsn);
+                    let (lat, lon, _) = points[usize::from(r.request_id / 10)];
+                    let d = r.height - dem.height(lat, lon);
+                    eprintln!(
+                        "HOT at {lat}, {lon}: {:.3} m, the 3″ surface {:.3} m",
+                        r.height,
+                        dem.height(lat, lon)
+                    );
+                    assert!(r.valid && d.abs() <= 0.01, "HOT {d} m off the 3″ surface");
                     r.request_id
-                );
-                if low {
-                    eprintln!(
-                        "LOS at 2300 m: range {:.2} m, march {want:.2} m (± {tol:.2})",
-                        r.range
-                    );
-                    assert!((r.range - want).abs() <= tol, "range {} vs {want}", r.range);
-                    eprintln!(
-                        "hit {:.6}, {:.6}, {:.3} m; the 3″ surface there {:.3} m",
-                        r.lat,
-                        r.lon,
-                        r.alt,
-                        dem.height(r.lat, r.lon)
-                    );
-                    assert!(
-                        (r.alt - dem.height(r.lat, r.lon)).abs() < 0.05,
-                        "the hit lies on the 3″ surface"
-                    );
                 }
-            }
-            p => panic!("unexpected {p:?}"),
+                IgPacket::HatHotExtendedResponse(r) => {
+                    assert_eq!(r.host_frame_lsn, lsn);
+                    let (lat, lon, alt) = points[usize::from(r.request_id / 10)];
+                    assert!(r.valid && (r.hot - dem.height(lat, lon)).abs() <= 0.01);
+                    assert!((r.hat - (alt - dem.height(lat, lon))).abs() <= 0.01);
+                    assert!(r.normal_elevation > 0.0 && r.normal_elevation <= 90.0);
+                    r.request_id
+                }
+                IgPacket::LosExtendedResponse(r) => {
+                    assert_eq!(r.host_frame_lsn, lsn);
+                    assert!(r.valid);
+                    let low = r.request_id == 100;
+                    assert_eq!(
+                        (r.visible, r.range_valid),
+                        (!low, low),
+                        "request {}",
+                        r.request_id
+                    );
+                    if low {
+                        eprintln!(
+                            "LOS at 2300 m: range {:.2} m, march {want:.2} m (± {tol:.2})",
+                            r.range
+                        );
+                        assert!((r.range - want).abs() <= tol, "range {} vs {want}", r.range);
+                        eprintln!(
+                            "hit {:.6}, {:.6}, {:.3} m; the 3″ surface there {:.3} m",
+                            r.lat,
+                            r.lon,
+                            r.alt,
+                            dem.height(r.lat, r.lon)
+                        );
+                        assert!(
+                            (r.alt - dem.height(r.lat, r.lon)).abs() < 0.05,
+                            "the hit lies on the 3″ surface"
+                        );
+                    }
+                    r.request_id
+                }
+                p => panic!("unexpected {p:?}"),
+            };
+            ids.push(id);
         }
-        seen += 1;
+        ids.sort_unstable();
+        ids
+    };
+    let all = vec![0, 2, 10, 12, 20, 22, 100, 101];
+    assert_eq!(
+        check(&m5, 5),
+        all,
+        "frame 5 answers every query of frame 4 once"
+    );
+    assert_eq!(check(&m6, 6), all, "frame 6 answers its own queries");
+
+    // The run's end: one more datagram, Start of Frame numbered as the next IG frame.
+    assert_eq!(sof(&last).ig_frame, sof(&m7).ig_frame + 1);
+    assert_eq!(sof(&last).last_host_frame, 7);
+    assert_eq!(last.packets.len(), 3, "{last:?}");
+    for p in &last.packets[1..] {
+        let IgPacket::HatHotResponse(r) = *p else {
+            panic!("unexpected {p:?}")
+        };
+        let (lat, lon, _) = late[usize::from(r.request_id - 200)];
+        assert!(r.valid && r.hot && r.host_frame_lsn == 7);
+        assert!(
+            (r.height - dem.height(lat, lon)).abs() <= 0.01,
+            "HOT at {lat}, {lon}"
+        );
     }
-    assert_eq!(seen, 8);
+    let c = counters(&out);
+    eprintln!(
+        "counters: deferred {}, blocking reads {}",
+        c["deferred"], c["blocking_reads"]
+    );
+    assert_eq!(c["deferred"], 10, "8 queries of frame 4 and 2 of frame 7");
+    let blocking = c["blocking_reads"].as_u64().unwrap();
+    assert!(blocking <= 10, "{blocking}");
+    assert_eq!(c["ig_frames"], 6, "5 frames and the last answers");
+    assert!(out.contains("10 deferred a frame"), "{out}");
 }
 
 /// Body → north-east-down rotation of yaw, pitch, roll (degrees; z-y-x, the aerospace

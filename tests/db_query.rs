@@ -194,3 +194,99 @@ fn database_queries_answer_at_full_resolution_through_the_tile_cache() {
     assert!(text.contains("database level 11"), "{text}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Resident-only lookups (what the CIGI IG tries first) read nothing: on a cold cache they
+/// report the tiles a height or a window needs; once the prefetcher has read those, the same
+/// queries answer bit for bit what the reading path does.
+#[test]
+fn resident_only_queries_report_missing_tiles_and_then_match_the_reading_path() {
+    use relief::db::{height_at, height_in, window, Database, Prefetcher, Resident, ResidentOnly};
+    use std::sync::Arc;
+    use std::time::Duration;
+
+    let dir = temp_dir("db-resident");
+    let path = dir.join("alps.reliefdb");
+    relief::db::build(
+        &path,
+        &[terrains().join("N47E009.hgt")],
+        &relief::db::BuildOptions::default(),
+        &|_, _| {},
+    )
+    .unwrap();
+    let finest = Database::open(&path).unwrap().header().levels.len() as u32 - 1;
+    let points = [(47.24937, 9.34331), (47.40123, 9.61877), (47.9, 9.05)];
+
+    // Heights: cold, then warmed by the prefetcher.
+    let db = Arc::new(Database::open(&path).unwrap());
+    let mut wanted = Vec::new();
+    for &(lat, lon) in &points {
+        match ResidentOnly::run(&db, |t| height_in(t, lat, lon)).unwrap() {
+            Resident::Missing(ids) => {
+                assert_eq!(ids.len(), 1, "the finest tile at ({lat}, {lon}): {ids:?}");
+                assert_eq!(ids[0].level, finest);
+                wanted.extend(ids);
+            }
+            Resident::Ready(v) => panic!("a cold cache answered ({lat}, {lon}): {v:?}"),
+        }
+    }
+    assert_eq!(db.cached_bytes(), 0, "resident-only lookups read nothing");
+    let prefetch = Prefetcher::new(db.clone()).unwrap();
+    assert!(prefetch.request(wanted.iter().copied()) >= 1);
+    assert!(prefetch.wait_idle(Duration::from_secs(30)), "prefetched");
+    assert_eq!(
+        prefetch.request(wanted.iter().copied()),
+        0,
+        "cached tiles are not queued again"
+    );
+    assert!(db.cached_bytes() > 0);
+    for &(lat, lon) in &points {
+        let Resident::Ready(Some(r)) = ResidentOnly::run(&db, |t| height_in(t, lat, lon)).unwrap()
+        else {
+            panic!("({lat}, {lon}) is resident now");
+        };
+        let read = height_at(&db, lat, lon).unwrap().unwrap();
+        assert_eq!(r.height.to_bits(), read.height.to_bits(), "({lat}, {lon})");
+        assert_eq!((r.level, r.spacing), (read.level, read.spacing));
+    }
+    drop(prefetch);
+
+    // A window of the finest level over several tiles: cold, one tile warm, all warm.
+    let db = Database::open(&path).unwrap();
+    let spec = window::resolve(&db, Some([47.2, 9.2, 47.45, 9.5]), Some(finest)).unwrap();
+    let Resident::Missing(all) = ResidentOnly::run(&db, |t| window::read_from(t, &spec)).unwrap()
+    else {
+        panic!("a cold window answered");
+    };
+    assert!(all.len() >= 2, "the window spans tiles: {all:?}");
+    assert!(all.iter().all(|id| id.level == finest && db.has_tile(*id)));
+    assert_eq!(db.cached_bytes(), 0, "resident-only window reads nothing");
+    db.tile(all[0]).unwrap();
+    match ResidentOnly::run(&db, |t| window::read_from(t, &spec)).unwrap() {
+        Resident::Missing(rest) => assert_eq!(rest, all[1..]),
+        Resident::Ready(_) => panic!("a window with cold tiles answered"),
+    }
+    for id in &all {
+        db.tile(*id).unwrap();
+    }
+    let Resident::Ready(Some(warm)) =
+        ResidentOnly::run(&db, |t| window::read_from(t, &spec)).unwrap()
+    else {
+        panic!("the window is resident now");
+    };
+    let read = window::read(&db, &spec).unwrap();
+    assert_eq!((warm.width, warm.height), (read.width, read.height));
+    assert!(
+        warm.heights
+            .iter()
+            .zip(&read.heights)
+            .all(|(a, b)| a.to_bits() == b.to_bits()),
+        "bit for bit"
+    );
+    println!(
+        "window {}x{} at level {finest}: {} tiles reported missing, then equal to the reading path",
+        spec.width,
+        spec.height,
+        all.len()
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -157,6 +157,8 @@ pub fn run_with(
             }
         }
     }
+    // Queries kept for a frame that will not come are answered in one last datagram.
+    ig.finish(terrain);
     if let (Some(mut w), Some(path)) = (log, &opts.pose_log) {
         use std::io::Write as _;
         w.flush().map_err(|e| Error::io(path, e))?;

@@ -275,6 +275,11 @@ impl MessageBuilder {
         self.bytes.is_empty()
     }
 
+    /// Drops the packets pushed after the first `len` bytes (a [`Self::len`] taken before).
+    pub fn truncate(&mut self, len: usize) {
+        self.bytes.truncate(len);
+    }
+
     /// The datagram.
     pub fn finish(self) -> Vec<u8> {
         self.bytes

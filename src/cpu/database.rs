@@ -1,18 +1,21 @@
 //! Queries on a database scene at the database's full resolution, whatever level the scene
 //! renders: heights from the finest tile at the position (`db::query`), lines of sight over a
 //! window of the finest level that fits around the segment. Tiles come through the
-//! database's bounded cache, so repeated queries in one region read the file once.
+//! database's bounded cache, so repeated queries in one region read the file once; the
+//! database is opened once and the windows are made from its cache. The `_in` forms take the
+//! tiles from a [`Tiles`] (resident only: `db::ResidentOnly`, which never reads).
 
 use super::query::line_of_sight;
-use crate::db::{self, Database, SurfaceSample};
+use crate::db::{self, Database, SurfaceSample, Tiles};
 use crate::terrain::{Terrain, TerrainDesc};
 use crate::{Error, Result};
 use glam::DVec3;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// A database scene's terrain description and its database, open.
 pub struct FullResolution {
-    db: Database,
+    db: Arc<Database>,
     desc: TerrainDesc,
     base_dir: PathBuf,
 }
@@ -24,13 +27,18 @@ impl FullResolution {
             return Ok(None);
         };
         Ok(Some(FullResolution {
-            db: Database::open(&base_dir.join(path))?,
+            db: Arc::new(Database::open(&base_dir.join(path))?),
             desc: desc.clone(),
             base_dir: base_dir.to_path_buf(),
         }))
     }
 
     pub fn database(&self) -> &Database {
+        &self.db
+    }
+
+    /// The database, shared (with a `db::Prefetcher` warming its cache).
+    pub fn shared(&self) -> &Arc<Database> {
         &self.db
     }
 
@@ -53,7 +61,18 @@ impl FullResolution {
 
     /// The surface at `lat`, `lon` (degrees) at full resolution, as [`Self::height_at`].
     pub fn height_at_geodetic(&self, lat: f64, lon: f64) -> Result<Option<SurfaceSample>> {
-        let s = db::height_at(&self.db, lat, lon)?;
+        self.height_in(&*self.db, lat, lon)
+    }
+
+    /// [`Self::height_at_geodetic`] through `tiles` (of this database): `Ok(None)` also where
+    /// a resident-only `tiles` missed a tile (see its missing list).
+    pub fn height_in(
+        &self,
+        tiles: &dyn Tiles,
+        lat: f64,
+        lon: f64,
+    ) -> Result<Option<SurfaceSample>> {
+        let s = db::height_in(tiles, lat, lon)?;
         Ok(s.map(|mut s| {
             if let Some(sea) = self.desc.sea_level {
                 s.height = s.height.max(sea);
@@ -79,6 +98,18 @@ impl FullResolution {
     /// points `ga` and `gb` (two samples of margin; the scene's terrain keys otherwise): the
     /// surface the full-resolution queries between them run on.
     pub fn window(&self, ga: [f64; 3], gb: [f64; 3]) -> Result<Terrain> {
+        self.window_in(&*self.db, ga, gb)?
+            .ok_or_else(|| db::tiles::not_read(&self.db))
+    }
+
+    /// [`Self::window`] through `tiles` (of this database); `None` where a resident-only
+    /// `tiles` missed a tile (every missing tile of the window is recorded).
+    pub fn window_in(
+        &self,
+        tiles: &dyn Tiles,
+        ga: [f64; 3],
+        gb: [f64; 3],
+    ) -> Result<Option<Terrain>> {
         let e = self.db.header().extent;
         let finest = self.db.header().levels.last().map_or(1.0, |l| l.spacing());
         let m = 2.0 * finest;
@@ -94,11 +125,12 @@ impl FullResolution {
                 "the segment lies off the database: give points over the terrain",
             ));
         }
+        let spec = db::window::resolve(&self.db, Some(w), None)?;
         let desc = TerrainDesc {
             window: Some(w),
             level: None,
             ..self.desc.clone()
         };
-        Terrain::from_desc(&desc, &self.base_dir)
+        Terrain::from_window(&desc, &self.base_dir, tiles, &spec)
     }
 }

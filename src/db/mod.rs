@@ -12,8 +12,10 @@
 //! cache ([`reader`]); [`window`] turns a region of one level into a [`Heightfield`] with its
 //! georeference, which a scene renders as it renders a `.hgt`.
 //!
-//! [`pager`] keeps the tiles a view needs in a fixed pool of slots, read on worker threads;
-//! [`synth`] writes procedural mosaics. Not here yet: paged rendering (docs/database.md).
+//! [`query`] answers heights at full resolution through the cache, or resident only
+//! ([`tiles`]: tiles not in memory are reported, not read), and [`prefetch`] warms the cache
+//! on a worker thread. [`pager`] keeps the tiles a view needs in a fixed pool of slots, read on
+//! worker threads; [`synth`] writes procedural mosaics. Not here yet: paged rendering (docs/database.md).
 //!
 //! [`Heightfield`]: crate::terrain::Heightfield
 
@@ -21,17 +23,21 @@ pub mod build;
 pub mod format;
 pub mod pager;
 pub mod parse;
+pub mod prefetch;
 pub mod query;
 pub mod reader;
 pub mod source;
 pub mod synth;
 pub mod tile;
+pub mod tiles;
 pub mod window;
 
 pub use build::{build, BuildOptions, BuildReport};
 pub use format::{Extent, Header, IndexEntry, LevelInfo, SourceInfo, TileId};
-pub use query::{height_at, SurfaceSample};
+pub use prefetch::Prefetcher;
+pub use query::{height_at, height_in, SurfaceSample};
 pub use reader::Database;
 pub use synth::{synth, SynthOptions};
 pub use tile::Tile;
+pub use tiles::{Lookup, Resident, ResidentOnly, Tiles};
 pub use window::WindowSpec;

@@ -1,9 +1,11 @@
 //! Queries on a database at full resolution, through its tile cache: the height of the
 //! surface at a geographic position on the finest level that has data there. What the CPU
 //! oracle's `relief query` answers for a database scene, whatever level the scene renders.
+//! [`height_in`] does the same through any [`Tiles`] (resident only: see `db::tiles`).
 
 use super::format::TileId;
 use super::reader::Database;
+use super::tiles::{Lookup, Tiles};
 use crate::Result;
 
 /// The surface height at a position and where it came from.
@@ -22,9 +24,17 @@ pub struct SurfaceSample {
 /// coarser level answer). `Ok(None)`: no level has data there (off the database). Errors: a
 /// tile that fails its checks (a damaged file).
 pub fn height_at(db: &Database, lat: f64, lon: f64) -> Result<Option<SurfaceSample>> {
+    height_in(db, lat, lon)
+}
+
+/// [`height_at`] through `tiles`. A tile that is not resident (resident-only `tiles`, which
+/// record it) ends the search: `Ok(None)`, to be told from "off the database" by the tiles'
+/// missing list.
+pub fn height_in(tiles: &dyn Tiles, lat: f64, lon: f64) -> Result<Option<SurfaceSample>> {
     if !(lat.is_finite() && lon.is_finite()) {
         return Ok(None);
     }
+    let db = tiles.database();
     let n = db.tile_cells() as i64;
     for (level, l) in db.header().levels.iter().enumerate().rev() {
         let d = l.per_degree;
@@ -43,43 +53,55 @@ pub fn height_at(db: &Database, lat: f64, lon: f64) -> Result<Option<SurfaceSamp
                 continue;
             }
             let (ci, cj) = (fi - a, fj - b);
-            if let Some(height) = cell_height(db, level as u32, n, ci, cj, gi, gj)? {
-                return Ok(Some(SurfaceSample {
-                    height,
-                    level: level as u32,
-                    spacing: l.spacing(),
-                }));
+            match cell_height(tiles, level as u32, n, ci, cj, gi, gj)? {
+                Cell::Height(height) => {
+                    return Ok(Some(SurfaceSample {
+                        height,
+                        level: level as u32,
+                        spacing: l.spacing(),
+                    }))
+                }
+                Cell::NoData => {}
+                Cell::NotResident => return Ok(None),
             }
         }
     }
     Ok(None)
 }
 
+/// What one cell says at a position.
+enum Cell {
+    Height(f64),
+    /// Its tile is not stored, or a corner has no data.
+    NoData,
+    /// Its tile is stored but not resident (resident-only lookups).
+    NotResident,
+}
+
 /// The bilinear height at level position (`gi`, `gj`) from the samples of cell (`ci`, `cj`) of
-/// `level`; `None` where its tile is not stored or a corner has no data.
+/// `level`.
 fn cell_height(
-    db: &Database,
+    tiles: &dyn Tiles,
     level: u32,
     n: i64,
     ci: i64,
     cj: i64,
     gi: f64,
     gj: f64,
-) -> Result<Option<f64>> {
+) -> Result<Cell> {
     let (tx, ty) = (ci.div_euclid(n), cj.div_euclid(n));
     if tx > u32::MAX as i64 || ty > u32::MAX as i64 {
-        return Ok(None);
+        return Ok(Cell::NoData);
     }
     let id = TileId {
         level,
         x: tx as u32,
         y: ty as u32,
     };
-    if !db.has_tile(id) {
-        return Ok(None);
-    }
-    let Some(tile) = db.tile(id)? else {
-        return Ok(None);
+    let tile = match tiles.lookup(id)? {
+        Lookup::Tile(t) => t,
+        Lookup::NotStored => return Ok(Cell::NoData),
+        Lookup::NotResident => return Ok(Cell::NotResident),
     };
     let (i, j) = ((ci - tx * n) as usize, (cj - ty * n) as usize);
     let (u, v) = (gi - ci as f64, gj - cj as f64);
@@ -90,10 +112,10 @@ fn cell_height(
         tile.height(i + 1, j + 1),
     ];
     if h.iter().any(|x| x.is_nan()) {
-        return Ok(None);
+        return Ok(Cell::NoData);
     }
     let [h00, h10, h01, h11] = h.map(f64::from);
-    Ok(Some(
+    Ok(Cell::Height(
         h00 * (1.0 - u) * (1.0 - v) + h10 * u * (1.0 - v) + h01 * (1.0 - u) * v + h11 * u * v,
     ))
 }

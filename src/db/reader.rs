@@ -171,17 +171,8 @@ impl Database {
         let Some(entry) = self.index.get(&id) else {
             return Ok(None);
         };
-        {
-            let mut c = self.cache.lock().unwrap_or_else(|e| e.into_inner());
-            c.clock += 1;
-            let now = c.clock;
-            if let Some((tile, used)) = c.tiles.get_mut(&id) {
-                let (tile, old) = (tile.clone(), *used);
-                *used = now;
-                c.by_use.remove(&old);
-                c.by_use.insert(now, id);
-                return Ok(Some(tile));
-            }
+        if let Some(tile) = self.cached_tile(id) {
+            return Ok(Some(tile));
         }
         let n = self.tile_cells();
         fileio::check_alloc(
@@ -206,6 +197,20 @@ impl Database {
         let tile = Arc::new(tile::decode_tile(&blob, n, &self.path, id)?);
         self.remember(id, tile.clone());
         Ok(Some(tile))
+    }
+
+    /// The tile `id` when it is in the cache now (its last use updated), else `None`: never
+    /// reads the file, so it does not wait for the disk.
+    pub fn cached_tile(&self, id: TileId) -> Option<Arc<Tile>> {
+        let mut c = self.cache.lock().unwrap_or_else(|e| e.into_inner());
+        c.clock += 1;
+        let now = c.clock;
+        let (tile, used) = c.tiles.get_mut(&id)?;
+        let (tile, old) = (tile.clone(), *used);
+        *used = now;
+        c.by_use.remove(&old);
+        c.by_use.insert(now, id);
+        Some(tile)
     }
 
     fn remember(&self, id: TileId, tile: Arc<Tile>) {

@@ -5,6 +5,7 @@
 
 use super::format::{LevelInfo, TileId};
 use super::reader::Database;
+use super::tiles::{Lookup, Tiles};
 use crate::terrain::{GeoRef, Heightfield, MAX_SIDE};
 use crate::{fileio, Error, Result};
 use rayon::prelude::*;
@@ -164,25 +165,35 @@ impl Heights {
 
 /// The heights of tile `id`: stored, or (missing from the database) bilinear from the
 /// nearest coarser level that has the region, recorded in `filled` as (tile, level used).
-fn heights_of(db: &Database, id: TileId, filled: &mut Vec<(TileId, u32)>) -> Result<Heights> {
-    if let Some(t) = db.tile(id)? {
-        return Ok(Heights::Stored(t));
+/// `None`: a tile it needs is not resident (resident-only `tiles`, which record it).
+fn heights_of(
+    tiles: &dyn Tiles,
+    id: TileId,
+    filled: &mut Vec<(TileId, u32)>,
+) -> Result<Option<Heights>> {
+    match tiles.lookup(id)? {
+        Lookup::Tile(t) => return Ok(Some(Heights::Stored(t))),
+        Lookup::NotResident => return Ok(None),
+        Lookup::NotStored => {}
     }
-    let n = db.tile_cells();
+    let n = tiles.database().tile_cells();
     let np = n + 1;
     if id.level == 0 {
-        return Ok(Heights::Filled(vec![f32::NAN; np * np]));
+        return Ok(Some(Heights::Filled(vec![f32::NAN; np * np])));
     }
     let before = filled.len();
-    let parent = heights_of(
-        db,
+    let Some(parent) = heights_of(
+        tiles,
         TileId {
             level: id.level - 1,
             x: id.x / 2,
             y: id.y / 2,
         },
         filled,
-    )?;
+    )?
+    else {
+        return Ok(None);
+    };
     let from = filled.get(before).map_or(id.level - 1, |f| f.1);
     filled.truncate(before);
     filled.push((id, from));
@@ -204,13 +215,20 @@ fn heights_of(db: &Database, id: TileId, filled: &mut Vec<(TileId, u32)>) -> Res
             out[b * np + a] = h as f32;
         }
     }
-    Ok(Heights::Filled(out))
+    Ok(Some(Heights::Filled(out)))
 }
 
 /// Reads the window's samples into a height field (no-data samples filled, with a warning).
 /// Tiles missing at the window's level are filled from the nearest coarser level that has
 /// them, with a warning naming them.
 pub fn read(db: &Database, spec: &WindowSpec) -> Result<Heightfield> {
+    read_from(db, spec)?.ok_or_else(|| super::tiles::not_read(db))
+}
+
+/// [`read`] through `tiles`; `None` when a tile it needs is not resident (resident-only
+/// `tiles`: every such tile of the window is recorded, and no height field is made).
+pub fn read_from(tiles: &dyn Tiles, spec: &WindowSpec) -> Result<Option<Heightfield>> {
+    let db = tiles.database();
     let (w, h) = (spec.width, spec.height);
     fileio::check_alloc(
         format!(
@@ -224,14 +242,15 @@ pub fn read(db: &Database, spec: &WindowSpec) -> Result<Heightfield> {
     let n = db.tile_cells() as i64;
     let np = n as usize + 1;
     let (i_last, j_last) = (spec.i0 + w as i64 - 1, spec.j0 + h as i64 - 1);
-    let tiles =
+    let span_of =
         |lo: i64, hi: i64| lo.div_euclid(n)..=((hi - 1).div_euclid(n)).max(lo.div_euclid(n));
     let mut out = vec![f32::NAN; w * h];
     let mut filled = Vec::new();
-    let xs: Vec<i64> = tiles(spec.i0, i_last).collect();
-    for ty in tiles(spec.j0, j_last) {
+    let mut not_resident = false;
+    let xs: Vec<i64> = span_of(spec.i0, i_last).collect();
+    for ty in span_of(spec.j0, j_last) {
         // One row of tiles at a time, decoded in parallel.
-        let row: Vec<(Heights, Vec<(TileId, u32)>)> = xs
+        let row: Vec<(Option<Heights>, Vec<(TileId, u32)>)> = xs
             .par_iter()
             .map(|&tx| {
                 let id = TileId {
@@ -240,10 +259,14 @@ pub fn read(db: &Database, spec: &WindowSpec) -> Result<Heightfield> {
                     y: ty as u32,
                 };
                 let mut f = Vec::new();
-                heights_of(db, id, &mut f).map(|t| (t, f))
+                heights_of(tiles, id, &mut f).map(|t| (t, f))
             })
             .collect::<Result<_>>()?;
         for (&tx, (t, f)) in xs.iter().zip(row) {
+            let Some(t) = t else {
+                not_resident = true;
+                continue;
+            };
             filled.extend(f);
             let t = t.get();
             let (ja, jb) = ((ty * n).max(spec.j0), (ty * n + n).min(j_last));
@@ -256,6 +279,9 @@ pub fn read(db: &Database, spec: &WindowSpec) -> Result<Heightfield> {
                 }
             }
         }
+    }
+    if not_resident {
+        return Ok(None);
     }
     if let Some(&(first, from)) = filled.first() {
         let names: Vec<String> = filled.iter().take(3).map(|f| f.0.to_string()).collect();
@@ -281,6 +307,7 @@ pub fn read(db: &Database, spec: &WindowSpec) -> Result<Heightfield> {
         .collect();
     let what = format!("{} (level {} window)", db.path().display(), spec.level);
     Heightfield::from_samples_with_voids(&what, w, h, samples, geo.metric_spacing(h), Some(geo))
+        .map(Some)
 }
 
 /// Opens the database at `path` and reads a window of it (see [`resolve`] and [`read`]).

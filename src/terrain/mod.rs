@@ -193,14 +193,44 @@ impl Terrain {
                 window,
                 level,
             } => {
-                let mut field = crate::db::window::load(&base_dir.join(path), window, level)?;
-                if let Some(cs) = desc.cell_size {
-                    field.spacing = cs;
-                }
-                field
+                let field = crate::db::window::load(&base_dir.join(path), window, level)?;
+                return Self::from_database_field(desc, base_dir, field);
             }
         };
-        let mut field = field;
+        Self::from_field(desc, base_dir, field)
+    }
+
+    /// A database scene's terrain (`desc` names the database) on window `spec` of the open
+    /// database behind `tiles`, read through them (no file opened); `None` when `tiles` are
+    /// resident only and one it needs is not in memory (they record which).
+    pub fn from_window(
+        desc: &TerrainDesc,
+        base_dir: &Path,
+        tiles: &dyn crate::db::Tiles,
+        spec: &crate::db::WindowSpec,
+    ) -> Result<Option<Terrain>> {
+        match crate::db::window::read_from(tiles, spec)? {
+            Some(field) => Self::from_database_field(desc, base_dir, field).map(Some),
+            None => Ok(None),
+        }
+    }
+
+    /// [`Self::from_field`] for a database window's samples (`cell_size` overrides their
+    /// spacing).
+    fn from_database_field(
+        desc: &TerrainDesc,
+        base_dir: &Path,
+        mut field: Heightfield,
+    ) -> Result<Terrain> {
+        if let Some(cs) = desc.cell_size {
+            field.spacing = cs;
+        }
+        Self::from_field(desc, base_dir, field)
+    }
+
+    /// The terrain of `desc` on its loaded samples: sea level, checks, frame, walls, curved,
+    /// drape.
+    fn from_field(desc: &TerrainDesc, base_dir: &Path, mut field: Heightfield) -> Result<Terrain> {
         if let Some(sea) = desc.sea_level {
             if !sea.is_finite() || sea.abs() > 1.0e4 {
                 return Err(Error::invalid(

@@ -33,6 +33,7 @@ use crate::cigi::{
 use crate::cpu::database::FullResolution;
 use crate::cpu::query::{cast_ray, line_of_sight};
 use crate::cpu::Hit;
+use crate::db::{Prefetcher, ResidentOnly, TileId, Tiles};
 use crate::terrain::Terrain;
 use glam::DVec3;
 
@@ -46,6 +47,24 @@ pub struct AnswerCounts {
     pub invalid: u64,
     /// Not answered (unknown entity, unsupported object class).
     pub unanswered: u64,
+    /// Database scenes: kept for the next frame (a tile they need was not in memory).
+    pub deferred: u64,
+    /// Database scenes: kept queries whose tiles the prefetcher had not read by the frame that
+    /// answers them (or the run's end), read there synchronously.
+    pub blocking_reads: u64,
+}
+
+impl AnswerCounts {
+    /// Adds `o`'s counts.
+    pub fn add(&mut self, o: &AnswerCounts) {
+        self.hat_hot += o.hat_hot;
+        self.los += o.los;
+        self.position += o.position;
+        self.invalid += o.invalid;
+        self.unanswered += o.unanswered;
+        self.deferred += o.deferred;
+        self.blocking_reads += o.blocking_reads;
+    }
 }
 
 /// The four least significant bits of host frame `f`.
@@ -96,11 +115,12 @@ fn normal_below(t: &Terrain, lat: f64, lon: f64) -> Option<DVec3> {
 }
 
 /// What the queries are answered on: the scene's terrain, or on a database scene the database
-/// at full resolution (`full`).
+/// at full resolution (`full`) with the tiles it is read through (the database itself, or
+/// resident only: `db::ResidentOnly`).
 #[derive(Clone, Copy)]
 pub struct Ground<'a> {
     pub terrain: &'a Terrain,
-    pub full: Option<&'a FullResolution>,
+    pub full: Option<(&'a FullResolution, &'a dyn Tiles)>,
 }
 
 impl Ground<'_> {
@@ -109,8 +129,8 @@ impl Ground<'_> {
     fn hot(&self, lat: f64, lon: f64) -> Option<f64> {
         match self.full {
             None => height_of_terrain(self.terrain, lat, lon),
-            Some(f) => f
-                .height_at_geodetic(lat, lon)
+            Some((f, tiles)) => f
+                .height_in(tiles, lat, lon)
                 .map_err(|e| log::debug!("CIGI HOT at {lat}, {lon}: {e}"))
                 .ok()
                 .flatten()
@@ -119,16 +139,23 @@ impl Ground<'_> {
     }
 
     /// The database's finest-level window around geodetic `a` and `b` (`None` without a
-    /// database: the scene's terrain is used; `Some(Err)`: off the database).
+    /// database: the scene's terrain is used; `Some(Err)`: off the database, or a tile not
+    /// resident, which the resident-only tiles record).
     fn window(&self, a: [f64; 3], b: [f64; 3]) -> Option<Result<Terrain, ()>> {
-        let f = self.full?;
-        Some(f.window(a, b).map_err(|e| {
-            log::debug!("CIGI query window around {a:?}, {b:?}: {e}");
-        }))
+        let (f, tiles) = self.full?;
+        Some(match f.window_in(tiles, a, b) {
+            Ok(Some(t)) => Ok(t),
+            Ok(None) => Err(()),
+            Err(e) => {
+                log::debug!("CIGI query window around {a:?}, {b:?}: {e}");
+                Err(())
+            }
+        })
     }
 }
 
-/// Answers every query of `queries` onto `msg`; `now_host` is the host time of the frame.
+/// Answers every query of `queries` onto `msg`, each with the LSN of the host frame it came
+/// in; `now_host` is the host time of the frame.
 pub fn answer(
     t: &Ground,
     session: &Session,
@@ -138,29 +165,185 @@ pub fn answer(
 ) -> AnswerCounts {
     let mut c = AnswerCounts::default();
     for q in queries {
-        match q {
-            Query::HatHot(r, f) => {
-                c.hat_hot += 1;
-                c.invalid += u64::from(!hat_hot(t, r, *f, msg));
-            }
-            Query::LosSegment(r, f) => {
-                c.los += 1;
-                c.invalid += u64::from(!los_segment(t, r, *f, msg));
-            }
-            Query::LosVector(r, f) => {
-                c.los += 1;
-                c.invalid += u64::from(!los_vector(t, r, *f, msg));
-            }
-            Query::Position(r, _) => match position(session, r, now_host) {
-                Some(p) => {
-                    c.position += 1;
-                    msg.push(&p);
-                }
-                None => c.unanswered += 1,
-            },
-        }
+        answer_one(t, session, q, frame_of(q), now_host, msg, &mut c);
     }
     c
+}
+
+/// The host frame query `q` came in.
+fn frame_of(q: &Query) -> u32 {
+    match q {
+        Query::HatHot(_, f)
+        | Query::LosSegment(_, f)
+        | Query::LosVector(_, f)
+        | Query::Position(_, f) => *f,
+    }
+}
+
+/// Answers `q` onto `msg` with host frame `frame`'s LSN; `c` counts it.
+fn answer_one(
+    t: &Ground,
+    session: &Session,
+    q: &Query,
+    frame: u32,
+    now_host: f64,
+    msg: &mut MessageBuilder,
+    c: &mut AnswerCounts,
+) {
+    match q {
+        Query::HatHot(r, _) => {
+            c.hat_hot += 1;
+            c.invalid += u64::from(!hat_hot(t, r, frame, msg));
+        }
+        Query::LosSegment(r, _) => {
+            c.los += 1;
+            c.invalid += u64::from(!los_segment(t, r, frame, msg));
+        }
+        Query::LosVector(r, _) => {
+            c.los += 1;
+            c.invalid += u64::from(!los_vector(t, r, frame, msg));
+        }
+        Query::Position(r, _) => match position(session, r, now_host) {
+            Some(p) => {
+                c.position += 1;
+                msg.push(&p);
+            }
+            None => c.unanswered += 1,
+        },
+    }
+}
+
+/// A database scene's queries answered without the frame they arrive in waiting for the disk:
+/// each is first answered from resident tiles only; one that needs a tile not in memory is
+/// kept, its tiles go to the [`Prefetcher`], and it is answered in the next frame, before that
+/// frame's own queries (from the cache, or reading what the prefetcher has not read yet).
+pub struct Deferral {
+    prefetch: Prefetcher,
+    kept: Vec<Query>,
+}
+
+impl Deferral {
+    /// Starts the prefetcher on `full`'s database.
+    pub fn new(full: &FullResolution) -> crate::Result<Deferral> {
+        Ok(Deferral {
+            prefetch: Prefetcher::new(full.shared().clone())?,
+            kept: Vec::new(),
+        })
+    }
+
+    /// Queries kept for the next frame.
+    pub fn kept(&self) -> usize {
+        self.kept.len()
+    }
+
+    /// The prefetcher.
+    pub fn prefetcher(&self) -> &Prefetcher {
+        &self.prefetch
+    }
+
+    /// One frame's answers onto `msg`: first every query kept from the last frame, with the
+    /// LSN of `frame` (the host frame this frame answers for), read now where the prefetcher
+    /// has not read its tiles yet (`blocking_reads`); then `queries`, each with the LSN of the
+    /// frame it came in, answered from resident tiles or kept (`deferred`). Position requests
+    /// are never kept.
+    #[allow(clippy::too_many_arguments)]
+    pub fn answer_frame(
+        &mut self,
+        terrain: &Terrain,
+        full: &FullResolution,
+        session: &Session,
+        queries: &[Query],
+        frame: u32,
+        now_host: f64,
+        msg: &mut MessageBuilder,
+    ) -> AnswerCounts {
+        let mut c = self.answer_kept(terrain, full, session, frame, now_host, msg);
+        let mut missing = Vec::new();
+        for q in queries {
+            if matches!(q, Query::Position(..)) {
+                let g = Ground {
+                    terrain,
+                    full: None,
+                };
+                answer_one(&g, session, q, frame_of(q), now_host, msg, &mut c);
+                continue;
+            }
+            match resident(
+                terrain,
+                full,
+                session,
+                q,
+                frame_of(q),
+                now_host,
+                msg,
+                &mut c,
+            ) {
+                None => {}
+                Some(ids) => {
+                    c.deferred += 1;
+                    self.kept.push(*q);
+                    missing.extend(ids);
+                }
+            }
+        }
+        self.prefetch.request(missing);
+        c
+    }
+
+    /// Answers every kept query onto `msg` with `frame`'s LSN (resident, else read now:
+    /// `blocking_reads`); none is kept after.
+    pub fn answer_kept(
+        &mut self,
+        terrain: &Terrain,
+        full: &FullResolution,
+        session: &Session,
+        frame: u32,
+        now_host: f64,
+        msg: &mut MessageBuilder,
+    ) -> AnswerCounts {
+        let mut c = AnswerCounts::default();
+        for q in std::mem::take(&mut self.kept) {
+            if resident(terrain, full, session, &q, frame, now_host, msg, &mut c).is_some() {
+                c.blocking_reads += 1;
+                let g = Ground {
+                    terrain,
+                    full: Some((full, full.database())),
+                };
+                answer_one(&g, session, &q, frame, now_host, msg, &mut c);
+            }
+        }
+        c
+    }
+}
+
+/// Answers `q` from resident tiles only onto `msg` (counted in `c`): `None`, or the tiles it
+/// needs that are not in memory (nothing pushed, nothing counted).
+#[allow(clippy::too_many_arguments)]
+fn resident(
+    terrain: &Terrain,
+    full: &FullResolution,
+    session: &Session,
+    q: &Query,
+    frame: u32,
+    now_host: f64,
+    msg: &mut MessageBuilder,
+    c: &mut AnswerCounts,
+) -> Option<Vec<TileId>> {
+    let tiles = ResidentOnly::new(full.database());
+    let g = Ground {
+        terrain,
+        full: Some((full, &tiles)),
+    };
+    let (mark, mut one) = (msg.len(), AnswerCounts::default());
+    answer_one(&g, session, q, frame, now_host, msg, &mut one);
+    let missing = tiles.missing();
+    if missing.is_empty() {
+        c.add(&one);
+        None
+    } else {
+        msg.truncate(mark);
+        Some(missing)
+    }
 }
 
 /// One HAT/HOT response; `false` when it is answered invalid.

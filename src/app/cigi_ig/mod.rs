@@ -118,6 +118,8 @@ pub struct CigiIg {
     /// On a database scene, the database the queries are answered from at full resolution
     /// ([`CigiIg::open_database`]).
     pub full: Option<crate::cpu::database::FullResolution>,
+    /// With `full`: the queries kept for the next frame and the prefetcher reading their tiles.
+    pub deferral: Option<answer::Deferral>,
     /// The frame's sun `(azimuth, elevation)` from Celestial Sphere Control, and fog
     /// visibility (m) from Atmosphere/Weather Control, when the host gave them.
     pub sun: Option<(f64, f64)>,
@@ -181,6 +183,7 @@ impl CigiIg {
             off_terrain: 0,
             frame_time: 0.0,
             full: None,
+            deferral: None,
             sun: None,
             visibility: None,
             bad_dates: 0,
@@ -193,6 +196,7 @@ impl CigiIg {
     pub fn open_database(&mut self, scene: &crate::scene::Scene) -> Result<()> {
         let full =
             crate::cpu::database::FullResolution::open(&scene.desc.terrain, &scene.base_dir)?;
+        self.deferral = full.as_ref().map(answer::Deferral::new).transpose()?;
         self.full = full;
         Ok(())
     }
@@ -436,25 +440,60 @@ impl CigiIg {
 
     /// Ends IG frame `self.ig_frame`: answers the waiting queries from the CPU reference and
     /// sends Start of Frame with the answers to the host (none known yet: nothing is sent).
+    /// On a database scene the queries kept from the last frame are answered first, and a
+    /// query whose tiles are not in memory is kept for the next ([`answer::Deferral`]).
     /// Returns the IG frame number just ended.
     pub fn end_frame(&mut self, terrain: &Terrain) -> u32 {
+        self.answer_and_send(terrain, false)
+    }
+
+    /// The end of a run: on a database scene with queries kept from the last frame, answers
+    /// them (reading what is not in memory) in one more IG datagram, a Start of Frame numbered
+    /// as the next IG frame (no picture goes with it); else nothing. Returns whether it sent.
+    pub fn finish(&mut self, terrain: &Terrain) -> bool {
+        if self.deferral.as_ref().is_none_or(|d| d.kept() == 0) {
+            return false;
+        }
+        self.answer_and_send(terrain, true);
+        true
+    }
+
+    /// Start of Frame for IG frame `self.ig_frame` and the answers (`kept_only`: only the
+    /// queries kept from the last frame), sent; the frame counter advances.
+    fn answer_and_send(&mut self, terrain: &Terrain, kept_only: bool) -> u32 {
         let frame = self.ig_frame;
         let now = self.now();
         let ticks = ((now / crate::cigi::session::TICK) as u64 & u64::from(u32::MAX)) as u32;
         let mut msg = self.session.start_of_frame(frame, Some(ticks));
-        let queries = self.session.take_queries();
-        let host_t = self.session.host_time_at(now);
-        let ground = answer::Ground {
-            terrain,
-            full: self.full.as_ref(),
+        let queries = if kept_only {
+            Vec::new()
+        } else {
+            self.session.take_queries()
         };
-        let c = answer::answer(&ground, &self.session, &queries, host_t, &mut msg);
-        let a = &mut self.answers;
-        a.hat_hot += c.hat_hot;
-        a.los += c.los;
-        a.position += c.position;
-        a.invalid += c.invalid;
-        a.unanswered += c.unanswered;
+        let host_t = self.session.host_time_at(now);
+        let c = match (&self.full, &mut self.deferral) {
+            (Some(full), Some(d)) => {
+                // The host frame this IG frame answers for (the last IG Control received).
+                let answering = self.session.host_frame.unwrap_or(0);
+                d.answer_frame(
+                    terrain,
+                    full,
+                    &self.session,
+                    &queries,
+                    answering,
+                    host_t,
+                    &mut msg,
+                )
+            }
+            _ => {
+                let ground = answer::Ground {
+                    terrain,
+                    full: None,
+                };
+                answer::answer(&ground, &self.session, &queries, host_t, &mut msg)
+            }
+        };
+        self.answers.add(&c);
         let bytes = msg.finish();
         if let Some(to) = self.reply_to {
             match self.socket.send_to(&bytes, to) {
@@ -523,6 +562,8 @@ impl CigiIg {
             "entities": self.session.entity_count(),
             "sent": self.sent,
             "send_errors": self.send_errors,
+            "deferred": self.answers.deferred,
+            "blocking_reads": self.answers.blocking_reads,
         })
     }
 
@@ -530,7 +571,7 @@ impl CigiIg {
     pub fn summary(&self) -> String {
         let c = &self.session.counters;
         format!(
-            "cigi: {} IG frames, {} datagrams in ({} accepted, {} refused, {} from other senders, {} malformed), {} sent ({} failed); answered {} HAT/HOT, {} LOS, {} position ({} invalid, {} unanswered); {} other entities not drawn",
+            "cigi: {} IG frames, {} datagrams in ({} accepted, {} refused, {} from other senders, {} malformed), {} sent ({} failed); answered {} HAT/HOT, {} LOS, {} position ({} invalid, {} unanswered; {} deferred a frame, {} blocking reads); {} other entities not drawn",
             self.ig_frame,
             c.datagrams,
             c.accepted,
@@ -544,6 +585,8 @@ impl CigiIg {
             self.answers.position,
             self.answers.invalid,
             self.answers.unanswered,
+            self.answers.deferred,
+            self.answers.blocking_reads,
             self.other_entities,
         )
     }

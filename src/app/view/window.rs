@@ -462,7 +462,8 @@ impl App {
     }
 
     fn finish(mut self) -> Result<ViewReport> {
-        if let Some(ig) = &self.prep.cigi {
+        if let Some(ig) = &mut self.prep.cigi {
+            ig.finish(&self.prep.world.terrain);
             log::info!("{}", ig.summary());
         }
         if let Some(e) = self.error.take() {
