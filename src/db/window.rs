@@ -163,6 +163,10 @@ impl Heights {
     }
 }
 
+/// One tile of a row of the window: its heights (`None`: not resident) and the tiles filled
+/// from a coarser level with the level used.
+type RowTile = (Option<Heights>, Vec<(TileId, u32)>);
+
 /// The heights of tile `id`: stored, or (missing from the database) bilinear from the
 /// nearest coarser level that has the region, recorded in `filled` as (tile, level used).
 /// `None`: a tile it needs is not resident (resident-only `tiles`, which record it).
@@ -250,7 +254,7 @@ pub fn read_from(tiles: &dyn Tiles, spec: &WindowSpec) -> Result<Option<Heightfi
     let xs: Vec<i64> = span_of(spec.i0, i_last).collect();
     for ty in span_of(spec.j0, j_last) {
         // One row of tiles at a time, decoded in parallel.
-        let row: Vec<(Option<Heights>, Vec<(TileId, u32)>)> = xs
+        let row: Vec<RowTile> = xs
             .par_iter()
             .map(|&tx| {
                 let id = TileId {

@@ -18,8 +18,15 @@
 //! On a **database scene** (`[terrain] database`) every answer comes from the database at full
 //! resolution (`cpu::database::FullResolution`), whatever level the scene renders: HOT from the
 //! finest tile at the point, the normal, lines of sight and intersections over a window of the
-//! finest level that fits around the query. Tiles come through the database's bounded host
-//! cache and are read synchronously when not cached.
+//! finest level that fits around the query, made from the database's bounded host tile cache.
+//! The frame a query arrives in never waits for the disk ([`Deferral`]): each HAT/HOT and LOS
+//! query is answered there from tiles already in memory (resident only), or, where one it
+//! needs is not, kept; its tiles go to a background [`Prefetcher`] and it is answered in the
+//! **next** IG frame, before that frame's own queries, with that frame's host frame LSN (the
+//! last IG Control received before the answer was calculated), reading synchronously only the
+//! tiles the prefetcher has not read by then (counted: `blocking_reads`). So no answer is more
+//! than one frame late; position requests are never kept. Queries kept when the run ends are
+//! answered in one more datagram (`CigiIg::finish`).
 //!
 //! Requests in an entity's frame (HAT/HOT `entity_frame`, LOS `source_entity_frame`, …) are
 //! answered `valid = false`: relative queries are not modelled yet. So is a point off the
@@ -246,44 +253,28 @@ impl Deferral {
     /// has not read its tiles yet (`blocking_reads`); then `queries`, each with the LSN of the
     /// frame it came in, answered from resident tiles or kept (`deferred`). Position requests
     /// are never kept.
-    #[allow(clippy::too_many_arguments)]
     pub fn answer_frame(
         &mut self,
-        terrain: &Terrain,
-        full: &FullResolution,
-        session: &Session,
+        on: &OnDatabase,
         queries: &[Query],
         frame: u32,
-        now_host: f64,
         msg: &mut MessageBuilder,
     ) -> AnswerCounts {
-        let mut c = self.answer_kept(terrain, full, session, frame, now_host, msg);
+        let mut c = self.answer_kept(on, frame, msg);
         let mut missing = Vec::new();
         for q in queries {
             if matches!(q, Query::Position(..)) {
                 let g = Ground {
-                    terrain,
+                    terrain: on.terrain,
                     full: None,
                 };
-                answer_one(&g, session, q, frame_of(q), now_host, msg, &mut c);
+                answer_one(&g, on.session, q, frame_of(q), on.now_host, msg, &mut c);
                 continue;
             }
-            match resident(
-                terrain,
-                full,
-                session,
-                q,
-                frame_of(q),
-                now_host,
-                msg,
-                &mut c,
-            ) {
-                None => {}
-                Some(ids) => {
-                    c.deferred += 1;
-                    self.kept.push(*q);
-                    missing.extend(ids);
-                }
+            if let Some(ids) = resident(on, q, frame_of(q), msg, &mut c) {
+                c.deferred += 1;
+                self.kept.push(*q);
+                missing.extend(ids);
             }
         }
         self.prefetch.request(missing);
@@ -294,48 +285,50 @@ impl Deferral {
     /// `blocking_reads`); none is kept after.
     pub fn answer_kept(
         &mut self,
-        terrain: &Terrain,
-        full: &FullResolution,
-        session: &Session,
+        on: &OnDatabase,
         frame: u32,
-        now_host: f64,
         msg: &mut MessageBuilder,
     ) -> AnswerCounts {
         let mut c = AnswerCounts::default();
         for q in std::mem::take(&mut self.kept) {
-            if resident(terrain, full, session, &q, frame, now_host, msg, &mut c).is_some() {
+            if resident(on, &q, frame, msg, &mut c).is_some() {
                 c.blocking_reads += 1;
                 let g = Ground {
-                    terrain,
-                    full: Some((full, full.database())),
+                    terrain: on.terrain,
+                    full: Some((on.full, on.full.database())),
                 };
-                answer_one(&g, session, &q, frame, now_host, msg, &mut c);
+                answer_one(&g, on.session, &q, frame, on.now_host, msg, &mut c);
             }
         }
         c
     }
 }
 
+/// What a database scene's frame answers on: the scene's terrain, the database at full
+/// resolution, the session, the frame's host time.
+pub struct OnDatabase<'a> {
+    pub terrain: &'a Terrain,
+    pub full: &'a FullResolution,
+    pub session: &'a Session,
+    pub now_host: f64,
+}
+
 /// Answers `q` from resident tiles only onto `msg` (counted in `c`): `None`, or the tiles it
 /// needs that are not in memory (nothing pushed, nothing counted).
-#[allow(clippy::too_many_arguments)]
 fn resident(
-    terrain: &Terrain,
-    full: &FullResolution,
-    session: &Session,
+    on: &OnDatabase,
     q: &Query,
     frame: u32,
-    now_host: f64,
     msg: &mut MessageBuilder,
     c: &mut AnswerCounts,
 ) -> Option<Vec<TileId>> {
-    let tiles = ResidentOnly::new(full.database());
+    let tiles = ResidentOnly::new(on.full.database());
     let g = Ground {
-        terrain,
-        full: Some((full, &tiles)),
+        terrain: on.terrain,
+        full: Some((on.full, &tiles)),
     };
     let (mark, mut one) = (msg.len(), AnswerCounts::default());
-    answer_one(&g, session, q, frame, now_host, msg, &mut one);
+    answer_one(&g, on.session, q, frame, on.now_host, msg, &mut one);
     let missing = tiles.missing();
     if missing.is_empty() {
         c.add(&one);

@@ -475,15 +475,13 @@ impl CigiIg {
             (Some(full), Some(d)) => {
                 // The host frame this IG frame answers for (the last IG Control received).
                 let answering = self.session.host_frame.unwrap_or(0);
-                d.answer_frame(
+                let on = answer::OnDatabase {
                     terrain,
                     full,
-                    &self.session,
-                    &queries,
-                    answering,
-                    host_t,
-                    &mut msg,
-                )
+                    session: &self.session,
+                    now_host: host_t,
+                };
+                d.answer_frame(&on, &queries, answering, &mut msg)
             }
             _ => {
                 let ground = answer::Ground {
