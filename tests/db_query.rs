@@ -142,7 +142,7 @@ fn database_queries_answer_at_full_resolution_through_the_tile_cache() {
     let alps = dir.join("alps.reliefdb");
     relief::db::build(
         &alps,
-        &[hgt.clone()],
+        std::slice::from_ref(&hgt),
         &relief::db::BuildOptions::default(),
         &|_, _| {},
     )
@@ -249,6 +249,18 @@ fn resident_only_queries_report_missing_tiles_and_then_match_the_reading_path() 
         assert_eq!((r.level, r.spacing), (read.level, read.spacing));
     }
     drop(prefetch);
+
+    // Each id is queued once; dropping the prefetcher with a full queue stops its worker
+    // after the tile it is reading.
+    let db = Arc::new(Database::open(&path).unwrap());
+    let prefetch = Prefetcher::new(db.clone()).unwrap();
+    let ids: Vec<_> = db.entries().iter().map(|e| e.id).collect();
+    assert_eq!(prefetch.request(ids.iter().copied()), ids.len());
+    assert_eq!(prefetch.request(ids.iter().copied()), 0, "queued once");
+    assert_eq!(prefetch.counts().requested, ids.len() as u64);
+    let t = std::time::Instant::now();
+    drop(prefetch);
+    assert!(t.elapsed() < Duration::from_secs(5), "dropped at once");
 
     // A window of the finest level over several tiles: cold, one tile warm, all warm.
     let db = Database::open(&path).unwrap();
