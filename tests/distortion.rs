@@ -227,6 +227,7 @@ fn gpu_table_matches_cpu_table_and_direct_renders_match_the_oracle() {
         tile_prepass: true,
         max_steps: 4096,
         lod: None,
+        antialias: relief::gpu::Antialias::OFF,
     };
     for (name, cfg) in configs() {
         for (ci, ch) in cfg.channels.iter().enumerate() {

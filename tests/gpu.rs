@@ -354,6 +354,7 @@ fn march_baseline_agrees_with_pyramid_on_most_pixels() {
         tile_prepass: false,
         max_steps: 1 << 20,
         lod: None,
+        antialias: relief::gpu::Antialias::OFF,
     };
     let Some(m) = render(&terrain, &scene.desc, &cam, march) else {
         return;

@@ -106,6 +106,7 @@ fn oracles() -> &'static (Vec<Oracle>, Vec<Oracle>) {
 fn settings(shadows: bool, tile_prepass: bool, lod: Option<f64>) -> RenderSettings {
     RenderSettings {
         lod,
+        antialias: relief::gpu::Antialias::OFF,
         ..common::settings(shadows, tile_prepass)
     }
 }

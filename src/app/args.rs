@@ -57,6 +57,10 @@ pub struct RenderToggles {
     /// Footprint level of detail: on, off or a scale factor (overrides `[render] lod`).
     #[arg(long, value_name = "on|off|SCALE", value_parser = crate::scene::Lod::parse)]
     pub lod: Option<crate::scene::Lod>,
+    /// Edge anti-aliasing: off, edges, 4, 8, 16 (sub-pixel rays per edge pixel) or reference
+    /// (16 in every pixel) (overrides `[render] antialias`).
+    #[arg(long, value_name = "off|edges|N|reference", value_parser = crate::scene::AntialiasOption::parse)]
+    pub antialias: Option<crate::scene::AntialiasOption>,
 }
 
 impl RenderToggles {
@@ -70,6 +74,9 @@ impl RenderToggles {
         }
         if let Some(lod) = self.lod {
             settings.lod = lod.scale();
+        }
+        if let Some(a) = self.antialias {
+            settings.antialias = crate::gpu::Antialias::from_option(a);
         }
     }
 }

@@ -53,8 +53,16 @@ pub fn frame_metadata(
     let cast_ms = t.primary_ms();
     let pixels = (out.width * out.height) as f64;
     let hits = out.flags.iter().filter(|f| *f & 1 != 0).count();
+    let aa_pixels = out.antialiased_pixels();
+    let aa_samples = u64::from(settings.antialias.samples);
     json!({
         "frame": frame,
+        "antialias": {
+            "samples": aa_samples,
+            "every_pixel": settings.antialias.every_pixel,
+            "pixels": aa_pixels,
+            "extra_rays": aa_pixels * aa_samples,
+        },
         "time_s": scene.desc.path.as_ref().map(|p| frame as f64 / p.fps),
         "width": out.width,
         "height": out.height,

@@ -32,6 +32,7 @@ pub mod gpu_options;
 pub mod output;
 pub mod paged;
 pub mod pattern_rig;
+pub mod quality;
 pub mod sampling;
 pub mod scenes;
 pub mod serve;

@@ -21,6 +21,8 @@ pub struct RenderSettings {
     pub max_steps: u32,
     /// Footprint level of detail of the primary rays: its scale, `None` off (`render.lod`).
     pub lod: Option<f64>,
+    /// Edge anti-aliasing (`render.antialias`).
+    pub antialias: super::Antialias,
 }
 
 impl RenderSettings {
@@ -32,6 +34,7 @@ impl RenderSettings {
             tile_prepass: desc.render.tile_prepass,
             max_steps: desc.render.max_steps,
             lod: desc.render.lod.scale(),
+            antialias: super::Antialias::from_option(desc.render.antialias),
         }
     }
 }
@@ -56,6 +59,8 @@ pub struct PassTimes {
     pub volume_ms: f64,
     /// Edge blend (0 without one).
     pub blend_ms: f64,
+    /// Anti-aliasing: edge mask, every sample's passes, resolve (0 when off).
+    pub antialias_ms: f64,
     pub readback_ms: f64,
 }
 
@@ -91,7 +96,8 @@ pub struct FrameOutput {
     pub patch_tests: Vec<u32>,
     /// Shadow-ray traversal steps per pixel.
     pub shadow_steps: Vec<u32>,
-    /// Flags per pixel: 1 hit, 2 in shadow, 4 step limit reached, 16 free form, 32 voxel model.
+    /// Flags per pixel: 1 hit, 2 in shadow, 4 step limit reached, 16 free form, 32 voxel model,
+    /// 128 anti-aliased (sub-pixel rays cast; the other outputs are the centre ray's).
     pub flags: Vec<u32>,
     /// Free-form index + 1 per pixel (0 where no free form shows).
     pub objects: Vec<u32>,
@@ -103,4 +109,17 @@ pub struct FrameOutput {
     /// surface there (255 for sky; empty when no volume casts a shadow or shadows are off).
     pub volume_sun: Vec<u8>,
     pub times: PassTimes,
+}
+
+/// Flag of the pixels that got anti-aliasing samples (`aa_resolve.wgsl`).
+pub const FLAG_ANTIALIASED: u32 = 128;
+
+impl FrameOutput {
+    /// Pixels that got anti-aliasing samples (flag 128).
+    pub fn antialiased_pixels(&self) -> u64 {
+        self.flags
+            .iter()
+            .filter(|f| *f & FLAG_ANTIALIASED != 0)
+            .count() as u64
+    }
 }

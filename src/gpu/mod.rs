@@ -39,8 +39,10 @@
 //! * `blend` — the edge blend;
 //! * `targets` — the size-dependent targets and bind groups;
 //! * `readback` — captured targets read back and decoded;
+//! * `antialias` — edge anti-aliasing: sub-pixel rays where the centre rays straddle an edge;
 //! * `renderer` — [`TerrainRenderer`]: holds the passes and records a frame.
 
+pub mod antialias;
 pub mod blend;
 pub mod device;
 pub mod frame;
@@ -66,6 +68,7 @@ pub mod voxels;
 
 pub(crate) use device::shader_module;
 pub use device::{Gpu, GpuOptions, KernelChoice, KernelPath, ParamSpace, PARAM_USAGE};
+pub use antialias::Antialias;
 pub use frame::{FrameOutput, PassTimes, RenderSettings, Stage, TraceMode};
 pub use renderer::TerrainRenderer;
 pub use util::check_buffer_limit;

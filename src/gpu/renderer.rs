@@ -21,6 +21,7 @@ use crate::cpu::voxel::InstanceRect;
 use crate::display::pattern::PatternParams;
 use crate::scene::{Camera, SceneDesc};
 
+mod antialias;
 mod instances;
 use crate::terrain::curved::GridCurvature;
 use crate::terrain::Terrain;
@@ -66,9 +67,12 @@ pub struct TerrainRenderer {
     targets: Option<Targets>,
     /// The paged terrain's tile pool (group 3), in paged mode ([`Self::new_paged`]).
     paged: Option<super::terrain_pool::TerrainPool>,
+    /// Anti-aliasing passes and targets, made on first use (`RenderSettings::antialias`).
+    antialias: Option<antialias::AntialiasState>,
 }
 
 /// One frame being recorded: what it shows, how far it goes and whether its passes are timed.
+#[derive(Clone, Copy)]
 struct FrameJob<'a> {
     gpu: &'a Gpu,
     terrain: &'a Terrain,
@@ -77,6 +81,8 @@ struct FrameJob<'a> {
     s: &'a RenderSettings,
     stage: Stage,
     timed: bool,
+    /// The passes run on the anti-aliasing sample atlas (`gpu::antialias`).
+    atlas: bool,
 }
 
 impl FrameJob<'_> {
@@ -99,6 +105,10 @@ impl FrameJob<'_> {
 /// Pipelines a frame's passes use, built before recording.
 struct Prepared {
     features: ShadeFeatures,
+    /// The frame's stamp (`Frame.stamp`); anti-aliasing samples take the next ones.
+    stamp: u32,
+    /// The frame's uniforms (the anti-aliasing atlas's are these with its size).
+    uniforms: super::types::FrameUniforms,
     shade_index: usize,
     /// Per volume, its pipeline for the current switches (empty when no volume is integrated).
     volume_pipelines: Vec<usize>,
@@ -149,6 +159,7 @@ impl TerrainRenderer {
             stamp: 0,
             targets: None,
             paged: None,
+            antialias: None,
         })
     }
 
@@ -340,8 +351,12 @@ impl TerrainRenderer {
             "output size (--size)"
         };
         self.check_target_size(gpu, what, width, height)?;
-        // Free the old targets before allocating the new ones.
+        // Free the old targets before allocating the new ones (the anti-aliasing targets
+        // read the colour target: made again too).
         self.targets = None;
+        if let Some(a) = &mut self.antialias {
+            a.targets = None;
+        }
         let made = gpu.scoped(&format!("{what} {width}x{height}"), || {
             let passes = TargetPasses {
                 base: &self.base,
@@ -472,6 +487,11 @@ impl TerrainRenderer {
         fu.mode[3] &= self.paged.is_none() as u32;
         self.stamp = self.stamp.wrapping_add(1).max(1);
         fu.stamp = [self.stamp, 0, 0, 0];
+        let stamp = self.stamp;
+        let antialias = self.antialiased(job);
+        if antialias {
+            self.stamp = self.stamp.wrapping_add(1);
+        }
         if let (Some(o), Some((ot, _))) = (&self.objects, &t.objects) {
             fu.objects = [o.active, ot.bins[0], ot.bins[1], BIN_CAPACITY];
         }
@@ -490,8 +510,13 @@ impl TerrainRenderer {
             && self.pattern.is_none()
             && self.volumes.composite.is_some()
             && !self.volumes.hidden;
+        if antialias {
+            self.prepare_antialias(job);
+        }
         Prepared {
             features,
+            stamp,
+            uniforms: fu,
             shade_index,
             volume_pipelines: if integrated {
                 self.volumes.prepare(gpu)
@@ -499,38 +524,6 @@ impl TerrainRenderer {
                 Vec::new()
             },
         }
-    }
-
-    /// On the curved earth, moves every free form, volume and voxel model rigidly down by the
-    /// drop below the eye's tangent plane at its anchor (`Terrain::curved_offset`; the CPU
-    /// oracle's `cpu::{freeform, volume, voxel}::lowered`), so that objects placed on the
-    /// ground stay on it; uploads only when the curvature seen from the eye changed. Nothing
-    /// on a flat terrain.
-    fn lower_objects(&mut self, job: &FrameJob) {
-        let terrain = job.terrain;
-        let curv = terrain.curvature(job.cam.pose.position);
-        if self.lowered_for == Some(curv) || (self.lowered_for.is_none() && curv.is_flat()) {
-            self.place_instances(job, false);
-            return;
-        }
-        let offset = |anchor| terrain.curved_offset(&curv, anchor);
-        let mut deepest = 0.0f64;
-        if let Some(o) = &self.objects {
-            let offsets: Vec<_> = o.placed_origins().map(offset).collect();
-            deepest = offsets.iter().fold(deepest, |d, v| d.min(v.z));
-            o.set_offsets(job.gpu, &offsets);
-        }
-        self.statics_floor = self.placed_floor + deepest;
-        self.objects_floor = self.statics_floor;
-        self.place_instances(job, true);
-        for v in &mut self.volumes.passes {
-            v.offset = offset(v.volume.anchor());
-        }
-        if let Some(v) = &mut self.voxels {
-            let offsets: Vec<_> = v.placed().iter().map(|m| offset(m.position)).collect();
-            v.set_offsets(&offsets);
-        }
-        self.lowered_for = Some(curv);
     }
 
     /// Records the frame's passes (submitting between them when timed) and submits.
@@ -553,54 +546,16 @@ impl TerrainRenderer {
         let voxel_rects = self.voxel_rects(job);
         self.encode_primary(job, &mut enc, &mut times, t, voxel_rects.as_ref())?;
         if job.stage == Stage::Shade {
-            self.encode_shading(job, &mut enc, &mut times, t, prepared, voxel_rects.as_ref())?;
+            let rects = voxel_rects.as_ref();
+            self.encode_shading(job, &mut enc, &mut times, t, prepared, rects)?;
+            if self.antialiased(job) {
+                enc = self.encode_antialias(job, prepared, t, &mut times, enc)?;
+            }
+            self.encode_blend(&mut enc, t);
+            job.lap(&mut enc, &mut times.blend_ms)?;
         }
         gpu.queue.submit([enc.finish()]);
         Ok(times)
-    }
-
-    /// Pixels the voxel passes run on: rectangles from the models' occupied slabs for a
-    /// pinhole camera (partitioned, each with its models), every pixel through a distortion
-    /// table; `None` without voxel models.
-    fn voxel_rects(&self, job: &FrameJob) -> Option<VoxelRects> {
-        let v = self.voxels.as_ref()?;
-        let (cam, s) = (job.cam, job.s);
-        let pinhole = self.table.is_none();
-        let full = || {
-            vec![InstanceRect {
-                rect: crate::cpu::voxel::PixelRect::full(cam.width, cam.height),
-                instances: v.active_mask(),
-            }]
-        };
-        let boxes = v.active_boxes();
-        let cast = if pinhole {
-            crate::cpu::voxel::primary_rects(v.instances(), &boxes, cam)
-        } else {
-            full()
-        };
-        let shadows = if job.stage != Stage::Shade || !s.shadows {
-            Vec::new()
-        } else if pinhole {
-            crate::cpu::voxel::shadow_rects(
-                v.instances(),
-                &boxes,
-                cam,
-                job.scene.sun.direction(),
-                // No surface lies lower: the terrain's lowest point, the free
-                // forms' and the models' own (their boxes start the sweep); a curved
-                // terrain's drop.
-                (job.terrain.lowest_z()
-                    - job
-                        .terrain
-                        .curvature(cam.pose.position)
-                        .max_drop(job.terrain.cells()))
-                .min(self.objects_floor)
-                    - 1.0,
-            )
-        } else {
-            full()
-        };
-        Some((cast, shadows))
     }
 
     /// Records the primary-ray passes: tile pre-pass, terrain cast, free-form binning and
@@ -619,7 +574,11 @@ impl TerrainRenderer {
             encode_fullscreen(
                 enc,
                 "tile",
-                self.table.as_ref().map_or(&self.base.tile, |t| &t.tile),
+                match (&self.antialias, &self.table) {
+                    (Some(aa), _) if job.atlas => &aa.passes.tile,
+                    (_, Some(t)) => &t.tile,
+                    (_, None) => &self.base.tile,
+                },
                 &t.tile_bg,
                 &[&t.tile_view],
             );
@@ -648,7 +607,7 @@ impl TerrainRenderer {
     }
 
     /// Records the shading passes: voxel and free-form shadows, volume sun, shade, volumes and
-    /// their composite, edge blend.
+    /// their composite (the edge blend follows anti-aliasing, in `record`).
     fn encode_shading(
         &self,
         job: &FrameJob,
@@ -697,8 +656,12 @@ impl TerrainRenderer {
             (self.volumes).encode(enc, pipelines, &t.volumes, composite, &t.colour_view);
             job.lap(enc, &mut times.volume_ms)?;
         }
-        self.encode_blend(enc, t);
-        job.lap(enc, &mut times.blend_ms)
+        Ok(())
+    }
+
+    /// Whether the frame gets anti-aliasing samples: asked for, shaded, not the test pattern.
+    fn antialiased(&self, job: &FrameJob) -> bool {
+        job.s.antialias.is_on() && job.stage == Stage::Shade && self.pattern.is_none()
     }
 
     /// Records the edge blend, if any: copy the finished image aside, write it back blended.
@@ -736,6 +699,7 @@ impl TerrainRenderer {
             s,
             stage,
             timed: false,
+            atlas: false,
         };
         self.run_passes(&job).map(|_| ())
     }
@@ -757,6 +721,7 @@ impl TerrainRenderer {
             s,
             stage: Stage::Shade,
             timed: true,
+            atlas: false,
         };
         let times = self.run_passes(&job)?;
         let t = self.targets.as_ref().expect("targets exist after a render");

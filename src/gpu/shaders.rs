@@ -306,6 +306,27 @@ pub fn blend() -> String {
     [FULLSCREEN, include_str!("shaders/blend.wgsl")].concat()
 }
 
+/// Edge anti-aliasing (`gpu::antialias`), passes sharing `aa_common.wgsl`: the edge mask, the
+/// sample rays, the resolve (points at the marked pixels).
+const AA_COMMON: &str = include_str!("shaders/aa_common.wgsl");
+
+pub fn aa_edges() -> String {
+    [FULLSCREEN, AA_COMMON, include_str!("shaders/aa_edges.wgsl")].concat()
+}
+
+pub fn aa_rays() -> String {
+    [FULLSCREEN, AA_COMMON, include_str!("shaders/aa_rays.wgsl")].concat()
+}
+
+pub fn aa_resolve() -> String {
+    [
+        SRGB,
+        AA_COMMON,
+        include_str!("shaders/aa_resolve.wgsl"),
+    ]
+    .concat()
+}
+
 /// The window's present pass (fragment): the colour target or a debug view of the data target
 /// to the swap-chain image, with the text overlay.
 pub fn present() -> String {
@@ -406,6 +427,9 @@ pub fn all() -> Vec<(&'static str, String)> {
         ("volume_composite (1 volume)", volume_composite(1)),
         ("volume_composite (8 volumes)", volume_composite(8)),
         ("blend", blend()),
+        ("aa_edges", aa_edges()),
+        ("aa_rays", aa_rays()),
+        ("aa_resolve", aa_resolve()),
         ("voxels", voxels(2)),
         ("pattern", pattern()),
         ("present", present()),

@@ -79,7 +79,8 @@ impl Screen {
     fn new(dev: &wgpu::Device, raygen_compute: bool, size: [u32; 2], tiles: [u32; 2]) -> Screen {
         let mut usage = wgpu::TextureUsages::TEXTURE_BINDING
             | wgpu::TextureUsages::RENDER_ATTACHMENT
-            | wgpu::TextureUsages::COPY_SRC;
+            | wgpu::TextureUsages::COPY_SRC
+            | wgpu::TextureUsages::COPY_DST;
         if raygen_compute {
             usage |= wgpu::TextureUsages::STORAGE_BINDING;
         }

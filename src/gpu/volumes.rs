@@ -258,9 +258,11 @@ impl CompositePass {
         frame_ub: &wgpu::Buffer,
     ) -> CompositeTargets {
         let dev = &gpu.device;
+        // COPY_DST: anti-aliasing keeps the centre frame's statistics aside and puts them back.
         let usage = wgpu::TextureUsages::RENDER_ATTACHMENT
             | wgpu::TextureUsages::TEXTURE_BINDING
-            | wgpu::TextureUsages::COPY_SRC;
+            | wgpu::TextureUsages::COPY_SRC
+            | wgpu::TextureUsages::COPY_DST;
         let under = screen_texture(
             dev,
             "colour under the volumes",

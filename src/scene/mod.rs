@@ -1,10 +1,12 @@
 //! The scene file (TOML): terrain, sun, sky, fog, camera, output size and an optional camera
 //! path. Unknown keys are errors that name the key. No GPU types live here.
 
+pub mod antialias;
 mod camera;
 pub mod cigi;
 pub mod solar;
 
+pub use antialias::AntialiasOption;
 pub use camera::{Camera, CameraPath, Keyframe, Pose};
 
 use crate::error::check_finite;
@@ -183,6 +185,8 @@ pub struct RenderOptions {
     pub max_steps: u32,
     /// Footprint level of detail of the primary rays (`false`, `true` or a scale factor).
     pub lod: Lod,
+    /// Edge anti-aliasing: `"off"`, `"edges"`, 4, 8, 16 or `"reference"`.
+    pub antialias: AntialiasOption,
 }
 
 impl Default for RenderOptions {
@@ -192,6 +196,7 @@ impl Default for RenderOptions {
             tile_prepass: true,
             max_steps: 4096,
             lod: Lod::Switch(false),
+            antialias: AntialiasOption::Off,
         }
     }
 }

@@ -139,6 +139,7 @@ pub fn settings(shadows: bool, tile_prepass: bool) -> relief::gpu::RenderSetting
         tile_prepass,
         max_steps: 4096,
         lod: None,
+        antialias: relief::gpu::Antialias::OFF,
     }
 }
 

@@ -8,12 +8,15 @@
 //! * [`volume`]: the density-volume pass, skipping and early termination vs plain marching;
 //! * [`voxels`]: voxel models vs terrain only, and the paper's model sizes;
 //! * [`display`]: a display channel's table regeneration and direct frame vs pinhole;
+//! * [`antialias`]: edge anti-aliasing: frame time against none, extra rays, error and
+//!   temporal excess against the 16-rays reference;
 //! * [`cigi`]: the CIGI IG under an in-process host: query rates, latency, frame period;
 //! * [`soak`]: a long run watching memory, wgpu objects and frame times;
 //! * [`report`]: the report, its JSON and its printed form;
 //! * [`table`]: what every report has: the run, rows of figures, summary, notes;
 //! * [`timing`]: the scene at the benchmark's size, frame timing.
 
+pub mod antialias;
 pub mod cigi;
 pub mod db;
 pub mod display;
@@ -121,6 +124,13 @@ pub enum BenchCommand {
         #[command(flatten)]
         args: BenchArgs,
     },
+    /// Edge anti-aliasing: frame time with 4, 8 and 16 rays per edge pixel against none, the
+    /// extra rays, and p99 error and temporal excess against 16 rays per pixel on --frames
+    /// frames in motion at 320x180 (default scene: terrains/alps.toml).
+    Antialias {
+        #[command(flatten)]
+        args: BenchArgs,
+    },
     /// The terrain database: build throughput (synthetic mosaic), the scene through a database
     /// against its .hgt, and a scripted flight through the pager.
     Db {
@@ -143,6 +153,7 @@ impl BenchCommand {
             | BenchCommand::Display { args, .. }
             | BenchCommand::Soak { args }
             | BenchCommand::Cigi { args }
+            | BenchCommand::Antialias { args }
             | BenchCommand::Db { args, .. } => args,
         }
     }
@@ -225,6 +236,10 @@ impl BenchCommand {
             BenchCommand::Cigi { .. } => {
                 let (run, d) = cigi::run(scene, size, frames)?;
                 (run, Details::Cigi(d))
+            }
+            BenchCommand::Antialias { .. } => {
+                let (run, d) = antialias::run(scene, size, frames)?;
+                (run, Details::Antialias(d))
             }
             BenchCommand::Db { db: a, .. } => {
                 let (run, d) = db::run(scene, size, frames, a)?;

@@ -13,6 +13,7 @@
 //! printed), `summary` the headline figures, `notes` what is not a number, `details` the
 //! mode's whole result ([`Details`]).
 
+use super::antialias::AntialiasBench;
 use super::cigi::CigiBench;
 use super::db::DbBench;
 use super::display::DisplayBench;
@@ -40,6 +41,7 @@ pub enum Details {
     Soak(SoakBench),
     Db(DbBench),
     Cigi(CigiBench),
+    Antialias(AntialiasBench),
 }
 
 impl Details {
@@ -55,6 +57,7 @@ impl Details {
             Details::Soak(_) => "soak",
             Details::Db(_) => "db",
             Details::Cigi(_) => "cigi",
+            Details::Antialias(_) => "antialias",
         }
     }
 
@@ -70,6 +73,7 @@ impl Details {
             Details::Soak(d) => d.table(),
             Details::Db(d) => d.table(),
             Details::Cigi(d) => d.table(),
+            Details::Antialias(d) => d.table(),
         }
     }
 }

@@ -131,6 +131,7 @@ pub fn product_settings(scene: &Scene) -> RenderSettings {
         tile_prepass: true,
         max_steps: scene.desc.render.max_steps,
         lod: scene.desc.render.lod.scale(),
+        antialias: crate::gpu::Antialias::OFF,
     }
 }
 

@@ -4,7 +4,9 @@
 //! [`TerrainRenderer::lower_objects`] moves objects on the curved earth); only the placed
 //! slots are drawn.
 
-use super::{FrameJob, TerrainRenderer};
+use super::{FrameJob, TerrainRenderer, VoxelRects};
+use crate::cpu::voxel::InstanceRect;
+use crate::gpu::frame::Stage;
 use crate::freeform::FreeForm;
 use crate::gpu::Gpu;
 use crate::Result;
@@ -124,5 +126,85 @@ impl TerrainRenderer {
             .fold(f64::INFINITY, f64::min);
         self.objects_floor = self.statics_floor.min(floor);
         self.instances_dirty = false;
+    }
+}
+
+/// Where the objects are this frame: lowered on the curved earth, and the voxel passes'
+/// rectangles.
+impl TerrainRenderer {
+    /// On the curved earth, moves every free form, volume and voxel model rigidly down by the
+    /// drop below the eye's tangent plane at its anchor (`Terrain::curved_offset`; the CPU
+    /// oracle's `cpu::{freeform, volume, voxel}::lowered`), so that objects placed on the
+    /// ground stay on it; uploads only when the curvature seen from the eye changed. Nothing
+    /// on a flat terrain.
+    pub(super) fn lower_objects(&mut self, job: &FrameJob) {
+        let terrain = job.terrain;
+        let curv = terrain.curvature(job.cam.pose.position);
+        if self.lowered_for == Some(curv) || (self.lowered_for.is_none() && curv.is_flat()) {
+            self.place_instances(job, false);
+            return;
+        }
+        let offset = |anchor| terrain.curved_offset(&curv, anchor);
+        let mut deepest = 0.0f64;
+        if let Some(o) = &self.objects {
+            let offsets: Vec<_> = o.placed_origins().map(offset).collect();
+            deepest = offsets.iter().fold(deepest, |d, v| d.min(v.z));
+            o.set_offsets(job.gpu, &offsets);
+        }
+        self.statics_floor = self.placed_floor + deepest;
+        self.objects_floor = self.statics_floor;
+        self.place_instances(job, true);
+        for v in &mut self.volumes.passes {
+            v.offset = offset(v.volume.anchor());
+        }
+        if let Some(v) = &mut self.voxels {
+            let offsets: Vec<_> = v.placed().iter().map(|m| offset(m.position)).collect();
+            v.set_offsets(&offsets);
+        }
+        self.lowered_for = Some(curv);
+    }
+
+    /// Pixels the voxel passes run on: rectangles from the models' occupied slabs for a
+    /// pinhole camera (partitioned, each with its models), every pixel through a distortion
+    /// table; `None` without voxel models.
+    pub(super) fn voxel_rects(&self, job: &FrameJob) -> Option<VoxelRects> {
+        let v = self.voxels.as_ref()?;
+        let (cam, s) = (job.cam, job.s);
+        let pinhole = self.table.is_none();
+        let full = || {
+            vec![InstanceRect {
+                rect: crate::cpu::voxel::PixelRect::full(cam.width, cam.height),
+                instances: v.active_mask(),
+            }]
+        };
+        let boxes = v.active_boxes();
+        let cast = if pinhole {
+            crate::cpu::voxel::primary_rects(v.instances(), &boxes, cam)
+        } else {
+            full()
+        };
+        let shadows = if job.stage != Stage::Shade || !s.shadows {
+            Vec::new()
+        } else if pinhole {
+            crate::cpu::voxel::shadow_rects(
+                v.instances(),
+                &boxes,
+                cam,
+                job.scene.sun.direction(),
+                // No surface lies lower: the terrain's lowest point, the free
+                // forms' and the models' own (their boxes start the sweep); a curved
+                // terrain's drop.
+                (job.terrain.lowest_z()
+                    - job
+                        .terrain
+                        .curvature(cam.pose.position)
+                        .max_drop(job.terrain.cells()))
+                .min(self.objects_floor)
+                    - 1.0,
+            )
+        } else {
+            full()
+        };
+        Some((cast, shadows))
     }
 }

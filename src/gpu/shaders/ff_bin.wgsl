@@ -50,6 +50,15 @@ fn segment_near_box(ob: FfObject, o_world: vec3<f32>, dir: vec3<f32>, r: f32, u_
     return t0 <= t1;
 }
 
+// Pixel k of the rays that bound a bin's cone: its border, or with `every` all its pixels.
+fn cone_pixel(p0: vec2<u32>, last: vec2<u32>, k: u32, every: bool) -> vec2<u32> {
+    if (every) {
+        let w = last.x - p0.x + 1u;
+        return p0 + vec2<u32>(k % w, k / w);
+    }
+    return bin_border(p0, last, k);
+}
+
 fn bin_objects(b: vec2<u32>, list: u32) {
     if (b.x >= frame.objects.y || b.y >= frame.objects.z) {
         return;
@@ -99,15 +108,19 @@ fn bin_objects(b: vec2<u32>, list: u32) {
     // the extreme directions lie on the border), padded by the widest pixel cone and 10%. The
     // axis is the centre pixel's ray (the mean border ray where the centre shows no screen);
     // the half-angle comes from the largest chord |e - axis|, without trigonometry per pixel.
+    // In the anti-aliasing sample atlas (`frame.stamp.y` = 1) neighbouring entries need not be
+    // neighbouring rays: the cone is then taken over every ray of the bin, around their mean.
     let last = p1 - vec2<u32>(1u);
-    let perimeter = 2u * ((p1.x - p0.x) + (p1.y - p0.y));
+    let every = frame.stamp.y != 0u;
+    let width = p1.x - p0.x;
+    let count = select(2u * ((p1.x - p0.x) + (p1.y - p0.y)), width * (p1.y - p0.y), every);
     let centre = ray_entry((p0 + last) / 2u);
     var axis = centre.xyz;
     var cone = max(centre.w, 0.0);
-    if (centre.w < 0.0) {
+    if (centre.w < 0.0 || every) {
         var sum = vec3<f32>(0.0);
-        for (var k = 0u; k < perimeter; k++) {
-            let e = ray_entry(bin_border(p0, last, k));
+        for (var k = 0u; k < count; k++) {
+            let e = ray_entry(cone_pixel(p0, last, k, every));
             if (e.w >= 0.0) {
                 sum += e.xyz;
             }
@@ -115,8 +128,8 @@ fn bin_objects(b: vec2<u32>, list: u32) {
         axis = normalize(sum + vec3<f32>(0.0, 0.0, 1.0e-30));
     }
     var chord2 = 0.0;
-    for (var k = 0u; k < perimeter; k++) {
-        let e = ray_entry(bin_border(p0, last, k));
+    for (var k = 0u; k < count; k++) {
+        let e = ray_entry(cone_pixel(p0, last, k, every));
         if (e.w >= 0.0) {
             let c = e.xyz - axis;
             chord2 = max(chord2, dot(c, c));

@@ -54,7 +54,8 @@ struct Frame {
     // x: free-form count, y, z: object bins across and down, w: bin capacity.
     objects: vec4<u32>,
     // x: this frame's stamp (never 0; the free-form shadow pass marks blocked pixels with it,
-    // so its target needs no clear), yzw: unused.
+    // so its target needs no clear); y: 1 in the anti-aliasing sample atlas (neighbouring
+    // entries need not be neighbouring rays: free-form bins bound every ray); zw: unused.
     stamp: vec4<u32>,
     // Curved earth (`CURVED` pipelines): eye grid x, y; drop per squared grid step along x, y
     // (metres): the datum lies k.x (x - ex)^2 + k.y (y - ey)^2 below the eye's tangent plane.

@@ -1,0 +1,481 @@
+//! Edge anti-aliasing (`[render] antialias`): after the frame of centre rays, the pixels whose
+//! rays straddle a discontinuity that shows get `n` sub-pixel rays each, resolved in linear
+//! light ([`Antialias`]; design and figures in `docs/antialiasing.md`).
+//!
+//! 1. **Edges** (`aa_edges.wgsl`): a mask from the centre frame's capture data and colour: a
+//!    neighbour showing another surface (sky, terrain, another free form, a voxel model) or
+//!    across a shadow boundary, or a kink of 1/distance across the pixel (a crease or a depth
+//!    jump on one surface), where the colour changes by more than a threshold; or a colour
+//!    step to a neighbour above a larger threshold on one surface (detail finer than the
+//!    pixel). Read back, the mask becomes the list of marked pixels.
+//! 2. The **sample atlas**: a target of the list's n samples only (entry i = sample i % n of
+//!    marked pixel i / n, row by row), with its own frame targets. Mesa's CPU rasterisers run
+//!    every lane of a fragment block, so a full-screen pass with most pixels switched off would
+//!    cost nearly a full pass; on the atlas the samples cost what their rays cost, and every
+//!    pass runs once for all n samples. **Sample rays** (`aa_rays.wgsl`) write its ray table:
+//!    sub-pixel position k of a 4x4 grid, from the centre table and its derivatives (so every
+//!    ray generation, pinhole or distortion table, works the same), the pixel's cone; then the
+//!    frame's primary and shading passes run on it (without the tile pre-pass, and with
+//!    free-form bins bounding every ray of a bin: neighbouring entries are not neighbouring
+//!    rays).
+//! 3. **Resolve** (`aa_resolve.wgsl`): one point per marked pixel writes the mean of its
+//!    samples, and the centre ray's capture data with flag 128, into the frame's targets; the
+//!    other pixels keep the centre rays' colour and data; the frame's ray table is untouched.
+//!
+//! With every pixel marked and n = 16 this is relief's own supersampled reference (4x4 rays
+//! inside each pixel, the pixel's own cone).
+
+use super::util::{
+    float_texture_entry, fullscreen_pipeline, screen_texture, target_state, uint_texture_entry,
+    view,
+};
+use super::{shaders, Gpu};
+use wgpu::TextureFormat as F;
+
+/// How a frame is anti-aliased (`[render] antialias`, `--antialias`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize)]
+pub struct Antialias {
+    /// Sub-pixel rays per anti-aliased pixel: 0 (off), 4, 8 or 16.
+    pub samples: u32,
+    /// Every pixel, not only edges (the supersampled reference).
+    pub every_pixel: bool,
+}
+
+impl Antialias {
+    pub const OFF: Antialias = Antialias {
+        samples: 0,
+        every_pixel: false,
+    };
+    /// The reference: 16 rays (4x4) in every pixel.
+    pub const REFERENCE: Antialias = Antialias {
+        samples: 16,
+        every_pixel: true,
+    };
+    pub fn is_on(self) -> bool {
+        self.samples > 0
+    }
+
+    /// The scene's (or the command line's) choice.
+    pub fn from_option(o: crate::scene::AntialiasOption) -> Antialias {
+        Antialias {
+            samples: o.samples(),
+            every_pixel: o.every_pixel(),
+        }
+    }
+}
+
+/// Colour contrast (sRGB, 0..1) below which a discontinuity gets no extra rays.
+pub const CONTRAST: f32 = 2.0 / 255.0;
+/// Relative kink of 1/distance across a pixel above which a surface has a crease or jump.
+pub const KINK: f32 = 0.02;
+/// Colour contrast to a neighbour (sRGB, 0..1) above which a pixel is marked on one surface
+/// too: detail finer than the pixel (far slopes, a drape's texture).
+pub const DETAIL: f32 = 12.0 / 255.0;
+
+/// Sample positions on the 4x4 grid inside a pixel (column, row), ordered so that the first 4
+/// are a rotated grid (one per row and column) and the first 8 two of them (two per row and
+/// column); all 16 are the reference's.
+const GRID: [[u8; 2]; 16] = [
+    [1, 0],
+    [3, 1],
+    [2, 3],
+    [0, 2],
+    [2, 0],
+    [0, 1],
+    [1, 3],
+    [3, 2],
+    [0, 0],
+    [2, 2],
+    [3, 0],
+    [1, 2],
+    [2, 1],
+    [0, 3],
+    [1, 1],
+    [3, 3],
+];
+
+/// Sample `k`'s offset from the pixel centre in pixels.
+pub fn sample_offset(k: usize) -> [f32; 2] {
+    GRID[k % 16].map(|i| (f32::from(i) + 0.5) / 4.0 - 0.5)
+}
+
+/// Mirrors WGSL `AaParams` in `shaders/aa_common.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct AaUniforms {
+    pub size: [u32; 4],
+    pub atlas: [u32; 4],
+    pub limits: [f32; 4],
+    pub offsets: [[f32; 4]; 8],
+}
+
+/// The passes' pipelines and parameters.
+pub(crate) struct AntialiasPasses {
+    /// The tile pre-pass over every ray of a tile (the atlas's tiles are not pinhole
+    /// quadrilaterals).
+    pub tile: wgpu::RenderPipeline,
+    edges: wgpu::RenderPipeline,
+    rays: wgpu::RenderPipeline,
+    resolve: wgpu::RenderPipeline,
+    layouts: [wgpu::BindGroupLayout; 3],
+    params: wgpu::Buffer,
+}
+
+/// Rows of the atlas come in multiples of this (fewer new atlases as the list changes).
+const ATLAS_ROWS: u32 = 32;
+
+/// The atlas's width for a `width` frame: a multiple of 16 (its 4x4 groups, the free-form
+/// bins) at least 64.
+pub fn atlas_width(width: u32) -> u32 {
+    width.div_ceil(16).max(4) * 16
+}
+
+/// Samples per marked pixel of `aa`: 4, 8 or 16 (a divisor of a 4x4 group; other counts are
+/// rounded up to the next of these).
+pub fn samples(aa: Antialias) -> u32 {
+    match aa.samples {
+        0..=4 => 4,
+        5..=8 => 8,
+        _ => 16,
+    }
+}
+
+/// The screen-sized textures: the centre frame's capture data, the mask and its readback, the
+/// list of marked pixels, and the edge pass's bind group.
+pub(crate) struct AntialiasTargets {
+    pub size: [u32; 2],
+    pub centre_data: wgpu::Texture,
+    centre_data_view: wgpu::TextureView,
+    centre_rays_view: wgpu::TextureView,
+    mask: wgpu::Texture,
+    mask_view: wgpu::TextureView,
+    mask_rb: wgpu::Buffer,
+    pixels: wgpu::Texture,
+    pixels_view: wgpu::TextureView,
+    edges_bg: wgpu::BindGroup,
+}
+
+/// The sample atlas of one size: its own frame targets (every pass of the samples runs on
+/// them) and the bind groups of the sample rays and the resolve.
+pub(crate) struct Atlas {
+    pub targets: super::targets::Targets,
+    rays_bg: wgpu::BindGroup,
+    resolve_bg: wgpu::BindGroup,
+}
+
+/// Bytes per screen pixel of [`AntialiasTargets`]: data 16, mask 4 and its readback 4, list 4
+/// (the atlas's frame targets come on top, sized by the samples).
+pub const TARGET_BYTES_PER_PIXEL: u64 = 28;
+
+fn texture(gpu: &Gpu, label: &str, size: [u32; 2], format: F) -> wgpu::Texture {
+    screen_texture(
+        &gpu.device,
+        label,
+        size,
+        format,
+        wgpu::TextureUsages::RENDER_ATTACHMENT
+            | wgpu::TextureUsages::TEXTURE_BINDING
+            | wgpu::TextureUsages::COPY_SRC
+            | wgpu::TextureUsages::COPY_DST,
+    )
+}
+
+fn view_of(t: &wgpu::Texture) -> wgpu::TextureView {
+    t.create_view(&Default::default())
+}
+
+impl AntialiasPasses {
+    pub fn new(gpu: &Gpu, base: &super::terrain_passes::TerrainPasses) -> AntialiasPasses {
+        let dev = &gpu.device;
+        let (fs, vf) = (
+            wgpu::ShaderStages::FRAGMENT,
+            wgpu::ShaderStages::VERTEX_FRAGMENT,
+        );
+        let p = super::util::uniform_entry(gpu.params, 0, vf);
+        let u = |b| uint_texture_entry(b, fs);
+        let f = |b| float_texture_entry(b, fs, wgpu::TextureViewDimension::D2);
+        let layout = |label, entries: &[wgpu::BindGroupLayoutEntry]| {
+            dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some(label),
+                entries,
+            })
+        };
+        let pixels = uint_texture_entry(1, vf);
+        let layouts = [
+            layout("aa edges", &[p, f(2), u(3)]),
+            layout("aa rays", &[p, u(1), u(2)]),
+            layout("aa resolve", &[p, pixels, f(2), u(3)]),
+        ];
+        let module = |name: &str, src: String| super::shader_module(dev, gpu.params, name, &src);
+        let state = |t: F| Some(target_state(t));
+        let edges = fullscreen_pipeline(
+            dev,
+            "aa edges",
+            &module("aa_edges.wgsl", shaders::aa_edges()),
+            "fs_edges",
+            &layouts[0],
+            &[state(F::R32Uint)],
+        );
+        let rays = fullscreen_pipeline(
+            dev,
+            "aa rays",
+            &module("aa_rays.wgsl", shaders::aa_rays()),
+            "fs_sample_rays",
+            &layouts[1],
+            &[state(F::Rgba32Uint)],
+        );
+        let m = module("aa_resolve.wgsl", shaders::aa_resolve());
+        let resolve = dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("aa resolve"),
+            layout: Some(&super::util::pipeline_layout(dev, &layouts[2])),
+            vertex: wgpu::VertexState {
+                module: &m,
+                entry_point: Some("vs_point"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::PointList,
+                ..Default::default()
+            },
+            depth_stencil: None,
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &m,
+                entry_point: Some("fs_resolve"),
+                compilation_options: Default::default(),
+                targets: &[state(F::Rgba8Unorm), state(F::Rgba32Uint)],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        AntialiasPasses {
+            tile: fullscreen_pipeline(
+                dev,
+                "tile (anti-aliasing atlas)",
+                &base.tile_mod,
+                "fs_tile_table",
+                &base.bgl.tile,
+                &[state(F::Rg32Uint)],
+            ),
+            edges,
+            rays,
+            resolve,
+            layouts,
+            params: dev.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("aa parameters"),
+                size: std::mem::size_of::<AaUniforms>() as u64,
+                usage: super::PARAM_USAGE,
+                mapped_at_creation: false,
+            }),
+        }
+    }
+
+    /// Writes the parameters of a `size` frame anti-aliased as `aa` with `marked` pixels in
+    /// the list.
+    pub fn write_params(&self, gpu: &Gpu, size: [u32; 2], aa: Antialias, marked: u32) {
+        let mut offsets = [[0.0f32; 4]; 8];
+        for (k, o) in offsets.iter_mut().enumerate() {
+            let (a, b) = (sample_offset(2 * k), sample_offset(2 * k + 1));
+            *o = [a[0], a[1], b[0], b[1]];
+        }
+        let u = AaUniforms {
+            size: [size[0], size[1], marked, samples(aa)],
+            atlas: [atlas_width(size[0]), aa.every_pixel as u32, 0, 0],
+            limits: [CONTRAST, KINK, DETAIL, 0.0],
+            offsets,
+        };
+        gpu.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&u));
+    }
+
+    fn group(&self, gpu: &Gpu, k: usize, entries: &[wgpu::BindGroupEntry]) -> wgpu::BindGroup {
+        gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("aa"),
+            layout: &self.layouts[k],
+            entries,
+        })
+    }
+
+    /// The screen-sized targets of a `size` frame whose centre rays are `ray_table` (the
+    /// samples run on the atlas's own targets: the frame's ray table stays).
+    pub fn targets(
+        &self,
+        gpu: &Gpu,
+        size: [u32; 2],
+        ray_table: &wgpu::TextureView,
+        colour: &wgpu::TextureView,
+    ) -> AntialiasTargets {
+        let centre_data = texture(gpu, "aa centre data", size, F::Rgba32Uint);
+        let mask = texture(gpu, "aa mask", size, F::R32Uint);
+        let pixels = texture(gpu, "aa marked pixels", size, F::R32Uint);
+        let (data_v, mask_v) = (view_of(&centre_data), view_of(&mask));
+        let edges_bg = self.group(
+            gpu,
+            0,
+            &[super::util::buf(0, &self.params), view(2, colour), view(3, &data_v)],
+        );
+        let mask_rb = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("aa mask readback"),
+            size: u64::from(super::util::padded_row(size[0] * 4)) * u64::from(size[1]),
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        AntialiasTargets {
+            size,
+            centre_data,
+            centre_data_view: data_v,
+            centre_rays_view: ray_table.clone(),
+            mask_view: mask_v,
+            mask,
+            mask_rb,
+            pixels_view: view_of(&pixels),
+            pixels,
+            edges_bg,
+        }
+    }
+
+    /// The atlas over `targets` (its frame targets) for the screen targets `t`.
+    pub fn atlas(
+        &self,
+        gpu: &Gpu,
+        t: &AntialiasTargets,
+        targets: super::targets::Targets,
+    ) -> Atlas {
+        let params = || super::util::buf(0, &self.params);
+        let rays_bg = self.group(
+            gpu,
+            1,
+            &[params(), view(1, &t.centre_rays_view), view(2, &t.pixels_view)],
+        );
+        let resolve_bg = self.group(
+            gpu,
+            2,
+            &[
+                params(),
+                view(1, &t.pixels_view),
+                view(2, &targets.colour_view),
+                view(3, &t.centre_data_view),
+            ],
+        );
+        Atlas {
+            targets,
+            rays_bg,
+            resolve_bg,
+        }
+    }
+
+    /// Records the edge mask over the centre frame and its readback copy.
+    pub fn encode_edges(&self, enc: &mut wgpu::CommandEncoder, t: &AntialiasTargets) {
+        super::util::encode_fullscreen(enc, "aa edges", &self.edges, &t.edges_bg, &[&t.mask_view]);
+        enc.copy_texture_to_buffer(
+            t.mask.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &t.mask_rb,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(super::util::padded_row(t.size[0] * 4)),
+                    rows_per_image: Some(t.size[1]),
+                },
+            },
+            t.mask.size(),
+        );
+    }
+
+    /// Records the sample rays into the atlas's ray table.
+    pub fn encode_rays(&self, enc: &mut wgpu::CommandEncoder, a: &Atlas) {
+        let out = &a.targets.ray_table_view;
+        super::util::encode_fullscreen(enc, "aa rays", &self.rays, &a.rays_bg, &[out]);
+    }
+
+    /// Records the resolve of the `marked` pixels into the frame's colour and data targets
+    /// (kept elsewhere).
+    pub fn encode_resolve(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        a: &Atlas,
+        marked: u32,
+        colour: &wgpu::TextureView,
+        data: &wgpu::TextureView,
+    ) {
+        let keep = |v| {
+            Some(wgpu::RenderPassColorAttachment {
+                view: v,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Load,
+                    store: wgpu::StoreOp::Store,
+                },
+            })
+        };
+        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("aa resolve"),
+            color_attachments: &[keep(colour), keep(data)],
+            depth_stencil_attachment: None,
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(&self.resolve);
+        pass.set_bind_group(0, &a.resolve_bg, &[]);
+        pass.draw(0..marked, 0..1);
+    }
+}
+
+impl AntialiasTargets {
+    /// The mask read back (after [`AntialiasPasses::encode_edges`] was submitted): the
+    /// marked pixels row by row, packed x | y << 16.
+    pub fn marked_pixels(&self, gpu: &Gpu) -> crate::Result<Vec<u32>> {
+        let [w, h] = self.size;
+        let bytes = super::util::read_buffer(gpu, &self.mask_rb, w * 4, h)?;
+        let mut out = Vec::new();
+        for (i, v) in bytes.chunks_exact(4).enumerate() {
+            if v != [0, 0, 0, 0] {
+                let (x, y) = (i as u32 % w, i as u32 / w);
+                out.push(x | (y << 16));
+            }
+        }
+        Ok(out)
+    }
+
+    /// Uploads the list of marked pixels (row by row in the screen's width).
+    pub fn write_pixels(&self, gpu: &Gpu, list: &[u32]) {
+        let w = self.size[0];
+        let rows = (list.len() as u32).div_ceil(w);
+        let mut data = list.to_vec();
+        data.resize((rows * w) as usize, 0);
+        gpu.queue.write_texture(
+            self.pixels.as_image_copy(),
+            bytemuck::cast_slice(&data),
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(w * 4),
+                rows_per_image: Some(rows),
+            },
+            wgpu::Extent3d {
+                width: w,
+                height: rows,
+                depth_or_array_layers: 1,
+            },
+        );
+    }
+
+    /// The atlas size for `marked` pixels of `aa`'s samples: [`atlas_width`], rows of 4x4
+    /// groups (16 / n pixels each) in multiples of [`ATLAS_ROWS`].
+    pub fn atlas_size(&self, marked: u32, aa: Antialias) -> [u32; 2] {
+        let w = atlas_width(self.size[0]);
+        let groups = marked.div_ceil(16 / samples(aa));
+        let rows = groups.div_ceil(w / 4) * 4;
+        [w, rows.div_ceil(ATLAS_ROWS).max(1) * ATLAS_ROWS]
+    }
+}
+
+/// Records a copy of all of `from` into `to` (same size and format: the centre frame's data
+/// kept for the resolve).
+pub(crate) fn copy_whole(
+    enc: &mut wgpu::CommandEncoder,
+    from: &wgpu::Texture,
+    to: &wgpu::Texture,
+) {
+    enc.copy_texture_to_texture(from.as_image_copy(), to.as_image_copy(), from.size());
+}

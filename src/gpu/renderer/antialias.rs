@@ -1,0 +1,145 @@
+//! Recording of an anti-aliased frame's extra passes (`gpu::antialias`): the edge mask read
+//! back into the list of marked pixels, the sample atlas (its frame passes run once for every
+//! sample), and the resolve into the frame's colour and data.
+
+use super::{FrameJob, Prepared, TerrainRenderer, VoxelRects};
+use crate::cpu::voxel::{InstanceRect, PixelRect};
+use crate::gpu::antialias::{copy_whole, AntialiasPasses, AntialiasTargets, Atlas};
+use crate::gpu::frame::PassTimes;
+use crate::gpu::objects::BIN_CAPACITY;
+use crate::gpu::targets::{TargetPasses, Targets};
+use crate::Result;
+use std::cell::RefCell;
+use std::time::Instant;
+
+/// The anti-aliasing passes and the targets of the current frame size.
+pub(crate) struct AntialiasState {
+    pub passes: AntialiasPasses,
+    pub targets: Option<AntialiasTargets>,
+    /// The sample atlas of the last anti-aliased frame (made again when its size changes).
+    atlas: RefCell<Option<Atlas>>,
+}
+
+impl TerrainRenderer {
+    /// Builds the passes on first use and the screen targets for the current frame size;
+    /// writes the parameters. Called from `prepare` when the frame is anti-aliased.
+    pub(super) fn prepare_antialias(&mut self, job: &FrameJob) {
+        let gpu = job.gpu;
+        let t = self.targets.as_ref().expect("targets just ensured");
+        let size = [t.width, t.height];
+        let state = self.antialias.get_or_insert_with(|| AntialiasState {
+            passes: AntialiasPasses::new(gpu, &self.base),
+            targets: None,
+            atlas: RefCell::new(None),
+        });
+        if state.targets.is_none() {
+            *state.atlas.borrow_mut() = None;
+            let colour = &t.colour_view;
+            state.targets = Some(state.passes.targets(gpu, size, &t.ray_table_view, colour));
+        }
+        state.passes.write_params(gpu, size, job.s.antialias, 0);
+    }
+
+    /// The frame targets of a `size` atlas (no edge blend: it follows the resolve).
+    fn atlas_targets(&self, job: &FrameJob, [w, h]: [u32; 2]) -> Result<Targets> {
+        self.check_target_size(job.gpu, "anti-aliasing sample atlas", w, h)?;
+        let passes = TargetPasses {
+            base: &self.base,
+            table: self.table.as_ref(),
+            objects: self.objects.as_ref(),
+            volumes: &self.volumes,
+            voxels: self.voxels.as_ref(),
+            blend: None,
+        };
+        job.gpu.scoped(&format!("anti-aliasing sample atlas {w}x{h}"), || {
+            Targets::new(job.gpu, &passes, w, h)
+        })
+    }
+
+    /// Records the samples after the centre frame `enc` holds: submits the centre frame and
+    /// the edge mask, reads the mask back, submits the samples' passes on the atlas and the
+    /// resolve; returns a fresh encoder (the edge blend follows).
+    pub(super) fn encode_antialias(
+        &self,
+        job: &FrameJob,
+        prepared: &Prepared,
+        t: &Targets,
+        times: &mut PassTimes,
+        mut enc: wgpu::CommandEncoder,
+    ) -> Result<wgpu::CommandEncoder> {
+        let gpu = job.gpu;
+        let Some(state) = &self.antialias else {
+            return Ok(enc);
+        };
+        let (aa, at) = (&state.passes, state.targets.as_ref().expect("prepared"));
+        let start = Instant::now();
+        copy_whole(&mut enc, &t.data, &at.centre_data);
+        aa.encode_edges(&mut enc, at);
+        gpu.queue.submit([enc.finish()]);
+        let list = at.marked_pixels(gpu)?;
+        let marked = list.len() as u32;
+        if marked > 0 {
+            let size = at.atlas_size(marked, job.s.antialias);
+            log::debug!("anti-aliasing: {marked} pixels marked, atlas {size:?}");
+            let mut atlas = state.atlas.borrow_mut();
+            if atlas.as_ref().map(|a| [a.targets.width, a.targets.height]) != Some(size) {
+                *atlas = None;
+                *atlas = Some(aa.atlas(gpu, at, self.atlas_targets(job, size)?));
+            }
+            let atlas = atlas.as_ref().expect("just made");
+            at.write_pixels(gpu, &list);
+            aa.write_params(gpu, at.size, job.s.antialias, marked);
+            let mut enc = gpu.device.create_command_encoder(&Default::default());
+            self.encode_samples(job, prepared, atlas, &mut enc)?;
+            aa.encode_resolve(&mut enc, atlas, marked, &t.colour_view, &t.data_view);
+            gpu.queue.submit([enc.finish()]);
+        }
+        if job.timed {
+            gpu.wait()?;
+            times.antialias_ms = start.elapsed().as_secs_f64() * 1e3;
+        }
+        Ok(gpu.device.create_command_encoder(&Default::default()))
+    }
+
+    /// Records every sample's passes on `atlas`: its frame uniforms (its size, tiles and bins,
+    /// the next stamp, bins over every ray; the tile pre-pass over every ray of a tile), the
+    /// sample rays, the primary and
+    /// shading passes.
+    fn encode_samples(
+        &self,
+        job: &FrameJob,
+        prepared: &Prepared,
+        atlas: &Atlas,
+        enc: &mut wgpu::CommandEncoder,
+    ) -> Result<()> {
+        let gpu = job.gpu;
+        let aa = &self.antialias.as_ref().expect("prepared").passes;
+        let at = &atlas.targets;
+        let mut fu = prepared.uniforms;
+        fu.size = [at.width, at.height, at.tiles[0], at.tiles[1]];
+        if let (Some(o), Some((ot, _))) = (&self.objects, &at.objects) {
+            fu.objects = [o.active, ot.bins[0], ot.bins[1], BIN_CAPACITY];
+        }
+        fu.stamp = [prepared.stamp.wrapping_add(1).max(1), 1, 0, 0];
+        gpu.queue
+            .write_buffer(&self.base.data.frame_ub, 0, bytemuck::bytes_of(&fu));
+        // The voxel passes over the whole atlas (screen rectangles do not apply to it).
+        let rects: Option<VoxelRects> = self.voxels.as_ref().map(|v| {
+            let full = vec![InstanceRect {
+                rect: PixelRect::full(at.width, at.height),
+                instances: v.active_mask(),
+            }];
+            let shadows = if job.s.shadows { full.clone() } else { Vec::new() };
+            (full, shadows)
+        });
+        let quiet = FrameJob {
+            timed: false,
+            atlas: true,
+            ..*job
+        };
+        let mut scratch = PassTimes::default();
+        aa.encode_rays(enc, atlas);
+        self.encode_primary(&quiet, enc, &mut scratch, at, rects.as_ref())?;
+        self.encode_shading(&quiet, enc, &mut scratch, at, prepared, rects.as_ref())
+    }
+}

@@ -1,0 +1,57 @@
+// Edge anti-aliasing, shared by its passes (`gpu::antialias`): the parameter block (mirrored
+// by `gpu::antialias::AaUniforms`) and the sample list's layout.
+
+struct AaParams {
+    // Screen width, height; marked pixels m; samples per marked pixel n.
+    size: vec4<u32>,
+    // x: atlas width (entries a row, a multiple of 4); y: 1 = every pixel marked (the
+    // reference).
+    atlas: vec4<u32>,
+    // x: colour contrast (sRGB, 0..1) below which a discontinuity is not worth extra rays;
+    // y: inverse-depth kink, relative, above which a surface has a crease; z: colour step to
+    // a neighbour above which a pixel is marked on one surface too (detail finer than it).
+    limits: vec4<f32>,
+    // Sample k's offset from the pixel centre (pixels): offsets[k / 2].xy or .zw.
+    offsets: array<vec4<f32>, 8>,
+}
+
+@group(0) @binding(0) var<uniform> aa: AaParams;
+
+// Unmarked pixels and atlas entries past the list.
+const AA_NONE: u32 = 0xffffffffu;
+
+fn aa_inside(q: vec2<i32>) -> bool {
+    return q.x >= 0 && q.y >= 0 && q.x < i32(aa.size.x) && q.y < i32(aa.size.y);
+}
+
+// Marked pixel m of the list (`aa_pixels`: x | y << 16, row by row in the screen's width).
+fn aa_pixel(pixels: texture_2d<u32>, m: u32) -> vec2<i32> {
+    let w = aa.size.x;
+    let v = textureLoad(pixels, vec2<i32>(i32(m % w), i32(m / w)), 0).x;
+    return vec2<i32>(i32(v & 0xffffu), i32(v >> 16u));
+}
+
+fn aa_offset(k: u32) -> vec2<f32> {
+    let o = aa.offsets[k / 2u];
+    return select(o.xy, o.zw, (k & 1u) == 1u);
+}
+
+// The atlas is made of 4x4 groups, each holding the n samples (4, 8 or 16) of 16 / n
+// consecutive marked pixels, so that a fragment block of the rasteriser casts the rays of
+// one or two pixels (coherent rays), and the groups follow the list row by row.
+fn aa_atlas_entry(m: u32, k: u32) -> vec2<i32> {
+    let n = aa.size.w;
+    let per = 16u / n;
+    let groups = aa.atlas.x / 4u;
+    let g = m / per;
+    let e = (m % per) * n + k;
+    return vec2<i32>(i32((g % groups) * 4u + e % 4u), i32((g / groups) * 4u + e / 4u));
+}
+
+// The marked pixel m (x) and sample k (y) of atlas entry `a`.
+fn aa_atlas_sample(a: vec2<u32>) -> vec2<u32> {
+    let n = aa.size.w;
+    let g = (a.y / 4u) * (aa.atlas.x / 4u) + a.x / 4u;
+    let e = (a.y % 4u) * 4u + a.x % 4u;
+    return vec2<u32>(g * (16u / n) + e / n, e % n);
+}

@@ -1,0 +1,81 @@
+// Anti-aliasing, edge pass: from the centre rays' frame (colour, capture data, ray table),
+// marks the pixels whose rays straddle a discontinuity that shows: a different surface
+// (sky, terrain, free form by id, voxel model), a shadow boundary, or a crease or depth jump
+// on one surface (1/distance is affine along a plane's image, so its second difference
+// across the pixel is a kink), where the colour also changes by more than the contrast
+// threshold; or a colour step to a neighbour above the detail threshold. The mask is 1 where
+// the pixel gets sub-pixel rays; read back, it makes the sample list.
+
+@group(0) @binding(2) var centre_colour: texture_2d<f32>;
+@group(0) @binding(3) var centre_data: texture_2d<u32>;
+
+// Flag 8 of the capture data: the pixel shows no screen (distortion tables).
+fn has_screen(d: vec4<u32>) -> bool {
+    return (d.w & 8u) == 0u;
+}
+
+// What surface a pixel shows: the hit, free-form and voxel flags and the free form's id
+// (capture data flags, `shade.wgsl`); 0 for the sky.
+fn surface_key(d: vec4<u32>) -> u32 {
+    return (d.w & 0x31u) | (d.w & 0xffffff00u);
+}
+
+fn inverse_depth(d: vec4<u32>) -> f32 {
+    return 1.0 / max(bitcast<f32>(d.x), 1.0e-6);
+}
+
+fn contrast(a: vec3<f32>, b: vec3<f32>) -> f32 {
+    let d = abs(a - b);
+    return max(d.x, max(d.y, d.z));
+}
+
+// The kink of 1/distance across `px` along `axis`, relative (0 where the three pixels do not
+// show one surface).
+fn kink(px: vec2<i32>, axis: vec2<i32>, d0: vec4<u32>) -> f32 {
+    let a = px - axis;
+    let b = px + axis;
+    if (!aa_inside(a) || !aa_inside(b)) {
+        return 0.0;
+    }
+    let da = textureLoad(centre_data, a, 0);
+    let db = textureLoad(centre_data, b, 0);
+    let k = surface_key(d0);
+    if ((d0.w & 1u) == 0u || surface_key(da) != k || surface_key(db) != k) {
+        return 0.0;
+    }
+    let w0 = inverse_depth(d0);
+    return abs(inverse_depth(da) - 2.0 * w0 + inverse_depth(db)) / w0;
+}
+
+@fragment
+fn fs_edges(@builtin(position) pos: vec4<f32>) -> @location(0) u32 {
+    let px = vec2<i32>(pos.xy);
+    let d0 = textureLoad(centre_data, px, 0);
+    if (!has_screen(d0)) {
+        return 0u;
+    }
+    if (aa.atlas.y != 0u) {
+        return 1u;
+    }
+    let c0 = textureLoad(centre_colour, px, 0).xyz;
+    let key = surface_key(d0);
+    let threshold = aa.limits.x;
+    var mark = false;
+    var seen = 0.0;
+    let ring = array<vec2<i32>, 4>(vec2<i32>(1, 0), vec2<i32>(-1, 0), vec2<i32>(0, 1), vec2<i32>(0, -1));
+    for (var k = 0; k < 4; k += 1) {
+        let q = px + ring[k];
+        if (aa_inside(q)) {
+            let dq = textureLoad(centre_data, q, 0);
+            if (has_screen(dq)) {
+                let c = contrast(c0, textureLoad(centre_colour, q, 0).xyz);
+                seen = max(seen, c);
+                let apart = surface_key(dq) != key || ((dq.w ^ d0.w) & 2u) != 0u;
+                mark = mark || (apart && c > threshold);
+            }
+        }
+    }
+    let crease = max(kink(px, vec2<i32>(1, 0), d0), kink(px, vec2<i32>(0, 1), d0));
+    mark = mark || (crease > aa.limits.y && seen > threshold) || seen > aa.limits.z;
+    return select(0u, 1u, mark);
+}
