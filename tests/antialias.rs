@@ -76,8 +76,8 @@ fn the_airfields_hangars_and_runway_edges_stop_stepping() {
 /// `distortion/dome-5proj.toml` with its projectors at `w`x`h` (same dome, eye, poses,
 /// lenses and blends), written to `dir`.
 fn small_dome(dir: &std::path::Path, w: u32, h: u32) -> std::path::PathBuf {
-    let text = std::fs::read_to_string(common::project_dir().join("distortion/dome-5proj.toml"))
-        .unwrap();
+    let text =
+        std::fs::read_to_string(common::project_dir().join("distortion/dome-5proj.toml")).unwrap();
     assert!(text.matches("width = 400").count() >= 4);
     let text = text
         .replace("width = 400", &format!("width = {w}"))
@@ -212,7 +212,10 @@ impl Four {
 }
 
 fn largest_channel_difference(a: &[u8], b: &[u8], k: usize) -> u8 {
-    (0..3).map(|c| a[4 * k + c].abs_diff(b[4 * k + c])).max().unwrap()
+    (0..3)
+        .map(|c| a[4 * k + c].abs_diff(b[4 * k + c]))
+        .max()
+        .unwrap()
 }
 
 /// relief's reference (16 sub-pixel rays from the ray table and its derivatives) is the
@@ -229,7 +232,10 @@ fn check_sharpness(scene: &str) {
     let f = four(scene);
     let filtered = f.filtered();
     let agree = quality::pixel_errors(&f.reference.rgba, &filtered);
-    let (p99, p999) = (quality::quantile(&agree, 0.99), quality::quantile(&agree, 0.999));
+    let (p99, p999) = (
+        quality::quantile(&agree, 0.99),
+        quality::quantile(&agree, 0.999),
+    );
     let (o, e, rf) = (&f.off.rgba, &f.edges.rgba, &f.reference.rgba);
     let (mut interior, mut interior_moved) = (0, 0);
     let (mut changed, mut off_err, mut edges_err, mut worse) = (0, 0u64, 0u64, 0);
@@ -257,22 +263,37 @@ fn check_sharpness(scene: &str) {
         "{scene}: reference vs the 4x frame box-filtered: p99 {p99}, p99.9 {p999}, worst {}; {interior} interior pixels, {interior_moved} moved by more than 1/255; {changed} pixels changed: error sum {off_err} -> {edges_err}, {worse} further from the reference by more than a level",
         agree.iter().max().unwrap()
     );
-    assert!(p99 == 0.0 && p999 <= 1.0, "relief's reference is the 4x frame box-filtered");
+    assert!(
+        p99 == 0.0 && p999 <= 1.0,
+        "relief's reference is the 4x frame box-filtered"
+    );
     assert!(interior > 5000, "the frame has interior pixels");
     assert_eq!(interior_moved, 0, "interior pixels stay");
-    assert!(changed > 0 && edges_err < off_err, "changed pixels come closer");
+    assert!(
+        changed > 0 && edges_err < off_err,
+        "changed pixels come closer"
+    );
     assert_eq!(worse, 0, "no changed pixel moves away from the reference");
     assert_eq!(f.edges.depth, f.off.depth, "depth is the centre rays'");
     assert_eq!(f.edges.objects, f.off.objects, "ids are the centre rays'");
     assert_eq!(f.edges.steps, f.off.steps);
     let unflagged: Vec<u32> = f.edges.flags.iter().map(|v| v & !128).collect();
-    assert_eq!(unflagged, f.off.flags, "flags are the centre rays' but for 128");
+    assert_eq!(
+        unflagged, f.off.flags,
+        "flags are the centre rays' but for 128"
+    );
     let marked = f.edges.antialiased_pixels() as usize;
-    assert!(marked > 0 && marked < W * H / 2, "{marked} pixels anti-aliased");
+    assert!(
+        marked > 0 && marked < W * H / 2,
+        "{marked} pixels anti-aliased"
+    );
     let unmarked_same = (0..W * H)
         .filter(|&k| f.edges.flags[k] & 128 == 0)
         .all(|k| largest_channel_difference(e, o, k) == 0);
-    assert!(unmarked_same, "pixels without samples keep the centre ray's colour");
+    assert!(
+        unmarked_same,
+        "pixels without samples keep the centre ray's colour"
+    );
 }
 
 #[test]
@@ -318,7 +339,10 @@ fn the_command_line_reports_extra_rays_and_leaves_the_pattern() {
     };
     let edges = frame_json(&run("edges", &["--size", "160x90", "--antialias", "edges"]));
     let aa = &edges["antialias"];
-    let (pixels, rays) = (aa["pixels"].as_u64().unwrap(), aa["extra_rays"].as_u64().unwrap());
+    let (pixels, rays) = (
+        aa["pixels"].as_u64().unwrap(),
+        aa["extra_rays"].as_u64().unwrap(),
+    );
     eprintln!("160x90 alps: {pixels} pixels anti-aliased, {rays} extra rays");
     assert_eq!(aa["samples"].as_u64(), Some(16));
     assert!(pixels > 0 && pixels < 160 * 90 / 2);
@@ -328,9 +352,18 @@ fn the_command_line_reports_extra_rays_and_leaves_the_pattern() {
 
     let dome = small_dome(&dir, 160, 120);
     let pattern = |name: &str, aa: &str| {
-        let d = ["--display", dome.to_str().unwrap(), "--pattern", "--antialias", aa];
+        let d = [
+            "--display",
+            dome.to_str().unwrap(),
+            "--pattern",
+            "--antialias",
+            aa,
+        ];
         let out = run(name, &d);
-        (std::fs::read(out.join("frame_0000.png")).unwrap(), frame_json(&out))
+        (
+            std::fs::read(out.join("frame_0000.png")).unwrap(),
+            frame_json(&out),
+        )
     };
     let (plain, _) = pattern("pattern-off", "off");
     let (with, json) = pattern("pattern-edges", "edges");
@@ -339,5 +372,8 @@ fn the_command_line_reports_extra_rays_and_leaves_the_pattern() {
 
     let bad = relief(&["render", alps, "--antialias", "5"]);
     let err = String::from_utf8_lossy(&bad.stderr);
-    assert!(!bad.status.success() && err.contains("--antialias"), "{err}");
+    assert!(
+        !bad.status.success() && err.contains("--antialias"),
+        "{err}"
+    );
 }

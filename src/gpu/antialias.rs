@@ -18,9 +18,10 @@
 //!    frame's primary and shading passes run on it (without the tile pre-pass, and with
 //!    free-form bins bounding every ray of a bin: neighbouring entries are not neighbouring
 //!    rays).
-//! 3. **Resolve** (`aa_resolve.wgsl`): one point per marked pixel writes the mean of its
-//!    samples, and the centre ray's capture data with flag 128, into the frame's targets; the
-//!    other pixels keep the centre rays' colour and data; the frame's ray table is untouched.
+//! 3. **Resolve** (`aa_resolve.wgsl`): a full-screen pass writes the mean of each marked
+//!    pixel's samples, and the centre ray's capture data with flag 128, into the frame's
+//!    targets; the other pixels keep the centre rays' colour and data; the frame's ray table
+//!    is untouched.
 //!
 //! With every pixel marked and n = 16 this is relief's own supersampled reference (4x4 rays
 //! inside each pixel, the pixel's own cone).
@@ -99,6 +100,17 @@ pub fn sample_offset(k: usize) -> [f32; 2] {
     GRID[k % 16].map(|i| (f32::from(i) + 0.5) / 4.0 - 0.5)
 }
 
+/// The linear value of 8-bit sRGB value `v` (IEC 61966-2-1).
+fn srgb_to_linear(v: usize) -> f32 {
+    let c = v as f64 / 255.0;
+    let l = if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    };
+    l as f32
+}
+
 /// Mirrors WGSL `AaParams` in `shaders/aa_common.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
@@ -107,6 +119,7 @@ pub struct AaUniforms {
     pub atlas: [u32; 4],
     pub limits: [f32; 4],
     pub offsets: [[f32; 4]; 8],
+    pub linear: [[f32; 4]; 64],
 }
 
 /// The passes' pipelines and parameters.
@@ -124,6 +137,9 @@ pub(crate) struct AntialiasPasses {
 /// Rows of the atlas come in multiples of this (fewer new atlases as the list changes).
 const ATLAS_ROWS: u32 = 32;
 
+/// Not a marked pixel (WGSL `AA_NONE`).
+const NONE: u32 = u32::MAX;
+
 /// The atlas's width for a `width` frame: a multiple of 16 (its 4x4 groups, the free-form
 /// bins) at least 64.
 pub fn atlas_width(width: u32) -> u32 {
@@ -140,12 +156,17 @@ pub fn samples(aa: Antialias) -> u32 {
     }
 }
 
-/// The screen-sized textures: the centre frame's capture data, the mask and its readback, the
-/// list of marked pixels, and the edge pass's bind group.
+/// The screen-sized textures: the centre frame's colour and capture data, the mask and its
+/// readback, the list of marked pixels and each pixel's place in it, and the edge pass's bind
+/// group.
 pub(crate) struct AntialiasTargets {
     pub size: [u32; 2],
     pub centre_data: wgpu::Texture,
     centre_data_view: wgpu::TextureView,
+    pub centre_colour: wgpu::Texture,
+    centre_colour_view: wgpu::TextureView,
+    index: wgpu::Texture,
+    index_view: wgpu::TextureView,
     centre_rays_view: wgpu::TextureView,
     mask: wgpu::Texture,
     mask_view: wgpu::TextureView,
@@ -163,9 +184,9 @@ pub(crate) struct Atlas {
     resolve_bg: wgpu::BindGroup,
 }
 
-/// Bytes per screen pixel of [`AntialiasTargets`]: data 16, mask 4 and its readback 4, list 4
-/// (the atlas's frame targets come on top, sized by the samples).
-pub const TARGET_BYTES_PER_PIXEL: u64 = 28;
+/// Bytes per screen pixel of [`AntialiasTargets`]: data 16, colour 4, mask 1 and its readback
+/// 1, list 4, index 4 (the atlas's frame targets come on top, sized by the samples).
+pub const TARGET_BYTES_PER_PIXEL: u64 = 30;
 
 fn texture(gpu: &Gpu, label: &str, size: [u32; 2], format: F) -> wgpu::Texture {
     screen_texture(
@@ -187,11 +208,8 @@ fn view_of(t: &wgpu::Texture) -> wgpu::TextureView {
 impl AntialiasPasses {
     pub fn new(gpu: &Gpu, base: &super::terrain_passes::TerrainPasses) -> AntialiasPasses {
         let dev = &gpu.device;
-        let (fs, vf) = (
-            wgpu::ShaderStages::FRAGMENT,
-            wgpu::ShaderStages::VERTEX_FRAGMENT,
-        );
-        let p = super::util::uniform_entry(gpu.params, 0, vf);
+        let fs = wgpu::ShaderStages::FRAGMENT;
+        let p = super::util::uniform_entry(gpu.params, 0, fs);
         let u = |b| uint_texture_entry(b, fs);
         let f = |b| float_texture_entry(b, fs, wgpu::TextureViewDimension::D2);
         let layout = |label, entries: &[wgpu::BindGroupLayoutEntry]| {
@@ -200,11 +218,10 @@ impl AntialiasPasses {
                 entries,
             })
         };
-        let pixels = uint_texture_entry(1, vf);
         let layouts = [
             layout("aa edges", &[p, f(2), u(3)]),
             layout("aa rays", &[p, u(1), u(2)]),
-            layout("aa resolve", &[p, pixels, f(2), u(3)]),
+            layout("aa resolve", &[p, u(1), f(2), u(3), f(4)]),
         ];
         let module = |name: &str, src: String| super::shader_module(dev, gpu.params, name, &src);
         let state = |t: F| Some(target_state(t));
@@ -214,7 +231,7 @@ impl AntialiasPasses {
             &module("aa_edges.wgsl", shaders::aa_edges()),
             "fs_edges",
             &layouts[0],
-            &[state(F::R32Uint)],
+            &[state(F::R8Uint)],
         );
         let rays = fullscreen_pipeline(
             dev,
@@ -224,31 +241,14 @@ impl AntialiasPasses {
             &layouts[1],
             &[state(F::Rgba32Uint)],
         );
-        let m = module("aa_resolve.wgsl", shaders::aa_resolve());
-        let resolve = dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("aa resolve"),
-            layout: Some(&super::util::pipeline_layout(dev, &layouts[2])),
-            vertex: wgpu::VertexState {
-                module: &m,
-                entry_point: Some("vs_point"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            primitive: wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::PointList,
-                ..Default::default()
-            },
-            depth_stencil: None,
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &m,
-                entry_point: Some("fs_resolve"),
-                compilation_options: Default::default(),
-                targets: &[state(F::Rgba8Unorm), state(F::Rgba32Uint)],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        let resolve = fullscreen_pipeline(
+            dev,
+            "aa resolve",
+            &module("aa_resolve.wgsl", shaders::aa_resolve()),
+            "fs_resolve",
+            &layouts[2],
+            &[state(F::Rgba8Unorm), state(F::Rgba32Uint)],
+        );
         AntialiasPasses {
             tile: fullscreen_pipeline(
                 dev,
@@ -271,21 +271,23 @@ impl AntialiasPasses {
         }
     }
 
-    /// Writes the parameters of a `size` frame anti-aliased as `aa` with `marked` pixels in
-    /// the list.
-    pub fn write_params(&self, gpu: &Gpu, size: [u32; 2], aa: Antialias, marked: u32) {
+    /// Writes the parameters of a `size` frame anti-aliased as `aa`, for the batch of `count`
+    /// marked pixels from place `first` of the list.
+    pub fn write_params(&self, gpu: &Gpu, size: [u32; 2], aa: Antialias, first: u32, count: u32) {
         let mut offsets = [[0.0f32; 4]; 8];
         for (k, o) in offsets.iter_mut().enumerate() {
             let (a, b) = (sample_offset(2 * k), sample_offset(2 * k + 1));
             *o = [a[0], a[1], b[0], b[1]];
         }
         let u = AaUniforms {
-            size: [size[0], size[1], marked, samples(aa)],
-            atlas: [atlas_width(size[0]), aa.every_pixel as u32, 0, 0],
+            size: [size[0], size[1], count, samples(aa)],
+            atlas: [atlas_width(size[0]), aa.every_pixel as u32, first, 0],
             limits: [CONTRAST, KINK, DETAIL, 0.0],
             offsets,
+            linear: std::array::from_fn(|i| std::array::from_fn(|j| srgb_to_linear(4 * i + j))),
         };
-        gpu.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&u));
+        gpu.queue
+            .write_buffer(&self.params, 0, bytemuck::bytes_of(&u));
     }
 
     fn group(&self, gpu: &Gpu, k: usize, entries: &[wgpu::BindGroupEntry]) -> wgpu::BindGroup {
@@ -306,17 +308,23 @@ impl AntialiasPasses {
         colour: &wgpu::TextureView,
     ) -> AntialiasTargets {
         let centre_data = texture(gpu, "aa centre data", size, F::Rgba32Uint);
-        let mask = texture(gpu, "aa mask", size, F::R32Uint);
+        let centre_colour = texture(gpu, "aa centre colour", size, F::Rgba8Unorm);
+        let index = texture(gpu, "aa index", size, F::R32Uint);
+        let mask = texture(gpu, "aa mask", size, F::R8Uint);
         let pixels = texture(gpu, "aa marked pixels", size, F::R32Uint);
         let (data_v, mask_v) = (view_of(&centre_data), view_of(&mask));
         let edges_bg = self.group(
             gpu,
             0,
-            &[super::util::buf(0, &self.params), view(2, colour), view(3, &data_v)],
+            &[
+                super::util::buf(0, &self.params),
+                view(2, colour),
+                view(3, &data_v),
+            ],
         );
         let mask_rb = gpu.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("aa mask readback"),
-            size: u64::from(super::util::padded_row(size[0] * 4)) * u64::from(size[1]),
+            size: u64::from(super::util::padded_row(size[0])) * u64::from(size[1]),
             usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
             mapped_at_creation: false,
         });
@@ -324,6 +332,10 @@ impl AntialiasPasses {
             size,
             centre_data,
             centre_data_view: data_v,
+            centre_colour_view: view_of(&centre_colour),
+            centre_colour,
+            index_view: view_of(&index),
+            index,
             centre_rays_view: ray_table.clone(),
             mask_view: mask_v,
             mask,
@@ -345,16 +357,21 @@ impl AntialiasPasses {
         let rays_bg = self.group(
             gpu,
             1,
-            &[params(), view(1, &t.centre_rays_view), view(2, &t.pixels_view)],
+            &[
+                params(),
+                view(1, &t.centre_rays_view),
+                view(2, &t.pixels_view),
+            ],
         );
         let resolve_bg = self.group(
             gpu,
             2,
             &[
                 params(),
-                view(1, &t.pixels_view),
+                view(1, &t.index_view),
                 view(2, &targets.colour_view),
                 view(3, &t.centre_data_view),
+                view(4, &t.centre_colour_view),
             ],
         );
         Atlas {
@@ -373,7 +390,7 @@ impl AntialiasPasses {
                 buffer: &t.mask_rb,
                 layout: wgpu::TexelCopyBufferLayout {
                     offset: 0,
-                    bytes_per_row: Some(super::util::padded_row(t.size[0] * 4)),
+                    bytes_per_row: Some(super::util::padded_row(t.size[0])),
                     rows_per_image: Some(t.size[1]),
                 },
             },
@@ -387,60 +404,60 @@ impl AntialiasPasses {
         super::util::encode_fullscreen(enc, "aa rays", &self.rays, &a.rays_bg, &[out]);
     }
 
-    /// Records the resolve of the `marked` pixels into the frame's colour and data targets
-    /// (kept elsewhere).
+    /// Records the resolve into the frame's colour and data targets.
     pub fn encode_resolve(
         &self,
         enc: &mut wgpu::CommandEncoder,
         a: &Atlas,
-        marked: u32,
         colour: &wgpu::TextureView,
         data: &wgpu::TextureView,
     ) {
-        let keep = |v| {
-            Some(wgpu::RenderPassColorAttachment {
-                view: v,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Load,
-                    store: wgpu::StoreOp::Store,
-                },
-            })
-        };
-        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("aa resolve"),
-            color_attachments: &[keep(colour), keep(data)],
-            depth_stencil_attachment: None,
-            timestamp_writes: None,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
-        pass.set_pipeline(&self.resolve);
-        pass.set_bind_group(0, &a.resolve_bg, &[]);
-        pass.draw(0..marked, 0..1);
+        let out = [colour, data];
+        super::util::encode_fullscreen(enc, "aa resolve", &self.resolve, &a.resolve_bg, &out);
     }
 }
 
 impl AntialiasTargets {
     /// The mask read back (after [`AntialiasPasses::encode_edges`] was submitted): the
-    /// marked pixels row by row, packed x | y << 16.
+    /// marked pixels, packed x | y << 16.
     pub fn marked_pixels(&self, gpu: &Gpu) -> crate::Result<Vec<u32>> {
         let [w, h] = self.size;
-        let bytes = super::util::read_buffer(gpu, &self.mask_rb, w * 4, h)?;
+        let bytes = super::util::read_buffer(gpu, &self.mask_rb, w, h)?;
+        // Tile by tile (8x8), so that pixels close in the list are close on the screen: the
+        // atlas's tiles and free-form bins then hold neighbouring rays, with narrow cones.
         let mut out = Vec::new();
-        for (i, v) in bytes.chunks_exact(4).enumerate() {
-            if v != [0, 0, 0, 0] {
-                let (x, y) = (i as u32 % w, i as u32 / w);
-                out.push(x | (y << 16));
+        for ty in (0..h).step_by(8) {
+            for tx in (0..w).step_by(8) {
+                for y in ty..(ty + 8).min(h) {
+                    for x in tx..(tx + 8).min(w) {
+                        if bytes[(y * w + x) as usize] != 0 {
+                            out.push(x | (y << 16));
+                        }
+                    }
+                }
             }
         }
         Ok(out)
     }
 
-    /// Uploads the list of marked pixels (row by row in the screen's width).
+    /// Uploads the list of marked pixels (row by row in the screen's width) and each pixel's
+    /// place in it.
     pub fn write_pixels(&self, gpu: &Gpu, list: &[u32]) {
-        let w = self.size[0];
+        let [w, h] = self.size;
+        let mut index = vec![NONE; (w * h) as usize];
+        for (m, p) in list.iter().enumerate() {
+            index[((p >> 16) * w + (p & 0xffff)) as usize] = m as u32;
+        }
+        gpu.queue.write_texture(
+            self.index.as_image_copy(),
+            bytemuck::cast_slice(&index),
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(w * 4),
+                rows_per_image: Some(h),
+            },
+            self.index.size(),
+        );
         let rows = (list.len() as u32).div_ceil(w);
         let mut data = list.to_vec();
         data.resize((rows * w) as usize, 0);
@@ -460,22 +477,33 @@ impl AntialiasTargets {
         );
     }
 
-    /// The atlas size for `marked` pixels of `aa`'s samples: [`atlas_width`], rows of 4x4
-    /// groups (16 / n pixels each) in multiples of [`ATLAS_ROWS`].
+    /// The most rows an atlas has: about the frame's own (its targets then take about as
+    /// much memory as the frame's); a longer list runs in batches.
+    fn max_rows(&self) -> u32 {
+        self.size[1].div_ceil(ATLAS_ROWS).max(1) * ATLAS_ROWS
+    }
+
+    /// Marked pixels one atlas holds with `aa`'s samples.
+    pub fn batch(&self, aa: Antialias) -> u32 {
+        let groups = (atlas_width(self.size[0]) / 4) * (self.max_rows() / 4);
+        groups * (16 / samples(aa))
+    }
+
+    /// The atlas size for a batch of `marked` pixels with `aa`'s samples: [`atlas_width`],
+    /// rows of 4x4 groups (16 / n pixels each) in multiples of [`ATLAS_ROWS`].
     pub fn atlas_size(&self, marked: u32, aa: Antialias) -> [u32; 2] {
         let w = atlas_width(self.size[0]);
         let groups = marked.div_ceil(16 / samples(aa));
         let rows = groups.div_ceil(w / 4) * 4;
-        [w, rows.div_ceil(ATLAS_ROWS).max(1) * ATLAS_ROWS]
+        [
+            w,
+            (rows.div_ceil(ATLAS_ROWS).max(1) * ATLAS_ROWS).min(self.max_rows()),
+        ]
     }
 }
 
 /// Records a copy of all of `from` into `to` (same size and format: the centre frame's data
 /// kept for the resolve).
-pub(crate) fn copy_whole(
-    enc: &mut wgpu::CommandEncoder,
-    from: &wgpu::Texture,
-    to: &wgpu::Texture,
-) {
+pub(crate) fn copy_whole(enc: &mut wgpu::CommandEncoder, from: &wgpu::Texture, to: &wgpu::Texture) {
     enc.copy_texture_to_texture(from.as_image_copy(), to.as_image_copy(), from.size());
 }

@@ -66,9 +66,9 @@ pub(crate) mod volume_set;
 pub mod volumes;
 pub mod voxels;
 
+pub use antialias::Antialias;
 pub(crate) use device::shader_module;
 pub use device::{Gpu, GpuOptions, KernelChoice, KernelPath, ParamSpace, PARAM_USAGE};
-pub use antialias::Antialias;
 pub use frame::{FrameOutput, PassTimes, RenderSettings, Stage, TraceMode};
 pub use renderer::TerrainRenderer;
 pub use util::check_buffer_limit;

@@ -490,7 +490,7 @@ impl TerrainRenderer {
         let stamp = self.stamp;
         let antialias = self.antialiased(job);
         if antialias {
-            self.stamp = self.stamp.wrapping_add(1);
+            self.stamp = self.stamp.wrapping_add(antialias::STAMPS);
         }
         if let (Some(o), Some((ot, _))) = (&self.objects, &t.objects) {
             fu.objects = [o.active, ot.bins[0], ot.bins[1], BIN_CAPACITY];

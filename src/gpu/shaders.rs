@@ -306,8 +306,8 @@ pub fn blend() -> String {
     [FULLSCREEN, include_str!("shaders/blend.wgsl")].concat()
 }
 
-/// Edge anti-aliasing (`gpu::antialias`), passes sharing `aa_common.wgsl`: the edge mask, the
-/// sample rays, the resolve (points at the marked pixels).
+/// Edge anti-aliasing (`gpu::antialias`), fragment passes sharing `aa_common.wgsl`: the edge
+/// mask, the sample rays, the resolve.
 const AA_COMMON: &str = include_str!("shaders/aa_common.wgsl");
 
 pub fn aa_edges() -> String {
@@ -320,6 +320,7 @@ pub fn aa_rays() -> String {
 
 pub fn aa_resolve() -> String {
     [
+        FULLSCREEN,
         SRGB,
         AA_COMMON,
         include_str!("shaders/aa_resolve.wgsl"),

@@ -99,7 +99,10 @@ mod tests {
         assert_eq!(parse("\"reference\""), Ok(AntialiasOption::Reference));
         for bad in ["5", "0", "-4", "\"smooth\"", "1e9"] {
             let e = parse(bad).unwrap_err();
-            assert!(e.contains("4, 8 or 16") || e.contains("did not match"), "{bad}: {e}");
+            assert!(
+                e.contains("4, 8 or 16") || e.contains("did not match"),
+                "{bad}: {e}"
+            );
         }
     }
 }

@@ -12,6 +12,10 @@ use crate::Result;
 use std::cell::RefCell;
 use std::time::Instant;
 
+/// Frame stamps an anti-aliased frame reserves after its own, one per batch of samples (a
+/// list that fills the atlas 16 times over, the reference's, needs 16).
+pub(super) const STAMPS: u32 = 17;
+
 /// The anti-aliasing passes and the targets of the current frame size.
 pub(crate) struct AntialiasState {
     pub passes: AntialiasPasses,
@@ -37,7 +41,7 @@ impl TerrainRenderer {
             let colour = &t.colour_view;
             state.targets = Some(state.passes.targets(gpu, size, &t.ray_table_view, colour));
         }
-        state.passes.write_params(gpu, size, job.s.antialias, 0);
+        state.passes.write_params(gpu, size, job.s.antialias, 0, 0);
     }
 
     /// The frame targets of a `size` atlas (no edge blend: it follows the resolve).
@@ -51,9 +55,10 @@ impl TerrainRenderer {
             voxels: self.voxels.as_ref(),
             blend: None,
         };
-        job.gpu.scoped(&format!("anti-aliasing sample atlas {w}x{h}"), || {
-            Targets::new(job.gpu, &passes, w, h)
-        })
+        job.gpu
+            .scoped(&format!("anti-aliasing sample atlas {w}x{h}"), || {
+                Targets::new(job.gpu, &passes, w, h)
+            })
     }
 
     /// Records the samples after the centre frame `enc` holds: submits the centre frame and
@@ -74,12 +79,16 @@ impl TerrainRenderer {
         let (aa, at) = (&state.passes, state.targets.as_ref().expect("prepared"));
         let start = Instant::now();
         copy_whole(&mut enc, &t.data, &at.centre_data);
+        copy_whole(&mut enc, &t.colour, &at.centre_colour);
         aa.encode_edges(&mut enc, at);
         gpu.queue.submit([enc.finish()]);
         let list = at.marked_pixels(gpu)?;
         let marked = list.len() as u32;
         if marked > 0 {
-            let size = at.atlas_size(marked, job.s.antialias);
+            at.write_pixels(gpu, &list);
+            let aa_s = job.s.antialias;
+            let batch = at.batch(aa_s);
+            let size = at.atlas_size(marked.min(batch), aa_s);
             log::debug!("anti-aliasing: {marked} pixels marked, atlas {size:?}");
             let mut atlas = state.atlas.borrow_mut();
             if atlas.as_ref().map(|a| [a.targets.width, a.targets.height]) != Some(size) {
@@ -87,12 +96,19 @@ impl TerrainRenderer {
                 *atlas = Some(aa.atlas(gpu, at, self.atlas_targets(job, size)?));
             }
             let atlas = atlas.as_ref().expect("just made");
-            at.write_pixels(gpu, &list);
-            aa.write_params(gpu, at.size, job.s.antialias, marked);
-            let mut enc = gpu.device.create_command_encoder(&Default::default());
-            self.encode_samples(job, prepared, atlas, &mut enc)?;
-            aa.encode_resolve(&mut enc, atlas, marked, &t.colour_view, &t.data_view);
-            gpu.queue.submit([enc.finish()]);
+            for (b, first) in (0..marked).step_by(batch as usize).enumerate() {
+                let count = batch.min(marked - first);
+                aa.write_params(gpu, at.size, aa_s, first, count);
+                let mut enc = gpu.device.create_command_encoder(&Default::default());
+                if first > 0 {
+                    // The resolve reads the centre copies: they take the earlier batches'.
+                    copy_whole(&mut enc, &t.data, &at.centre_data);
+                    copy_whole(&mut enc, &t.colour, &at.centre_colour);
+                }
+                self.encode_samples(job, prepared, atlas, b as u32, &mut enc)?;
+                aa.encode_resolve(&mut enc, atlas, &t.colour_view, &t.data_view);
+                gpu.queue.submit([enc.finish()]);
+            }
         }
         if job.timed {
             gpu.wait()?;
@@ -101,15 +117,15 @@ impl TerrainRenderer {
         Ok(gpu.device.create_command_encoder(&Default::default()))
     }
 
-    /// Records every sample's passes on `atlas`: its frame uniforms (its size, tiles and bins,
-    /// the next stamp, bins over every ray; the tile pre-pass over every ray of a tile), the
-    /// sample rays, the primary and
-    /// shading passes.
+    /// Records every sample's passes of batch `batch` on `atlas`: its frame uniforms (its
+    /// size, tiles and bins, a stamp of its own, bins over every ray; the tile pre-pass over
+    /// every ray of a tile), the sample rays, the primary and shading passes.
     fn encode_samples(
         &self,
         job: &FrameJob,
         prepared: &Prepared,
         atlas: &Atlas,
+        batch: u32,
         enc: &mut wgpu::CommandEncoder,
     ) -> Result<()> {
         let gpu = job.gpu;
@@ -120,7 +136,13 @@ impl TerrainRenderer {
         if let (Some(o), Some((ot, _))) = (&self.objects, &at.objects) {
             fu.objects = [o.active, ot.bins[0], ot.bins[1], BIN_CAPACITY];
         }
-        fu.stamp = [prepared.stamp.wrapping_add(1).max(1), 1, 0, 0];
+        // A stamp of its own per batch (the free-form shadow marks of an earlier one must not
+        // count): the frame reserved `STAMPS` after its own.
+        let stamp = prepared
+            .stamp
+            .wrapping_add(1 + batch.min(STAMPS - 1))
+            .max(1);
+        fu.stamp = [stamp, 1, 0, 0];
         gpu.queue
             .write_buffer(&self.base.data.frame_ub, 0, bytemuck::bytes_of(&fu));
         // The voxel passes over the whole atlas (screen rectangles do not apply to it).
@@ -129,7 +151,11 @@ impl TerrainRenderer {
                 rect: PixelRect::full(at.width, at.height),
                 instances: v.active_mask(),
             }];
-            let shadows = if job.s.shadows { full.clone() } else { Vec::new() };
+            let shadows = if job.s.shadows {
+                full.clone()
+            } else {
+                Vec::new()
+            };
             (full, shadows)
         });
         let quiet = FrameJob {

@@ -6,8 +6,8 @@
 
 use super::{FrameJob, TerrainRenderer, VoxelRects};
 use crate::cpu::voxel::InstanceRect;
-use crate::gpu::frame::Stage;
 use crate::freeform::FreeForm;
+use crate::gpu::frame::Stage;
 use crate::gpu::Gpu;
 use crate::Result;
 

@@ -2,10 +2,11 @@
 // by `gpu::antialias::AaUniforms`) and the sample list's layout.
 
 struct AaParams {
-    // Screen width, height; marked pixels m; samples per marked pixel n.
+    // Screen width, height; marked pixels in this batch; samples per marked pixel n.
     size: vec4<u32>,
     // x: atlas width (entries a row, a multiple of 4); y: 1 = every pixel marked (the
-    // reference).
+    // reference); z: the batch's first place in the list of marked pixels (a list longer than
+    // the atlas holds runs in batches).
     atlas: vec4<u32>,
     // x: colour contrast (sRGB, 0..1) below which a discontinuity is not worth extra rays;
     // y: inverse-depth kink, relative, above which a surface has a crease; z: colour step to
@@ -13,6 +14,9 @@ struct AaParams {
     limits: vec4<f32>,
     // Sample k's offset from the pixel centre (pixels): offsets[k / 2].xy or .zw.
     offsets: array<vec4<f32>, 8>,
+    // The linear value of each 8-bit sRGB value v: linear[v / 4][v % 4] (exact, and a load
+    // instead of a pow per channel and sample on the CPU rasterisers).
+    linear: array<vec4<f32>, 64>,
 }
 
 @group(0) @binding(0) var<uniform> aa: AaParams;
@@ -54,4 +58,10 @@ fn aa_atlas_sample(a: vec2<u32>) -> vec2<u32> {
     let g = (a.y / 4u) * (aa.atlas.x / 4u) + a.x / 4u;
     let e = (a.y % 4u) * 4u + a.x % 4u;
     return vec2<u32>(g * (16u / n) + e / n, e % n);
+}
+
+// The linear colour of an 8-bit sRGB texel `c` (0..1, as loaded from an Rgba8Unorm target).
+fn aa_decode(c: vec3<f32>) -> vec3<f32> {
+    let v = vec3<u32>(round(clamp(c, vec3<f32>(0.0), vec3<f32>(1.0)) * 255.0));
+    return vec3<f32>(aa.linear[v.x / 4u][v.x % 4u], aa.linear[v.y / 4u][v.y % 4u], aa.linear[v.z / 4u][v.z % 4u]);
 }

@@ -32,7 +32,7 @@ fn fs_sample_rays(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
     if (mk.x >= aa.size.z) {
         return bitcast<vec4<u32>>(vec4<f32>(0.0, 0.0, 1.0, -1.0));
     }
-    let px = aa_pixel(aa_pixels, mk.x);
+    let px = aa_pixel(aa_pixels, aa.atlas.z + mk.x);
     let e = centre_ray(px);
     let o = aa_offset(mk.y);
     let d = normalize(e.xyz + o.x * table_slope(px, vec2<i32>(1, 0), o.x, e.xyz) + o.y * table_slope(px, vec2<i32>(0, 1), o.y, e.xyz));
