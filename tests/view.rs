@@ -1090,3 +1090,33 @@ fn paged_window_matches_headless_paged_render() {
         &head.join("frame_0000.png"),
     );
 }
+
+#[test]
+fn anti_aliased_window_frames_match_headless_render() {
+    let Some((x, _lock)) = window_env() else {
+        return;
+    };
+    let dir = temp_dir("antialias");
+    let (cap, head) = (dir.join("cap"), dir.join("headless"));
+    let (cap_s, head_s) = (s(&cap), s(&head));
+    let common = ["--size", "160x120", "--antialias", "edges"];
+    let mut args = vec!["view", "terrains/alps.toml", "--frames", "8", "--rate", "30"];
+    args.extend_from_slice(&["--unpaced", "--no-overlay", "--capture-frames", &cap_s]);
+    args.extend_from_slice(&common);
+    check_ok("relief view --antialias edges", &relief(&args, Some(&x.display), &[]));
+    let mut args = vec!["render", "terrains/alps.toml", "--first", "5", "--frames", "1"];
+    args.extend_from_slice(&["--out", &head_s]);
+    args.extend_from_slice(&common);
+    check_ok("relief render --antialias edges", &relief(&args, None, &[]));
+    assert_matches(
+        "view-antialias-0005",
+        &cap.join("frame_0005.png"),
+        &head.join("frame_0005.png"),
+    );
+    let meta: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(cap.join("frame_0005.json")).unwrap())
+            .unwrap();
+    let rays = meta["antialias"]["extra_rays"].as_u64().unwrap_or(0);
+    assert!(rays > 0, "the window's frame JSON reports its extra rays");
+    let _ = std::fs::remove_dir_all(&dir);
+}
