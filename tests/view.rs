@@ -1100,11 +1100,28 @@ fn anti_aliased_window_frames_match_headless_render() {
     let (cap, head) = (dir.join("cap"), dir.join("headless"));
     let (cap_s, head_s) = (s(&cap), s(&head));
     let common = ["--size", "160x120", "--antialias", "edges"];
-    let mut args = vec!["view", "terrains/alps.toml", "--frames", "8", "--rate", "30"];
+    let mut args = vec![
+        "view",
+        "terrains/alps.toml",
+        "--frames",
+        "8",
+        "--rate",
+        "30",
+    ];
     args.extend_from_slice(&["--unpaced", "--no-overlay", "--capture-frames", &cap_s]);
     args.extend_from_slice(&common);
-    check_ok("relief view --antialias edges", &relief(&args, Some(&x.display), &[]));
-    let mut args = vec!["render", "terrains/alps.toml", "--first", "5", "--frames", "1"];
+    check_ok(
+        "relief view --antialias edges",
+        &relief(&args, Some(&x.display), &[]),
+    );
+    let mut args = vec![
+        "render",
+        "terrains/alps.toml",
+        "--first",
+        "5",
+        "--frames",
+        "1",
+    ];
     args.extend_from_slice(&["--out", &head_s]);
     args.extend_from_slice(&common);
     check_ok("relief render --antialias edges", &relief(&args, None, &[]));

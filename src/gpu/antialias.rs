@@ -189,16 +189,7 @@ pub(crate) struct Atlas {
 pub const TARGET_BYTES_PER_PIXEL: u64 = 30;
 
 fn texture(gpu: &Gpu, label: &str, size: [u32; 2], format: F) -> wgpu::Texture {
-    screen_texture(
-        &gpu.device,
-        label,
-        size,
-        format,
-        wgpu::TextureUsages::RENDER_ATTACHMENT
-            | wgpu::TextureUsages::TEXTURE_BINDING
-            | wgpu::TextureUsages::COPY_SRC
-            | wgpu::TextureUsages::COPY_DST,
-    )
+    screen_texture(&gpu.device, label, size, format, super::util::TARGET_USAGE)
 }
 
 fn view_of(t: &wgpu::Texture) -> wgpu::TextureView {

@@ -358,14 +358,7 @@ impl TerrainRenderer {
             a.targets = None;
         }
         let made = gpu.scoped(&format!("{what} {width}x{height}"), || {
-            let passes = TargetPasses {
-                base: &self.base,
-                table: self.table.as_ref(),
-                objects: self.objects.as_ref(),
-                volumes: &self.volumes,
-                voxels: self.voxels.as_ref(),
-                blend: self.blend.as_ref(),
-            };
+            let passes = self.target_passes(self.blend.as_ref());
             self.targets = Some(Targets::new(gpu, &passes, width, height)?);
             Ok(())
         });
@@ -373,6 +366,18 @@ impl TerrainRenderer {
             self.targets = None;
         }
         made
+    }
+
+    /// The passes a frame's targets are made for, with the edge blend `blend`.
+    fn target_passes<'a>(&'a self, blend: Option<&'a BlendPass>) -> TargetPasses<'a> {
+        TargetPasses {
+            base: &self.base,
+            table: self.table.as_ref(),
+            objects: self.objects.as_ref(),
+            volumes: &self.volumes,
+            voxels: self.voxels.as_ref(),
+            blend,
+        }
     }
 
     /// Refuses a `width` x `height` frame (`what` names the size in the message) over the

@@ -5,7 +5,7 @@ use super::blend::{BlendPass, BlendTargets};
 use super::objects::{ObjectPasses, ObjectTargets};
 use super::table::TableMode;
 use super::terrain_passes::TerrainPasses;
-use super::util::{buf, padded_row, screen_texture, view};
+use super::util::{buf, padded_row, screen_texture, view, TARGET_USAGE};
 use super::volume_set::VolumeSet;
 use super::volumes::{CompositeTargets, VolumeTargets, SUN_FORMAT};
 use super::voxels::{VoxelPasses, VoxelTargets};
@@ -92,18 +92,7 @@ impl Screen {
             usage,
         );
         let ray_table_view = ray_table.create_view(&Default::default());
-        let tex = |label, size, format| {
-            screen_texture(
-                dev,
-                label,
-                size,
-                format,
-                wgpu::TextureUsages::RENDER_ATTACHMENT
-                    | wgpu::TextureUsages::TEXTURE_BINDING
-                    | wgpu::TextureUsages::COPY_SRC
-                    | wgpu::TextureUsages::COPY_DST,
-            )
-        };
+        let tex = |label, size, format| screen_texture(dev, label, size, format, TARGET_USAGE);
         let tile_tex = tex("tile start", tiles, wgpu::TextureFormat::Rg32Uint);
         let colour = tex("colour", size, wgpu::TextureFormat::Rgba8Unorm);
         let data = tex("data", size, wgpu::TextureFormat::Rgba32Uint);

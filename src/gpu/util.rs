@@ -94,6 +94,12 @@ pub fn check_buffer_limit(gpu: &Gpu, what: &str, bytes: u64, fix: &str) -> Resul
 }
 
 /// A 2-D single-sample texture of `size` pixels, for render targets and screen-sized data.
+/// Usages of a pass's target that other passes read and copies come from and go to.
+pub(crate) const TARGET_USAGE: wgpu::TextureUsages = wgpu::TextureUsages::RENDER_ATTACHMENT
+    .union(wgpu::TextureUsages::TEXTURE_BINDING)
+    .union(wgpu::TextureUsages::COPY_SRC)
+    .union(wgpu::TextureUsages::COPY_DST);
+
 pub(crate) fn screen_texture(
     dev: &wgpu::Device,
     label: &str,

@@ -7,7 +7,7 @@ use crate::cpu::voxel::{InstanceRect, PixelRect};
 use crate::gpu::antialias::{copy_whole, AntialiasPasses, AntialiasTargets, Atlas};
 use crate::gpu::frame::PassTimes;
 use crate::gpu::objects::BIN_CAPACITY;
-use crate::gpu::targets::{TargetPasses, Targets};
+use crate::gpu::targets::Targets;
 use crate::Result;
 use std::cell::RefCell;
 use std::time::Instant;
@@ -47,14 +47,7 @@ impl TerrainRenderer {
     /// The frame targets of a `size` atlas (no edge blend: it follows the resolve).
     fn atlas_targets(&self, job: &FrameJob, [w, h]: [u32; 2]) -> Result<Targets> {
         self.check_target_size(job.gpu, "anti-aliasing sample atlas", w, h)?;
-        let passes = TargetPasses {
-            base: &self.base,
-            table: self.table.as_ref(),
-            objects: self.objects.as_ref(),
-            volumes: &self.volumes,
-            voxels: self.voxels.as_ref(),
-            blend: None,
-        };
+        let passes = self.target_passes(None);
         job.gpu
             .scoped(&format!("anti-aliasing sample atlas {w}x{h}"), || {
                 Targets::new(job.gpu, &passes, w, h)
