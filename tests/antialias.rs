@@ -377,3 +377,64 @@ fn the_command_line_reports_extra_rays_and_leaves_the_pattern() {
         "{err}"
     );
 }
+
+/// A flat procedural terrain under a drape `drape.png` (stretched over the grid), seen from
+/// 4 km up looking down: each pixel covers about 4x4 texels.
+fn drape_scene(dir: &std::path::Path, drape: &image::RgbImage) -> std::path::PathBuf {
+    std::fs::create_dir_all(dir).unwrap();
+    drape.save(dir.join("drape.png")).unwrap();
+    let scene = dir.join("scene.toml");
+    std::fs::write(
+        &scene,
+        "[terrain]\ndrape = \"drape.png\"\n[terrain.procedural]\nsize = 257\ncell_size = 30.0\nheight = 0.5\n\
+         [sun]\nazimuth = 200.0\nelevation = 60.0\n[render]\nshadows = false\n\
+         [camera]\nposition = [3840.0, 3000.0, 4000.0]\nheading = 0.0\npitch = -70.0\nfov = 40.0\n\
+         [output]\nwidth = 160\nheight = 90\n",
+    )
+    .unwrap();
+    scene
+}
+
+/// Footprint-filtered drape (`"edges"`): a black and white checkerboard of single texels,
+/// minified about 4 times, renders as its mean in linear light, the frame of a uniform drape
+/// of that mean (sRGB 188), where one ray a pixel shows an aliased pattern.
+#[test]
+fn a_minified_drape_is_its_mean_in_linear_light() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let _lock = common::gpu_lock();
+    let base = std::env::temp_dir().join(format!("relief-aa-drape-{}", std::process::id()));
+    let checker = image::RgbImage::from_fn(1024, 1024, |x, y| {
+        image::Rgb([if (x + y) % 2 == 0 { 0 } else { 255 }; 3])
+    });
+    let grey = image::RgbImage::from_pixel(1024, 1024, image::Rgb([188; 3]));
+    let render = |name: &str, drape: &image::RgbImage, aa: Antialias| {
+        let scene = drape_scene(&base.join(name), drape);
+        let job = render_job(&[scene.to_str().unwrap()]).unwrap();
+        let (mut p, mut r) = capture::prepare(&job).unwrap();
+        let cams = quality::motion_cameras(&p.scene, &p.world.terrain, 1);
+        render_all(&mut p, &mut r, &job, &cams, aa)
+            .unwrap()
+            .frames
+            .remove(0)
+    };
+    let truth = render("grey", &grey, Antialias::OFF);
+    let plain = render("checker-off", &checker, Antialias::OFF);
+    let filtered = render("checker-edges", &checker, EDGES);
+    let errors = |f: &FrameOutput| quality::pixel_errors(&f.rgba, &truth.rgba);
+    let (e_plain, e_filtered) = (errors(&plain), errors(&filtered));
+    let p99 = |e: &[u8]| quality::quantile(e, 0.99);
+    eprintln!(
+        "checkerboard against its mean: one ray p99 {}, footprint-filtered p99 {} ({} pixels anti-aliased)",
+        p99(&e_plain),
+        p99(&e_filtered),
+        filtered.antialiased_pixels()
+    );
+    assert!(
+        p99(&e_plain) > 20.0,
+        "one ray a pixel aliases the checkerboard"
+    );
+    assert!(p99(&e_filtered) <= 2.0, "the filtered drape is its mean");
+    let _ = std::fs::remove_dir_all(&base);
+}

@@ -43,7 +43,7 @@ fn every_specialised_variant_validates_with_naga() {
     use relief::gpu::variants::ShadeFeatures;
     use relief::gpu::variants::VolumeSwitches;
     let bit = |bits: u32, k: u32| bits & (1 << k) != 0;
-    for bits in 0..128 {
+    for bits in 0..256 {
         let f = ShadeFeatures {
             shadows: bit(bits, 0),
             drape: bit(bits, 1),
@@ -52,6 +52,7 @@ fn every_specialised_variant_validates_with_naga() {
             curved: bit(bits, 4),
             lod: bit(bits, 5),
             paged: bit(bits, 6),
+            drape_mips: bit(bits, 7),
         };
         validate(&format!("shade {f:?}"), &shaders::shade(f));
         for tables in [

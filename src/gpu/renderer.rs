@@ -476,6 +476,7 @@ impl TerrainRenderer {
             curved: job.terrain.curved,
             lod: s.lod.is_some() && s.mode == TraceMode::Pyramid && self.paged.is_none(),
             paged: self.paged.is_some(),
+            drape_mips: self.base.data.has_drape && s.antialias.is_on(),
         };
         if features.lod {
             self.base.prepare_cast_lod(gpu);

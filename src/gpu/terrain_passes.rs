@@ -20,6 +20,9 @@ use wgpu::util::DeviceExt;
 /// What to make smaller when the terrain does not fit the adapter.
 const HEIGHT_MAP_FIX: &str = "use a smaller or cropped height map";
 
+/// Most mip levels of a drape (`Frame.drape_size.z`): a 16384-texel side halves to one in 15.
+pub const DRAPE_LEVELS: usize = 16;
+
 /// The terrain on the GPU and the frame's parameter blocks.
 pub(crate) struct TerrainData {
     pub heights: wgpu::Buffer,
@@ -83,16 +86,19 @@ impl TerrainData {
             let dilated = storage("dilated max pyramid", bytemuck::cast_slice(&dilated_data));
             (heights, pyramid, dilated, side)
         };
+        // The drape and its mip levels, one after the other (level 0 first: frames without
+        // anti-aliasing read only it; with it, footprint-filtered texturing reads the others).
         let drape_words: Vec<u32> = match &terrain.drape {
             Some((d, _)) => {
                 check_buffer_limit(
                     gpu,
                     "drape image",
-                    d.rgba.len() as u64,
+                    (d.rgba.len() as u64).saturating_mul(4) / 3 + 4,
                     "use a smaller drape image",
                 )?;
-                d.rgba
-                    .chunks_exact(4)
+                crate::terrain::drape_mips::mip_levels(d, DRAPE_LEVELS)
+                    .iter()
+                    .flat_map(|l| l.rgba.chunks_exact(4))
                     .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
                     .collect()
             }

@@ -73,7 +73,13 @@ pub fn frame_uniforms(
                 m.scale[0] as f32,
                 m.scale[1] as f32,
             ],
-            [d.width as u32, d.height as u32, 0, 0],
+            [
+                d.width as u32,
+                d.height as u32,
+                crate::terrain::drape_mips::level_count(d, super::terrain_passes::DRAPE_LEVELS)
+                    as u32,
+                0,
+            ],
         ),
         None => ([0.0; 4], [1, 1, 0, 0]),
     };

@@ -41,6 +41,9 @@ pub struct ShadeFeatures {
     /// The terrain is read from the paged tile pool (`PAGED`, group 3): normals from the
     /// finest resident surface, shadow rays through the paged traversal.
     pub paged: bool,
+    /// The drape sampled at mip levels picked by the pixel's footprint, trilinear
+    /// (`DRAPE_MIPS`, with `render.antialias`).
+    pub drape_mips: bool,
 }
 
 impl ShadeFeatures {
@@ -53,6 +56,7 @@ impl ShadeFeatures {
         curved: true,
         lod: true,
         paged: false,
+        drape_mips: true,
     };
     /// None compiled in.
     pub const NONE: ShadeFeatures = ShadeFeatures {
@@ -63,6 +67,7 @@ impl ShadeFeatures {
         curved: false,
         lod: false,
         paged: false,
+        drape_mips: false,
     };
 }
 
@@ -76,6 +81,7 @@ impl Switches for ShadeFeatures {
             ("CURVED", self.curved),
             ("LOD", self.lod),
             ("PAGED", self.paged),
+            ("DRAPE_MIPS", self.drape_mips),
         ])
     }
 }

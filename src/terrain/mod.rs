@@ -6,6 +6,7 @@
 
 pub mod curved;
 pub mod desc;
+pub mod drape_mips;
 pub mod geotiff;
 pub mod heightfield;
 pub mod hgt;

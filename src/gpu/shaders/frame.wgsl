@@ -41,7 +41,8 @@ struct Frame {
     // side walls (terrain.walls = false: rays below the surface where they enter the box pass
     // under it), 0 = walls (the default); w: tile pre-pass on.
     mode: vec4<u32>,
-    // drape width, height.
+    // drape width, height, mip levels (level l follows level l - 1 in `drape`, each side
+    // halved rounding up).
     drape_size: vec4<u32>,
     // x: march step in cells, y: bisection count.
     march: vec4<f32>,

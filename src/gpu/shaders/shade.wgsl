@@ -86,22 +86,62 @@ fn local_normal(g: vec2<f32>) -> vec3<f32> {
     return normalize(vec3<f32>(-g.x * frame.spacing.z, -g.y * frame.spacing.w, 1.0));
 }
 
-fn drape_texel(x: i32, y: i32) -> vec3<f32> {
-    let w = i32(frame.drape_size.x);
-    let h = i32(frame.drape_size.y);
-    let p = drape[u32(clamp(y, 0, h - 1) * w + clamp(x, 0, w - 1))];
+// A drape level: where it starts in `drape`, its width and height.
+struct DrapeLevel {
+    offset: u32,
+    w: i32,
+    h: i32,
+}
+
+fn drape_level(level: u32) -> DrapeLevel {
+    var d: DrapeLevel;
+    var w = frame.drape_size.x;
+    var h = frame.drape_size.y;
+    var offset = 0u;
+    for (var l = 0u; l < level; l += 1u) {
+        offset += w * h;
+        w = (w + 1u) / 2u;
+        h = (h + 1u) / 2u;
+    }
+    d.offset = offset;
+    d.w = i32(w);
+    d.h = i32(h);
+    return d;
+}
+
+fn drape_texel(d: DrapeLevel, x: i32, y: i32) -> vec3<f32> {
+    let p = drape[d.offset + u32(clamp(y, 0, d.h - 1) * d.w + clamp(x, 0, d.w - 1))];
     return srgb_decode(unpack4x8unorm(p).xyz);
 }
 
-fn albedo(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
+// Bilinear colour of drape level `d` at level-0 texel position `q` (texel centres at whole
+// numbers): level l's texel j covers level-0 texels j 2^l .. (j + 1) 2^l - 1.
+fn drape_bilinear(d: DrapeLevel, level: u32, q0: vec2<f32>) -> vec3<f32> {
+    let q = (q0 + 0.5) / f32(1u << level) - 0.5;
+    let f = floor(q);
+    let a = q - f;
+    let i = vec2<i32>(f);
+    let c0 = mix(drape_texel(d, i.x, i.y), drape_texel(d, i.x + 1, i.y), a.x);
+    let c1 = mix(drape_texel(d, i.x, i.y + 1), drape_texel(d, i.x + 1, i.y + 1), a.x);
+    return mix(c0, c1, a.y);
+}
+
+// Surface colour at grid point `p` with normal `n`; `footprint`: the pixel's footprint radius
+// there (metres), which picks the drape's mip levels (trilinear) with DRAPE_MIPS.
+fn albedo(p: vec3<f32>, n: vec3<f32>, footprint: f32) -> vec3<f32> {
     if (DRAPE) {
         let q = frame.drape_map.xy + frame.drape_map.zw * p.xy;
-        let f = floor(q);
-        let a = q - f;
-        let i = vec2<i32>(f);
-        let c0 = mix(drape_texel(i.x, i.y), drape_texel(i.x + 1, i.y), a.x);
-        let c1 = mix(drape_texel(i.x, i.y + 1), drape_texel(i.x + 1, i.y + 1), a.x);
-        return mix(c0, c1, a.y);
+        if (DRAPE_MIPS) {
+            let per_metre = max(abs(frame.drape_map.z * frame.spacing.z), abs(frame.drape_map.w * frame.spacing.w));
+            let top = f32(max(frame.drape_size.z, 1u) - 1u);
+            let lod = clamp(log2(max(2.0 * footprint * per_metre, 1.0)), 0.0, top);
+            let l0 = u32(floor(lod));
+            let l1 = min(l0 + 1u, u32(top));
+            let c0 = drape_bilinear(drape_level(l0), l0, q);
+            let c1 = drape_bilinear(drape_level(l1), l1, q);
+            return mix(c0, c1, lod - f32(l0));
+        }
+        return drape_bilinear(drape_level(0u), 0u, q);
     }
     let e = clamp((p.z - frame.heights_range.x) / max(frame.heights_range.y - frame.heights_range.x, 1.0), 0.0, 1.0);
     let slope = 1.0 - n.z;
@@ -236,7 +276,11 @@ fn shade_surface(px: vec2<u32>, g: vec4<u32>, dir_w: vec3<f32>, dl: vec3<f32>) -
         c = base * (diffuse + ambient_light(n));
         out.data = vec4<u32>(g.x, g.w >> 16u, min(shadow_steps, 0xffffu) << 16u, flags & 0x3fu);
     } else {
-        let base = albedo(p_msl, n);
+        var footprint = 0.0;
+        if (DRAPE_MIPS) {
+            footprint = t * max(ray_entry(px).w, 0.0);
+        }
+        let base = albedo(p_msl, n, footprint);
         let diffuse = frame.sun_colour.xyz * (frame.sun_local.w * max(dot(n, sun), 0.0) * lit);
         c = base * (diffuse + ambient_light(n));
         out.data = vec4<u32>(g.x, gbuffer_steps(g.z), min(patches, 0xffffu) | (min(shadow_steps, 0xffffu) << 16u), flags);
