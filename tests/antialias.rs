@@ -438,3 +438,4 @@ fn a_minified_drape_is_its_mean_in_linear_light() {
     assert!(p99(&e_filtered) <= 2.0, "the filtered drape is its mean");
     let _ = std::fs::remove_dir_all(&base);
 }
+
