@@ -481,6 +481,9 @@ impl TerrainRenderer {
         if features.lod {
             self.base.prepare_cast_lod(gpu);
         }
+        if self.antialiased(job) && self.paged.is_none() {
+            self.base.prepare_cast_near(gpu);
+        }
         let shade_index = match &mut self.objects {
             Some(o) => o.shade.prepare(&gpu.device, features),
             None => self.base.shade.prepare(&gpu.device, features),
@@ -591,7 +594,9 @@ impl TerrainRenderer {
         }
         job.lap(enc, &mut times.tile_ms)?;
         let cast = if tile_on || s.mode == TraceMode::Pyramid {
-            self.base.cast_pipeline(s.lod.is_some())
+            // Anti-aliasing's centre rays flag near misses (the atlas's samples need not).
+            let near = self.antialiased(job) && !job.atlas && self.paged.is_none();
+            self.base.cast_pipeline(s.lod.is_some(), near)
         } else {
             &self.base.march
         };

@@ -35,15 +35,20 @@ pub fn raygen() -> String {
 
 /// The traversal's switches: curved earth (`CURVED` in `terrain_traverse.wgsl`) and
 /// footprint level of detail (`LOD`); the terrain in memory (`PAGED` false).
-fn traverse_consts(curved: bool, lod: bool) -> String {
-    super::variants::wgsl_bools(&[("CURVED", curved), ("LOD", lod), ("PAGED", false)])
+fn traverse_consts(curved: bool, lod: bool, near: bool) -> String {
+    super::variants::wgsl_bools(&[
+        ("CURVED", curved),
+        ("LOD", lod),
+        ("PAGED", false),
+        ("NEAR", near),
+    ])
 }
 
 /// Tile pre-pass (fragment); `curved`: the terrain's curved earth (see
 /// [`super::variants::ShadeFeatures::curved`]).
 pub fn tile(curved: bool) -> String {
     [
-        &traverse_consts(curved, false),
+        &traverse_consts(curved, false, false),
         FRAME,
         FULLSCREEN,
         RAY_TABLE,
@@ -55,10 +60,11 @@ pub fn tile(curved: bool) -> String {
 }
 
 /// Terrain cast pass (fragment): traversal only, writes the G-buffer; `curved` as in
-/// [`tile`]; `lod`: footprint level of detail compiled in (`render.lod`).
-pub fn cast(curved: bool, lod: bool) -> String {
+/// [`tile`]; `lod`: footprint level of detail compiled in (`render.lod`); `near`: near misses
+/// within the pixel cone flagged (anti-aliasing's centre rays).
+pub fn cast(curved: bool, lod: bool, near: bool) -> String {
     [
-        &traverse_consts(curved, lod),
+        &traverse_consts(curved, lod, near),
         FRAME,
         CAST_STORAGE,
         FULLSCREEN,
@@ -76,7 +82,12 @@ pub fn cast(curved: bool, lod: bool) -> String {
 /// mode (`TerrainRenderer::new_paged`).
 pub fn cast_paged(curved: bool) -> String {
     [
-        &super::variants::wgsl_bools(&[("CURVED", curved), ("LOD", false), ("PAGED", true)]),
+        &super::variants::wgsl_bools(&[
+            ("CURVED", curved),
+            ("LOD", false),
+            ("PAGED", true),
+            ("NEAR", false),
+        ]),
         FRAME,
         FULLSCREEN,
         RAY_TABLE,
@@ -388,10 +399,12 @@ pub fn all() -> Vec<(&'static str, String)> {
         ("raygen", raygen()),
         ("tile", tile(false)),
         ("tile (curved)", tile(true)),
-        ("cast", cast(false, false)),
-        ("cast (curved)", cast(true, false)),
-        ("cast (lod)", cast(false, true)),
-        ("cast (curved, lod)", cast(true, true)),
+        ("cast", cast(false, false, false)),
+        ("cast (curved)", cast(true, false, false)),
+        ("cast (lod)", cast(false, true, false)),
+        ("cast (curved, lod)", cast(true, true, false)),
+        ("cast (near)", cast(false, false, true)),
+        ("cast (curved, near)", cast(true, false, true)),
         ("cast (paged)", cast_paged(false)),
         ("cast (curved, paged)", cast_paged(true)),
         ("shade", shade(ShadeFeatures::ALL)),

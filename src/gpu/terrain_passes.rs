@@ -207,6 +207,9 @@ pub(crate) struct TerrainPasses {
     pub cast: wgpu::RenderPipeline,
     /// The cast pass with footprint level of detail (`render.lod`), built on first use.
     pub cast_lod: Option<wgpu::RenderPipeline>,
+    /// The cast pass flagging near misses within the pixel cone (anti-aliasing's centre
+    /// rays), built on first use.
+    pub cast_near: Option<wgpu::RenderPipeline>,
     /// The terrain's curved earth (the switch the cast pipelines are built with).
     pub curved: bool,
     pub march: wgpu::RenderPipeline,
@@ -237,7 +240,7 @@ impl TerrainPasses {
         let tile_mod = module("tile.wgsl", shaders::tile(terrain.curved));
         let cast_mod = match paged {
             Some(_) => module("cast.wgsl (paged)", shaders::cast_paged(terrain.curved)),
-            None => module("cast.wgsl", shaders::cast(terrain.curved, false)),
+            None => module("cast.wgsl", shaders::cast(terrain.curved, false, false)),
         };
         let fullscreen = |label: &str,
                           m: &wgpu::ShaderModule,
@@ -292,6 +295,7 @@ impl TerrainPasses {
             tile,
             cast,
             cast_lod: None,
+            cast_near: None,
             curved: terrain.curved,
             march,
             shade,
@@ -303,27 +307,31 @@ impl TerrainPasses {
     /// Builds the footprint-LOD cast pipeline unless it exists (0.1–0.3 s on Mesa: only
     /// frames that ask for LOD pay for it).
     pub fn prepare_cast_lod(&mut self, gpu: &Gpu) {
-        if self.cast_lod.is_some() {
-            return;
+        if self.cast_lod.is_none() {
+            self.cast_lod = Some(self.cast_variant(gpu, true, false, "cast (lod)"));
         }
-        let src = shaders::cast(self.curved, true);
-        let m = super::shader_module(&gpu.device, gpu.params, "cast.wgsl (lod)", &src);
-        let target = [Some(target_state(wgpu::TextureFormat::Rgba32Uint))];
-        let p = fullscreen_pipeline(
-            &gpu.device,
-            "cast (lod)",
-            &m,
-            "fs_cast",
-            &self.bgl.cast,
-            &target,
-        );
-        self.cast_lod = Some(p);
     }
 
-    /// The cast pipeline for a frame with (`lod`) or without footprint level of detail.
-    pub fn cast_pipeline(&self, lod: bool) -> &wgpu::RenderPipeline {
-        match (&self.cast_lod, lod) {
-            (Some(p), true) => p,
+    /// Builds the near-miss cast pipeline unless it exists (anti-aliased frames only).
+    pub fn prepare_cast_near(&mut self, gpu: &Gpu) {
+        if self.cast_near.is_none() {
+            self.cast_near = Some(self.cast_variant(gpu, false, true, "cast (near)"));
+        }
+    }
+
+    fn cast_variant(&self, gpu: &Gpu, lod: bool, near: bool, label: &str) -> wgpu::RenderPipeline {
+        let src = shaders::cast(self.curved, lod, near);
+        let m = super::shader_module(&gpu.device, gpu.params, label, &src);
+        let target = [Some(target_state(wgpu::TextureFormat::Rgba32Uint))];
+        fullscreen_pipeline(&gpu.device, label, &m, "fs_cast", &self.bgl.cast, &target)
+    }
+
+    /// The cast pipeline for a frame with (`lod`) or without footprint level of detail, and
+    /// (`near`, without `lod`) flagging near misses.
+    pub fn cast_pipeline(&self, lod: bool, near: bool) -> &wgpu::RenderPipeline {
+        match (&self.cast_lod, &self.cast_near, lod, near) {
+            (Some(p), _, true, _) => p,
+            (_, Some(p), false, true) => p,
             _ => &self.cast,
         }
     }

@@ -81,6 +81,8 @@ impl Switches for ShadeFeatures {
             ("CURVED", self.curved),
             ("LOD", self.lod),
             ("PAGED", self.paged),
+            // The shadow rays never flag near misses.
+            ("NEAR", false),
             ("DRAPE_MIPS", self.drape_mips),
         ])
     }

@@ -76,6 +76,9 @@ fn fs_edges(@builtin(position) pos: vec4<f32>) -> @location(0) u32 {
         }
     }
     let crease = max(kink(px, vec2<i32>(1, 0), d0), kink(px, vec2<i32>(0, 1), d0));
-    mark = mark || (crease > aa.limits.y && seen > threshold) || seen > aa.limits.z;
+    // Flag 64: the centre ray passed within its cone of terrain it missed (a ridge or spike
+    // thinner than the pixel): marked whatever the colours say.
+    let near = (d0.w & 64u) != 0u;
+    mark = mark || (crease > aa.limits.y && seen > threshold) || seen > aa.limits.z || near;
     return select(0u, 1u, mark);
 }

@@ -33,7 +33,8 @@ fn fs_cast(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
     if (LOD) {
         lod_k = frame.lod.x * e.w;
     }
-    let tr = traverse_lod(primary_ray(e), t_min, BIG, frame.mode.y, level, lod_k);
+    // NEAR (anti-aliasing): features within the pixel's cone that its centre ray misses.
+    let tr = traverse_lod(primary_ray(e), t_min, BIG, frame.mode.y, level, lod_k, select(0.0, e.w, NEAR));
     var g = encode_gbuffer(tr);
     if (PAGED && tr.hit) {
         // The paged build: the finest resident level over the hit cell for the shade pass.

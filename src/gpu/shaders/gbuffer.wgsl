@@ -5,8 +5,9 @@
 
 const INF_BITS: u32 = 0x7f800000u;
 
+// w: flags (1 hit, 4 step limit), patch tests (bits 8..30), bit 31 NEAR's near miss.
 fn encode_gbuffer(tr: Trace) -> vec4<u32> {
-    let flags = select(0u, 4u, tr.exhausted) | (min(tr.patches, 0xffffffu) << 8u);
+    let flags = select(0u, 4u, tr.exhausted) | (min(tr.patches, 0x7fffffu) << 8u) | select(0u, 0x80000000u, tr.near);
     if (!tr.hit) {
         return vec4<u32>(INF_BITS, 0u, tr.steps, flags);
     }

@@ -179,7 +179,9 @@ fn fs_shade(@builtin(position) pos: vec4<f32>) -> Out {
         // Sky, or (flag 8) no screen under this pixel: black.
         let no_screen = (g.w & 8u) != 0u;
         c = select(sky(dl), vec3<f32>(0.0), no_screen);
-        out.data = select(vec4<u32>(INF_BITS, g.z, min(g.w >> 8u, 0xffffu), g.w & 0xffu), vec4<u32>(INF_BITS, 0u, 0u, g.w & 0xffu), no_screen);
+        // Flag 64 of the data: the cast's near miss (G-buffer bit 31, anti-aliased frames).
+        let near = select(0u, 64u, (g.w >> 31u) != 0u);
+        out.data = select(vec4<u32>(INF_BITS, g.z, min((g.w >> 8u) & 0x7fffffu, 0xffffu), (g.w & 0xffu) | near), vec4<u32>(INF_BITS, 0u, 0u, g.w & 0xffu), no_screen);
     } else {
         let s = shade_surface(px, g, dir_w, dl);
         c = s.colour.xyz;
@@ -194,7 +196,7 @@ fn fs_shade(@builtin(position) pos: vec4<f32>) -> Out {
 fn shade_surface(px: vec2<u32>, g: vec4<u32>, dir_w: vec3<f32>, dl: vec3<f32>) -> Out {
     var out: Out;
     var flags = g.w & 0xffu;
-    let patches = g.w >> 8u;
+    let patches = (g.w >> 8u) & 0x7fffffu;
     let t = bitcast<f32>(g.x);
     let ro = frame.eye.xyz;
     let p = ro + to_grid_dir(dir_w) * t;
@@ -264,8 +266,12 @@ fn shade_surface(px: vec2<u32>, g: vec4<u32>, dir_w: vec3<f32>, dl: vec3<f32>) -
     if (VOLUME_SHADOWS) {
         lit *= textureLoad(volume_sun, vec2<i32>(px), 0).x;
     }
-    // Flag 64 (blocked by a voxel model, set by the voxel shadow pass) is folded into 2.
+    // Flag 64 (blocked by a voxel model, set by the voxel shadow pass) is folded into 2; on
+    // terrain it then says the cast's near miss (G-buffer bit 31, anti-aliased frames).
     flags &= 0xbfu;
+    if (!is_object && !is_voxel && (g.w >> 31u) != 0u) {
+        flags |= 64u;
+    }
     var c: vec3<f32>;
     if (is_object) {
         c = object_colour(g, n, dl, lit);
