@@ -37,8 +37,8 @@ fn pool_bytes(mb: u64) -> Result<u64> {
 }
 
 /// A paged renderer of `world` (the window of `scene`'s database, its finest level, loaded
-/// hollow by `World::load_as(scene, true)` or whole) with a pool of `mb` MB, its free forms, volumes and voxel models, and the pager feeding it (the
-/// floor already uploaded). A scene without a database is an error naming
+/// hollow by `World::load_as(scene, true)` or whole) with a pool of `mb` MB, its free forms,
+/// volumes and voxel models, and the pager feeding it (the floor already uploaded). A scene without a database is an error naming
 /// `--terrain-memory`.
 pub fn renderer(
     gpu: &Gpu,

@@ -245,12 +245,11 @@ pub fn read_from(tiles: &dyn Tiles, spec: &WindowSpec) -> Result<Option<Heightfi
     let n = db.tile_cells() as i64;
     let np = n as usize + 1;
     let (i_last, j_last) = (spec.i0 + w as i64 - 1, spec.j0 + h as i64 - 1);
-    let span_of = |lo: i64, hi: i64| tiles_over(lo, hi, n);
     let mut out = vec![f32::NAN; w * h];
     let mut filled = Vec::new();
     let mut not_resident = false;
-    let xs: Vec<i64> = span_of(spec.i0, i_last).collect();
-    for ty in span_of(spec.j0, j_last) {
+    let xs: Vec<i64> = tiles_over(spec.i0, i_last, n).collect();
+    for ty in tiles_over(spec.j0, j_last, n) {
         // One row of tiles at a time, decoded in parallel.
         let row: Vec<RowTile> = xs
             .par_iter()
@@ -335,10 +334,9 @@ pub fn height_bounds(db: &Database, spec: &WindowSpec) -> Option<(f32, f32)> {
         spec.i0 + spec.width as i64 - 1,
         spec.j0 + spec.height as i64 - 1,
     );
-    let span_of = |lo: i64, hi: i64| tiles_over(lo, hi, n);
     let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-    for ty in span_of(spec.j0, j_last) {
-        for tx in span_of(spec.i0, i_last) {
+    for ty in tiles_over(spec.j0, j_last, n) {
+        for tx in tiles_over(spec.i0, i_last, n) {
             let mut id = Some(TileId {
                 level: spec.level,
                 x: tx as u32,

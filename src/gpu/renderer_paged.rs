@@ -4,7 +4,7 @@
 //! normals from the finest resident surface and casts its shadow rays through the same paged
 //! traversal; the tile pre-pass (which reads the pyramid) is off. The window's `Terrain` gives
 //! the box, placement and pyramid shape only: it may be hollow (`Terrain::is_hollow`, no
-//! samples held), as `World::load` makes it for a paged scene.
+//! samples held), as `World::load_as(scene, true)` makes it.
 
 use super::super::terrain_passes::TerrainPasses;
 use super::super::terrain_pool::TerrainPool;
