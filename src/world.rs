@@ -56,7 +56,14 @@ impl World {
     /// Loads what `scene` names, in order: terrain (and pyramid), free forms, volumes, voxel
     /// models. The first input that fails is the error (it names its file or table).
     pub fn load(scene: &Scene) -> Result<World> {
-        let terrain = scene.load_terrain()?;
+        Self::load_as(scene, false)
+    }
+
+    /// [`World::load`]; `paged` (the scene renders through the paged tile pool,
+    /// `--terrain-memory`): a database window is loaded hollow, without its samples
+    /// (`Terrain::is_hollow`), so host memory does not grow with the window.
+    pub fn load_as(scene: &Scene, paged: bool) -> Result<World> {
+        let terrain = scene.load_terrain_as(paged)?;
         let mut objects = scene.free_forms(&terrain)?;
         let mut voxels = scene.voxel_models(&terrain)?;
         let entity = &scene.desc.cigi.entity;

@@ -27,6 +27,8 @@
 
 mod common;
 
+use common::{hwm_kib, pager_mosaic as mosaic};
+
 use glam::DVec3;
 use relief::cpu::paged::{intersect_paged, PagedTerrain};
 use relief::cpu::traverse::{intersect_lod, GridRay, TraversalStats};
@@ -34,7 +36,6 @@ use relief::db::pager::{Pager, PagerOptions, TileStore, View};
 use relief::db::{self, Database, Tile};
 use relief::terrain::curved::GridCurvature;
 use relief::terrain::{Terrain, TerrainFrame};
-use std::path::PathBuf;
 use std::sync::Arc;
 
 const POOL: u64 = 8 << 20;
@@ -46,16 +47,6 @@ const MAX_STEPS: u32 = 4096;
 const CONVERGE_FRAMES: usize = 32;
 const UPDATE_MAX: f64 = 0.010;
 
-fn mosaic() -> PathBuf {
-    let dir = common::project_dir().join("target").join("test-output");
-    std::fs::create_dir_all(&dir).unwrap();
-    let p = dir.join("pager-synth-16x16-257-seed1.reliefdb");
-    if Database::open(&p).is_err() {
-        db::synth(&p, &db::SynthOptions::default(), &|_, _| {}).unwrap();
-    }
-    p
-}
-
 struct Store(Database);
 
 impl TileStore for Store {
@@ -65,12 +56,6 @@ impl TileStore for Store {
     fn read(&self, id: db::TileId) -> relief::Result<Option<Arc<Tile>>> {
         self.0.tile(id)
     }
-}
-
-fn hwm_kib() -> Option<u64> {
-    let s = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
-    line.split_whitespace().nth(1)?.parse().ok()
 }
 
 /// Eye in the window's grid frame (samples, metres), heading and pitch in degrees.

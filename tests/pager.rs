@@ -17,25 +17,12 @@
 
 mod common;
 
-use common::temp_dir;
+use common::{pager_mosaic as mosaic, temp_dir};
 use relief::db::pager::{Pager, PagerOptions, TileStore, Upload, View};
-use relief::db::{self, Database, Tile, TileId};
-use std::path::PathBuf;
+use relief::db::{Database, Tile, TileId};
 use std::sync::{Arc, Mutex};
 use std::thread::ThreadId;
 use std::time::{Duration, Instant};
-
-/// The 16x16 mosaic, built once and kept between runs (its name holds its options: the
-/// synth is deterministic).
-fn mosaic() -> PathBuf {
-    let dir = common::project_dir().join("target").join("test-output");
-    std::fs::create_dir_all(&dir).unwrap();
-    let p = dir.join("pager-synth-16x16-257-seed1.reliefdb");
-    if Database::open(&p).is_err() {
-        db::synth(&p, &db::SynthOptions::default(), &|_, _| {}).unwrap();
-    }
-    p
-}
 
 /// A database whose reads take `delay` more and record their thread.
 struct SlowStore {

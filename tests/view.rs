@@ -1038,12 +1038,7 @@ fn paged_window_matches_headless_paged_render() {
     let Some((x, _lock)) = window_env() else {
         return;
     };
-    let db_dir = common::project_dir().join("target").join("test-output");
-    std::fs::create_dir_all(&db_dir).unwrap();
-    let db = db_dir.join("pager-synth-16x16-257-seed1.reliefdb");
-    if relief::db::Database::open(&db).is_err() {
-        relief::db::synth(&db, &relief::db::SynthOptions::default(), &|_, _| {}).unwrap();
-    }
+    let db = common::pager_mosaic();
     let dir = temp_dir("paged-view");
     let scene = dir.join("mosaic.toml");
     let text = format!(

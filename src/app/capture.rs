@@ -224,10 +224,11 @@ pub fn prepare(job: &RenderJob) -> Result<(Prepared, TerrainRenderer)> {
         scene.desc.output.height = h;
         scene.desc.validate()?;
     }
-    let world = World::load(&scene)?;
+    let memory = job.terrain_memory.or(scene.desc.terrain.memory);
+    let world = World::load_as(&scene, memory.is_some())?;
     let gpu = crate::app::gpu_options::open()?;
     log::info!("adapter: {}", gpu.describe());
-    let (mut renderer, paging) = match job.terrain_memory.or(scene.desc.terrain.memory) {
+    let (mut renderer, paging) = match memory {
         Some(mb) => {
             let (r, p) = super::paged::renderer(&gpu, &scene, &world, mb)?;
             (r, Some(RefCell::new(p)))

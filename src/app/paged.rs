@@ -36,9 +36,9 @@ fn pool_bytes(mb: u64) -> Result<u64> {
     Ok(mb << 20)
 }
 
-/// A paged renderer of `world` (the window of `scene`'s database, its finest level) with a
-/// pool of `mb` MB, its free forms, volumes and voxel models, and the pager feeding it (the
-/// floor already uploaded). A scene without a database is an error naming
+/// A paged renderer of `world` (the window of `scene`'s database, its finest level, loaded
+/// hollow by `World::load_as(scene, true)` or whole) with a pool of `mb` MB, its free forms,
+/// volumes and voxel models, and the pager feeding it (the floor already uploaded). A scene without a database is an error naming
 /// `--terrain-memory`.
 pub fn renderer(
     gpu: &Gpu,
@@ -61,7 +61,9 @@ pub fn renderer(
             ),
         ));
     };
-    let database = Database::open(&scene.base_dir.join(path))?;
+    let mut database = Database::open(&scene.base_dir.join(path))?;
+    // Host memory within the budget: the reads' cache no larger than the pool.
+    database.set_cache_bytes(pool_bytes);
     let fine = database.header().levels.len() as u32 - 1;
     let spec = db::window::resolve(&database, window, level)?;
     if spec.level != fine {

@@ -3,7 +3,7 @@
 //! spacing comes from the same georeference conversion the `.hgt` loader uses, so a tile
 //! compiled alone and windowed over its extent gives the same terrain as the tile itself.
 
-use super::format::{LevelInfo, TileId};
+use super::format::TileId;
 use super::reader::Database;
 use super::tiles::{Lookup, Tiles};
 use crate::terrain::{GeoRef, Heightfield, MAX_SIDE};
@@ -242,17 +242,14 @@ pub fn read_from(tiles: &dyn Tiles, spec: &WindowSpec) -> Result<Option<Heightfi
         ),
         (w as u64 * h as u64).saturating_mul(BYTES_PER_SAMPLE),
     )?;
-    let level: LevelInfo = db.header().levels[spec.level as usize];
     let n = db.tile_cells() as i64;
     let np = n as usize + 1;
     let (i_last, j_last) = (spec.i0 + w as i64 - 1, spec.j0 + h as i64 - 1);
-    let span_of =
-        |lo: i64, hi: i64| lo.div_euclid(n)..=((hi - 1).div_euclid(n)).max(lo.div_euclid(n));
     let mut out = vec![f32::NAN; w * h];
     let mut filled = Vec::new();
     let mut not_resident = false;
-    let xs: Vec<i64> = span_of(spec.i0, i_last).collect();
-    for ty in span_of(spec.j0, j_last) {
+    let xs: Vec<i64> = tiles_over(spec.i0, i_last, n).collect();
+    for ty in tiles_over(spec.j0, j_last, n) {
         // One row of tiles at a time, decoded in parallel.
         let row: Vec<RowTile> = xs
             .par_iter()
@@ -299,12 +296,7 @@ pub fn read_from(tiles: &dyn Tiles, spec: &WindowSpec) -> Result<Option<Heightfi
             if filled.iter().any(|f| f.1 != from) { " and coarser" } else { "" }
         );
     }
-    let geo = GeoRef {
-        lon0: level.lon(spec.i0),
-        lat0: level.lat(spec.j0),
-        dlon: level.spacing(),
-        dlat: level.spacing(),
-    };
+    let geo = georef(db, spec);
     let samples = out
         .into_iter()
         .map(|v| (!v.is_nan()).then_some(v))
@@ -312,6 +304,54 @@ pub fn read_from(tiles: &dyn Tiles, spec: &WindowSpec) -> Result<Option<Heightfi
     let what = format!("{} (level {} window)", db.path().display(), spec.level);
     Heightfield::from_samples_with_voids(&what, w, h, samples, geo.metric_spacing(h), Some(geo))
         .map(Some)
+}
+
+/// The tile columns (or rows) of `n` cells that samples `lo..=hi` lie in (a sample on a tile
+/// edge in the tile before it, except the first).
+fn tiles_over(lo: i64, hi: i64, n: i64) -> std::ops::RangeInclusive<i64> {
+    lo.div_euclid(n)..=((hi - 1).div_euclid(n)).max(lo.div_euclid(n))
+}
+
+/// The georeference of window `spec`: its south-west sample and its level's step.
+pub fn georef(db: &Database, spec: &WindowSpec) -> GeoRef {
+    let level = &db.header().levels[spec.level as usize];
+    GeoRef {
+        lon0: level.lon(spec.i0),
+        lat0: level.lat(spec.j0),
+        dlon: level.spacing(),
+        dlat: level.spacing(),
+    }
+}
+
+/// The lowest and highest sample of window `spec` as the index tells them, reading no tile:
+/// the union of the height ranges of the tiles under the window (a tile the level does not
+/// have answers with its nearest stored ancestor, whose range bounds it). Exact where the
+/// window's edges lie on tile edges; otherwise it may be wider than the window's own samples.
+/// `None` where no tile under the window has data.
+pub fn height_bounds(db: &Database, spec: &WindowSpec) -> Option<(f32, f32)> {
+    let n = db.tile_cells() as i64;
+    let (i_last, j_last) = (
+        spec.i0 + spec.width as i64 - 1,
+        spec.j0 + spec.height as i64 - 1,
+    );
+    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+    for ty in tiles_over(spec.j0, j_last, n) {
+        for tx in tiles_over(spec.i0, i_last, n) {
+            let mut id = Some(TileId {
+                level: spec.level,
+                x: tx as u32,
+                y: ty as u32,
+            });
+            while let Some(t) = id {
+                if let Some(e) = db.entry(t) {
+                    (lo, hi) = (lo.min(e.min), hi.max(e.max));
+                    break;
+                }
+                id = super::pager::parent(t);
+            }
+        }
+    }
+    (lo <= hi).then_some((lo, hi))
 }
 
 /// Opens the database at `path` and reads a window of it (see [`resolve`] and [`read`]).

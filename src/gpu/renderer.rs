@@ -139,8 +139,13 @@ impl TerrainRenderer {
         terrain: &Terrain,
         kernels: KernelPath,
     ) -> Result<TerrainRenderer> {
+        Self::with_passes(TerrainPasses::new(gpu, terrain, kernels, None)?)
+    }
+
+    /// A renderer of the terrain `base` renders.
+    pub(super) fn with_passes(base: TerrainPasses) -> Result<TerrainRenderer> {
         Ok(TerrainRenderer {
-            base: TerrainPasses::new(gpu, terrain, kernels, None)?,
+            base,
             table: None,
             objects: None,
             objects_floor: f64::INFINITY,

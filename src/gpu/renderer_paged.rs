@@ -3,7 +3,8 @@
 //! The cast pass is `shaders::cast_paged` (the paged stop rule), the shade pass reads its
 //! normals from the finest resident surface and casts its shadow rays through the same paged
 //! traversal; the tile pre-pass (which reads the pyramid) is off. The window's `Terrain` gives
-//! the box, placement and pyramid shape only.
+//! the box, placement and pyramid shape only: it may be hollow (`Terrain::is_hollow`, no
+//! samples held), as `World::load_as(scene, true)` makes it.
 
 use super::super::terrain_passes::TerrainPasses;
 use super::super::terrain_pool::TerrainPool;
@@ -33,9 +34,7 @@ impl TerrainRenderer {
         }
         pool.set_origin(gpu, [origin[0] as u32, origin[1] as u32]);
         let kernels = gpu.options.kernels.path(&gpu.info);
-        let mut r = Self::with_kernels(gpu, terrain, kernels)?;
-        // Replace the in-memory passes before anything else holds their buffers.
-        r.base = TerrainPasses::new(gpu, terrain, kernels, Some(&pool.bgl))?;
+        let mut r = Self::with_passes(TerrainPasses::new(gpu, terrain, kernels, Some(&pool.bgl))?)?;
         r.paged = Some(pool);
         Ok(r)
     }

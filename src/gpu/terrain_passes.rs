@@ -43,6 +43,12 @@ impl TerrainData {
     /// bindings get 4-byte placeholders).
     pub fn upload(gpu: &Gpu, terrain: &Terrain, paged: bool) -> Result<TerrainData> {
         let dev = &gpu.device;
+        if terrain.is_hollow() && !paged {
+            return Err(Error::invalid(
+                "terrain",
+                "this database window was loaded without its samples for paged rendering: render it with --terrain-memory MB",
+            ));
+        }
         if terrain.pyramid.levels.len() > MAX_LEVELS {
             return Err(Error::Limit {
                 what: "terrain size".into(),

@@ -288,7 +288,18 @@ impl Scene {
     /// Loads the terrain the scene names; checks that `camera.above_terrain` (if set) has
     /// ground below the camera.
     pub fn load_terrain(&self) -> Result<Terrain> {
-        let terrain = Terrain::from_desc(&self.desc.terrain, &self.base_dir)?;
+        self.load_terrain_as(false)
+    }
+
+    /// [`Self::load_terrain`]; `paged`: as the paged renderer takes it, a database window
+    /// hollow ([`Terrain::from_desc_paged`]).
+    pub fn load_terrain_as(&self, paged: bool) -> Result<Terrain> {
+        let (desc, dir) = (&self.desc.terrain, &self.base_dir);
+        let terrain = if paged {
+            Terrain::from_desc_paged(desc, dir)?
+        } else {
+            Terrain::from_desc(desc, dir)?
+        };
         self.camera_position(&terrain)?;
         self.check_above_terrain(&terrain)?;
         Ok(terrain)

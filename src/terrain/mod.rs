@@ -10,6 +10,7 @@ pub mod drape_mips;
 pub mod geotiff;
 pub mod heightfield;
 pub mod hgt;
+pub mod hollow;
 pub mod png16;
 pub mod procedural;
 pub mod pyramid;
@@ -118,6 +119,12 @@ pub struct Terrain {
     /// The earth's curvature is applied (`terrain.curved`; needs a geographic reference):
     /// the surface drops below the eye's tangent plane by [`curved::GridCurvature::drop`].
     pub curved: bool,
+    /// `Some` for a database window rendered through the paged tile pool (`[terrain] memory`,
+    /// `--terrain-memory`): its samples are not held — `field.heights` and `pyramid.data` are
+    /// empty, the pyramid keeps its levels' shapes, `min_height`/`max_height` come from the
+    /// database's index — and heights ([`Terrain::height_at_grid`]) come from the database at
+    /// full resolution through its bounded tile cache ([`hollow::Hollow`]).
+    pub hollow: Option<hollow::Hollow>,
 }
 
 impl Terrain {
@@ -127,27 +134,11 @@ impl Terrain {
         frame: TerrainFrame,
         vertical_scale: f64,
     ) -> Result<Terrain> {
-        if !vertical_scale.is_finite() || vertical_scale <= 0.0 || vertical_scale > 1000.0 {
-            return Err(Error::invalid(
-                "terrain.vertical_scale",
-                format!("must be in (0, 1000], got {vertical_scale}"),
-            ));
+        check_vertical_scale(vertical_scale)?;
+        for h in &mut field.heights {
+            *h = scaled(*h, vertical_scale);
         }
-        if vertical_scale != 1.0 {
-            for h in &mut field.heights {
-                *h = (*h as f64 * vertical_scale) as f32;
-            }
-        }
-        let (min_height, max_height) = field.range();
-        if !min_height.is_finite() || !max_height.is_finite() {
-            return Err(Error::invalid(
-                "terrain.vertical_scale",
-                format!(
-                    "heights times the vertical scale {vertical_scale} are not finite \
-                     ({min_height}..{max_height} m): check the height source's values and the scale"
-                ),
-            ));
-        }
+        let (min_height, max_height) = checked_range(field.range(), vertical_scale)?;
         let t = std::time::Instant::now();
         let pyramid = MaxPyramid::build(&field);
         log::info!(
@@ -159,11 +150,27 @@ impl Terrain {
             pyramid.levels.len(),
             t.elapsed().as_secs_f64() * 1e3
         );
+        Ok(Self::assemble(
+            field,
+            frame,
+            pyramid,
+            (min_height, max_height),
+        ))
+    }
+
+    /// The terrain of `field` (heights scaled) with `pyramid` and the height range, placed by
+    /// `frame` with the field's spacing; walls on, flat, no drape.
+    fn assemble(
+        field: Heightfield,
+        frame: TerrainFrame,
+        pyramid: MaxPyramid,
+        (min_height, max_height): (f32, f32),
+    ) -> Terrain {
         let frame = TerrainFrame {
             spacing: field.spacing,
             ..frame
         };
-        Ok(Terrain {
+        Terrain {
             field,
             frame,
             pyramid,
@@ -172,7 +179,8 @@ impl Terrain {
             drape: None,
             walls: true,
             curved: false,
-        })
+            hollow: None,
+        }
     }
 
     /// Loads and places the terrain a scene describes. Relative paths are resolved from `base_dir`.
@@ -199,6 +207,20 @@ impl Terrain {
             }
         };
         Self::from_field(desc, base_dir, field)
+    }
+
+    /// [`Self::from_desc`] for a scene rendered through the paged tile pool: a database
+    /// window is loaded hollow (its samples not held, [`hollow::Hollow`]); any other source
+    /// as `from_desc` loads it (the paged renderer refuses it).
+    pub fn from_desc_paged(desc: &TerrainDesc, base_dir: &Path) -> Result<Terrain> {
+        match desc.height_source()? {
+            HeightSource::Database {
+                path,
+                window,
+                level,
+            } => hollow::window(desc, base_dir, &base_dir.join(path), window, level),
+            _ => Self::from_desc(desc, base_dir),
+        }
     }
 
     /// A database scene's terrain (`desc` names the database) on window `spec` of the open
@@ -232,28 +254,20 @@ impl Terrain {
     /// The terrain of `desc` on its loaded samples: sea level, checks, frame, walls, curved,
     /// drape.
     fn from_field(desc: &TerrainDesc, base_dir: &Path, mut field: Heightfield) -> Result<Terrain> {
-        if let Some(sea) = desc.sea_level {
-            if !sea.is_finite() || sea.abs() > 1.0e4 {
-                return Err(Error::invalid(
-                    "terrain.sea_level",
-                    format!("must be a height within ±10000 m, got {sea}"),
-                ));
-            }
-            let sea = sea as f32;
+        if let Some(sea) = sea_level(desc)? {
             for h in &mut field.heights {
                 *h = h.max(sea);
             }
         }
-        check_height_range(desc, base_dir, &field)?;
-        let (axis_x, axis_y, normal) = desc.axes()?;
-        let frame = TerrainFrame {
-            origin: DVec3::from(desc.origin),
-            axis_x,
-            axis_y,
-            normal,
-            spacing: field.spacing,
-        };
-        let mut terrain = Terrain::new(field, frame, desc.vertical_scale)?;
+        check_height_range(desc, base_dir, field.range())?;
+        let frame = desc_frame(desc, field.spacing)?;
+        let terrain = Terrain::new(field, frame, desc.vertical_scale)?;
+        Self::finish(desc, base_dir, terrain)
+    }
+
+    /// What a scene's `[terrain]` sets on a placed terrain: walls, the curved earth (by
+    /// default on a database), the drape.
+    fn finish(desc: &TerrainDesc, base_dir: &Path, mut terrain: Terrain) -> Result<Terrain> {
         terrain.walls = desc.walls;
         terrain.curved = desc.curved.unwrap_or(matches!(
             desc.height_source()?,
@@ -374,6 +388,9 @@ impl Terrain {
         if !(x >= 0.0 && y >= 0.0 && x <= cw as f64 && y <= ch as f64) {
             return None;
         }
+        if let Some(h) = &self.hollow {
+            return h.height_at_grid(self.field.geo?, x, y);
+        }
         let i = (x.floor() as usize).min(cw - 1);
         let j = (y.floor() as usize).min(ch - 1);
         let (u, v) = (x - i as f64, y - j as f64);
@@ -397,10 +414,67 @@ impl crate::geom::Ground for Terrain {
     }
 }
 
-/// `Err` naming the scene field that made the heights non-finite or absurd (beyond
-/// ±[`MAX_ABS_HEIGHT`]): `terrain.png_scale`/`png_offset` for PNG, `terrain.procedural.height`.
-fn check_height_range(desc: &TerrainDesc, base_dir: &Path, field: &Heightfield) -> Result<()> {
-    let (lo, hi) = field.range();
+/// `terrain.sea_level`, checked (a height within ±10 km).
+fn sea_level(desc: &TerrainDesc) -> Result<Option<f32>> {
+    match desc.sea_level {
+        Some(sea) if !sea.is_finite() || sea.abs() > 1.0e4 => Err(Error::invalid(
+            "terrain.sea_level",
+            format!("must be a height within ±10000 m, got {sea}"),
+        )),
+        sea => Ok(sea.map(|s| s as f32)),
+    }
+}
+
+/// The placement `[terrain]` gives a grid of `spacing`: origin and axes.
+fn desc_frame(desc: &TerrainDesc, spacing: [f64; 2]) -> Result<TerrainFrame> {
+    let (axis_x, axis_y, normal) = desc.axes()?;
+    Ok(TerrainFrame {
+        origin: DVec3::from(desc.origin),
+        axis_x,
+        axis_y,
+        normal,
+        spacing,
+    })
+}
+
+/// `Err` naming `terrain.vertical_scale` unless it is in (0, 1000].
+fn check_vertical_scale(vertical_scale: f64) -> Result<()> {
+    if !vertical_scale.is_finite() || vertical_scale <= 0.0 || vertical_scale > 1000.0 {
+        return Err(Error::invalid(
+            "terrain.vertical_scale",
+            format!("must be in (0, 1000], got {vertical_scale}"),
+        ));
+    }
+    Ok(())
+}
+
+/// A height times the vertical scale, as a terrain stores it.
+fn scaled(h: f32, vertical_scale: f64) -> f32 {
+    if vertical_scale == 1.0 {
+        h
+    } else {
+        (h as f64 * vertical_scale) as f32
+    }
+}
+
+/// The scaled height range, or an error naming `terrain.vertical_scale` where it is not finite.
+fn checked_range((lo, hi): (f32, f32), vertical_scale: f64) -> Result<(f32, f32)> {
+    if !lo.is_finite() || !hi.is_finite() {
+        return Err(Error::invalid(
+            "terrain.vertical_scale",
+            format!(
+                "heights times the vertical scale {vertical_scale} are not finite \
+                 ({lo}..{hi} m): check the height source's values and the scale"
+            ),
+        ));
+    }
+    Ok((lo, hi))
+}
+
+/// `Err` naming the scene field that made the heights (`(lo, hi)`, their range) non-finite or
+/// absurd (beyond ±[`MAX_ABS_HEIGHT`]): `terrain.png_scale`/`png_offset` for PNG,
+/// `terrain.procedural.height`.
+fn check_height_range(desc: &TerrainDesc, base_dir: &Path, (lo, hi): (f32, f32)) -> Result<()> {
     let ok = |v: f32| v.is_finite() && (v as f64).abs() <= MAX_ABS_HEIGHT;
     if ok(lo) && ok(hi) {
         return Ok(());

@@ -35,9 +35,11 @@ pub struct MaxPyramid {
 }
 
 impl MaxPyramid {
-    /// Builds the pyramid of `field`.
-    pub fn build(field: &Heightfield) -> MaxPyramid {
-        let mut cells = [(field.width - 1) as u32, (field.height - 1) as u32];
+    /// The levels of the pyramid of a `width` x `height`-sample grid, holding no values
+    /// (`data` empty): what a terrain whose samples are not held (a paged database window)
+    /// keeps of its pyramid.
+    pub fn shape(width: usize, height: usize) -> MaxPyramid {
+        let mut cells = [(width - 1) as u32, (height - 1) as u32];
         let mut dims = vec![cells];
         while cells != [1, 1] {
             cells = [cells[0].div_ceil(2), cells[1].div_ceil(2)];
@@ -58,7 +60,17 @@ impl MaxPyramid {
             });
             offset += stored[0] * stored[1];
         }
-        let mut data = vec![PAD; offset as usize];
+        MaxPyramid {
+            levels,
+            data: Vec::new(),
+        }
+    }
+
+    /// Builds the pyramid of `field`.
+    pub fn build(field: &Heightfield) -> MaxPyramid {
+        let MaxPyramid { levels, .. } = Self::shape(field.width, field.height);
+        let last = levels.last().expect("a pyramid has a top level");
+        let mut data = vec![PAD; (last.offset + last.stored[0] * last.stored[1]) as usize];
         // Level 0 from the samples.
         {
             let l0 = levels[0];

@@ -219,3 +219,23 @@ pub fn backends() -> Vec<&'static str> {
     }
     v
 }
+
+/// The 16x16 x 257² synthetic mosaic of the pager and paged tests, built once and kept between
+/// runs (its name holds its options: the synth is deterministic).
+pub fn pager_mosaic() -> PathBuf {
+    use relief::db::{self, Database};
+    let dir = project_dir().join("target").join("test-output");
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = dir.join("pager-synth-16x16-257-seed1.reliefdb");
+    if Database::open(&p).is_err() {
+        db::synth(&p, &db::SynthOptions::default(), &|_, _| {}).unwrap();
+    }
+    p
+}
+
+/// This process's peak resident set (VmHWM), KiB; `None` off Linux.
+pub fn hwm_kib() -> Option<u64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
+    line.split_whitespace().nth(1)?.parse().ok()
+}

@@ -71,7 +71,8 @@ pub fn prepare(opts: &ViewOptions) -> Result<Prepared> {
         scene.desc.validate()?;
     }
     let channels = display_channels(opts)?;
-    let world = World::load(&scene)?;
+    let paged = opts.terrain_memory.or(scene.desc.terrain.memory).is_some();
+    let world = World::load_as(&scene, paged)?;
     let mut settings = RenderSettings::from_scene(&scene.desc);
     opts.toggles.apply(&mut settings);
     let motion = start_motion(opts, &scene, &world.terrain)?;

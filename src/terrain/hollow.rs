@@ -1,0 +1,125 @@
+//! A database window held without its samples: the terrain of a scene rendered through the
+//! paged tile pool (`[terrain] memory`, `--terrain-memory`). The window keeps everything that
+//! places it and shapes its traversal — size, georeference, metric spacing, frame, pyramid
+//! levels, height range — so world coordinates and the paged renderer's uniforms are those of
+//! the window loaded whole, but neither the height field nor the maximum pyramid is built: host
+//! memory does not grow with the window. The height range comes from the database's index
+//! (`db::window::height_bounds`, no tile read); heights asked of the terrain (camera and
+//! object placement, height above ground) come from the database at full resolution
+//! (`db::height_at`) through its tile cache, bounded by [`CACHE_BYTES`].
+
+use super::{Heightfield, MaxPyramid, Terrain, TerrainDesc};
+use crate::db::{self, Database};
+use crate::{Error, Result};
+use std::path::Path;
+use std::sync::Arc;
+
+/// The tile cache of a hollow terrain's database (its height queries touch a few tiles).
+pub const CACHE_BYTES: u64 = 16 << 20;
+
+/// Where a hollow terrain's heights come from.
+#[derive(Clone, Debug)]
+pub struct Hollow {
+    db: Arc<Database>,
+    /// `terrain.sea_level`: heights below it read as it.
+    sea_level: Option<f32>,
+    vertical_scale: f64,
+}
+
+impl Hollow {
+    /// The database the heights are read from.
+    pub fn database(&self) -> &Database {
+        &self.db
+    }
+
+    /// Height (metres, sea level and vertical scale applied) of the surface at grid position
+    /// `(x, y)` of the window georeferenced by `geo`: the database's bilinear surface there on
+    /// its finest level with data (`db::height_at`; for a window of the finest level the
+    /// window's own surface, except in voids, which the database answers from a coarser level
+    /// where a loaded window fills them). The sea level clamps the interpolated height (a
+    /// loaded window clamps the samples: they differ only in cells crossing sea level).
+    /// `None` where the database has no data or a tile fails its checks (logged).
+    pub fn height_at_grid(&self, geo: super::GeoRef, x: f64, y: f64) -> Option<f64> {
+        let (lat, lon) = (geo.lat0 + y * geo.dlat, geo.lon0 + x * geo.dlon);
+        let h = match db::height_at(&self.db, lat, lon) {
+            Ok(s) => s?.height,
+            Err(e) => {
+                log::warn!("terrain height at latitude {lat}, longitude {lon}: {e}");
+                return None;
+            }
+        };
+        let h = match self.sea_level {
+            Some(sea) => h.max(sea as f64),
+            None => h,
+        };
+        Some(h * self.vertical_scale)
+    }
+}
+
+/// The terrain of `desc`'s window of the database at `path` (`window`, `level` as a loaded
+/// window resolves them), hollow: see the module.
+pub(super) fn window(
+    desc: &TerrainDesc,
+    base_dir: &Path,
+    path: &Path,
+    window: Option<[f64; 4]>,
+    level: Option<u32>,
+) -> Result<Terrain> {
+    let mut database = Database::open(path)?;
+    database.set_cache_bytes(CACHE_BYTES);
+    let spec = db::window::resolve(&database, window, level)?;
+    let geo = db::window::georef(&database, &spec);
+    let (lo, hi) = db::window::height_bounds(&database, &spec).ok_or_else(|| {
+        Error::format(
+            path,
+            format!(
+                "no tile under the window (level {}, {}x{} samples) has data",
+                spec.level, spec.width, spec.height
+            ),
+        )
+    })?;
+    let sea = super::sea_level(desc)?;
+    let (lo, hi) = match sea {
+        Some(s) => (lo.max(s), hi.max(s)),
+        None => (lo, hi),
+    };
+    super::check_height_range(desc, base_dir, (lo, hi))?;
+    super::check_vertical_scale(desc.vertical_scale)?;
+    let vs = desc.vertical_scale;
+    let range = super::checked_range((super::scaled(lo, vs), super::scaled(hi, vs)), vs)?;
+    let field = Heightfield {
+        width: spec.width,
+        height: spec.height,
+        heights: Vec::new(),
+        spacing: desc
+            .cell_size
+            .unwrap_or_else(|| geo.metric_spacing(spec.height)),
+        geo: Some(geo),
+        voids_filled: 0,
+    };
+    log::info!(
+        "{}: level {} window of {}x{} samples held hollow (paged): heights {}..{} m from the index",
+        path.display(),
+        spec.level,
+        spec.width,
+        spec.height,
+        range.0,
+        range.1
+    );
+    let frame = super::desc_frame(desc, field.spacing)?;
+    let pyramid = MaxPyramid::shape(field.width, field.height);
+    let mut terrain = Terrain::assemble(field, frame, pyramid, range);
+    terrain.hollow = Some(Hollow {
+        db: Arc::new(database),
+        sea_level: sea,
+        vertical_scale: vs,
+    });
+    Terrain::finish(desc, base_dir, terrain)
+}
+
+impl Terrain {
+    /// Whether the samples are not held (a paged database window; see [`Hollow`]).
+    pub fn is_hollow(&self) -> bool {
+        self.hollow.is_some()
+    }
+}
