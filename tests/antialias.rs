@@ -280,7 +280,10 @@ fn check_sharpness(scene: &str) {
     // Flags 128 (anti-aliased) and 64 (a near miss the centre ray's cone found) come with
     // anti-aliasing; the others are the centre rays'.
     let unflagged: Vec<u32> = f.edges.flags.iter().map(|v| v & !(128 | 64)).collect();
-    assert_eq!(unflagged, f.off.flags, "flags are the centre rays' but 128 and 64");
+    assert_eq!(
+        unflagged, f.off.flags,
+        "flags are the centre rays' but 128 and 64"
+    );
     let marked = f.edges.antialiased_pixels() as usize;
     assert!(
         marked > 0 && marked < W * H / 2,
@@ -438,7 +441,6 @@ fn a_minified_drape_is_its_mean_in_linear_light() {
     let _ = std::fs::remove_dir_all(&base);
 }
 
-
 /// A spike 500 m tall on a flat field (one sample of a 10 m grid): a needle about half a pixel
 /// wide, centred between two pixel columns, so that no centre ray hits its upper part. The
 /// near misses of the pixel cones find it: with `"edges"` its pixels come within a few levels
@@ -466,8 +468,17 @@ fn a_needle_no_centre_ray_hits_is_found_through_the_pixel_cone() {
     let job = render_job(&[scene.to_str().unwrap()]).unwrap();
     let (mut p, mut r) = capture::prepare(&job).unwrap();
     let cams = quality::motion_cameras(&p.scene, &p.world.terrain, 1);
-    let mut frame = |aa| render_all(&mut p, &mut r, &job, &cams, aa).unwrap().frames.remove(0);
-    let (reference, off, edges) = (frame(Antialias::REFERENCE), frame(Antialias::OFF), frame(EDGES));
+    let mut frame = |aa| {
+        render_all(&mut p, &mut r, &job, &cams, aa)
+            .unwrap()
+            .frames
+            .remove(0)
+    };
+    let (reference, off, edges) = (
+        frame(Antialias::REFERENCE),
+        frame(Antialias::OFF),
+        frame(EDGES),
+    );
     // The needle's pixels: where the reference differs from the plain frame by 8 levels or
     // more in the columns around the image's centre line.
     let (mut needle, mut off_err, mut edges_err, mut near) = (0, 0u64, 0u64, 0);
@@ -486,7 +497,10 @@ fn a_needle_no_centre_ray_hits_is_found_through_the_pixel_cone() {
     eprintln!(
         "needle: {needle} pixels the centre rays miss; error sum {off_err} -> {edges_err}; {near} flagged as near misses"
     );
-    assert!(needle >= 10, "the needle is there in the reference and missed by one ray");
+    assert!(
+        needle >= 10,
+        "the needle is there in the reference and missed by one ray"
+    );
     assert!(near > 0, "near misses found");
     assert!(edges_err * 4 <= off_err, "found through the pixel cone");
     let _ = std::fs::remove_dir_all(&dir);

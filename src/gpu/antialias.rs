@@ -7,7 +7,8 @@
 //!    across a shadow boundary, or a kink of 1/distance across the pixel (a crease or a depth
 //!    jump on one surface), where the colour changes by more than a threshold; or a colour
 //!    step to a neighbour above a larger threshold on one surface (detail finer than the
-//!    pixel). Read back, the mask becomes the list of marked pixels.
+//!    pixel); or a near miss the centre ray's cone found (flag 64: the centre rays are cast
+//!    with the `NEAR` traversal). Read back, the mask becomes the list of marked pixels.
 //! 2. The **sample atlas**: a target of the list's n samples only (entry i = sample i % n of
 //!    marked pixel i / n, row by row), with its own frame targets. Mesa's CPU rasterisers run
 //!    every lane of a fragment block, so a full-screen pass with most pixels switched off would

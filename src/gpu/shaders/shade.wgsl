@@ -25,7 +25,7 @@
 struct Out {
     @location(0) colour: vec4<f32>,
     // x: f32 bits of the ray distance (+inf bits for sky), y: traversal steps,
-    // z: patch tests (low 16 bits) and shadow-ray steps (high 16 bits), w: flags (1 hit, 2 in shadow, 4 step limit reached, 16 free form, 32 voxel model).
+    // z: patch tests (low 16 bits) and shadow-ray steps (high 16 bits), w: flags (1 hit, 2 in shadow, 4 step limit reached, 16 free form, 32 voxel model, 64 a near miss of the NEAR cast; the resolve adds 128).
     @location(1) data: vec4<u32>,
 }
 
