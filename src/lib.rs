@@ -20,6 +20,7 @@
 
 pub mod app;
 pub mod cigi;
+pub mod colour;
 pub mod cpu;
 pub mod db;
 pub mod display;

@@ -8,6 +8,7 @@ mod common;
 
 use relief::app::capture;
 use relief::app::quality::{self, render_all, render_job, Quality, QualityRow};
+use relief::colour::{linear_to_srgb8, srgb_to_linear};
 use relief::gpu::{Antialias, FrameOutput};
 
 const EDGES: Antialias = Antialias {
@@ -138,25 +139,6 @@ fn four(scene: &str) -> Four {
         reference,
         big,
     }
-}
-
-fn srgb_to_linear(v: u8) -> f64 {
-    let c = f64::from(v) / 255.0;
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
-}
-
-fn linear_to_srgb8(c: f64) -> u8 {
-    let c = c.clamp(0.0, 1.0);
-    let s = if c <= 0.0031308 {
-        12.92 * c
-    } else {
-        1.055 * c.powf(1.0 / 2.4) - 0.055
-    };
-    (s * 255.0).round() as u8
 }
 
 impl Four {

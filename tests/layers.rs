@@ -19,6 +19,7 @@ const LAYERS: &[(&str, u32)] = &[
     ("error", 0),
     ("fileio", 0),
     ("geom", 0),
+    ("colour", 0),
     ("geodesy", 0),
     ("terrain", 1),
     ("db", 1),

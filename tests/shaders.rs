@@ -87,7 +87,7 @@ fn every_specialised_variant_validates_with_naga() {
 fn naga_rejects_a_broken_shader() {
     // The check above can fail: a type error is reported.
     let src =
-        relief::gpu::shaders::cast(false, false).replace("let t1 = tt.y;", "let t1: u32 = tt.y;");
+        relief::gpu::shaders::cast(false, false, false).replace("let t1 = tt.y;", "let t1: u32 = tt.y;");
     let module = naga::front::wgsl::parse_str(&src);
     let invalid = match module {
         Err(_) => true,
@@ -208,7 +208,7 @@ fn full_screen_passes_never_discard() {
     for (name, src) in [
         ("raygen", shaders::raygen()),
         ("tile", shaders::tile(true)),
-        ("cast", shaders::cast(true, true)),
+        ("cast", shaders::cast(true, true, false)),
         ("shade", shaders::shade(ShadeFeatures::ALL)),
         (
             "shade (free forms)",

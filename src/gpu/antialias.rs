@@ -101,17 +101,6 @@ pub fn sample_offset(k: usize) -> [f32; 2] {
     GRID[k % 16].map(|i| (f32::from(i) + 0.5) / 4.0 - 0.5)
 }
 
-/// The linear value of 8-bit sRGB value `v` (IEC 61966-2-1).
-fn srgb_to_linear(v: usize) -> f32 {
-    let c = v as f64 / 255.0;
-    let l = if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    };
-    l as f32
-}
-
 /// Mirrors WGSL `AaParams` in `shaders/aa_common.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
@@ -276,7 +265,9 @@ impl AntialiasPasses {
             atlas: [atlas_width(size[0]), aa.every_pixel as u32, first, 0],
             limits: [CONTRAST, KINK, DETAIL, 0.0],
             offsets,
-            linear: std::array::from_fn(|i| std::array::from_fn(|j| srgb_to_linear(4 * i + j))),
+            linear: std::array::from_fn(|i| {
+                std::array::from_fn(|j| crate::colour::srgb_to_linear((4 * i + j) as u8) as f32)
+            }),
         };
         gpu.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&u));

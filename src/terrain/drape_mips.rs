@@ -3,25 +3,7 @@
 //! odd sizes rounded up with the last row or column repeated, down to 1x1.
 
 use super::geotiff::Drape;
-
-fn to_linear(v: u8) -> f64 {
-    let c = f64::from(v) / 255.0;
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
-}
-
-fn to_srgb8(c: f64) -> u8 {
-    let c = c.clamp(0.0, 1.0);
-    let s = if c <= 0.0031308 {
-        12.92 * c
-    } else {
-        1.055 * c.powf(1.0 / 2.4) - 0.055
-    };
-    (s * 255.0).round() as u8
-}
+use crate::colour::{linear_to_srgb8 as to_srgb8, srgb_to_linear as to_linear};
 
 /// One level: `width` x `height` RGBA8 (sRGB) texels, row 0 south like the drape.
 #[derive(Clone, Debug, PartialEq)]
