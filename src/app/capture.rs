@@ -54,7 +54,7 @@ pub fn frame_metadata(
     let pixels = (out.width * out.height) as f64;
     let hits = out.flags.iter().filter(|f| *f & 1 != 0).count();
     let aa_pixels = out.antialiased_pixels();
-    let aa_samples = u64::from(settings.antialias.samples);
+    let aa_samples = u64::from(settings.antialias.rays_per_pixel());
     json!({
         "frame": frame,
         "antialias": {

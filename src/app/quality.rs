@@ -95,7 +95,7 @@ impl Rendered {
     pub fn extra_rays(&self) -> f64 {
         let n = self.frames.len().max(1) as f64;
         let rays: u64 = self.frames.iter().map(|f| f.antialiased_pixels()).sum();
-        rays as f64 * f64::from(self.antialias.samples) / n
+        rays as f64 * f64::from(self.antialias.rays_per_pixel()) / n
     }
 }
 

@@ -57,6 +57,15 @@ impl Antialias {
         self.samples > 0
     }
 
+    /// Sub-pixel rays each anti-aliased pixel gets (0 when off; see [`samples`]).
+    pub fn rays_per_pixel(self) -> u32 {
+        if self.is_on() {
+            samples(self)
+        } else {
+            0
+        }
+    }
+
     /// The scene's (or the command line's) choice.
     pub fn from_option(o: crate::scene::AntialiasOption) -> Antialias {
         Antialias {

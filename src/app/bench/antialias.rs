@@ -79,7 +79,8 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo,
             settings: &p.settings,
             frames,
         };
-        let extra = frame.capture(&mut renderer)?.antialiased_pixels() * u64::from(choice.samples);
+        let pixels_aa = frame.capture(&mut renderer)?.antialiased_pixels();
+        let extra = pixels_aa * u64::from(choice.rays_per_pixel());
         let frame_ms = frame.median_ms(&mut renderer, Stage::Shade)?;
         let base = timings.first().map_or(frame_ms, |t| t.frame_ms);
         timings.push(AaTiming {
