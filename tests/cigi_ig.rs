@@ -324,7 +324,7 @@ fn three_display_channels_obey_one_synchronous_host() {
         let (lla, ypr) = pose(k as u32);
         let bytes = message(
             ig_control(hf, None, false),
-            &[entity(0, 0, lla, ypr).into()],
+            &[EntityControl::placed(0, 0, lla, ypr).into()],
         );
         // The same datagram to the three IGs, then each one's Start of Frame for it.
         for ig in &igs {
@@ -380,30 +380,15 @@ fn three_display_channels_obey_one_synchronous_host() {
     );
     for c in 0..3 {
         let rendered = dir.join(format!("rendered{c}"));
-        let out = common::relief_cli(
-            &[
-                "render",
-                at.to_str().unwrap(),
-                "--display",
-                display.to_str().unwrap(),
-                "--channel",
-                &c.to_string(),
-                "--out",
-                rendered.to_str().unwrap(),
-            ],
-            &[],
-        );
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        let a = image::open(dir.join(format!("channel{c}/frame_0003.png")))
-            .unwrap()
-            .to_rgba8();
-        let b = image::open(rendered.join("frame_0000.png"))
-            .unwrap()
-            .to_rgba8();
+        let channel = c.to_string();
+        let args = [
+            "--display",
+            display.to_str().unwrap(),
+            "--channel",
+            &channel,
+        ];
+        let b = render_frame(&at, &rendered, &args);
+        let a = image_at(&dir.join(format!("channel{c}/frame_0003.png")));
         assert_eq!(a.dimensions(), (160, 100));
         let d = mean_diff(&a, &b);
         let lit = a
@@ -453,7 +438,7 @@ fn malformed(i: u64, rng: &mut common::Rng, header: IgControl) -> Vec<u8> {
         }
         // Entity Control whose size byte runs past the end.
         3 => {
-            let mut v = valid(&[entity(9, 1, [47.0, 9.0, 0.0], [0.0; 3]).into()]);
+            let mut v = valid(&[EntityControl::placed(9, 1, [47.0, 9.0, 0.0], [0.0; 3]).into()]);
             v[25] = 200;
             v
         }
@@ -470,7 +455,7 @@ fn malformed(i: u64, rng: &mut common::Rng, header: IgControl) -> Vec<u8> {
             v
         }
         // Entity Control for huge entity IDs (valid packets: the session's capacity).
-        6 => valid(&[entity(
+        6 => valid(&[EntityControl::placed(
             65535 - (i / 8 % 8000) as u16,
             3,
             [47.2, 9.2, 500.0],
@@ -803,17 +788,7 @@ fn the_hosts_date_time_and_visibility_set_sun_and_fog() {
         ],
         host_socket(),
     );
-    let celestial = CelestialSphereControl {
-        hour: 7,
-        minute: 40,
-        ephemeris: true,
-        sun: true,
-        moon: false,
-        stars: false,
-        date_time_valid: true,
-        date: 6_21_2024,
-        star_intensity: 0.0,
-    };
+    let celestial = sun_at(6_21_2024, 7, 40);
     let atmosphere = AtmosphereControl {
         model_enable: true,
         humidity: 60,
@@ -824,7 +799,7 @@ fn the_hosts_date_time_and_visibility_set_sun_and_fog() {
         wind_direction: 0.0,
         pressure: 1013.25,
     };
-    let own = entity(0, 0, lla, [100.0, -4.0, 0.0]);
+    let own = EntityControl::placed(0, 0, lla, [100.0, -4.0, 0.0]);
     ig.exchange(
         &message(
             ig_control(3, None, false),
@@ -854,28 +829,9 @@ fn the_hosts_date_time_and_visibility_set_sun_and_fog() {
             .replace("visibility = 90000.0", &format!("visibility = {vis:?}"));
         let p = dir.join(format!("{name}.toml"));
         std::fs::write(&p, text).unwrap();
-        let out_dir = dir.join(name);
-        let out = common::relief_cli(
-            &[
-                "render",
-                p.to_str().unwrap(),
-                "--out",
-                out_dir.to_str().unwrap(),
-            ],
-            &[],
-        );
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        image::open(out_dir.join("frame_0000.png"))
-            .unwrap()
-            .to_rgba8()
+        render_frame(&p, &dir.join(name), &[])
     };
-    let a = image::open(served.join("frame_0000.png"))
-        .unwrap()
-        .to_rgba8();
+    let a = image_at(&served.join("frame_0000.png"));
     let same = mean_diff(&a, &render("same", (az, el), 15000.0));
     let scene_sun = mean_diff(&a, &render("scene_sun", (245.0, 24.0), 15000.0));
     let scene_fog = mean_diff(&a, &render("scene_fog", (az, el), 90000.0));
@@ -992,14 +948,18 @@ fn an_entity_from_a_scene_template_appears_moves_hides_and_vanishes() {
     let (p1, p2) = (ahead(1500.0, 0.0, 1250.0), ahead(1700.0, 150.0, 1300.0));
     let own = || HostPacket::from(ownship(cam, heading as f32, pitch as f32, 0.0));
     let ball = |lla: [f64; 3], state: u8| {
-        let mut e = entity(5, 7, lla, [45.0, 10.0, 5.0]);
+        let mut e = EntityControl::placed(5, 7, lla, [45.0, 10.0, 5.0]);
         e.entity_state = state;
         HostPacket::from(e)
     };
     let steps: Vec<Vec<HostPacket>> = vec![
         vec![own()],
         vec![own(), ball(p1, 1)],
-        vec![own(), ball(p2, 1), entity(6, 99, p1, [0.0; 3]).into()],
+        vec![
+            own(),
+            ball(p2, 1),
+            EntityControl::placed(6, 99, p1, [0.0; 3]).into(),
+        ],
         vec![own(), ball(p2, 0)],
         vec![own(), ball(p2, 1)],
         vec![own(), ball(p2, 2)],
@@ -1009,11 +969,7 @@ fn an_entity_from_a_scene_template_appears_moves_hides_and_vanishes() {
         ig.exchange(&message(ig_control(hf, None, false), packets), hf);
     }
     ig.finish();
-    let img = |k: usize| {
-        image::open(frames.join(format!("frame_{k:04}.png")))
-            .unwrap()
-            .to_rgba8()
-    };
+    let img = |k: usize| image_at(&frames.join(format!("frame_{k:04}.png")));
     let json = |k: usize| common::read_json(&frames.join(format!("frame_{k:04}.json")));
     let base = img(0);
     for (k, at) in [
@@ -1123,25 +1079,7 @@ fn an_entity_from_a_scene_template_appears_moves_hides_and_vanishes() {
         p2[0], p2[1], p2[2]
     );
     let placed = self::scene(&dir, "placed", cam, [heading, pitch, 0.0], &object);
-    let out_dir = dir.join("rendered");
-    let out = common::relief_cli(
-        &[
-            "render",
-            placed.to_str().unwrap(),
-            "--no-shadows",
-            "--out",
-            out_dir.to_str().unwrap(),
-        ],
-        &[],
-    );
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let rendered = image::open(out_dir.join("frame_0000.png"))
-        .unwrap()
-        .to_rgba8();
+    let rendered = render_frame(&placed, &dir.join("rendered"), &["--no-shadows"]);
     let d = mean_diff(&img(4), &rendered);
     let (_, _, n) = changed(&rendered, &base).expect("the rendered object");
     eprintln!(
@@ -1216,24 +1154,8 @@ fn hot_and_los_on_a_database_scene_come_from_full_resolution() {
         alt,
     };
     let (lon, north, south) = (9.34331, 47.275, 47.225);
-    let segment = |id: u16, alt: f64| LosSegmentRequest {
-        request_id: id,
-        extended: true,
-        source_entity_frame: false,
-        destination_entity_frame: false,
-        response_entity_frame: false,
-        destination_entity_valid: false,
-        alpha_threshold: 0,
-        entity_id: 0,
-        source_lat: north,
-        source_lon: lon,
-        source_alt: alt,
-        destination_lat: south,
-        destination_lon: lon,
-        destination_alt: alt,
-        material_mask: 0,
-        update_period: 0,
-        destination_entity_id: 0,
+    let segment = |id: u16, alt: f64| {
+        LosSegmentRequest::between(id, [north, lon, alt], [south, lon, alt], true)
     };
     let mut packets: Vec<HostPacket> = vec![ownship([47.37, 9.31, 2300.0], 0.0, 0.0, 0.0).into()];
     for (i, &p) in points.iter().enumerate() {
@@ -1490,28 +1412,12 @@ fn a_view_control_offset_moves_and_turns_the_eye() {
         3,
     );
     ig.finish();
-    let rendered = dir.join("rendered");
     let at = scene(&dir, "eye", eye, [h, p, ro], "");
-    let out = common::relief_cli(
-        &[
-            "render",
-            at.to_str().unwrap(),
-            "--out",
-            rendered.to_str().unwrap(),
-        ],
-        &[],
-    );
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let img = |p: std::path::PathBuf| image::open(p).unwrap().to_rgba8();
-    let truth = img(rendered.join("frame_0000.png"));
-    let plain = img(served.join("frame_0000.png"));
+    let truth = render_frame(&at, &dir.join("rendered"), &[]);
+    let plain = image_at(&served.join("frame_0000.png"));
     let (offset, kept) = (
-        img(served.join("frame_0001.png")),
-        img(served.join("frame_0002.png")),
+        image_at(&served.join("frame_0001.png")),
+        image_at(&served.join("frame_0002.png")),
     );
     let (d, d_kept, d_plain) = (
         mean_diff(&offset, &truth),
@@ -1522,23 +1428,8 @@ fn a_view_control_offset_moves_and_turns_the_eye() {
     assert!(d <= 1.0 && d_kept <= 1.0, "{d} {d_kept}");
     assert!(d_plain > 5.0, "the offset changes the frame: {d_plain}");
     // The translation is seen too: the eye turned but not moved is another frame.
-    let turned_dir = dir.join("turned");
     let turned = scene(&dir, "turned", lla, [h, p, ro], "");
-    let out = common::relief_cli(
-        &[
-            "render",
-            turned.to_str().unwrap(),
-            "--out",
-            turned_dir.to_str().unwrap(),
-        ],
-        &[],
-    );
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let d_turned = mean_diff(&offset, &img(turned_dir.join("frame_0000.png")));
+    let d_turned = mean_diff(&offset, &render_frame(&turned, &dir.join("turned"), &[]));
     eprintln!("offset frame vs the eye turned but not moved: {d_turned:.3}/255");
     assert!(d_turned > 10.0 * d.max(0.01), "{d_turned}");
 }
@@ -1588,7 +1479,7 @@ fn an_entity_from_a_voxel_template_appears_hides_and_vanishes() {
     let ypr = [45.0f32, 10.0, 5.0];
     let own = || HostPacket::from(ownship(cam, heading as f32, pitch as f32, 0.0));
     let axes_at = |state: u8| {
-        let mut e = entity(5, 8, p1, ypr);
+        let mut e = EntityControl::placed(5, 8, p1, ypr);
         e.entity_state = state;
         HostPacket::from(e)
     };
@@ -1603,11 +1494,7 @@ fn an_entity_from_a_voxel_template_appears_hides_and_vanishes() {
         ig.exchange(&message(ig_control(hf, None, false), packets), hf);
     }
     ig.finish();
-    let img = |k: usize| {
-        image::open(frames.join(format!("frame_{k:04}.png")))
-            .unwrap()
-            .to_rgba8()
-    };
+    let img = |k: usize| image_at(&frames.join(format!("frame_{k:04}.png")));
     let json = |k: usize| common::read_json(&frames.join(format!("frame_{k:04}.json")));
     let base = img(0);
     let (cx, cy, count) = changed(&img(1), &base).expect("the voxel entity is drawn");
@@ -1632,25 +1519,7 @@ fn an_entity_from_a_voxel_template_appears_hides_and_vanishes() {
     let hpr = [f64::from(ypr[0]), f64::from(ypr[1]), f64::from(ypr[2])];
     let truth_scene =
         cigi_support::scene(&dir, "truth", cam, [heading, pitch, 0.0], &model(p1, hpr));
-    let rendered = dir.join("rendered");
-    let out = common::relief_cli(
-        &[
-            "render",
-            truth_scene.to_str().unwrap(),
-            "--no-shadows",
-            "--out",
-            rendered.to_str().unwrap(),
-        ],
-        &[],
-    );
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let truth = image::open(rendered.join("frame_0000.png"))
-        .unwrap()
-        .to_rgba8();
+    let truth = render_frame(&truth_scene, &dir.join("rendered"), &["--no-shadows"]);
     let d = mean_diff(&img(1), &truth);
     eprintln!("voxel entity frame vs relief render of the model at its pose: {d:.4}/255");
     assert!(d <= 1.0, "{d}");

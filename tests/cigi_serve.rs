@@ -8,7 +8,7 @@
 mod cigi_support;
 mod common;
 
-use cigi_support::{host_socket, ig_control, sof, Ig};
+use cigi_support::{host_socket, ig_control, mean_diff, ownship, sof, sun_at, Dem, Ig};
 use common::{relief_cli, relief_command, temp_dir, terrains, Rng};
 use relief::cigi::*;
 use std::io::{BufRead, BufReader};
@@ -29,30 +29,6 @@ fn with_size<'a>(args: &[&'a str]) -> Vec<&'a str> {
     let mut all = vec!["--size", SIZE];
     all.extend_from_slice(args);
     all
-}
-
-fn ownship(lla: [f64; 3], yaw: f32, pitch: f32, roll: f32) -> EntityControl {
-    EntityControl {
-        entity_id: 0,
-        entity_state: 1,
-        attach: false,
-        collision_detection: false,
-        inherit_alpha: false,
-        ground_clamp: 0,
-        animation_direction: false,
-        animation_loop: false,
-        animation_state: 0,
-        extrapolation: false,
-        alpha: 255,
-        entity_type: 0,
-        parent_id: 0,
-        roll,
-        pitch,
-        yaw,
-        lat: lla[0],
-        lon: lla[1],
-        alt: lla[2],
-    }
 }
 
 fn message(frame: u32, packets: &[HostPacket]) -> Vec<u8> {
@@ -87,50 +63,6 @@ fn scene_named(
 
 fn scene(dir: &Path, lla: [f64; 3], heading: f64, pitch: f64, roll: f64) -> PathBuf {
     scene_named(dir, "scene", lla, heading, pitch, roll)
-}
-
-/// The DEM of N47E009 read here: 1201² big-endian i16, row 0 the northern edge (48°N),
-/// column 0 the western (9°E), 3″ steps.
-struct Dem(Vec<i16>);
-
-impl Dem {
-    fn load() -> Dem {
-        let b = std::fs::read(terrains().join("N47E009.hgt")).unwrap();
-        assert_eq!(b.len(), 1201 * 1201 * 2);
-        Dem(b
-            .chunks(2)
-            .map(|c| i16::from_be_bytes([c[0], c[1]]))
-            .collect())
-    }
-
-    fn at(&self, row: usize, col: usize) -> f64 {
-        let v = self.0[row * 1201 + col];
-        assert_ne!(v, -32768, "void sample at row {row}, column {col}");
-        f64::from(v)
-    }
-
-    /// The bilinear surface (metres above MSL) at `lat`, `lon`.
-    fn height(&self, lat: f64, lon: f64) -> f64 {
-        let (r, c) = ((48.0 - lat) * 1200.0, (lon - 9.0) * 1200.0);
-        let (r0, c0) = (r.floor() as usize, c.floor() as usize);
-        let (v, u) = (r - r0 as f64, c - c0 as f64);
-        self.at(r0, c0) * (1.0 - u) * (1.0 - v)
-            + self.at(r0, c0 + 1) * u * (1.0 - v)
-            + self.at(r0 + 1, c0) * (1.0 - u) * v
-            + self.at(r0 + 1, c0 + 1) * u * v
-    }
-}
-
-/// Mean absolute difference of two RGBA8 images, in units of 1/255.
-fn mean_diff(a: &image::RgbaImage, b: &image::RgbaImage) -> f64 {
-    assert_eq!(a.dimensions(), b.dimensions());
-    let s: u64 = a
-        .as_raw()
-        .iter()
-        .zip(b.as_raw())
-        .map(|(x, y)| u64::from(x.abs_diff(*y)))
-        .sum();
-    s as f64 / a.as_raw().len() as f64
 }
 
 #[test]
@@ -273,21 +205,6 @@ fn meridional_radius(lat: f64) -> f64 {
     a * (1.0 - e2) / (1.0 - e2 * s * s).powf(1.5)
 }
 
-/// The first point of the segment (constant longitude) below the DEM by a dense march:
-/// `(fraction along the segment, step)`, or `None` when it stays above.
-fn march(
-    dem: &Dem,
-    lon: f64,
-    (lat0, alt0): (f64, f64),
-    (lat1, alt1): (f64, f64),
-) -> Option<(f64, f64)> {
-    let n = 40_000;
-    (0..=n).map(|k| k as f64 / n as f64).find_map(|s| {
-        let (lat, alt) = (lat0 + (lat1 - lat0) * s, alt0 + (alt1 - alt0) * s);
-        (alt < dem.height(lat, lon)).then_some((s, 1.0 / n as f64))
-    })
-}
-
 #[test]
 fn line_of_sight_across_the_saentis_ridge() {
     let dem = Dem::load();
@@ -297,24 +214,8 @@ fn line_of_sight_across_the_saentis_ridge() {
     // North to south over the summit (2502 m), low and high.
     let lon = 9.34331;
     let (north, south) = (47.275, 47.225);
-    let segment = |id: u16, alt: f64, extended: bool| LosSegmentRequest {
-        request_id: id,
-        extended,
-        source_entity_frame: false,
-        destination_entity_frame: false,
-        response_entity_frame: false,
-        destination_entity_valid: false,
-        alpha_threshold: 0,
-        entity_id: 0,
-        source_lat: north,
-        source_lon: lon,
-        source_alt: alt,
-        destination_lat: south,
-        destination_lon: lon,
-        destination_alt: alt,
-        material_mask: 0,
-        update_period: 0,
-        destination_entity_id: 0,
+    let segment = |id: u16, alt: f64, extended: bool| {
+        LosSegmentRequest::between(id, [north, lon, alt], [south, lon, alt], extended)
     };
     let vector = LosVectorRequest {
         request_id: 5,
@@ -346,10 +247,11 @@ fn line_of_sight_across_the_saentis_ridge() {
     // Metres per degree of latitude here (WGS84), and the segment's length.
     let per_deg = meridional_radius(0.5 * (north + south)).to_radians();
     let length = (north - south) * per_deg;
-    let low = march(&dem, lon, (north, 2300.0), (south, 2300.0))
+    let low = dem
+        .march(lon, (north, 2300.0), (south, 2300.0))
         .expect("the low segment meets the ridge");
     assert!(
-        march(&dem, lon, (north, 2700.0), (south, 2700.0)).is_none(),
+        dem.march(lon, (north, 2700.0), (south, 2700.0)).is_none(),
         "the high one clears it"
     );
     let (s, step) = low;
@@ -740,17 +642,7 @@ fn view_with_cigi_follows_a_synchronous_host() {
         );
         let mut ball = ownship([47.33, 9.31, 2300.0], 0.0, 0.0, 0.0);
         (ball.entity_id, ball.entity_type) = (5, 7);
-        let celestial = CelestialSphereControl {
-            hour: 7,
-            minute: 40,
-            ephemeris: true,
-            sun: true,
-            moon: false,
-            stars: false,
-            date_time_valid: true,
-            date: 6_21_2024,
-            star_intensity: 0.0,
-        };
+        let celestial = sun_at(6_21_2024, 7, 40);
         let mut atmosphere = AtmosphereControl::default();
         (atmosphere.model_enable, atmosphere.visibility) = (true, 15000.0);
         let packets = [own.into(), ball.into(), celestial.into(), atmosphere.into()];

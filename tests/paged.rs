@@ -220,39 +220,79 @@ fn script(terrain: &Terrain) -> Vec<Cam> {
     out
 }
 
-#[test]
-fn paged_flight_no_holes_and_converges() {
-    let path = mosaic();
-    let (terrain, origin, geo) = window(&path);
-    let top = terrain.pyramid.top();
-    let store: Arc<dyn TileStore> = Arc::new(Store(Database::open(&path).unwrap()));
-    let opts = PagerOptions {
-        pool_bytes: POOL,
-        ..PagerOptions::default()
-    };
-    let (mut pager, first) = Pager::new(store, opts).unwrap();
-    let (slots, _) = pager.slots();
-    let mut pool: Vec<Option<Arc<Tile>>> = vec![None; slots];
-    let apply = |pool: &mut Vec<Option<Arc<Tile>>>, up: &[db::pager::Upload]| {
-        for u in up {
-            pool[u.slot as usize] = Some(u.tile.clone());
+/// The flight's start: the mosaic's window, a pager over it with the test's pool, and a host
+/// copy of the pool holding the pager's first uploads (`first`).
+struct Flight {
+    terrain: Terrain,
+    origin: [i64; 2],
+    geo: relief::terrain::GeoRef,
+    top: usize,
+    pager: Pager,
+    pool: Vec<Option<Arc<Tile>>>,
+    first: Vec<db::pager::Upload>,
+}
+
+impl Flight {
+    fn start() -> Flight {
+        let path = mosaic();
+        let (terrain, origin, geo) = window(&path);
+        let top = terrain.pyramid.top();
+        let store: Arc<dyn TileStore> = Arc::new(Store(Database::open(&path).unwrap()));
+        let opts = PagerOptions {
+            pool_bytes: POOL,
+            ..PagerOptions::default()
+        };
+        let (pager, first) = Pager::new(store, opts).unwrap();
+        let mut pool = vec![None; pager.slots().0];
+        apply(&mut pool, &first);
+        Flight {
+            terrain,
+            origin,
+            geo,
+            top,
+            pager,
+            pool,
+            first,
         }
-    };
-    apply(&mut pool, &first);
-    let view_of = |c: Cam| View {
+    }
+}
+
+/// The uploads `up` into the host copy of the pool.
+fn apply(pool: &mut [Option<Arc<Tile>>], up: &[db::pager::Upload]) {
+    for u in up {
+        pool[u.slot as usize] = Some(u.tile.clone());
+    }
+}
+
+/// The pager's view of camera `c` over the window of `geo`, `width` x `height` pixels.
+fn view(geo: &relief::terrain::GeoRef, c: Cam, width: u32, height: u32) -> View {
+    View {
         lon: geo.lon0 + c.x * geo.dlon,
         lat: geo.lat0 + c.y * geo.dlat,
         height: c.z,
         heading: c.heading,
         pitch: c.pitch,
         fov: FOV,
-        width: W as u32,
-        height_px: H as u32,
-    };
+        width,
+        height_px: height,
+    }
+}
+
+#[test]
+fn paged_flight_no_holes_and_converges() {
+    let Flight {
+        terrain,
+        origin,
+        geo,
+        top,
+        mut pager,
+        mut pool,
+        ..
+    } = Flight::start();
     let flight = FLIGHT;
     let (mut worst_update, mut converged, mut worst_holes) = (0f64, None, 0usize);
     for (frame, &cam) in script(&terrain).iter().enumerate() {
-        let (up, st) = pager.update(&view_of(cam)).unwrap();
+        let (up, st) = pager.update(&view(&geo, cam, W as u32, H as u32)).unwrap();
         worst_update = worst_update.max(st.seconds);
         apply(&mut pool, &up);
         assert!(
@@ -396,45 +436,28 @@ fn gpu_compare(
 fn paged_gpu_flight_matches_twin_and_converges() {
     let Some(gpu) = common::gpu() else { return };
     let _lock = common::gpu_lock();
-    let path = mosaic();
-    let (terrain, origin, geo) = window(&path);
-    let top = terrain.pyramid.top();
-    let store: Arc<dyn TileStore> = Arc::new(Store(Database::open(&path).unwrap()));
-    let opts = PagerOptions {
-        pool_bytes: POOL,
-        ..PagerOptions::default()
-    };
-    let (mut pager, first) = Pager::new(store, opts).unwrap();
-    let (slots, _) = pager.slots();
-    let mut pool: Vec<Option<Arc<Tile>>> = vec![None; slots];
+    let Flight {
+        terrain,
+        origin,
+        geo,
+        top,
+        mut pager,
+        mut pool,
+        first,
+    } = Flight::start();
+    let slots = pool.len();
     let gpu_pool =
         relief::gpu::terrain_pool::TerrainPool::new(gpu, pager.page_table(), 256, slots).unwrap();
     assert!(gpu_pool.size().1 <= POOL, "GPU pool over the budget");
     let mut paged_r =
         relief::gpu::TerrainRenderer::new_paged(gpu, &terrain, gpu_pool, origin).unwrap();
     let mut full_r = relief::gpu::TerrainRenderer::new(gpu, &terrain).unwrap();
-    let apply = |pool: &mut Vec<Option<Arc<Tile>>>, up: &[db::pager::Upload]| {
-        for u in up {
-            pool[u.slot as usize] = Some(u.tile.clone());
-        }
-    };
-    apply(&mut pool, &first);
     paged_r.apply_pages(gpu, &first, pager.page_table());
     let scene = common::synthetic_scene(GW, GH, "position = [0.0, 0.0, 5000.0]");
     let settings = common::settings(true, false);
     let (mut converged, mut worst_holes, mut worst_twin) = (None, 0usize, 0f64);
     for (frame, &c) in script(&terrain).iter().enumerate() {
-        let view = View {
-            lon: geo.lon0 + c.x * geo.dlon,
-            lat: geo.lat0 + c.y * geo.dlat,
-            height: c.z,
-            heading: c.heading,
-            pitch: c.pitch,
-            fov: FOV,
-            width: GW,
-            height_px: GH,
-        };
-        let (up, st) = pager.update(&view).unwrap();
+        let (up, st) = pager.update(&view(&geo, c, GW, GH)).unwrap();
         assert!(
             st.resident_bytes <= POOL,
             "frame {frame}: {} bytes",

@@ -86,8 +86,8 @@ fn every_specialised_variant_validates_with_naga() {
 #[test]
 fn naga_rejects_a_broken_shader() {
     // The check above can fail: a type error is reported.
-    let src =
-        relief::gpu::shaders::cast(false, false, false).replace("let t1 = tt.y;", "let t1: u32 = tt.y;");
+    let src = relief::gpu::shaders::cast(false, false, false)
+        .replace("let t1 = tt.y;", "let t1: u32 = tt.y;");
     let module = naga::front::wgsl::parse_str(&src);
     let invalid = match module {
         Err(_) => true,

@@ -266,3 +266,41 @@ cigi_packet! {
         coordinate_system: u8 = 5 [4; 2],
     }
 }
+
+impl EntityControl {
+    /// An active, opaque top-level entity `id` of `entity_type` at geodetic `lla` (degrees,
+    /// metres) with attitude `ypr` (yaw, pitch, roll; degrees); every other field off.
+    pub fn placed(id: u16, entity_type: u16, lla: [f64; 3], ypr: [f32; 3]) -> EntityControl {
+        EntityControl {
+            entity_id: id,
+            entity_state: 1,
+            alpha: 255,
+            entity_type,
+            yaw: ypr[0],
+            pitch: ypr[1],
+            roll: ypr[2],
+            lat: lla[0],
+            lon: lla[1],
+            alt: lla[2],
+            ..EntityControl::default()
+        }
+    }
+}
+
+impl LosSegmentRequest {
+    /// A line of sight from geodetic `from` to `to` (degrees, metres), neither end in an
+    /// entity's frame; a basic or (`extended`) extended response.
+    pub fn between(request_id: u16, from: [f64; 3], to: [f64; 3], extended: bool) -> Self {
+        LosSegmentRequest {
+            request_id,
+            extended,
+            source_lat: from[0],
+            source_lon: from[1],
+            source_alt: from[2],
+            destination_lat: to[0],
+            destination_lon: to[1],
+            destination_alt: to[2],
+            ..LosSegmentRequest::default()
+        }
+    }
+}

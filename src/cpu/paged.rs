@@ -202,30 +202,12 @@ pub fn intersect_paged(
     let slack = height_slack(terrain);
     let (mut level, mut t) = (top, t0);
     let cells = |level: usize| pyr.levels[level].cells;
-    let cell_at = |level: usize, p: DVec3| -> (i64, i64) {
-        let s = (1u64 << level) as f64;
-        let c = cells(level);
-        (
-            ((p.x / s).floor() as i64).clamp(0, c[0] as i64 - 1),
-            ((p.y / s).floor() as i64).clamp(0, c[1] as i64 - 1),
-        )
-    };
-    let (mut ix, mut iy) = cell_at(level, r.at(t));
-    let (sx, sy) = (
-        if r.d.x >= 0.0 { 1 } else { -1 },
-        if r.d.y >= 0.0 { 1 } else { -1 },
-    );
+    let (mut ix, mut iy) = r.cell_at(t, level, cells(level));
+    let (sx, sy) = r.cell_steps();
     while stats.steps < max_steps {
         stats.steps += 1;
         let s = (1u64 << level) as f64;
-        let exit = |i: i64, step: i64, o: f64, d: f64| {
-            if d.abs() < 1e-300 {
-                f64::INFINITY
-            } else {
-                (((i + (step > 0) as i64) as f64) * s - o) / d
-            }
-        };
-        let (tx, ty) = (exit(ix, sx, r.o.x, r.d.x), exit(iy, sy, r.o.y, r.d.y));
+        let (tx, ty) = r.cell_exits(level, (ix, iy), (sx, sy));
         let t_exit = tx.min(ty).min(t1).max(t);
         let (lv, ci, cj) = (level as u32, ix as usize, iy as usize);
         let cell_max = paged.cell_max(lv, ci, cj);

@@ -51,6 +51,43 @@ impl GridRay {
     pub fn at(&self, t: f64) -> DVec3 {
         self.o + self.d * t
     }
+    /// The cell of `level` (2^level grid units a side, `cells` across and down) holding the
+    /// ray's point at `t`, clamped into the grid.
+    pub fn cell_at(&self, t: f64, level: usize, cells: [u32; 2]) -> (i64, i64) {
+        let (p, s) = (self.at(t), (1u64 << level) as f64);
+        (
+            ((p.x / s).floor() as i64).clamp(0, i64::from(cells[0]) - 1),
+            ((p.y / s).floor() as i64).clamp(0, i64::from(cells[1]) - 1),
+        )
+    }
+    /// The cell steps along x and y: +1 or -1.
+    pub fn cell_steps(&self) -> (i64, i64) {
+        (
+            if self.d.x >= 0.0 { 1 } else { -1 },
+            if self.d.y >= 0.0 { 1 } else { -1 },
+        )
+    }
+    /// Where the ray leaves cell (`ix`, `iy`) of `level` across x and across y, stepping
+    /// [`GridRay::cell_steps`] `(sx, sy)` (infinite along an axis it does not move on).
+    pub fn cell_exits(
+        &self,
+        level: usize,
+        (ix, iy): (i64, i64),
+        (sx, sy): (i64, i64),
+    ) -> (f64, f64) {
+        let s = (1u64 << level) as f64;
+        let exit = |i: i64, step: i64, o: f64, d: f64| {
+            if d.abs() < 1e-300 {
+                f64::INFINITY
+            } else {
+                (((i + (step > 0) as i64) as f64) * s - o) / d
+            }
+        };
+        (
+            exit(ix, sx, self.o.x, self.d.x),
+            exit(iy, sy, self.o.y, self.d.y),
+        )
+    }
     /// Height of the ray at `t` above the curved datum: `z(t) + drop(x(t), y(t))`.
     #[inline]
     pub fn lifted(&self, t: f64) -> f64 {
@@ -454,30 +491,12 @@ pub fn intersect_lod(
     let slack = height_slack(terrain);
     let mut level = top;
     let mut t = t0;
-    let cell_at = |level: usize, p: DVec3| -> (i64, i64) {
-        let l = &pyr.levels[level];
-        let s = (1u64 << level) as f64;
-        (
-            ((p.x / s).floor() as i64).clamp(0, l.cells[0] as i64 - 1),
-            ((p.y / s).floor() as i64).clamp(0, l.cells[1] as i64 - 1),
-        )
-    };
-    let (mut ix, mut iy) = cell_at(level, r.at(t));
-    let (sx, sy) = (
-        if r.d.x >= 0.0 { 1 } else { -1 },
-        if r.d.y >= 0.0 { 1 } else { -1 },
-    );
+    let (mut ix, mut iy) = r.cell_at(t, level, pyr.levels[level].cells);
+    let (sx, sy) = r.cell_steps();
     while stats.steps < max_steps {
         stats.steps += 1;
         let s = (1u64 << level) as f64;
-        let exit = |i: i64, step: i64, o: f64, d: f64| {
-            if d.abs() < 1e-300 {
-                f64::INFINITY
-            } else {
-                (((i + (step > 0) as i64) as f64) * s - o) / d
-            }
-        };
-        let (tx, ty) = (exit(ix, sx, r.o.x, r.d.x), exit(iy, sy, r.o.y, r.d.y));
+        let (tx, ty) = r.cell_exits(level, (ix, iy), (sx, sy));
         let t_exit = tx.min(ty).min(t1).max(t);
         let cell_max = pyr.get(level, ix, iy) as f64;
         let z_low = r.lowest(t, t_exit);

@@ -179,33 +179,8 @@ pub fn ig_control(frame: u32, timestamp: Option<f64>, extrapolation: bool) -> Ig
     }
 }
 
-/// Entity Control for a top-level entity, active.
-pub fn entity(id: u16, entity_type: u16, lla: [f64; 3], ypr: [f32; 3]) -> EntityControl {
-    EntityControl {
-        entity_id: id,
-        entity_state: 1,
-        attach: false,
-        collision_detection: false,
-        inherit_alpha: false,
-        ground_clamp: 0,
-        animation_direction: false,
-        animation_loop: false,
-        animation_state: 0,
-        extrapolation: false,
-        alpha: 255,
-        entity_type,
-        parent_id: 0,
-        roll: ypr[2],
-        pitch: ypr[1],
-        yaw: ypr[0],
-        lat: lla[0],
-        lon: lla[1],
-        alt: lla[2],
-    }
-}
-
 pub fn ownship(lla: [f64; 3], yaw: f32, pitch: f32, roll: f32) -> EntityControl {
-    entity(0, 0, lla, [yaw, pitch, roll])
+    EntityControl::placed(0, 0, lla, [yaw, pitch, roll])
 }
 
 pub fn message(control: IgControl, packets: &[HostPacket]) -> Vec<u8> {
@@ -324,4 +299,37 @@ impl Dem {
 pub fn one_ig_test_at_a_time() -> std::sync::MutexGuard<'static, ()> {
     static LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
     LOCK.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// `relief render SCENE --out OUT ARGS…`, which must succeed, and the frame it wrote.
+pub fn render_frame(scene: &Path, out: &Path, args: &[&str]) -> image::RgbaImage {
+    let mut all = vec![
+        "render",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    all.extend_from_slice(args);
+    let o = crate::common::relief_cli(&all, &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    image_at(&out.join("frame_0000.png"))
+}
+
+/// An RGBA8 image file.
+pub fn image_at(path: &Path) -> image::RgbaImage {
+    image::open(path).unwrap().to_rgba8()
+}
+
+/// Celestial Sphere Control with the sun from the ephemeris for `date` (MMDDYYYY) at
+/// `hour`:`minute` UTC, the moon and stars off.
+pub fn sun_at(date: u32, hour: u8, minute: u8) -> CelestialSphereControl {
+    CelestialSphereControl {
+        hour,
+        minute,
+        ephemeris: true,
+        sun: true,
+        date_time_valid: true,
+        date,
+        ..CelestialSphereControl::default()
+    }
 }

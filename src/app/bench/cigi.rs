@@ -116,30 +116,6 @@ enum Load {
     Los,
 }
 
-fn ownship(lla: [f64; 3], hpr: [f64; 3]) -> EntityControl {
-    EntityControl {
-        entity_id: 0,
-        entity_state: 1,
-        attach: false,
-        collision_detection: false,
-        inherit_alpha: false,
-        ground_clamp: 0,
-        animation_direction: false,
-        animation_loop: false,
-        animation_state: 0,
-        extrapolation: false,
-        alpha: 255,
-        entity_type: 0,
-        parent_id: 0,
-        roll: hpr[2] as f32,
-        pitch: hpr[1] as f32,
-        yaw: hpr[0] as f32,
-        lat: lla[0],
-        lon: lla[1],
-        alt: lla[2],
-    }
-}
-
 /// Query `i` of a batch around `at`: points within ±0.05° of it (a fixed pattern).
 fn query(load: Load, i: usize, at: [f64; 3]) -> Option<HostPacket> {
     let f = |k: usize| ((i * k) % 101) as f64 / 100.0 - 0.5;
@@ -156,25 +132,12 @@ fn query(load: Load, i: usize, at: [f64; 3]) -> Option<HostPacket> {
             lon,
             alt: at[2],
         })),
-        Load::Los => Some(HostPacket::LosSegmentRequest(LosSegmentRequest {
-            request_id: i as u16,
-            extended: false,
-            source_entity_frame: false,
-            destination_entity_frame: false,
-            response_entity_frame: false,
-            destination_entity_valid: false,
-            alpha_threshold: 0,
-            entity_id: 0,
-            source_lat: at[0],
-            source_lon: at[1],
-            source_alt: at[2],
-            destination_lat: lat,
-            destination_lon: lon,
-            destination_alt: at[2] - 1500.0,
-            material_mask: 0,
-            update_period: 0,
-            destination_entity_id: 0,
-        })),
+        Load::Los => Some(HostPacket::LosSegmentRequest(LosSegmentRequest::between(
+            i as u16,
+            at,
+            [lat, lon, at[2] - 1500.0],
+            false,
+        ))),
     }
 }
 
@@ -436,7 +399,12 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo,
                 ig: addr,
                 t0: Instant::now(),
                 frame: 1000,
-                ownship: ownship(lla, [p.heading, p.pitch, p.roll]),
+                ownship: EntityControl::placed(
+                    0,
+                    0,
+                    lla,
+                    [p.heading, p.pitch, p.roll].map(|a| a as f32),
+                ),
                 sent: Vec::new(),
                 sofs: Vec::new(),
                 responses: 0,

@@ -387,6 +387,15 @@ struct Los {
     hit: Option<Hit>,
 }
 
+impl Los {
+    /// An answer to a request that cannot be answered (`valid = false`).
+    const INVALID: Los = Los {
+        valid: false,
+        visible: false,
+        hit: None,
+    };
+}
+
 /// One LOS response (basic or extended) from what the test found.
 fn push_los(t: &Terrain, id: u16, extended: bool, frame: u32, los: &Los, msg: &mut MessageBuilder) {
     let range = los.hit.as_ref().map_or(0.0, |h| h.t);
@@ -459,11 +468,7 @@ fn los_segment(g: &Ground, r: &LosSegmentRequest, frame: u32, msg: &mut MessageB
                 hit,
             }
         }
-        None => Los {
-            valid: false,
-            visible: false,
-            hit: None,
-        },
+        None => Los::INVALID,
     };
     push_los(t, r.request_id, r.extended, frame, &los, msg);
     los.valid
@@ -507,11 +512,7 @@ fn los_vector(g: &Ground, r: &LosVectorRequest, frame: u32, msg: &mut MessageBui
                 hit,
             }
         }
-        None => Los {
-            valid: false,
-            visible: false,
-            hit: None,
-        },
+        None => Los::INVALID,
     };
     push_los(t, r.request_id, r.extended, frame, &los, msg);
     src.is_some() && ranges_ok && dir_ok
