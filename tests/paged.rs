@@ -16,13 +16,15 @@
 //! * host memory: VmHWM printed.
 //!
 //! On the GPU (`paged_gpu_flight_matches_twin_and_converges`, lavapipe and GL): the same
-//! script rendered through the pool (`TerrainRenderer::new_paged`, shadows on), every frame
-//! against the CPU twin over the same page table and pool contents (hit masks and depth within
+//! script rendered through the pool (`TerrainRenderer::new_paged`, shadows on, with and without
+//! the paged tile pre-pass), every frame against the CPU twin over the same page table and pool
+//! contents (hit masks and depth within
 //! the oracle tolerance of `tests/lod.rs`), with no hole against the GPU's full-residency
 //! render (same definition, GPU depth), and after the stop equal to it (identical hit masks,
 //! depth within 1e-5 relative, colour mean ≤ 1/255) within `CONVERGE_FRAMES` frames.
-//! `paged_gpu_curved_hover_converges`: the hover on the curved earth, GPU paged against GPU
-//! full residency. `render_terrain_memory_cli`: `relief render --terrain-memory` (and `serve`)
+//! `paged_gpu_curved_hover_converges`: the hover on the curved earth, GPU paged (tile pre-pass
+//! on) against GPU full residency. The CPU flight also holds the residency map equal to the
+//! page-table search it replaces. `render_terrain_memory_cli`: `relief render --terrain-memory` (and `serve`)
 //! and its errors.
 
 mod common;
@@ -291,6 +293,7 @@ fn paged_flight_no_holes_and_converges() {
     } = Flight::start();
     let flight = FLIGHT;
     let (mut worst_update, mut converged, mut worst_holes) = (0f64, None, 0usize);
+    let mut map_checks = 0usize;
     for (frame, &cam) in script(&terrain).iter().enumerate() {
         let (up, st) = pager.update(&view(&geo, cam, W as u32, H as u32)).unwrap();
         worst_update = worst_update.max(st.seconds);
@@ -301,6 +304,7 @@ fn paged_flight_no_holes_and_converges() {
             st.resident_bytes
         );
         let paged = PagedTerrain::new(pager.page_table(), &pool, 256, origin, top).unwrap();
+        map_checks += map_matches_search(&terrain, &paged, frame);
         let c = compare(&terrain, &paged, cam);
         eprintln!(
             "frame {frame:2}: resident {} ({:.1} MiB) missing {:2} | terrain {:4} coarse hits {:4} coarse sky {:3} holes {} mask diff {:3} depth diff {:4}",
@@ -323,6 +327,7 @@ fn paged_flight_no_holes_and_converges() {
         }
     }
     let hwm = hwm_kib().unwrap_or(0);
+    eprintln!("residency map: {map_checks} cells equal to the page table's search");
     eprintln!(
         "worst update {:.2} ms; converged {converged:?} frames after the stop; holes {worst_holes}; VmHWM {} MiB",
         worst_update * 1e3,
@@ -331,11 +336,48 @@ fn paged_flight_no_holes_and_converges() {
     assert_eq!(worst_holes, 0, "a ray fell through the paged surface");
     let at = converged.expect("the hover never matched full residency");
     assert!(at <= CONVERGE_FRAMES, "converged after {at} frames");
+    assert!(map_checks > 0);
     assert!(
         worst_update < UPDATE_MAX,
         "an update took {:.1} ms",
         worst_update * 1e3
     );
+}
+
+/// The residency map (one read a step) answers as the page-table search it replaces (a tile
+/// lookup per level tried): the finest resident level and its tile, at every level, on the
+/// first and last cell of every tile-sized block (the map has one entry per block) and on
+/// every cell of the coarser levels; returns the cells checked.
+fn map_matches_search(terrain: &Terrain, paged: &PagedTerrain, frame: usize) -> usize {
+    let pyr = &terrain.pyramid;
+    let mut checked = 0;
+    for (level, l) in pyr.levels.iter().enumerate() {
+        let block = (256usize >> level.min(8)).max(1);
+        let cells = |n: usize| {
+            (0..n)
+                .filter(move |&i| i % block == 0 || i % block == block - 1 || i + 1 == n)
+                .collect::<Vec<_>>()
+        };
+        for &j in &cells(l.cells[1] as usize) {
+            for &i in &cells(l.cells[0] as usize) {
+                let a = paged.finest_resident(level as u32, i, j);
+                let b = paged.finest_resident_searched(level as u32, i, j);
+                let same = match (a, b) {
+                    (Some((ja, ta)), Some((jb, tb))) => ja == jb && std::ptr::eq(ta, tb),
+                    (None, None) => true,
+                    _ => false,
+                };
+                assert!(
+                    same,
+                    "frame {frame}: level {level} cell ({i}, {j}): map {:?} search {:?}",
+                    a.map(|x| x.0),
+                    b.map(|x| x.0)
+                );
+                checked += 1;
+            }
+        }
+    }
+    checked
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -455,7 +497,11 @@ fn paged_gpu_flight_matches_twin_and_converges() {
     paged_r.apply_pages(gpu, &first, pager.page_table());
     let scene = common::synthetic_scene(GW, GH, "position = [0.0, 0.0, 5000.0]");
     let settings = common::settings(true, false);
-    let (mut converged, mut worst_holes, mut worst_twin) = (None, 0usize, 0f64);
+    // The paged tile pre-pass (cone through the pool's maxima) starts the rays; the twin and
+    // the full-residency render start at the top.
+    let with_tiles = common::settings(true, true);
+    let mut converged = [None; 2];
+    let (mut worst_holes, mut worst_twin) = (0usize, 0f64);
     for (frame, &c) in script(&terrain).iter().enumerate() {
         let (up, st) = pager.update(&view(&geo, c, GW, GH)).unwrap();
         assert!(
@@ -466,46 +512,53 @@ fn paged_gpu_flight_matches_twin_and_converges() {
         apply(&mut pool, &up);
         paged_r.apply_pages(gpu, &up, pager.page_table());
         let cam = gpu_camera(&terrain, c);
-        let gp = paged_r
-            .capture(gpu, &terrain, &scene, &cam, &settings)
-            .unwrap();
         let full = full_r
             .capture(gpu, &terrain, &scene, &cam, &settings)
             .unwrap();
         let paged = PagedTerrain::new(pager.page_table(), &pool, 256, origin, top).unwrap();
-        let g = gpu_compare(&terrain, &paged, &cam, &gp, &full);
-        eprintln!(
-            "GPU frame {frame:2}: resident {:2} missing {:2} | terrain {:4} | vs CPU twin: mask {:3} depth {:3} | vs full: holes {} coarse sky {:3} mask {:3} depth {:4} colour mean {:.5}",
-            st.resident, st.missing, g.terrain, g.twin_mask, g.twin_depth, g.holes, g.coarse_sky,
-            g.mask_diff, g.depth_diff, g.colour_mean
-        );
-        let n = (GW * GH) as f64;
-        let twin_bad = (g.twin_mask + g.twin_depth) as f64 / n;
-        worst_twin = worst_twin.max(twin_bad);
-        worst_holes = worst_holes.max(g.holes);
-        assert!(g.terrain > 0, "frame {frame}: the view must see terrain");
-        assert!(
-            twin_bad <= GPU_CPU_MASK,
-            "frame {frame}: GPU paged disagrees with the CPU twin on {} pixels",
-            g.twin_mask + g.twin_depth
-        );
-        if frame >= FLIGHT {
-            let equal = g.mask_diff == 0 && g.depth_diff == 0 && g.colour_mean <= 1.0 / 255.0;
-            match (converged, equal) {
-                (None, true) => converged = Some(frame - FLIGHT),
-                (Some(at), false) => panic!("frame {frame}: diverged after converging at {at}"),
-                _ => {}
+        for (v, s) in [&settings, &with_tiles].into_iter().enumerate() {
+            let gp = paged_r.capture(gpu, &terrain, &scene, &cam, s).unwrap();
+            let g = gpu_compare(&terrain, &paged, &cam, &gp, &full);
+            let pre = ["off", "on "][v];
+            eprintln!(
+                "GPU frame {frame:2} tile pre-pass {pre}: resident {:2} missing {:2} | terrain {:4} | vs CPU twin: mask {:3} depth {:3} | vs full: holes {} coarse sky {:3} mask {:3} depth {:4} colour mean {:.5}",
+                st.resident, st.missing, g.terrain, g.twin_mask, g.twin_depth, g.holes, g.coarse_sky,
+                g.mask_diff, g.depth_diff, g.colour_mean
+            );
+            let n = (GW * GH) as f64;
+            let twin_bad = (g.twin_mask + g.twin_depth) as f64 / n;
+            worst_twin = worst_twin.max(twin_bad);
+            worst_holes = worst_holes.max(g.holes);
+            assert!(g.terrain > 0, "frame {frame}: the view must see terrain");
+            assert!(
+                twin_bad <= GPU_CPU_MASK,
+                "frame {frame}, tile pre-pass {pre}: GPU paged disagrees with the CPU twin on {} pixels",
+                g.twin_mask + g.twin_depth
+            );
+            if frame >= FLIGHT {
+                let equal = g.mask_diff == 0 && g.depth_diff == 0 && g.colour_mean <= 1.0 / 255.0;
+                match (converged[v], equal) {
+                    (None, true) => converged[v] = Some(frame - FLIGHT),
+                    (Some(at), false) => {
+                        panic!(
+                            "frame {frame}, tile pre-pass {pre}: diverged after converging at {at}"
+                        )
+                    }
+                    _ => {}
+                }
             }
         }
     }
     eprintln!(
-        "GPU: converged {converged:?} frames after the stop; holes {worst_holes}; worst twin disagreement {:.3}%; VmHWM {} MiB",
+        "GPU: converged {converged:?} frames after the stop (tile pre-pass off, on); holes {worst_holes}; worst twin disagreement {:.3}%; VmHWM {} MiB",
         worst_twin * 100.0,
         hwm_kib().unwrap_or(0) / 1024
     );
     assert_eq!(worst_holes, 0, "a GPU ray fell through the paged surface");
-    let at = converged.expect("the GPU hover never matched full residency");
-    assert!(at <= CONVERGE_FRAMES, "converged after {at} frames");
+    for at in converged {
+        let at = at.expect("the GPU hover never matched full residency");
+        assert!(at <= CONVERGE_FRAMES, "converged after {at} frames");
+    }
 }
 
 /// `relief render --terrain-memory`: a database scene renders one frame through an 8 MB pool
@@ -648,8 +701,10 @@ fn paged_gpu_curved_hover_converges() {
         let (up, st) = pager.update(&view).unwrap();
         assert!(st.resident_bytes <= POOL);
         paged_r.apply_pages(gpu, &up, pager.page_table());
+        // The paged frame as a scene renders it (tile pre-pass on; the curved surface is
+        // nowhere above the flat maxima the cone tests), full residency from the top.
         let gp = paged_r
-            .capture(gpu, &terrain, &scene, &cam, &settings)
+            .capture(gpu, &terrain, &scene, &cam, &common::settings(true, true))
             .unwrap();
         let (mut mask, mut depth, mut colour, mut terrain_px) = (0, 0, 0u64, 0);
         for k in 0..(GW * GH) as usize {

@@ -450,7 +450,7 @@ impl<'a> Frames<'a> {
     /// tiles are resident); the statistics for the frame JSON. Nothing without paging.
     pub fn page(
         &self,
-        renderer: &TerrainRenderer,
+        renderer: &mut TerrainRenderer,
         cam: &Camera,
         wait: bool,
     ) -> Result<Option<serde_json::Value>> {

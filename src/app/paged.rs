@@ -127,7 +127,7 @@ impl Paging {
     pub fn step(
         &mut self,
         gpu: &Gpu,
-        r: &TerrainRenderer,
+        r: &mut TerrainRenderer,
         terrain: &Terrain,
         cam: &Camera,
     ) -> Result<FrameStats> {
@@ -158,7 +158,7 @@ impl Paging {
     pub fn settle(
         &mut self,
         gpu: &Gpu,
-        r: &TerrainRenderer,
+        r: &mut TerrainRenderer,
         terrain: &Terrain,
         cam: &Camera,
         timeout: Duration,

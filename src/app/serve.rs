@@ -118,7 +118,7 @@ pub fn run_with(
         ig.environment(&mut scene.desc, at);
         let frames = frames.with_scene(&scene);
         renderer.set_time(ig.now());
-        let paging = frames.page(&renderer, &cam, false)?;
+        let paging = frames.page(&mut renderer, &cam, false)?;
         let out = frames.render_camera(&mut renderer, &cam)?;
         let ig_frame = ig.ig_frame;
         if let (Some(w), Some(path)) = (log.as_mut(), &opts.pose_log) {

@@ -19,7 +19,8 @@
 
 use super::traverse::TraversalStats;
 use super::traverse::{clip_to_box, first_root, height_slack, patch_quadratic_of, GridRay};
-use crate::db::pager::PageTable;
+use crate::db::pager::residency::{MAP_NONE, SLOT_MASK};
+use crate::db::pager::{PageTable, ResidencyMap};
 use crate::db::{Tile, TileId};
 use crate::terrain::pyramid::PAD;
 use crate::terrain::Terrain;
@@ -38,6 +39,8 @@ pub struct PagedTerrain<'a> {
     fine: u32,
     /// Global finest-level cell of the window's sample (0, 0).
     origin: [u64; 2],
+    /// The finest resident level and slot per tile-sized cell (what the GPU reads).
+    map: ResidencyMap,
 }
 
 impl<'a> PagedTerrain<'a> {
@@ -58,13 +61,16 @@ impl<'a> PagedTerrain<'a> {
                 format!("tiles of {n} cells: not a power of two"),
             ));
         }
+        let origin = [origin[0] as u64, origin[1] as u64];
+        let log2n = n.trailing_zeros();
         Ok(PagedTerrain {
             table,
             slots,
             n: n as u64,
-            log2n: n.trailing_zeros(),
+            log2n,
             fine: table.levels().len() as u32 - 1,
-            origin: [origin[0] as u64, origin[1] as u64],
+            origin,
+            map: ResidencyMap::new(table, log2n, origin, top as u32),
         })
     }
 
@@ -97,8 +103,25 @@ impl<'a> PagedTerrain<'a> {
 
     /// The coarseness `jj` (database level F − jj) of the finest resident level over window
     /// cell `(i, j)` of `level`, and its tile; `None` where nothing is resident
-    /// (`finest_resident` in WGSL).
+    /// (`finest_resident` in WGSL): one read of the residency map.
     pub fn finest_resident(&self, level: u32, i: usize, j: usize) -> Option<(u32, &'a Tile)> {
+        let e = self.map.entry(level, self.global(level, i, j));
+        if e == MAP_NONE {
+            return None;
+        }
+        let tile = self.slots.get((e & SLOT_MASK) as usize)?.as_deref()?;
+        Some((e >> 24, tile))
+    }
+
+    /// [`PagedTerrain::finest_resident`] found by searching the page table from the finest
+    /// level that can hold the cell upwards, a tile lookup per level (what the residency map
+    /// replaces; the tests hold the two equal).
+    pub fn finest_resident_searched(
+        &self,
+        level: u32,
+        i: usize,
+        j: usize,
+    ) -> Option<(u32, &'a Tile)> {
         let g = self.global(level, i, j);
         (level.saturating_sub(self.log2n)..=self.fine).find_map(|jj| {
             let c = Self::cell_on(level, g, jj);
@@ -123,13 +146,20 @@ impl<'a> PagedTerrain<'a> {
     /// resident coarser level's bilinear surface (`patch_corners` in WGSL). NaN where nothing
     /// is resident.
     pub fn patch_corners(&self, level: u32, i: usize, j: usize) -> [f64; 4] {
-        let Some((jr, _)) = self.finest_resident(level, i, j) else {
+        let Some((jr, resident)) = self.finest_resident(level, i, j) else {
             return [f64::NAN; 4];
         };
         let jj = jr.max(level);
         let g = self.global(level, i, j);
-        let Some(tile) = self.tile_at(jj, Self::cell_on(level, g, jj)) else {
-            return [f64::NAN; 4];
+        // The map's tile where it is this level or coarser; a finer level resident under a
+        // coarser patch (footprint LOD) reads that level's tile from the page table.
+        let tile = if jr >= level {
+            resident
+        } else {
+            match self.tile_at(jj, Self::cell_on(level, g, jj)) {
+                Some(t) => t,
+                None => return [f64::NAN; 4],
+            }
         };
         let k = jj - level;
         let s = (1u64 << k) as f64;

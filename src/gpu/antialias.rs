@@ -240,14 +240,7 @@ impl AntialiasPasses {
             &[state(F::Rgba8Unorm), state(F::Rgba32Uint)],
         );
         AntialiasPasses {
-            tile: fullscreen_pipeline(
-                dev,
-                "tile (anti-aliasing atlas)",
-                &base.tile_mod,
-                "fs_tile_table",
-                &base.bgl.tile,
-                &[state(F::Rg32Uint)],
-            ),
+            tile: base.tile_pipeline(gpu, "tile (anti-aliasing atlas)", "fs_tile_table"),
             edges,
             rays,
             resolve,

@@ -497,8 +497,6 @@ impl TerrainRenderer {
         let t = self.targets.as_ref().expect("targets just ensured");
         let mut fu = frame_uniforms(job.terrain, job.scene, job.cam, s, t.tiles);
         fu.pyramid_dims = [self.base.data.pyramid_side, 0, 0, 0];
-        // Paged: no tile pre-pass (it reads the pyramid); every ray starts at the top.
-        fu.mode[3] &= self.paged.is_none() as u32;
         self.stamp = self.stamp.wrapping_add(1).max(1);
         fu.stamp = [self.stamp, 0, 0, 0];
         let stamp = self.stamp;
@@ -583,9 +581,10 @@ impl TerrainRenderer {
         voxel_rects: Option<&VoxelRects>,
     ) -> Result<()> {
         let s = job.s;
-        let tile_on = s.tile_prepass && s.mode == TraceMode::Pyramid && self.paged.is_none();
+        let tile_on = s.tile_prepass && s.mode == TraceMode::Pyramid;
+        let pool = self.paged.as_ref().map(|p| &p.bind_group);
         if tile_on {
-            encode_fullscreen(
+            encode_fullscreen_with(
                 enc,
                 "tile",
                 match (&self.antialias, &self.table) {
@@ -594,6 +593,7 @@ impl TerrainRenderer {
                     (_, None) => &self.base.tile,
                 },
                 &t.tile_bg,
+                pool,
                 &[&t.tile_view],
             );
         }
@@ -605,7 +605,6 @@ impl TerrainRenderer {
         } else {
             &self.base.march
         };
-        let pool = self.paged.as_ref().map(|p| &p.bind_group);
         let g = &[&t.gbuffer_view];
         encode_fullscreen_with(enc, "cast", cast, &t.cast_bg, pool, g);
         job.lap(enc, &mut times.cast_ms)?;

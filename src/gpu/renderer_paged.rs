@@ -32,7 +32,11 @@ impl TerrainRenderer {
                 "a paged terrain renders with walls on (the paged traversal has no walls-off mode)",
             ));
         }
-        pool.set_origin(gpu, [origin[0] as u32, origin[1] as u32]);
+        pool.set_window(
+            gpu,
+            [origin[0] as u32, origin[1] as u32],
+            terrain.pyramid.top() as u32,
+        );
         let kernels = gpu.options.kernels.path(&gpu.info);
         let mut r = Self::with_passes(TerrainPasses::new(gpu, terrain, kernels, Some(&pool.bgl))?)?;
         r.paged = Some(pool);
@@ -51,8 +55,8 @@ impl TerrainRenderer {
 
     /// Copies a frame's uploads into the pool and the page table as it now stands
     /// ([`TerrainPool::apply`]); nothing without a pool. Queue writes only: never blocks.
-    pub fn apply_pages(&self, gpu: &Gpu, uploads: &[Upload], table: &PageTable) {
-        if let Some(p) = &self.paged {
+    pub fn apply_pages(&mut self, gpu: &Gpu, uploads: &[Upload], table: &PageTable) {
+        if let Some(p) = &mut self.paged {
             p.apply(gpu, uploads, table);
         }
     }

@@ -53,10 +53,38 @@ pub fn tile(curved: bool) -> String {
         FULLSCREEN,
         RAY_TABLE,
         TERRAIN_MEMORY,
+        include_str!("shaders/tile_memory.wgsl"),
         TRAVERSE,
         include_str!("shaders/tile.wgsl"),
     ]
     .concat()
+}
+
+/// The paged tile pre-pass (`PAGED`): as [`tile`] with the terrain read from the tile pool
+/// (group 3), the neighbourhood maxima cell by cell.
+pub fn tile_paged(curved: bool) -> String {
+    [
+        &paged_consts(curved),
+        FRAME,
+        FULLSCREEN,
+        RAY_TABLE,
+        TERRAIN_PAGED,
+        TERRAIN_PAGED_WINDOW,
+        include_str!("shaders/tile_paged.wgsl"),
+        TRAVERSE,
+        include_str!("shaders/tile.wgsl"),
+    ]
+    .concat()
+}
+
+/// The paged builds' switches (no footprint LOD, no near misses).
+fn paged_consts(curved: bool) -> String {
+    super::variants::wgsl_bools(&[
+        ("CURVED", curved),
+        ("LOD", false),
+        ("PAGED", true),
+        ("NEAR", false),
+    ])
 }
 
 /// Terrain cast pass (fragment): traversal only, writes the G-buffer; `curved` as in
@@ -82,12 +110,7 @@ pub fn cast(curved: bool, lod: bool, near: bool) -> String {
 /// mode (`TerrainRenderer::new_paged`).
 pub fn cast_paged(curved: bool) -> String {
     [
-        &super::variants::wgsl_bools(&[
-            ("CURVED", curved),
-            ("LOD", false),
-            ("PAGED", true),
-            ("NEAR", false),
-        ]),
+        &paged_consts(curved),
         FRAME,
         FULLSCREEN,
         RAY_TABLE,

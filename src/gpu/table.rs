@@ -65,14 +65,7 @@ impl TableMode {
             &bgl,
             &[Some(target_state(wgpu::TextureFormat::Rgba32Uint))],
         );
-        let tile = fullscreen_pipeline(
-            dev,
-            "tile (table)",
-            &base.tile_mod,
-            "fs_tile_table",
-            &base.bgl.tile,
-            &[Some(target_state(wgpu::TextureFormat::Rg32Uint))],
-        );
+        let tile = base.tile_pipeline(gpu, "tile (table)", "fs_tile_table");
         Ok(TableMode {
             bgl,
             raygen,

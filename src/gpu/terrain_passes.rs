@@ -223,7 +223,28 @@ pub(crate) struct TerrainPasses {
     pub shade: ShadePipelines,
     /// Kept for the distortion-table pipelines (`TableMode`).
     pub raygen_mod: wgpu::ShaderModule,
-    pub tile_mod: wgpu::ShaderModule,
+    tile_mod: wgpu::ShaderModule,
+    /// The tile pre-pass's layout: group 0, and group 3 (the tile pool) when paged.
+    tile_layout: wgpu::PipelineLayout,
+}
+
+fn tile_pipeline(
+    dev: &wgpu::Device,
+    m: &wgpu::ShaderModule,
+    layout: &wgpu::PipelineLayout,
+    label: &str,
+    entry: &str,
+) -> wgpu::RenderPipeline {
+    let targets = [Some(target_state(wgpu::TextureFormat::Rg32Uint))];
+    render_pipeline_in(
+        dev,
+        label,
+        m,
+        ["vs_fullscreen", entry],
+        layout,
+        &targets,
+        None,
+    )
 }
 
 impl TerrainPasses {
@@ -243,7 +264,11 @@ impl TerrainPasses {
         let dev = &gpu.device;
         let module = |label: &str, src: String| super::shader_module(dev, gpu.params, label, &src);
         let raygen_mod = module("raygen.wgsl", shaders::raygen());
-        let tile_mod = module("tile.wgsl", shaders::tile(terrain.curved));
+        let tile_mod = match paged {
+            Some(_) => module("tile.wgsl (paged)", shaders::tile_paged(terrain.curved)),
+            None => module("tile.wgsl", shaders::tile(terrain.curved)),
+        };
+        let tile_layout = pipeline_layout_with(dev, &bgl.tile, paged);
         let cast_mod = match paged {
             Some(_) => module("cast.wgsl (paged)", shaders::cast_paged(terrain.curved)),
             None => module("cast.wgsl", shaders::cast(terrain.curved, false, false)),
@@ -255,13 +280,7 @@ impl TerrainPasses {
                           format| {
             fullscreen_pipeline(dev, label, m, entry, bgl, &[Some(target_state(format))])
         };
-        let tile = fullscreen(
-            "tile",
-            &tile_mod,
-            "fs_tile",
-            &bgl.tile,
-            wgpu::TextureFormat::Rg32Uint,
-        );
+        let tile = tile_pipeline(dev, &tile_mod, &tile_layout, "tile", "fs_tile");
         let raygen = if raygen_compute {
             RayGen::Compute(
                 dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
@@ -307,7 +326,14 @@ impl TerrainPasses {
             shade,
             raygen_mod,
             tile_mod,
+            tile_layout,
         })
+    }
+
+    /// A tile pre-pass pipeline of entry point `entry` (`fs_tile`, `fs_tile_table`), on the
+    /// paged or in-memory terrain as the passes were built.
+    pub fn tile_pipeline(&self, gpu: &Gpu, label: &str, entry: &str) -> wgpu::RenderPipeline {
+        tile_pipeline(&gpu.device, &self.tile_mod, &self.tile_layout, label, entry)
     }
 
     /// Builds the footprint-LOD cast pipeline unless it exists (0.1–0.3 s on Mesa: only

@@ -8,7 +8,7 @@
 
 use super::util::check_buffer_limit;
 use super::Gpu;
-use crate::db::pager::{PageTable, Upload};
+use crate::db::pager::{PageTable, ResidencyMap, Upload};
 use crate::Result;
 
 /// `PagedParams` in `terrain_paged.wgsl`.
@@ -22,7 +22,10 @@ pub struct PagedParams {
     /// The traversal window's sample (0, 0) on the finest level's global grid (a multiple of
     /// 2^top; 0 until the renderer binds the pool).
     pub origin: [u32; 2],
-    pub pad: [u32; 2],
+    /// The residency map's entries a side at its level 0, and its levels
+    /// ([`ResidencyMap::shape`]; a one-entry placeholder until the window is set).
+    pub map_side: u32,
+    pub map_levels: u32,
 }
 
 /// `PagedLevel` in `terrain_paged.wgsl`: a level's page-table offset and tile range.
@@ -43,16 +46,23 @@ pub struct TerrainPool {
     pub levels: wgpu::Buffer,
     pub table: wgpu::Buffer,
     pub pool: wgpu::Buffer,
-    /// Group 3's layout and bind group (the four buffers above).
+    /// The residency map ([`ResidencyMap`]) of the window.
+    pub map: wgpu::Buffer,
+    /// Group 3's layout and bind group (the five buffers above).
     pub bgl: wgpu::BindGroupLayout,
     pub bind_group: wgpu::BindGroup,
     params_host: PagedParams,
+    /// The page table as last applied, and the window's map of it (none until
+    /// [`TerrainPool::set_window`]).
+    table_host: PageTable,
+    map_host: Option<ResidencyMap>,
     slot_floats: u64,
     slots: usize,
     n: usize,
 }
 
-/// Group 3's layout: `PagedParams` (uniform), levels, page table and pool (storage).
+/// Group 3's layout: `PagedParams` (uniform), levels, page table, pool and residency map
+/// (storage).
 fn pool_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
     use super::util::{storage_entry, uniform_entry};
     let fs = wgpu::ShaderStages::FRAGMENT;
@@ -64,6 +74,7 @@ fn pool_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
                 storage_entry(1, fs, true),
                 storage_entry(2, fs, true),
                 storage_entry(3, fs, true),
+                storage_entry(4, fs, true),
             ],
         })
 }
@@ -89,7 +100,8 @@ pub fn layout(table: &PageTable, n: usize) -> (PagedParams, Vec<PagedLevel>) {
         levels: levels.len() as u32,
         slot_floats: crate::db::Tile::floats(n) as u32,
         origin: [0; 2],
-        pad: [0; 2],
+        map_side: 1,
+        map_levels: 1,
     };
     (params, levels)
 }
@@ -130,38 +142,68 @@ impl TerrainPool {
             usage: storage,
             mapped_at_creation: false,
         });
+        let map = init(
+            "residency map",
+            bytemuck::bytes_of(&crate::db::pager::residency::MAP_NONE),
+            storage,
+        );
         let bgl = pool_layout(gpu);
-        use super::util::buf;
-        let bind_group = dev.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("terrain pool"),
-            layout: &bgl,
-            entries: &[
-                buf(0, &params_buf),
-                buf(1, &levels_buf),
-                buf(2, &table_buf),
-                buf(3, &pool),
-            ],
-        });
+        let bind_group = bind(
+            gpu,
+            &bgl,
+            [&params_buf, &levels_buf, &table_buf, &pool, &map],
+        );
         Ok(TerrainPool {
             params: params_buf,
             levels: levels_buf,
             table: table_buf,
             pool,
+            map,
             bgl,
             bind_group,
             params_host: params,
+            table_host: table.clone(),
+            map_host: None,
             slot_floats,
             slots,
             n,
         })
     }
 
-    /// Sets the traversal window's sample (0, 0) on the finest level's global grid (a
-    /// multiple of 2^top: `cpu::paged::check_origin`).
-    pub fn set_origin(&mut self, gpu: &Gpu, origin: [u32; 2]) {
+    /// Sets the traversal window: its sample (0, 0) on the finest level's global grid (a
+    /// multiple of 2^top: `cpu::paged::check_origin`) and its pyramid's top level; makes the
+    /// window's residency map of the page table as last applied.
+    pub fn set_window(&mut self, gpu: &Gpu, origin: [u32; 2], top: u32) {
+        use wgpu::util::DeviceExt;
+        let m = ResidencyMap::new(
+            &self.table_host,
+            self.n.trailing_zeros(),
+            [origin[0] as u64, origin[1] as u64],
+            top,
+        );
+        (self.params_host.map_side, self.params_host.map_levels) = m.shape();
         self.params_host.origin = origin;
         gpu.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&self.params_host));
+        self.map = gpu
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("residency map"),
+                contents: bytemuck::cast_slice(m.raw()),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            });
+        self.bind_group = bind(
+            gpu,
+            &self.bgl,
+            [
+                &self.params,
+                &self.levels,
+                &self.table,
+                &self.pool,
+                &self.map,
+            ],
+        );
+        self.map_host = Some(m);
     }
 
     /// Slots in the pool and their bytes on the GPU.
@@ -169,8 +211,9 @@ impl TerrainPool {
         (self.slots, self.slots as u64 * self.slot_floats * 4)
     }
 
-    /// Copies this frame's uploads into their slots and the page table as it now stands.
-    pub fn apply(&self, gpu: &Gpu, uploads: &[Upload], table: &PageTable) {
+    /// Copies this frame's uploads into their slots, the page table as it now stands and the
+    /// window's residency map of it.
+    pub fn apply(&mut self, gpu: &Gpu, uploads: &[Upload], table: &PageTable) {
         for u in uploads {
             debug_assert_eq!(u.tile.n, self.n);
             let at = u.slot as u64 * self.slot_floats * 4;
@@ -183,6 +226,28 @@ impl TerrainPool {
         if !uploads.is_empty() {
             gpu.queue
                 .write_buffer(&self.table, 0, bytemuck::cast_slice(table.raw()));
+            self.table_host.clone_from(table);
+            if let Some(m) = &mut self.map_host {
+                m.update(table);
+                gpu.queue
+                    .write_buffer(&self.map, 0, bytemuck::cast_slice(m.raw()));
+            }
         }
     }
+}
+
+/// Group 3's bind group: parameters, levels, page table, pool, residency map.
+fn bind(gpu: &Gpu, bgl: &wgpu::BindGroupLayout, b: [&wgpu::Buffer; 5]) -> wgpu::BindGroup {
+    use super::util::buf;
+    gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("terrain pool"),
+        layout: bgl,
+        entries: &[
+            buf(0, b[0]),
+            buf(1, b[1]),
+            buf(2, b[2]),
+            buf(3, b[3]),
+            buf(4, b[4]),
+        ],
+    })
 }

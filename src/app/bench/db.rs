@@ -300,7 +300,7 @@ fn fly(
         pose.position = terrain.frame.grid_to_world(grid);
         cam = crate::scene::Camera::new(pose, size.0, size.1);
         let t = Instant::now();
-        let st = paging.step(gpu, &r, terrain, &cam)?;
+        let st = paging.step(gpu, &mut r, terrain, &cam)?;
         r.render(gpu, terrain, &scene.desc, &cam, &s, Stage::Shade)?;
         gpu.wait()?;
         let ms = t.elapsed().as_secs_f64() * 1e3;

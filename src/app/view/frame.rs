@@ -371,7 +371,7 @@ impl Draw<'_> {
             .collect();
         let terrain = &prep.world.terrain;
         if let Some(p) = &mut w.paging {
-            p.step(gpu, &w.renderer, terrain, &cam)?;
+            p.step(gpu, &mut w.renderer, terrain, &cam)?;
         }
         if dirs.is_empty() {
             (w.renderer).render(gpu, terrain, self.desc, &cam, &prep.settings, Stage::Shade)?;

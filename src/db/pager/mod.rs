@@ -19,6 +19,7 @@
 //!
 //! The page table ([`PageTable`]) says per level and tile which slot holds it.
 
+pub mod residency;
 pub mod table;
 pub mod want;
 
@@ -30,6 +31,7 @@ use std::collections::{HashMap, HashSet};
 use std::sync::{mpsc, Arc, Mutex};
 use std::thread::JoinHandle;
 
+pub use residency::ResidencyMap;
 pub use table::PageTable;
 pub use want::{parent, View};
 

@@ -19,8 +19,8 @@ struct PagedParams {
     slot_floats: u32,  // floats per slot
     origin_x: u32,     // the traversal window's sample (0, 0) on the finest level's global grid
     origin_y: u32,     // (a multiple of 2^top: see terrain_paged_window.wgsl)
-    _pad0: u32,
-    _pad1: u32,
+    map_side: u32,     // the residency map: entries a side at its level 0 (a power of two)
+    map_levels: u32,   // and its levels (virtual levels log2_n ..= log2_n + map_levels - 1)
 }
 
 struct PagedLevel {
@@ -38,6 +38,9 @@ struct PagedLevel {
 @group(3) @binding(1) var<storage, read> paged_levels: array<PagedLevel>;
 @group(3) @binding(2) var<storage, read> paged_table: array<u32>;
 @group(3) @binding(3) var<storage, read> paged_pool: array<f32>;
+// The residency map (db::pager::residency): per tile-sized cell of the window, per virtual
+// level from log2_n up, the finest resident level's coarseness j (top 8 bits) and its slot.
+@group(3) @binding(4) var<storage, read> paged_map: array<u32>;
 
 const PAGED_NONE: u32 = 0xffffffffu;
 const PAGED_PAD: f32 = -1e30;
@@ -55,7 +58,9 @@ fn paged_slot(dl: u32, x: u32, y: u32) -> u32 {
 fn paged_max_offset(m: u32) -> u32 {
     let n = paged.tile_n;
     let side = n >> m;
-    return (n + 1u) * (n + 1u) + (n * n - side * side) / 3u * 4u;
+    // 4 (n^2 - side^2) / 3: m ones in base 4 times 4 side^2 (as pyramid_index).
+    let ones = 0x55555555u & ((1u << (2u * m)) - 1u);
+    return (n + 1u) * (n + 1u) + ((ones * side * side) << 2u);
 }
 
 // The index of virtual cell `cell` of level `level` on database level F - j's own cell grid
@@ -67,38 +72,60 @@ fn paged_cell_on(level: u32, cell: vec2<u32>, j: u32) -> vec2<u32> {
     return cell >> vec2<u32>(j - level);
 }
 
-// The coarseness j (virtual level of the database level F - j) of the finest resident
-// database level over virtual cell `cell` of level `level`, searching from the finest level
-// whose tiles can hold such a cell; PAGED_NONE where nothing is resident.
-fn finest_resident(level: u32, cell: vec2<u32>) -> u32 {
-    let f = paged.levels - 1u;
-    var j = select(0u, level - paged.log2_n, level > paged.log2_n);
-    loop {
-        if (j > f) {
-            return PAGED_NONE;
-        }
-        let t = paged_cell_on(level, cell, j) >> vec2<u32>(paged.log2_n);
-        if (paged_slot(f - j, t.x, t.y) != PAGED_NONE) {
-            return j;
-        }
-        j = j + 1u;
+// The index of the residency map's entry over virtual cell `cell` of level `level` (global index):
+// `ResidencyMap::entry`, operation for operation; PAGED_NONE off the map.
+fn paged_map_index(level: u32, cell: vec2<u32>) -> u32 {
+    let k = select(0u, level - paged.log2_n, level > paged.log2_n);
+    if (k >= paged.map_levels) {
+        return PAGED_NONE;
     }
-    return PAGED_NONE;
+    let shift = paged.log2_n + k - level;
+    let s = paged.map_side >> k;
+    let first = vec2<u32>(paged.origin_x, paged.origin_y) >> vec2<u32>(paged.log2_n + k);
+    let t = (cell >> vec2<u32>(shift)) - first;
+    if (t.x >= s || t.y >= s) {
+        return PAGED_NONE;
+    }
+    // Level k starts at 4 (side^2 - s^2) / 3: k ones in base 4 (as pyramid_index).
+    let ones = 0x55555555u & ((1u << (2u * k)) - 1u);
+    return ((ones * s * s) << 2u) + t.y * s + t.x;
+}
+
+const PAGED_SLOT_MASK: u32 = 0x00ffffffu;
+
+// The coarseness j (virtual level of the database level F - j) of the finest resident
+// database level over virtual cell `cell` of level `level`; PAGED_NONE where nothing is
+// resident. One read of the residency map.
+fn finest_resident(level: u32, cell: vec2<u32>) -> u32 {
+    let e = paged_map_read(level, cell);
+    return select(e >> 24u, PAGED_NONE, e == PAGED_NONE);
+}
+
+fn paged_map_read(level: u32, cell: vec2<u32>) -> u32 {
+    let i = paged_map_index(level, cell);
+    if (i == PAGED_NONE) {
+        return PAGED_NONE;
+    }
+    return paged_map[i];
 }
 
 // A bound on the terrain over virtual cell `cell` of level `level`: its maximum from the
 // finest resident level (a coarser cell's maximum where that is all there is).
+// The map entry the last `paged_cell_max` read: the traversal asks `paged_stops` about the
+// same cell right after (terrain_paged_window.wgsl), which then needs no second read.
+var<private> paged_last_entry: u32 = 0xffffffffu;
+
 fn paged_cell_max(level: u32, cell: vec2<u32>) -> f32 {
-    let j = finest_resident(level, cell);
-    if (j == PAGED_NONE) {
+    let e = paged_map_read(level, cell);
+    paged_last_entry = e;
+    if (e == PAGED_NONE) {
         return PAGED_PAD;
     }
-    let f = paged.levels - 1u;
+    let j = e >> 24u;
+    let slot = e & PAGED_SLOT_MASK;
     // On database level F - j: cell index at its own cell size, and the in-tile level.
     let c = paged_cell_on(level, cell, j);
     let m = select(0u, level - j, j <= level);
-    let t = c >> vec2<u32>(paged.log2_n);
-    let slot = paged_slot(f - j, t.x, t.y);
     let local = (c & vec2<u32>(paged.tile_n - 1u)) >> vec2<u32>(m);
     let side = paged.tile_n >> m;
     return paged_pool[slot * paged.slot_floats + paged_max_offset(m) + local.y * side + local.x];
@@ -115,16 +142,23 @@ fn paged_height(slot: u32, i: u32, j: u32) -> f32 {
 // is continuous, so neighbouring cells meet without cracks).
 fn paged_patch_corners(level: u32, cell: vec2<u32>) -> vec4<f32> {
     let f = paged.levels - 1u;
-    let j = max(finest_resident(level, cell), level);
-    if (j == PAGED_NONE || level > f) {
+    let e = paged_map_read(level, cell);
+    if (e == PAGED_NONE || level > f) {
         return vec4<f32>(PAGED_PAD);
     }
+    let jr = e >> 24u;
+    let j = max(jr, level);
     // Cell corners in units of level-(F - j) samples: (cell << level) >> j, fractional.
     let s = f32(1u << (j - level));
     let base = cell >> vec2<u32>(j - level);
     let frac0 = vec2<f32>(cell - (base << vec2<u32>(j - level))) / s;
-    let t = base >> vec2<u32>(paged.log2_n);
-    let slot = paged_slot(f - j, t.x, t.y);
+    // The map's slot where the finest resident level is this one or coarser; a finer level
+    // resident under a coarser patch (footprint LOD) reads this level's from the page table.
+    var slot = e & PAGED_SLOT_MASK;
+    if (jr < level) {
+        let t = base >> vec2<u32>(paged.log2_n);
+        slot = paged_slot(f - j, t.x, t.y);
+    }
     let a = base & vec2<u32>(paged.tile_n - 1u);
     let h00 = paged_height(slot, a.x, a.y);
     let h10 = paged_height(slot, a.x + 1u, a.y);

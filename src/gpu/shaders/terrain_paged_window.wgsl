@@ -16,10 +16,11 @@ fn patch_corners(level: u32, cell: vec2<i32>) -> vec4<f32> {
 }
 
 // Whether a ray stops at this cell (level > 0): the finest level resident over it is this one
-// or coarser (`PagedTerrain::stops`).
+// or coarser (`PagedTerrain::stops`). The traversal asks right after `cell_max` of the same
+// cell, whose map entry is kept (`paged_last_entry`).
 fn paged_stops(level: u32, cell: vec2<i32>) -> bool {
-    let j = finest_resident(level, paged_global(level, cell));
-    return j == PAGED_NONE || j >= level;
+    let e = paged_last_entry;
+    return e == PAGED_NONE || (e >> 24u) >= level;
 }
 
 // The finest resident level's coarseness over hit cell `cell` (level 0) in the G-buffer's

@@ -2,22 +2,11 @@
 // before which no ray of the tile can hit the terrain (see `cone_start`). The terrain pass
 // starts every pixel ray of the tile there, at the pyramid level where the cone stopped.
 
+// The terrain comes through the traversal's `cell_max` and the pass's `dilated_max` (the
+// maximum over a cell's 3x3 neighbourhood): `tile_memory.wgsl` (the dilated pyramid) or
+// `tile_paged.wgsl` (the tile pool).
+
 @group(0) @binding(0) var<uniform> frame: Frame;
-@group(0) @binding(1) var<storage, read> heights: array<f32>;
-@group(0) @binding(2) var<storage, read> pyramid: array<f32>;
-// The pyramid dilated by one cell: each cell holds the maximum of its 3x3 neighbourhood.
-@group(0) @binding(4) var<storage, read> dilated: array<f32>;
-
-// Same layout as `pyr_get`.
-fn dilated_get(level: u32, ix: i32, iy: i32) -> f32 {
-    let k = pyramid_index(level, ix, iy);
-    if (k == NO_CELL) {
-        return PAD;
-    }
-    return dilated[k];
-}
-
-
 
 // Tile pre-pass: traverse the pyramid with a cone around the tile's central ray `r`.
 // Every ray of the tile stays within `theta * t` of the central ray's point at t (theta is the
@@ -77,9 +66,9 @@ fn cone_start(r: Ray, theta: f32, max_steps: u32) -> ConeStart {
             w.cell = w.cell >> vec2<u32>(1u);
             continue;
         }
-        var m = pyr_get(top, 0, 0);
+        var m = cell_max(top, vec2<i32>(0, 0));
         if (w.level < top) {
-            m = dilated_get(w.level, w.cell.x, w.cell.y);
+            m = dilated_max(w.level, w.cell);
         }
         let z_low = min(r.o.z + r.d.z * w.t, r.o.z + r.d.z * t_exit) - theta * t_exit;
         if (z_low <= m) {
