@@ -663,9 +663,64 @@ fn render_terrain_memory_cli() {
 fn paged_gpu_curved_hover_converges() {
     let Some(gpu) = common::gpu() else { return };
     let _lock = common::gpu_lock();
+    let (at, _) = hover_against_full(gpu, true, "");
+    eprintln!("curved: converged after {at} frames");
+    assert!(at <= CONVERGE_FRAMES, "converged after {at} frames");
+}
+
+/// Free forms over a paged terrain: a sphere, a box and a perturbed cylinder standing on the
+/// hover's ground (shadows on, so the shade pass walks the pool from the objects too), GPU paged
+/// against GPU full residency: converged frames equal (masks, depth within 1e-5, colour).
+#[test]
+fn paged_gpu_free_forms_match_full_residency() {
+    let Some(gpu) = common::gpu() else { return };
+    let _lock = common::gpu_lock();
+    let objects = r#"
+[[objects]]
+shape = "sphere"
+radius = 150.0
+position = [X0, Y0, 0.0]
+above_terrain = 100.0
+material = { colour = [0.8, 0.2, 0.1] }
+
+[[objects]]
+shape = "box"
+size = [250, 120, 200]
+position = [X1, Y1, 0.0]
+above_terrain = 0.0
+heading = 30.0
+material = { colour = [0.2, 0.3, 0.8] }
+
+[[objects]]
+shape = "cylinder"
+radius = 90
+height = 400
+position = [X2, Y2, 0.0]
+above_terrain = -5.0
+pitch = 90.0
+bounds = [[-120, -120, 0], [120, 120, 400]]
+material = { colour = [0.6, 0.6, 0.6] }
+[[objects.perturb]]
+shape = "ellipsoid"
+radii = [60, 60, 80]
+centre = [0, 0, 0]
+weight = 4
+"#;
+    let (at, object_px) = hover_against_full(gpu, false, objects);
+    eprintln!("free forms: converged after {at} frames; {object_px} free-form pixels");
+    assert!(object_px > 100, "the free forms must be in view: {object_px} pixels");
+    assert!(at <= CONVERGE_FRAMES, "converged after {at} frames");
+}
+
+/// The hover of the script through the pool, frame by frame against the full-residency render
+/// of the in-memory window (`curved` earth or flat; `objects`: `[[objects]]` TOML placed around
+/// the view's centre, `X0`..`Y2` replaced by world positions), until they match: the frame at
+/// which they first matched (they must stay matched) and the free-form pixels of the
+/// full-residency frame.
+fn hover_against_full(gpu: &relief::gpu::Gpu, curved: bool, objects: &str) -> (usize, usize) {
     let path = mosaic();
     let (mut terrain, origin, geo) = window(&path);
-    terrain.curved = true;
+    terrain.curved = curved;
     let store: Arc<dyn TileStore> = Arc::new(Store(Database::open(&path).unwrap()));
     let opts = PagerOptions {
         pool_bytes: POOL,
@@ -679,10 +734,37 @@ fn paged_gpu_curved_hover_converges() {
         relief::gpu::TerrainRenderer::new_paged(gpu, &terrain, gpu_pool, origin).unwrap();
     let mut full_r = relief::gpu::TerrainRenderer::new(gpu, &terrain).unwrap();
     paged_r.apply_pages(gpu, &first, pager.page_table());
-    let scene = common::synthetic_scene(GW, GH, "position = [0.0, 0.0, 5000.0]");
-    let settings = common::settings(true, false);
     let c = *script(&terrain).last().unwrap();
     let cam = gpu_camera(&terrain, c);
+    if !objects.is_empty() {
+        // Around the point the view looks at, ~1 km ahead of the hover on its heading.
+        let ahead = |d: f64, side: f64| {
+            let h = c.heading.to_radians();
+            let (e, n) = (d * h.sin() + side * h.cos(), d * h.cos() - side * h.sin());
+            let p = terrain.frame.grid_to_world(DVec3::new(c.x, c.y, 0.0));
+            (p.x + e, p.y + n)
+        };
+        let mut text = objects.to_string();
+        for (k, (d, side)) in [(900.0, 0.0), (1100.0, 450.0), (800.0, -450.0)]
+            .into_iter()
+            .enumerate()
+        {
+            let (x, y) = ahead(d, side);
+            text = text
+                .replace(&format!("X{k}"), &format!("{x:.1}"))
+                .replace(&format!("Y{k}"), &format!("{y:.1}"));
+        }
+        let scene = relief::scene::Scene::parse(
+            &format!("[terrain.procedural]\nsize = 2\n[camera]\nposition = [0.0, 0.0, 5000.0]\n{text}"),
+            std::path::Path::new("objects.toml"),
+        )
+        .unwrap();
+        let objects = scene.free_forms(&terrain).unwrap();
+        paged_r.set_objects(gpu, &objects).unwrap();
+        full_r.set_objects(gpu, &objects).unwrap();
+    }
+    let scene = common::synthetic_scene(GW, GH, "position = [0.0, 0.0, 5000.0]");
+    let settings = common::settings(true, false);
     let view = View {
         lon: geo.lon0 + c.x * geo.dlon,
         lat: geo.lat0 + c.y * geo.dlat,
@@ -696,6 +778,7 @@ fn paged_gpu_curved_hover_converges() {
     let full = full_r
         .capture(gpu, &terrain, &scene, &cam, &settings)
         .unwrap();
+    let object_px = full.objects.iter().filter(|&&o| o != 0).count();
     let mut converged = None;
     for frame in 0..HOVER {
         let (up, st) = pager.update(&view).unwrap();
@@ -715,6 +798,8 @@ fn paged_gpu_curved_hover_converges() {
                 (false, false) => {}
                 _ => mask += 1,
             }
+            // The free form shown (its index) counts as the hit mask.
+            mask += (gp.objects[k] != full.objects[k]) as usize;
             for ch in 0..3 {
                 let d = gp.rgba[4 * k + ch] as i32 - full.rgba[4 * k + ch] as i32;
                 colour += d.unsigned_abs() as u64;
@@ -722,7 +807,7 @@ fn paged_gpu_curved_hover_converges() {
         }
         let mean = colour as f64 / (3 * GW * GH) as f64 / 255.0;
         eprintln!(
-            "curved hover frame {frame:2}: resident {:2} missing {:2} | terrain {terrain_px} mask {mask} depth {depth} colour mean {mean:.5}",
+            "hover (curved {curved}) frame {frame:2}: resident {:2} missing {:2} | terrain {terrain_px} mask {mask} depth {depth} colour mean {mean:.5}",
             st.resident, st.missing
         );
         assert!(terrain_px > 0);
@@ -735,7 +820,5 @@ fn paged_gpu_curved_hover_converges() {
         // Give the workers the time a real frame would (the GPU frames here are short).
         std::thread::sleep(std::time::Duration::from_millis(10));
     }
-    let at = converged.expect("the curved hover never matched full residency");
-    eprintln!("curved: converged after {at} frames");
-    assert!(at <= CONVERGE_FRAMES, "converged after {at} frames");
+    (converged.expect("the hover never matched full residency"), object_px)
 }

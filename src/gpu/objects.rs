@@ -337,12 +337,14 @@ impl ObjectPasses {
     /// Uploads `statics` (drawn) with room for `max` instances of each entity template
     /// (`(object, max)`; drawn only as [`ObjectPasses::set_instances`] places them) and
     /// builds their pipelines; `allow_uniform`: tables in uniform buffers where they fit (else
-    /// always storage buffers).
+    /// always storage buffers); `pool`: the tile pool's layout (group 3) of a paged terrain,
+    /// which the shade pass reads the terrain from.
     pub fn with_templates(
         gpu: &Gpu,
         statics: &[FreeForm],
         templates: &[(FreeForm, usize)],
         allow_uniform: bool,
+        pool: Option<&wgpu::BindGroupLayout>,
     ) -> Result<ObjectPasses> {
         let slots: usize = templates.iter().map(|(_, m)| m).sum();
         check_objects(gpu, statics.len() + slots)?;
@@ -387,12 +389,15 @@ impl ObjectPasses {
         let [bin_primary, bin_shadow] = bin_pipelines(gpu, tables, &bin_bgl);
         let (cast, copy_through, shadow) = binned_pipelines(gpu, tables, small, &cast_bgl);
         let plain = objects.iter().filter(|o| o.nodes.len() == 1).count() as u32;
-        let shade = shade_pipelines(
+        let mut shade = shade_pipelines(
             gpu.params,
             "shade (free forms)",
             move |f| shaders::shade_objects(f, tables),
             shade_bgl.clone(),
         );
+        if let Some(p) = pool {
+            shade = shade.with_group3(p.clone());
+        }
         Ok(ObjectPasses {
             count: recs.len() as u32,
             active: statics.len() as u32,

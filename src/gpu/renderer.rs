@@ -227,7 +227,6 @@ impl TerrainRenderer {
         templates: &[(crate::freeform::FreeForm, usize)],
         allow_uniform: bool,
     ) -> Result<()> {
-        self.refuse_paged_objects(objects.len() + templates.len())?;
         self.objects = if objects.is_empty() && templates.is_empty() {
             None
         } else {
@@ -237,6 +236,7 @@ impl TerrainRenderer {
                 objects,
                 t,
                 allow_uniform,
+                self.paged.as_ref().map(|p| &p.bgl),
             )?)
         };
         self.instances.clear();

@@ -60,15 +60,4 @@ impl TerrainRenderer {
             p.apply(gpu, uploads, table);
         }
     }
-
-    /// Free forms are not drawn over a paged terrain (their shade pass reads the heights).
-    pub(super) fn refuse_paged_objects(&self, count: usize) -> Result<()> {
-        if self.paged.is_some() && count > 0 {
-            return Err(Error::invalid(
-                "objects",
-                "free forms ([[objects]]) are not supported with a paged terrain (--terrain-memory) yet",
-            ));
-        }
-        Ok(())
-    }
 }
