@@ -480,7 +480,7 @@ impl TerrainRenderer {
             volume_shadows: s.shadows && self.volumes.any_casts_shadow(),
             curved: job.terrain.curved,
             lod: s.lod.is_some() && s.mode == TraceMode::Pyramid && self.paged.is_none(),
-            paged: self.paged.is_some(),
+            paged: self.paged.as_ref().map_or(0, |p| p.bindings()),
             drape_mips: self.base.data.has_drape && s.antialias.is_on(),
         };
         if features.lod {

@@ -38,7 +38,12 @@ impl TerrainRenderer {
             terrain.pyramid.top() as u32,
         );
         let kernels = gpu.options.kernels.path(&gpu.info);
-        let mut r = Self::with_passes(TerrainPasses::new(gpu, terrain, kernels, Some(&pool.bgl))?)?;
+        let mut r = Self::with_passes(TerrainPasses::new(
+            gpu,
+            terrain,
+            kernels,
+            Some((&pool.bgl, pool.bindings())),
+        )?)?;
         r.paged = Some(pool);
         Ok(r)
     }

@@ -7,8 +7,37 @@ use super::variants::{FfTables, ShadeFeatures, Switches, VolumeSwitches};
 const FRAME: &str = include_str!("shaders/frame.wgsl");
 const FULLSCREEN: &str = include_str!("shaders/fullscreen.wgsl");
 const TRAVERSE: &str = include_str!("shaders/terrain_traverse.wgsl");
-/// The paged terrain's reads (`cell_max`, `patch_corners`, `finest_resident`), an include.
+/// The paged terrain's reads (`cell_max`, `patch_corners`, `finest_resident`), an include;
+/// with [`paged_pools`] (the pool's bindings and `paged_read`).
 pub const TERRAIN_PAGED: &str = include_str!("shaders/terrain_paged.wgsl");
+
+/// Most storage bindings a tile pool spans (bindings 3, 5, 6, 7 of group 3).
+pub const MAX_POOL_BINDINGS: u32 = 4;
+
+/// The tile pool's bindings and `paged_read(slot, i)` (float `i` of slot `slot`) for a pool of
+/// `pools` buffers (1..=[`MAX_POOL_BINDINGS`]) of `2^PagedParams.pool_shift` whole slots
+/// each: one buffer reads directly, several choose theirs per read.
+pub fn paged_pools(pools: u32) -> String {
+    let pools = pools.clamp(1, MAX_POOL_BINDINGS);
+    let mut s = String::new();
+    for k in 0..pools {
+        let binding = if k == 0 { 3 } else { 4 + k };
+        s += &format!(
+            "@group(3) @binding({binding}) var<storage, read> paged_pool{k}: array<f32>;\n"
+        );
+    }
+    if pools == 1 {
+        s += "fn paged_read(slot: u32, i: u32) -> f32 {\n    return paged_pool0[slot * paged.slot_floats + i];\n}\n";
+        return s;
+    }
+    // `pool_slots` is a power of two (`TerrainPool::new`): a shift and a mask, no division.
+    s += "fn paged_read(slot: u32, i: u32) -> f32 {\n    let b = slot >> paged.pool_shift;\n    let k = (slot & ((1u << paged.pool_shift) - 1u)) * paged.slot_floats + i;\n    switch b {\n";
+    for k in 1..pools {
+        s += &format!("        case {k}u: {{ return paged_pool{k}[k]; }}\n");
+    }
+    s += "        default: { return paged_pool0[k]; }\n    }\n}\n";
+    s
+}
 /// The traversal's window-relative storage interface over [`TERRAIN_PAGED`] (`PAGED` builds).
 const TERRAIN_PAGED_WINDOW: &str = include_str!("shaders/terrain_paged_window.wgsl");
 /// The traversal's storage interface over the heights and the pyramid (every other build).
@@ -62,13 +91,14 @@ pub fn tile(curved: bool) -> String {
 
 /// The paged tile pre-pass (`PAGED`): as [`tile`] with the terrain read from the tile pool
 /// (group 3), the neighbourhood maxima cell by cell.
-pub fn tile_paged(curved: bool) -> String {
+pub fn tile_paged(curved: bool, pools: u32) -> String {
     [
         &paged_consts(curved),
         FRAME,
         FULLSCREEN,
         RAY_TABLE,
         TERRAIN_PAGED,
+        &paged_pools(pools),
         TERRAIN_PAGED_WINDOW,
         include_str!("shaders/tile_paged.wgsl"),
         TRAVERSE,
@@ -108,13 +138,14 @@ pub fn cast(curved: bool, lod: bool, near: bool) -> String {
 /// The paged cast pass (`PAGED`): as [`cast`] with the terrain read from the tile pool
 /// (group 3, `terrain_paged.wgsl`) and the paged stop rule; built by the renderer in paged
 /// mode (`TerrainRenderer::new_paged`).
-pub fn cast_paged(curved: bool) -> String {
+pub fn cast_paged(curved: bool, pools: u32) -> String {
     [
         &paged_consts(curved),
         FRAME,
         FULLSCREEN,
         RAY_TABLE,
         TERRAIN_PAGED,
+        &paged_pools(pools),
         TERRAIN_PAGED_WINDOW,
         TRAVERSE,
         GBUFFER,
@@ -125,9 +156,15 @@ pub fn cast_paged(curved: bool) -> String {
 
 /// The shade pass's terrain reads: the heights and the pyramid, or with `paged` the tile pool
 /// (the window-relative interface and `sample_height` on the finest resident surface).
-fn shade_terrain(paged: bool) -> String {
-    if paged {
-        [TERRAIN_PAGED, TERRAIN_PAGED_WINDOW, PAGED_SAMPLES].concat()
+fn shade_terrain(paged: u32) -> String {
+    if paged > 0 {
+        [
+            TERRAIN_PAGED,
+            &paged_pools(paged),
+            TERRAIN_PAGED_WINDOW,
+            PAGED_SAMPLES,
+        ]
+        .concat()
     } else {
         TERRAIN_MEMORY.to_string()
     }
@@ -428,16 +465,28 @@ pub fn all() -> Vec<(&'static str, String)> {
         ("cast (curved, lod)", cast(true, true, false)),
         ("cast (near)", cast(false, false, true)),
         ("cast (curved, near)", cast(true, false, true)),
-        ("cast (paged)", cast_paged(false)),
-        ("cast (curved, paged)", cast_paged(true)),
+        ("cast (paged)", cast_paged(false, 1)),
+        ("cast (curved, paged, 4 pool bindings)", cast_paged(true, 4)),
+        ("tile (paged)", tile_paged(false, 1)),
+        ("tile (curved, paged, 2 pool bindings)", tile_paged(true, 2)),
         ("shade", shade(ShadeFeatures::ALL)),
         ("shade (no options)", shade(ShadeFeatures::NONE)),
         (
             "shade (paged)",
             shade(ShadeFeatures {
-                paged: true,
+                paged: 1,
                 ..ShadeFeatures::ALL
             }),
+        ),
+        (
+            "shade_objects (paged, 3 pool bindings)",
+            shade_objects(
+                ShadeFeatures {
+                    paged: 3,
+                    ..ShadeFeatures::ALL
+                },
+                FfTables::Storage,
+            ),
         ),
         ("shade_objects", shade_objects(ShadeFeatures::ALL, UNIFORM)),
         (

@@ -256,8 +256,10 @@ impl TerrainPasses {
         gpu: &Gpu,
         terrain: &Terrain,
         kernels: KernelPath,
-        paged: Option<&wgpu::BindGroupLayout>,
+        pool: Option<(&wgpu::BindGroupLayout, u32)>,
     ) -> Result<TerrainPasses> {
+        let paged = pool.map(|(bgl, _)| bgl);
+        let bindings = pool.map_or(1, |(_, n)| n);
         let data = TerrainData::upload(gpu, terrain, paged.is_some())?;
         let raygen_compute = kernels == KernelPath::Compute;
         let bgl = TerrainLayouts::new(gpu, raygen_compute);
@@ -265,12 +267,18 @@ impl TerrainPasses {
         let module = |label: &str, src: String| super::shader_module(dev, gpu.params, label, &src);
         let raygen_mod = module("raygen.wgsl", shaders::raygen());
         let tile_mod = match paged {
-            Some(_) => module("tile.wgsl (paged)", shaders::tile_paged(terrain.curved)),
+            Some(_) => module(
+                "tile.wgsl (paged)",
+                shaders::tile_paged(terrain.curved, bindings),
+            ),
             None => module("tile.wgsl", shaders::tile(terrain.curved)),
         };
         let tile_layout = pipeline_layout_with(dev, &bgl.tile, paged);
         let cast_mod = match paged {
-            Some(_) => module("cast.wgsl (paged)", shaders::cast_paged(terrain.curved)),
+            Some(_) => module(
+                "cast.wgsl (paged)",
+                shaders::cast_paged(terrain.curved, bindings),
+            ),
             None => module("cast.wgsl", shaders::cast(terrain.curved, false, false)),
         };
         let fullscreen = |label: &str,

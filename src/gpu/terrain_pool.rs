@@ -6,7 +6,6 @@
 //! Bound as group 3 of the paged cast and shade pipelines
 //! ([`super::TerrainRenderer::new_paged`]).
 
-use super::util::check_buffer_limit;
 use super::Gpu;
 use crate::db::pager::{PageTable, ResidencyMap, Upload};
 use crate::Result;
@@ -26,6 +25,10 @@ pub struct PagedParams {
     /// ([`ResidencyMap::shape`]; a one-entry placeholder until the window is set).
     pub map_side: u32,
     pub map_levels: u32,
+    /// 2^`pool_shift` slots per pool buffer where the pool spans several
+    /// ([`TerrainPool::bindings`]).
+    pub pool_shift: u32,
+    pub pad: [u32; 3],
 }
 
 /// `PagedLevel` in `terrain_paged.wgsl`: a level's page-table offset and tile range.
@@ -45,10 +48,12 @@ pub struct TerrainPool {
     pub params: wgpu::Buffer,
     pub levels: wgpu::Buffer,
     pub table: wgpu::Buffer,
-    pub pool: wgpu::Buffer,
+    /// The pool: one buffer, or several of `pool_slots` whole slots each where the pool
+    /// exceeds the adapter's storage-binding size.
+    pub pools: Vec<wgpu::Buffer>,
     /// The residency map ([`ResidencyMap`]) of the window.
     pub map: wgpu::Buffer,
-    /// Group 3's layout and bind group (the five buffers above).
+    /// Group 3's layout and bind group (the buffers above).
     pub bgl: wgpu::BindGroupLayout,
     pub bind_group: wgpu::BindGroup,
     params_host: PagedParams,
@@ -58,24 +63,35 @@ pub struct TerrainPool {
     map_host: Option<ResidencyMap>,
     slot_floats: u64,
     slots: usize,
+    pool_slots: usize,
     n: usize,
 }
 
-/// Group 3's layout: `PagedParams` (uniform), levels, page table, pool and residency map
-/// (storage).
-fn pool_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
+/// The binding of pool buffer `k` (`gpu::shaders::paged_pools`).
+fn pool_binding(k: usize) -> u32 {
+    if k == 0 {
+        3
+    } else {
+        4 + k as u32
+    }
+}
+
+/// Group 3's layout: `PagedParams` (uniform), levels, page table, the residency map (4) and
+/// `pools` pool buffers (3, 5, 6, 7) (storage).
+fn pool_layout(gpu: &Gpu, pools: usize) -> wgpu::BindGroupLayout {
     use super::util::{storage_entry, uniform_entry};
     let fs = wgpu::ShaderStages::FRAGMENT;
+    let mut entries = vec![
+        uniform_entry(gpu.params, 0, fs),
+        storage_entry(1, fs, true),
+        storage_entry(2, fs, true),
+        storage_entry(4, fs, true),
+    ];
+    entries.extend((0..pools).map(|k| storage_entry(pool_binding(k), fs, true)));
     gpu.device
         .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("terrain pool"),
-            entries: &[
-                uniform_entry(gpu.params, 0, fs),
-                storage_entry(1, fs, true),
-                storage_entry(2, fs, true),
-                storage_entry(3, fs, true),
-                storage_entry(4, fs, true),
-            ],
+            entries: &entries,
         })
 }
 
@@ -102,24 +118,67 @@ pub fn layout(table: &PageTable, n: usize) -> (PagedParams, Vec<PagedLevel>) {
         origin: [0; 2],
         map_side: 1,
         map_levels: 1,
+        pool_shift: 0,
+        pad: [0; 3],
     };
     (params, levels)
 }
 
 impl TerrainPool {
-    /// Buffers for `slots` slots of tiles of `n` cells and the page table's shape; an error
-    /// naming `--terrain-memory` where the pool exceeds the adapter's storage-buffer limit.
+    /// Buffers for `slots` slots of tiles of `n` cells and the page table's shape. A pool
+    /// larger than the adapter's storage-binding size is split into buffers of whole slots
+    /// (lavapipe and GL bind 128 MiB: a 256 MB pool of 256-cell tiles takes four of 128 slots); an error naming
+    /// `--terrain-memory` where it would need more than [`shaders::MAX_POOL_BINDINGS`].
+    ///
+    /// [`shaders::MAX_POOL_BINDINGS`]: super::shaders::MAX_POOL_BINDINGS
     pub fn new(gpu: &Gpu, table: &PageTable, n: usize, slots: usize) -> Result<TerrainPool> {
+        Self::with_binding_limit(gpu, table, n, slots, u64::MAX)
+    }
+
+    /// [`TerrainPool::new`] splitting the pool at `limit` bytes a buffer where that is below
+    /// the adapter's binding size (tests: the split path on any adapter).
+    pub fn with_binding_limit(
+        gpu: &Gpu,
+        table: &PageTable,
+        n: usize,
+        slots: usize,
+        limit: u64,
+    ) -> Result<TerrainPool> {
         use wgpu::util::DeviceExt;
-        let (params, levels) = layout(table, n);
+        let (mut params, levels) = layout(table, n);
         let slot_floats = params.slot_floats as u64;
-        let bytes = slot_floats * 4 * slots as u64;
-        check_buffer_limit(
-            gpu,
-            "terrain pool",
-            bytes,
-            "give a smaller --terrain-memory",
-        )?;
+        let slot_bytes = slot_floats * 4;
+        let limit = gpu
+            .limits
+            .max_storage_buffer_binding_size
+            .min(gpu.limits.max_buffer_size)
+            .min(limit);
+        // One buffer where the whole pool fits, otherwise buffers of a power of two of slots
+        // (the shader splits a slot number with a shift and a mask: no division per read).
+        let fit = (limit / slot_bytes) as usize;
+        let pool_slots = if fit >= slots {
+            slots.max(1)
+        } else if fit == 0 {
+            0
+        } else {
+            1 << fit.ilog2()
+        };
+        let max = super::shaders::MAX_POOL_BINDINGS as usize;
+        if pool_slots == 0 || slots.div_ceil(pool_slots) > max {
+            let most = pool_slots as u64 * max as u64 * slot_bytes;
+            return Err(crate::Error::Limit {
+                what: "terrain pool".into(),
+                msg: format!(
+                    "{} bytes needed, the adapter {} binds {limit} bytes per storage buffer and \
+                     the pool spans at most {max} of them ({most} bytes of whole tiles): give a \
+                     smaller --terrain-memory",
+                    slot_bytes * slots as u64,
+                    gpu.info.name
+                ),
+            });
+        }
+        let buffers = slots.div_ceil(pool_slots).max(1);
+        params.pool_shift = pool_slots.trailing_zeros();
         let dev = &gpu.device;
         let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
         let init = |label: &str, contents: &[u8], usage| {
@@ -136,28 +195,34 @@ impl TerrainPool {
         );
         let levels_buf = init("paged levels", bytemuck::cast_slice(&levels), storage);
         let table_buf = init("paged table", bytemuck::cast_slice(table.raw()), storage);
-        let pool = dev.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("terrain pool"),
-            size: bytes.max(4),
-            usage: storage,
-            mapped_at_creation: false,
-        });
+        let pools: Vec<wgpu::Buffer> = (0..buffers)
+            .map(|k| {
+                let here = pool_slots.min(slots - (k * pool_slots).min(slots));
+                dev.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("terrain pool"),
+                    size: (here as u64 * slot_bytes).max(4),
+                    usage: storage,
+                    mapped_at_creation: false,
+                })
+            })
+            .collect();
         let map = init(
             "residency map",
             bytemuck::bytes_of(&crate::db::pager::residency::MAP_NONE),
             storage,
         );
-        let bgl = pool_layout(gpu);
+        let bgl = pool_layout(gpu, pools.len());
         let bind_group = bind(
             gpu,
             &bgl,
-            [&params_buf, &levels_buf, &table_buf, &pool, &map],
+            [&params_buf, &levels_buf, &table_buf, &map],
+            &pools,
         );
         Ok(TerrainPool {
             params: params_buf,
             levels: levels_buf,
             table: table_buf,
-            pool,
+            pools,
             map,
             bgl,
             bind_group,
@@ -166,8 +231,14 @@ impl TerrainPool {
             map_host: None,
             slot_floats,
             slots,
+            pool_slots,
             n,
         })
+    }
+
+    /// The storage bindings the pool spans (`ShadeFeatures::paged`, `shaders::paged_pools`).
+    pub fn bindings(&self) -> u32 {
+        self.pools.len() as u32
     }
 
     /// Sets the traversal window: its sample (0, 0) on the finest level's global grid (a
@@ -195,13 +266,8 @@ impl TerrainPool {
         self.bind_group = bind(
             gpu,
             &self.bgl,
-            [
-                &self.params,
-                &self.levels,
-                &self.table,
-                &self.pool,
-                &self.map,
-            ],
+            [&self.params, &self.levels, &self.table, &self.map],
+            &self.pools,
         );
         self.map_host = Some(m);
     }
@@ -216,12 +282,17 @@ impl TerrainPool {
     pub fn apply(&mut self, gpu: &Gpu, uploads: &[Upload], table: &PageTable) {
         for u in uploads {
             debug_assert_eq!(u.tile.n, self.n);
-            let at = u.slot as u64 * self.slot_floats * 4;
+            let (b, s) = (
+                u.slot as usize / self.pool_slots,
+                u.slot as usize % self.pool_slots,
+            );
+            let pool = &self.pools[b];
+            let at = s as u64 * self.slot_floats * 4;
             gpu.queue
-                .write_buffer(&self.pool, at, bytemuck::cast_slice(&u.tile.heights));
+                .write_buffer(pool, at, bytemuck::cast_slice(&u.tile.heights));
             let h = u.tile.heights.len() as u64 * 4;
             gpu.queue
-                .write_buffer(&self.pool, at + h, bytemuck::cast_slice(&u.tile.maxima));
+                .write_buffer(pool, at + h, bytemuck::cast_slice(&u.tile.maxima));
         }
         if !uploads.is_empty() {
             gpu.queue
@@ -236,18 +307,24 @@ impl TerrainPool {
     }
 }
 
-/// Group 3's bind group: parameters, levels, page table, pool, residency map.
-fn bind(gpu: &Gpu, bgl: &wgpu::BindGroupLayout, b: [&wgpu::Buffer; 5]) -> wgpu::BindGroup {
+/// Group 3's bind group: parameters, levels, page table, residency map, pool buffers.
+fn bind(
+    gpu: &Gpu,
+    bgl: &wgpu::BindGroupLayout,
+    b: [&wgpu::Buffer; 4],
+    pools: &[wgpu::Buffer],
+) -> wgpu::BindGroup {
     use super::util::buf;
+    let mut entries = vec![buf(0, b[0]), buf(1, b[1]), buf(2, b[2]), buf(4, b[3])];
+    entries.extend(
+        pools
+            .iter()
+            .enumerate()
+            .map(|(k, p)| buf(pool_binding(k), p)),
+    );
     gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("terrain pool"),
         layout: bgl,
-        entries: &[
-            buf(0, b[0]),
-            buf(1, b[1]),
-            buf(2, b[2]),
-            buf(3, b[3]),
-            buf(4, b[4]),
-        ],
+        entries: &entries,
     })
 }

@@ -38,9 +38,10 @@ pub struct ShadeFeatures {
     /// Footprint level of detail (`render.lod`, `LOD`): shadow rays of terrain hits start
     /// above the finest surface (a coarse patch may lie below it).
     pub lod: bool,
-    /// The terrain is read from the paged tile pool (`PAGED`, group 3): normals from the
-    /// finest resident surface, shadow rays through the paged traversal.
-    pub paged: bool,
+    /// The terrain is read from the paged tile pool (`PAGED`, group 3) over this many storage
+    /// bindings (0: the terrain in memory): normals from the finest resident surface, shadow
+    /// rays through the paged traversal.
+    pub paged: u32,
     /// The drape sampled at mip levels picked by the pixel's footprint, trilinear
     /// (`DRAPE_MIPS`, with `render.antialias`).
     pub drape_mips: bool,
@@ -55,7 +56,7 @@ impl ShadeFeatures {
         volume_shadows: true,
         curved: true,
         lod: true,
-        paged: false,
+        paged: 0,
         drape_mips: true,
     };
     /// None compiled in.
@@ -66,7 +67,7 @@ impl ShadeFeatures {
         volume_shadows: false,
         curved: false,
         lod: false,
-        paged: false,
+        paged: 0,
         drape_mips: false,
     };
 }
@@ -80,7 +81,7 @@ impl Switches for ShadeFeatures {
             ("VOLUME_SHADOWS", self.volume_shadows),
             ("CURVED", self.curved),
             ("LOD", self.lod),
-            ("PAGED", self.paged),
+            ("PAGED", self.paged > 0),
             // The shadow rays never flag near misses.
             ("NEAR", false),
             ("DRAPE_MIPS", self.drape_mips),

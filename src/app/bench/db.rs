@@ -255,7 +255,8 @@ fn flight_scene(base: &Path, mosaic: &Path, window: [f64; 4], out: &Path) -> Res
 /// `speed` (at 60 frames a second of flight time) 300 m above the window's highest point,
 /// looking ahead and down, then as many hovering. A frame's cost is the pager's update, the
 /// uploads into the pool and the rendered frame (full shading, the scene's settings), submit
-/// to GPU idle; every frame renders what is resident then (no waiting).
+/// to GPU idle; every frame renders what is resident then (no waiting). One frame before the
+/// flight warms the pipelines up (not timed).
 fn fly(
     gpu: &Gpu,
     dir: &Path,
@@ -297,6 +298,13 @@ fn fly(
     let (mut crossing, mut hover) = (Vec::new(), Vec::new());
     let (mut max_staged, mut max_rss, mut uploads, mut frames_missing) = (0u64, 0u64, 0u64, 0);
     let mut cam = crate::scene::Camera::new(pose, size.0, size.1);
+    // One frame at the start, not timed: the pipelines are compiled on first use (lavapipe:
+    // 0.1–0.3 s each), which no frame of a running image generator pays.
+    pose.position = terrain.frame.grid_to_world(grid);
+    let warm = crate::scene::Camera::new(pose, size.0, size.1);
+    paging.step(gpu, &mut r, terrain, &warm)?;
+    r.render(gpu, terrain, &scene.desc, &warm, &s, Stage::Shade)?;
+    gpu.wait()?;
     for frame in 0..2 * half {
         if frame < half {
             grid.x += a.speed / 60.0 / spacing[0];

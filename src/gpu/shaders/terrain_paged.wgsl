@@ -10,7 +10,8 @@
 // always a conservative bound, and `patch_corners` the surface of the finest resident level.
 //
 // Slot layout (f32): the (N+1)^2 heights row by row (row 0 south), then the in-tile maximum
-// pyramid (N^2 cell maxima, then each coarser in-tile level, down to 1).
+// pyramid (N^2 cell maxima, then each coarser in-tile level, down to 1). A pool larger than
+// the adapter's storage-binding size spans several buffers of whole slots (`paged_read`).
 
 struct PagedParams {
     tile_n: u32,       // cells per tile side N (a power of two)
@@ -21,6 +22,10 @@ struct PagedParams {
     origin_y: u32,     // (a multiple of 2^top: see terrain_paged_window.wgsl)
     map_side: u32,     // the residency map: entries a side at its level 0 (a power of two)
     map_levels: u32,   // and its levels (virtual levels log2_n ..= log2_n + map_levels - 1)
+    pool_shift: u32,   // 2^pool_shift slots per pool buffer where the pool spans several
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
 struct PagedLevel {
@@ -37,7 +42,8 @@ struct PagedLevel {
 @group(3) @binding(0) var<uniform> paged: PagedParams;
 @group(3) @binding(1) var<storage, read> paged_levels: array<PagedLevel>;
 @group(3) @binding(2) var<storage, read> paged_table: array<u32>;
-@group(3) @binding(3) var<storage, read> paged_pool: array<f32>;
+// The pool itself, `paged_read(slot, i)`: one storage binding or several (a pool over the
+// adapter's binding size), declared by `gpu::shaders::paged_pools`.
 // The residency map (db::pager::residency): per tile-sized cell of the window, per virtual
 // level from log2_n up, the finest resident level's coarseness j (top 8 bits) and its slot.
 @group(3) @binding(4) var<storage, read> paged_map: array<u32>;
@@ -128,12 +134,12 @@ fn paged_cell_max(level: u32, cell: vec2<u32>) -> f32 {
     let m = select(0u, level - j, j <= level);
     let local = (c & vec2<u32>(paged.tile_n - 1u)) >> vec2<u32>(m);
     let side = paged.tile_n >> m;
-    return paged_pool[slot * paged.slot_floats + paged_max_offset(m) + local.y * side + local.x];
+    return paged_read(slot, paged_max_offset(m) + local.y * side + local.x);
 }
 
 // Height of sample (i, j) of the tile in `slot`.
 fn paged_height(slot: u32, i: u32, j: u32) -> f32 {
-    return paged_pool[slot * paged.slot_floats + j * (paged.tile_n + 1u) + i];
+    return paged_read(slot, j * (paged.tile_n + 1u) + i);
 }
 
 // The bilinear patch corners (south-west, south-east, north-west, north-east) of virtual
