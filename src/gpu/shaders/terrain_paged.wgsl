@@ -69,15 +69,6 @@ fn paged_max_offset(m: u32) -> u32 {
     return (n + 1u) * (n + 1u) + ((ones * side * side) << 2u);
 }
 
-// The index of virtual cell `cell` of level `level` on database level F - j's own cell grid
-// (cells of 2^j finest cells): the first of the cells it covers, or the one containing it.
-fn paged_cell_on(level: u32, cell: vec2<u32>, j: u32) -> vec2<u32> {
-    if (j <= level) {
-        return cell << vec2<u32>(level - j);
-    }
-    return cell >> vec2<u32>(j - level);
-}
-
 // The index of the residency map's entry over virtual cell `cell` of level `level` (global index):
 // `ResidencyMap::entry`, operation for operation; PAGED_NONE off the map.
 fn paged_map_index(level: u32, cell: vec2<u32>) -> u32 {
@@ -115,12 +106,12 @@ fn paged_map_read(level: u32, cell: vec2<u32>) -> u32 {
     return paged_map[i];
 }
 
-// A bound on the terrain over virtual cell `cell` of level `level`: its maximum from the
-// finest resident level (a coarser cell's maximum where that is all there is).
 // The map entry the last `paged_cell_max` read: the traversal asks `paged_stops` about the
 // same cell right after (terrain_paged_window.wgsl), which then needs no second read.
 var<private> paged_last_entry: u32 = 0xffffffffu;
 
+// A bound on the terrain over virtual cell `cell` of level `level`: its maximum from the
+// finest resident level (a coarser cell's maximum where that is all there is).
 fn paged_cell_max(level: u32, cell: vec2<u32>) -> f32 {
     let e = paged_map_read(level, cell);
     paged_last_entry = e;
@@ -129,11 +120,14 @@ fn paged_cell_max(level: u32, cell: vec2<u32>) -> f32 {
     }
     let j = e >> 24u;
     let slot = e & PAGED_SLOT_MASK;
-    // On database level F - j: cell index at its own cell size, and the in-tile level.
-    let c = paged_cell_on(level, cell, j);
-    let m = select(0u, level - j, j <= level);
-    let local = (c & vec2<u32>(paged.tile_n - 1u)) >> vec2<u32>(m);
+    // In the tile of database level F - j: where j <= level, in-tile pyramid level m = level - j
+    // of side N >> m, the cell at `cell` modulo the side; where j > level (only a coarser level
+    // is resident), the coarse cell containing it, at in-tile level 0.
+    let up = j <= level;
+    let m = select(0u, level - j, up);
     let side = paged.tile_n >> m;
+    let c = cell >> vec2<u32>(select(j - level, 0u, up));
+    let local = c & vec2<u32>(side - 1u);
     return paged_read(slot, paged_max_offset(m) + local.y * side + local.x);
 }
 
