@@ -487,3 +487,71 @@ fn a_needle_no_centre_ray_hits_is_found_through_the_pixel_cone() {
     assert!(edges_err * 4 <= off_err, "found through the pixel cone");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A mast (a plain cylinder 1.2 m wide) 1 km away on a flat field, about a quarter of a pixel
+/// wide and standing between two pixel columns, so that no centre ray hits it: the centre
+/// rays' near misses of plain free forms (`ff_plain_near`) find it, and with `"edges"` its
+/// pixels come close to the reference, where one ray a pixel leaves it out.
+#[test]
+fn a_mast_no_centre_ray_hits_is_found_through_the_pixel_cone() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let _lock = common::gpu_lock();
+    let dir = std::env::temp_dir().join(format!("relief-aa-mast-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let field = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::new(65, 65);
+    field.save(dir.join("flat.png")).unwrap();
+    let scene = dir.join("scene.toml");
+    std::fs::write(
+        &scene,
+        "[terrain]\nsource = \"flat.png\"\ncell_size = [10.0, 10.0]\n\
+         [render]\nshadows = false\n\
+         [camera]\nposition = [320.0, -1000.0, 40.0]\nheading = 0.0\npitch = 0.0\nfov = 40.0\n\
+         [output]\nwidth = 160\nheight = 90\n\
+         [[objects]]\nshape = \"cylinder\"\nradius = 0.6\nheight = 120.0\n\
+         position = [320.0, 0.0, 0.0]\nmaterial = { colour = [0.9, 0.1, 0.1] }\n",
+    )
+    .unwrap();
+    let job = render_job(&[scene.to_str().unwrap()]).unwrap();
+    let (mut p, mut r) = capture::prepare(&job).unwrap();
+    let cams = quality::motion_cameras(&p.scene, &p.world.terrain, 1);
+    let mut frame = |aa| {
+        render_all(&mut p, &mut r, &job, &cams, aa)
+            .unwrap()
+            .frames
+            .remove(0)
+    };
+    let (reference, off, edges) = (
+        frame(Antialias::REFERENCE),
+        frame(Antialias::OFF),
+        frame(EDGES),
+    );
+    let hits = off.objects.iter().filter(|&&o| o != 0).count();
+    // The mast's pixels: where the reference differs from the plain frame by 8 levels or more
+    // in the columns around the image's centre line.
+    let (mut mast, mut off_err, mut edges_err, mut near) = (0, 0u64, 0u64, 0);
+    for j in 0..90 {
+        for i in 77..83 {
+            let k = j * 160 + i;
+            let eo = largest_channel_difference(&off.rgba, &reference.rgba, k);
+            if eo >= 8 {
+                mast += 1;
+                off_err += u64::from(eo);
+                edges_err += u64::from(largest_channel_difference(&edges.rgba, &reference.rgba, k));
+                near += usize::from(edges.flags[k] & 64 != 0);
+            }
+        }
+    }
+    eprintln!(
+        "mast: {hits} centre-ray hits; {mast} pixels the centre rays miss; error sum {off_err} -> {edges_err}; {near} flagged as near misses"
+    );
+    assert_eq!(hits, 0, "the mast must lie between the centre rays");
+    assert!(
+        mast >= 10,
+        "the mast is there in the reference and missed by one ray"
+    );
+    assert!(near > 0, "near misses found");
+    assert!(edges_err * 4 <= off_err, "found through the pixel cone");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -498,9 +498,11 @@ impl TerrainRenderer {
         let mut fu = frame_uniforms(job.terrain, job.scene, job.cam, s, t.tiles);
         fu.pyramid_dims = [self.base.data.pyramid_side, 0, 0, 0];
         self.stamp = self.stamp.wrapping_add(1).max(1);
-        fu.stamp = [self.stamp, 0, 0, 0];
-        let stamp = self.stamp;
         let antialias = self.antialiased(job);
+        // z: the centre rays of an anti-aliased frame look for free forms missed within the
+        // pixel cone (`ff_plain_near`); the sample atlas sets its own (`[stamp, 1, 0, 0]`).
+        fu.stamp = [self.stamp, 0, (antialias && !job.atlas) as u32, 0];
+        let stamp = self.stamp;
         if antialias {
             self.stamp = self.stamp.wrapping_add(antialias::STAMPS);
         }

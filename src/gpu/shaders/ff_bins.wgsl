@@ -270,6 +270,23 @@ fn ff_plain_nearest(px: vec2<u32>, list: u32, ro: vec3<f32>, rd: vec3<f32>, t_mi
     return best;
 }
 
+// Anti-aliasing's centre rays (`frame.stamp.z` = 1): whether the ray, which hit no plain object
+// of the pixel's list, passes within `reach` t of one before `t_max` (`ff_plain_near_miss`):
+// a mast or wire thinner than the pixel that no centre ray hits. Without anti-aliasing the
+// loop runs no iteration (a uniform count: the SIMD lanes skip it together).
+fn ff_plain_near(px: vec2<u32>, ro: vec3<f32>, rd: vec3<f32>, reach: f32, t_max: f32) -> bool {
+    let l = ff_list(px, 0u, false);
+    let n = select(0u, l.n, frame.stamp.z != 0u);
+    var near = false;
+    for (var j = 0u; j < n; j += 1u) {
+        let id = ff_list_id(l, j);
+        if (id != FF_NONE && ff_plain_near_miss(id, ro, rd, reach, t_max)) {
+            near = true;
+        }
+    }
+    return near;
+}
+
 // True when a plain object of the pixel's shadow list blocks the ray from `ro` along `rd`.
 fn ff_plain_blocked(px: vec2<u32>, ro: vec3<f32>, rd: vec3<f32>) -> bool {
     let l = ff_list(px, 1u, false);

@@ -56,7 +56,9 @@ struct Frame {
     objects: vec4<u32>,
     // x: this frame's stamp (never 0; the free-form shadow pass marks blocked pixels with it,
     // so its target needs no clear); y: 1 in the anti-aliasing sample atlas (neighbouring
-    // entries need not be neighbouring rays: free-form bins bound every ray); zw: unused.
+    // entries need not be neighbouring rays: free-form bins bound every ray); z: 1 for the
+    // centre rays of an anti-aliased frame (free forms missed within the pixel cone are
+    // flagged, `ff_plain_near`); w: unused.
     stamp: vec4<u32>,
     // Curved earth (`CURVED` pipelines): eye grid x, y; drop per squared grid step along x, y
     // (metres): the datum lies k.x (x - ex)^2 + k.y (y - ey)^2 below the eye's tangent plane.

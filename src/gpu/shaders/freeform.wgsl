@@ -494,6 +494,36 @@ fn ff_plain_hit(id: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32, t_max: f32) -
 
 // Unit world normal of a hit from `ff_intersect`: the box face it carries, else the
 // normalised gradient of F' (continuous across the perturbations' breakpoints).
+// Near miss of a plain object (anti-aliasing): does the ray, which misses the object, pass
+// within `reach` t of it before `t_max`? The box is widened by the cone's radius at the far
+// side of the object's bounding sphere; over the ray's span through the widened box the
+// quadric's lowest value F (the vertex of F(s) = a s² + b s + c, or an end) and its gradient
+// there give the distance estimate F / |∇F|, never more than the distance for spheres and
+// cylinders ((ρ² - r²) / 2ρ <= ρ - r) and exact for planes; F <= 0 there is the solid beside
+// the box itself (a cap's or a slab's edge within reach).
+fn ff_plain_near_miss(id: u32, ro: vec3<f32>, rd: vec3<f32>, reach: f32, t_max: f32) -> bool {
+    let ob = ff_objects[id];
+    let widen = reach * (length(ob.sphere.xyz - ro) + ob.sphere.w);
+    var wide = ob;
+    wide.box_min = vec4<f32>(ob.box_min.xyz - vec3<f32>(widen), ob.box_min.w);
+    wide.box_max = vec4<f32>(ob.box_max.xyz + vec3<f32>(widen), ob.box_max.w);
+    let span = ff_span(wide, ro, rd, 0.0, t_max);
+    if (span.t0 > span.t1) {
+        return false;
+    }
+    let node = ff_nodes[bitcast<u32>(ob.box_min.w)];
+    let p0 = span.o + span.d * span.t0;
+    let c = ff_along(node, p0, span.d);
+    let len = span.t1 - span.t0;
+    var s = select(0.0, len, ff_quad(c, len) < c.z);
+    if (c.x > 0.0) {
+        s = clamp(-c.y / (2.0 * c.x), 0.0, len);
+    }
+    let f = ff_quad(c, s);
+    let g = ff_grad(node, p0 + span.d * s);
+    return f <= 0.0 || f < reach * (span.t0 + s) * length(g);
+}
+
 fn ff_normal(id: u32, h: FfHit, ro: vec3<f32>, rd: vec3<f32>) -> vec3<f32> {
     if (dot(h.n, h.n) > 0.0) {
         return h.n;

@@ -25,9 +25,16 @@ fn gbuffer_hit(best: FfNearest, n: vec3<f32>) -> vec4<u32> {
 fn fs_objects_plain(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
     let px = vec2<u32>(pos.xy);
     let far = current_far(px);
-    let best = ff_plain_nearest(px, 0u, frame.eye_world.xyz, ray_dir(px), 0.0, far);
+    let e = ray_entry(px);
+    let best = ff_plain_nearest(px, 0u, frame.eye_world.xyz, e.xyz, 0.0, far);
     if (far < 0.0 || !best.hit.hit) {
-        return textureLoad(gbuffer_in, vec2<i32>(px), 0);
+        var g = textureLoad(gbuffer_in, vec2<i32>(px), 0);
+        // Anti-aliasing's centre rays: a plain object missed within the pixel's cone (its
+        // corners: sqrt 2 times the half-angle) sets the near-miss bit (31), as the terrain's
+        // NEAR cast does.
+        let near = ff_plain_near(px, frame.eye_world.xyz, e.xyz, 1.4143 * max(e.w, 0.0), max(far, 0.0));
+        g.w |= select(0u, 0x80000000u, near && far >= 0.0);
+        return g;
     }
     return gbuffer_hit(best, best.hit.n);
 }
