@@ -202,6 +202,26 @@ fn measure(
     })
 }
 
+/// The hover view `f` with the scene's window loaded whole and uploaded (median ms), where the
+/// window's heights fit one storage binding (a 16385² window's 1 GiB does not on lavapipe or
+/// GL: NaN, not measured).
+fn hover_in_memory(f: &FrameSetup, scene: &crate::scene::Scene) -> Result<f64> {
+    let (gpu, field) = (f.gpu, &f.terrain.field);
+    let heights = (field.width * field.height * 4) as u64;
+    if heights > gpu.limits.max_storage_buffer_binding_size {
+        log::info!(
+            "window of {heights} bytes of heights: over the adapter's storage binding, no in-memory comparison"
+        );
+        return Ok(f64::NAN);
+    }
+    let whole = crate::world::World::load(scene)?;
+    let terrain = &whole.terrain;
+    let mut full = TerrainRenderer::new(gpu, terrain)?;
+    let f = FrameSetup { terrain, ..*f };
+    f.capture(&mut full)?;
+    f.median_ms(&mut full, Stage::Shade)
+}
+
 /// The largest window of the finest level that lies within the mosaic's extent and starts on
 /// a multiple of its own side (the paged window's alignment): `[lat_s, lon_w, lat_n, lon_e]`.
 fn aligned_window(h: &db::format::Header) -> Result<[f64; 4]> {
@@ -341,22 +361,7 @@ fn fly(
     };
     let paged_ms = f.median_ms(&mut r, Stage::Shade)?;
     drop(r);
-    // The in-memory comparison where the window's heights fit one storage binding (a 16385²
-    // window's 1 GiB does not on lavapipe or GL: reported as not measured).
-    let heights = (terrain.field.width * terrain.field.height * 4) as u64;
-    let resident_ms = if heights <= gpu.limits.max_storage_buffer_binding_size {
-        let whole = crate::world::World::load(&scene)?;
-        let terrain = &whole.terrain;
-        let mut full = TerrainRenderer::new(gpu, terrain)?;
-        let f = FrameSetup { terrain, ..f };
-        f.capture(&mut full)?;
-        f.median_ms(&mut full, Stage::Shade)?
-    } else {
-        log::info!(
-            "window of {heights} bytes of heights: over the adapter's storage binding, no in-memory comparison"
-        );
-        f64::NAN
-    };
+    let resident_ms = hover_in_memory(&f, &scene)?;
     log::info!(
         "flight window {window:?} of {}: {}x{} samples, lon0 {:.4}",
         mosaic.display(),
