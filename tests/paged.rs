@@ -277,6 +277,7 @@ fn view(geo: &relief::terrain::GeoRef, c: Cam, width: u32, height: u32) -> View 
         fov: FOV,
         width,
         height_px: height,
+        cone: None,
     }
 }
 
@@ -779,6 +780,7 @@ fn hover_against_full(gpu: &relief::gpu::Gpu, curved: bool, objects: &str) -> (u
         fov: FOV,
         width: GW,
         height_px: GH,
+        cone: None,
     };
     let full = full_r
         .capture(gpu, &terrain, &scene, &cam, &settings)
@@ -886,4 +888,85 @@ fn paged_pool_split_over_bindings_renders_the_same() {
         slots_used.iter().any(|&s| s >= 12),
         "slots used: {slots_used:?}"
     );
+}
+
+/// A display channel looking elsewhere than the scene camera (a cylinder's left projector, 62°
+/// to the left of the camera's forward, 96x72): the pager's view of it
+/// (`app::paged::view_of` with its `ChannelRays`, what `render --display` and `view --display`
+/// page for) holds every ray of the channel's table in its cone, the rays computed by the CPU
+/// distortion oracle with the display-to-world rotation built here from heading and pitch; its
+/// pixel angle is no larger than any neighbouring rays' angle. The camera's frustum, what the
+/// pager was given before, leaves most of the channel's rays outside.
+#[test]
+fn paged_display_channel_pages_for_its_own_rays() {
+    let dir = std::env::temp_dir().join(format!("relief-paged-channel-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let config = dir.join("left.toml");
+    std::fs::write(
+        &config,
+        "[screen]\nkind = \"cylinder\"\ncentre = [0.0, 0.0, 0.0]\nradius = 3.0\nbottom = -1.2\n\
+         top = 1.4\n[eye]\nposition = [0.0, 0.0, 0.0]\n[[channel]]\nname = \"left\"\n\
+         [channel.projector]\nposition = [0.0, -0.4, 0.9]\nheading = -62.0\npitch = -6.0\n\
+         width = 96\nheight = 72\nlens = { kind = \"perspective\", fov = 64.0, shift = [0.0, 0.0] }\n",
+    )
+    .unwrap();
+    let cfg = relief::display::DisplayConfig::load(&config).unwrap();
+    let points = cfg.channel_points(0).unwrap();
+    let eye = DVec3::from(cfg.eye.position);
+    let rays = relief::app::paged::ChannelRays {
+        bundle: points.ray_bundle(eye).unwrap(),
+        offset: glam::DMat3::IDENTITY,
+    };
+    let path = mosaic();
+    let (terrain, _, geo) = window(&path);
+    let c = *script(&terrain).last().unwrap();
+    let cam = gpu_camera(&terrain, c);
+    // Display x, y, z are the camera's right, forward and up (roll 0).
+    let (h, p) = (c.heading.to_radians(), c.pitch.to_radians());
+    let forward = DVec3::new(h.sin() * p.cos(), h.cos() * p.cos(), p.sin());
+    let right = DVec3::new(h.cos(), -h.sin(), 0.0);
+    let up = right.cross(forward);
+    let table = relief::cpu::distortion::ray_table(
+        &points,
+        eye,
+        glam::DMat3::from_cols(right, forward, up),
+    );
+    let direction = |v: &View| {
+        let (h, p) = (v.heading.to_radians(), v.pitch.to_radians());
+        DVec3::new(h.sin() * p.cos(), h.cos() * p.cos(), p.sin())
+    };
+    let channel = relief::app::paged::view_of(&geo, &terrain, &cam, Some(&rays));
+    let camera = relief::app::paged::view_of(&geo, &terrain, &cam, None);
+    let [half, pixel] = channel.cone.expect("a channel's view is a cone");
+    let camera_half = (30f64.to_radians().tan())
+        .hypot(30f64.to_radians().tan() * 0.75)
+        .atan();
+    let (mut lit, mut outside_camera, mut widest, mut finest) = (0, 0, 0f64, f64::INFINITY);
+    for (d, cone) in table.rays.iter().flatten() {
+        lit += 1;
+        widest = widest.max(d.angle_between(direction(&channel)));
+        outside_camera += (d.angle_between(direction(&camera)) > camera_half) as usize;
+        if *cone > 0.0 {
+            finest = finest.min(2.0 * cone);
+        }
+    }
+    eprintln!(
+        "channel: {lit} rays; view heading {:.2}° pitch {:.2}°, cone {:.2}° (widest ray {:.2}°), pixel {:.5} (finest neighbours {:.5}); {outside_camera} rays outside the camera's frustum cone",
+        channel.heading, channel.pitch, half.to_degrees(), widest.to_degrees(), pixel, finest
+    );
+    assert!(lit > 4000, "the channel lights the screen");
+    assert!(widest <= half + 1e-9, "every ray in the channel's cone");
+    assert!(
+        pixel <= finest * (1.0 + 1e-9),
+        "the pixel angle is the finest"
+    );
+    assert!(
+        half.to_degrees() < 45.0,
+        "a cone around the channel, not the sky"
+    );
+    assert!(
+        outside_camera * 2 > lit,
+        "the camera's frustum misses most of them"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -121,6 +121,7 @@ fn a_scripted_flight_stays_in_budget_without_holes_or_waits_and_converges() {
         fov: 60.0,
         width: 640,
         height_px: 360,
+        cone: None,
     };
     let (mut worst_update, mut converged_at, mut max_staged) = (0f64, None, 0u64);
     let (mut uploads_total, mut flight_missing) = (0usize, 0usize);

@@ -5,7 +5,7 @@
 
 use super::args::{parse_size, parse_vec, RenderToggles};
 use super::output::{frame_paths, write_frame_files};
-use super::paged::Paging;
+use super::paged::{ChannelRays, Paging};
 use super::two_pass::{render_two_pass, view_points, TwoPass};
 use crate::display::blend::ChannelBlend;
 use crate::gpu::{FrameOutput, Gpu, RenderSettings, TerrainRenderer};
@@ -185,6 +185,8 @@ struct Projection {
     blend_after_warp: Option<ChannelBlend>,
     /// Two-pass mode: the intermediate faces and the projector pixels' directions.
     two_pass: Option<TwoPass>,
+    /// A channel's or dome master's rays as a cone, for the pager (paged terrain only).
+    rays: Option<ChannelRays>,
 }
 
 /// What a run renders with besides its renderer: the scene (output size set), its world, the
@@ -247,6 +249,10 @@ pub fn prepare(job: &RenderJob) -> Result<(Prepared, TerrainRenderer)> {
     }
     if let Some(fov) = job.dome_master {
         projection = dome_master(job, fov, &gpu, &mut renderer, &mut scene)?;
+    }
+    // A paged terrain pages for the tiles the channel's rays see, not the scene camera's.
+    if let (Some(p), Some(rays)) = (&paging, projection.rays) {
+        p.borrow_mut().set_channel(rays);
     }
     let mut settings = RenderSettings::from_scene(&scene.desc);
     job.toggles.apply(&mut settings);
@@ -344,7 +350,13 @@ fn through_channel(
     }
     // Direct mode blends on the GPU; two-pass mode after its CPU warp.
     let blend = ChannelBlend::new(&cfg, d.channel);
-    let mut projection = Projection::default();
+    let mut projection = Projection {
+        rays: points.ray_bundle(eye).map(|bundle| ChannelRays {
+            bundle,
+            offset: channel.view.map_or(glam::DMat3::IDENTITY, |v| v.matrix()),
+        }),
+        ..Projection::default()
+    };
     if d.two_pass {
         projection.blend_after_warp = blend;
     } else {
@@ -394,6 +406,12 @@ fn dome_master(
     });
     renderer.set_display(gpu, &points, glam::DVec3::ZERO)?;
     Ok(Projection {
+        rays: points
+            .ray_bundle(glam::DVec3::ZERO)
+            .map(|bundle| ChannelRays {
+                bundle,
+                offset: glam::DMat3::IDENTITY,
+            }),
         meta: json!({
             "mode": format!("dome master: {fov}° angular fisheye, {size}x{size}"),
             "model": "zenith (vehicle up) at the centre, vehicle forward at the bottom, right to the right; radius proportional to the angle from the zenith",

@@ -5,6 +5,7 @@
 
 use crate::db::pager::{FrameStats, Pager, PagerOptions, TileStore, View};
 use crate::db::{self, Database};
+use crate::display::screen_points::RayBundle;
 use crate::gpu::terrain_pool::TerrainPool;
 use crate::gpu::{Gpu, TerrainRenderer};
 use crate::scene::{Camera, Scene};
@@ -23,6 +24,8 @@ pub struct Paging {
     pub pool_bytes: u64,
     /// The last frame's statistics.
     pub last: FrameStats,
+    /// A display channel's rays, paged for instead of the camera's frustum.
+    channel: Option<ChannelRays>,
 }
 
 /// Refuses `--terrain-memory` of 0 or more than 1 TiB.
@@ -101,27 +104,69 @@ pub fn renderer(
         geo,
         pool_bytes,
         last: FrameStats::default(),
+        channel: None,
     };
     Ok((r, paging))
 }
 
+/// A display channel's rays for the pager: their cone in the display frame and the channel's
+/// view offset (world direction = attitude · offset · display direction, as the GPU's table
+/// ray generation).
+#[derive(Clone, Copy, Debug)]
+pub struct ChannelRays {
+    pub bundle: RayBundle,
+    pub offset: glam::DMat3,
+}
+
 impl Paging {
     /// The pager's view of `cam` over `terrain` (eye longitude, latitude and height through
-    /// the window's georeference; heading and pitch as the camera's).
+    /// the window's georeference; heading and pitch as the camera's, or the channel's rays).
     pub fn view(&self, terrain: &Terrain, cam: &Camera) -> View {
-        let g = terrain.frame.world_to_grid(cam.pose.position);
-        View {
-            lon: self.geo.lon0 + g.x * self.geo.dlon,
-            lat: self.geo.lat0 + g.y * self.geo.dlat,
-            height: g.z,
-            heading: cam.pose.heading,
-            pitch: cam.pose.pitch,
-            fov: cam.pose.fov,
-            width: cam.width,
-            height_px: cam.height,
-        }
+        view_of(&self.geo, terrain, cam, self.channel.as_ref())
     }
 
+    /// Pages for a display channel's rays instead of the camera's frustum (a dome or cylinder
+    /// channel looks elsewhere and wider than the scene camera).
+    pub fn set_channel(&mut self, channel: ChannelRays) {
+        self.channel = Some(channel);
+    }
+}
+
+/// The pager's view of `cam` over `terrain` whose window has the georeference `geo`: the eye's
+/// longitude, latitude and height; the camera's heading, pitch, field of view and size, or
+/// with `channel` the direction of its rays' mean (through the camera's attitude and the
+/// channel's offset) and their cone.
+pub fn view_of(
+    geo: &GeoRef,
+    terrain: &Terrain,
+    cam: &Camera,
+    channel: Option<&ChannelRays>,
+) -> View {
+    let g = terrain.frame.world_to_grid(cam.pose.position);
+    let mut v = View {
+        lon: geo.lon0 + g.x * geo.dlon,
+        lat: geo.lat0 + g.y * geo.dlat,
+        height: g.z,
+        heading: cam.pose.heading,
+        pitch: cam.pose.pitch,
+        fov: cam.pose.fov,
+        width: cam.width,
+        height_px: cam.height,
+        cone: None,
+    };
+    if let Some(c) = channel {
+        let (r, d, f) = cam.basis();
+        let m = glam::DMat3::from_cols(r, f, -d) * c.offset;
+        // The world frame of a database window is x east, y north, z up.
+        let a = (m * c.bundle.axis).normalize();
+        v.heading = a.x.atan2(a.y).to_degrees();
+        v.pitch = a.z.clamp(-1.0, 1.0).asin().to_degrees();
+        v.cone = Some([c.bundle.half_angle, c.bundle.pixel]);
+    }
+    v
+}
+
+impl Paging {
     /// One frame's paging before its cast: the pager's update for `cam` and its uploads
     /// copied into the pool. Never waits for a read.
     pub fn step(

@@ -17,6 +17,53 @@ pub struct ScreenPoints {
     pub points: Vec<Option<DVec3>>,
 }
 
+/// The directions a channel's rays take from an eye, as a cone (display frame): what the terrain
+/// pager needs to want the tiles a channel sees, where no pinhole frustum describes them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RayBundle {
+    /// Unit mean direction of the rays (display frame).
+    pub axis: DVec3,
+    /// The largest angle between a ray and the axis (radians).
+    pub half_angle: f64,
+    /// The smallest angle between a ray and its right or lower neighbour (radians).
+    pub pixel: f64,
+}
+
+impl ScreenPoints {
+    /// The rays from `eye` through the lit screen points as a cone ([`RayBundle`]); `None`
+    /// where no pixel lights the screen.
+    pub fn ray_bundle(&self, eye: DVec3) -> Option<RayBundle> {
+        let w = self.width as usize;
+        let dir = |k: usize| {
+            self.points[k]
+                .map(|p| (p - eye).normalize())
+                .filter(|d| d.is_finite())
+        };
+        let sum: DVec3 = (0..self.points.len()).filter_map(dir).sum();
+        let axis = sum.try_normalize()?;
+        let (mut half, mut pixel) = (0f64, f64::INFINITY);
+        for k in 0..self.points.len() {
+            let Some(d) = dir(k) else { continue };
+            half = half.max(d.angle_between(axis));
+            let right = (k % w + 1 < w).then(|| dir(k + 1)).flatten();
+            let below = (k + w < self.points.len()).then(|| dir(k + w)).flatten();
+            for n in [right, below].into_iter().flatten() {
+                pixel = pixel.min(d.angle_between(n).max(1e-9));
+            }
+        }
+        pixel = if pixel.is_finite() {
+            pixel
+        } else {
+            half.max(1e-6)
+        };
+        Some(RayBundle {
+            axis,
+            half_angle: half,
+            pixel,
+        })
+    }
+}
+
 /// Screen points of a projector (pixel centres).
 pub fn screen_points(screen: &Screen, projector: &Projector) -> ScreenPoints {
     let (w, h) = (projector.width, projector.height);

@@ -27,16 +27,26 @@ pub struct View {
     pub fov: f64,
     pub width: u32,
     pub height_px: u32,
+    /// The rays as a cone around the view direction where no pinhole frustum describes them
+    /// (a display channel's distortion table): its half-angle and the smallest angle between
+    /// neighbouring pixels' rays (radians). `None`: from `fov` and the picture's size.
+    pub cone: Option<[f64; 2]>,
 }
 
 impl View {
-    /// Radians a pixel subtends.
+    /// Radians a pixel subtends (the smallest, for a cone).
     pub fn pixel_angle(&self) -> f64 {
-        self.fov.to_radians() / self.width.max(1) as f64
+        match self.cone {
+            Some([_, pixel]) => pixel,
+            None => self.fov.to_radians() / self.width.max(1) as f64,
+        }
     }
 
     /// Half-angle of a cone around the view direction holding the whole frustum.
     fn half_cone(&self) -> f64 {
+        if let Some([half, _]) = self.cone {
+            return half;
+        }
         let tx = (0.5 * self.fov.to_radians()).tan();
         let ty = tx * self.height_px as f64 / self.width.max(1) as f64;
         tx.hypot(ty).atan()
