@@ -423,31 +423,33 @@ fn a_minified_drape_is_its_mean_in_linear_light() {
     let _ = std::fs::remove_dir_all(&base);
 }
 
-/// A spike 500 m tall on a flat field (one sample of a 10 m grid): a needle about half a pixel
-/// wide, centred between two pixel columns, so that no centre ray hits its upper part. The
-/// near misses of the pixel cones find it: with `"edges"` its pixels come within a few levels
-/// of the reference, where one ray a pixel leaves it out.
-#[test]
-fn a_needle_no_centre_ray_hits_is_found_through_the_pixel_cone() {
-    if common::gpu().is_none() {
-        return;
-    }
-    let _lock = common::gpu_lock();
-    let dir = std::env::temp_dir().join(format!("relief-aa-needle-{}", std::process::id()));
+/// What a thin feature's test measures: the feature's pixels (where the 16-ray reference
+/// differs from one ray a pixel by 8 levels or more, in the given columns of a 160x90 frame),
+/// their error sums with one ray and with `"edges"`, how many `"edges"` flagged as near misses,
+/// and the free-form pixels of the one-ray frame.
+struct ThinFeature {
+    pixels: usize,
+    off_err: u64,
+    edges_err: u64,
+    near: usize,
+    object_pixels: usize,
+}
+
+/// Renders `scene` (160x90, over the 65x65 PNG heightfield `field` written beside it) with one
+/// ray a pixel, `"edges"` and the reference, and measures the feature in `columns`.
+fn thin_feature(
+    name: &str,
+    field: &image::ImageBuffer<image::Luma<u16>, Vec<u16>>,
+    png: &str,
+    scene: &str,
+    columns: std::ops::Range<usize>,
+) -> ThinFeature {
+    let dir = std::env::temp_dir().join(format!("relief-aa-{name}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let mut field = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::new(65, 65);
-    field.put_pixel(32, 65 - 1 - 40, image::Luma([1000]));
-    field.save(dir.join("spike.png")).unwrap();
-    let scene = dir.join("scene.toml");
-    std::fs::write(
-        &scene,
-        "[terrain]\nsource = \"spike.png\"\ncell_size = [10.0, 10.0]\npng_scale = 0.5\n\
-         [render]\nshadows = false\n\
-         [camera]\nposition = [320.0, -4000.0, 200.0]\nheading = 0.0\npitch = 2.0\nfov = 40.0\n\
-         [output]\nwidth = 160\nheight = 90\n",
-    )
-    .unwrap();
-    let job = render_job(&[scene.to_str().unwrap()]).unwrap();
+    field.save(dir.join(png)).unwrap();
+    let path = dir.join("scene.toml");
+    std::fs::write(&path, scene).unwrap();
+    let job = render_job(&[path.to_str().unwrap()]).unwrap();
     let (mut p, mut r) = capture::prepare(&job).unwrap();
     let cams = quality::motion_cameras(&p.scene, &p.world.terrain, 1);
     let mut frame = |aa| {
@@ -461,31 +463,62 @@ fn a_needle_no_centre_ray_hits_is_found_through_the_pixel_cone() {
         frame(Antialias::OFF),
         frame(EDGES),
     );
-    // The needle's pixels: where the reference differs from the plain frame by 8 levels or
-    // more in the columns around the image's centre line.
-    let (mut needle, mut off_err, mut edges_err, mut near) = (0, 0u64, 0u64, 0);
+    let mut t = ThinFeature {
+        pixels: 0,
+        off_err: 0,
+        edges_err: 0,
+        near: 0,
+        object_pixels: off.objects.iter().filter(|&&o| o != 0).count(),
+    };
     for j in 0..90 {
-        for i in 78..82 {
+        for i in columns.clone() {
             let k = j * 160 + i;
             let eo = largest_channel_difference(&off.rgba, &reference.rgba, k);
             if eo >= 8 {
-                needle += 1;
-                off_err += u64::from(eo);
-                edges_err += u64::from(largest_channel_difference(&edges.rgba, &reference.rgba, k));
-                near += usize::from(edges.flags[k] & 64 != 0);
+                t.pixels += 1;
+                t.off_err += u64::from(eo);
+                let ee = largest_channel_difference(&edges.rgba, &reference.rgba, k);
+                t.edges_err += u64::from(ee);
+                t.near += usize::from(edges.flags[k] & 64 != 0);
             }
         }
     }
     eprintln!(
-        "needle: {needle} pixels the centre rays miss; error sum {off_err} -> {edges_err}; {near} flagged as near misses"
+        "{name}: {} centre-ray free-form pixels; {} pixels the centre rays miss; error sum {} -> {}; {} flagged as near misses",
+        t.object_pixels, t.pixels, t.off_err, t.edges_err, t.near
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+    t
+}
+
+/// A spike 500 m tall on a flat field (one sample of a 10 m grid): a needle about half a pixel
+/// wide, centred between two pixel columns, so that no centre ray hits its upper part. The
+/// near misses of the pixel cones find it: with `"edges"` its pixels come within a few levels
+/// of the reference, where one ray a pixel leaves it out.
+#[test]
+fn a_needle_no_centre_ray_hits_is_found_through_the_pixel_cone() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let _lock = common::gpu_lock();
+    let mut field = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::new(65, 65);
+    field.put_pixel(32, 65 - 1 - 40, image::Luma([1000]));
+    let t = thin_feature(
+        "needle",
+        &field,
+        "spike.png",
+        "[terrain]\nsource = \"spike.png\"\ncell_size = [10.0, 10.0]\npng_scale = 0.5\n\
+         [render]\nshadows = false\n\
+         [camera]\nposition = [320.0, -4000.0, 200.0]\nheading = 0.0\npitch = 2.0\nfov = 40.0\n\
+         [output]\nwidth = 160\nheight = 90\n",
+        78..82,
     );
     assert!(
-        needle >= 10,
+        t.pixels >= 10,
         "the needle is there in the reference and missed by one ray"
     );
-    assert!(near > 0, "near misses found");
-    assert!(edges_err * 4 <= off_err, "found through the pixel cone");
-    let _ = std::fs::remove_dir_all(&dir);
+    assert!(t.near > 0, "near misses found");
+    assert!(t.edges_err * 4 <= t.off_err, "found through the pixel cone");
 }
 
 /// A mast (a plain cylinder 1.2 m wide) 1 km away on a flat field, about a quarter of a pixel
@@ -498,60 +531,27 @@ fn a_mast_no_centre_ray_hits_is_found_through_the_pixel_cone() {
         return;
     }
     let _lock = common::gpu_lock();
-    let dir = std::env::temp_dir().join(format!("relief-aa-mast-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
     let field = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::new(65, 65);
-    field.save(dir.join("flat.png")).unwrap();
-    let scene = dir.join("scene.toml");
-    std::fs::write(
-        &scene,
+    let t = thin_feature(
+        "mast",
+        &field,
+        "flat.png",
         "[terrain]\nsource = \"flat.png\"\ncell_size = [10.0, 10.0]\n\
          [render]\nshadows = false\n\
          [camera]\nposition = [320.0, -1000.0, 40.0]\nheading = 0.0\npitch = 0.0\nfov = 40.0\n\
          [output]\nwidth = 160\nheight = 90\n\
          [[objects]]\nshape = \"cylinder\"\nradius = 0.6\nheight = 120.0\n\
          position = [320.0, 0.0, 0.0]\nmaterial = { colour = [0.9, 0.1, 0.1] }\n",
-    )
-    .unwrap();
-    let job = render_job(&[scene.to_str().unwrap()]).unwrap();
-    let (mut p, mut r) = capture::prepare(&job).unwrap();
-    let cams = quality::motion_cameras(&p.scene, &p.world.terrain, 1);
-    let mut frame = |aa| {
-        render_all(&mut p, &mut r, &job, &cams, aa)
-            .unwrap()
-            .frames
-            .remove(0)
-    };
-    let (reference, off, edges) = (
-        frame(Antialias::REFERENCE),
-        frame(Antialias::OFF),
-        frame(EDGES),
+        77..83,
     );
-    let hits = off.objects.iter().filter(|&&o| o != 0).count();
-    // The mast's pixels: where the reference differs from the plain frame by 8 levels or more
-    // in the columns around the image's centre line.
-    let (mut mast, mut off_err, mut edges_err, mut near) = (0, 0u64, 0u64, 0);
-    for j in 0..90 {
-        for i in 77..83 {
-            let k = j * 160 + i;
-            let eo = largest_channel_difference(&off.rgba, &reference.rgba, k);
-            if eo >= 8 {
-                mast += 1;
-                off_err += u64::from(eo);
-                edges_err += u64::from(largest_channel_difference(&edges.rgba, &reference.rgba, k));
-                near += usize::from(edges.flags[k] & 64 != 0);
-            }
-        }
-    }
-    eprintln!(
-        "mast: {hits} centre-ray hits; {mast} pixels the centre rays miss; error sum {off_err} -> {edges_err}; {near} flagged as near misses"
+    assert_eq!(
+        t.object_pixels, 0,
+        "the mast must lie between the centre rays"
     );
-    assert_eq!(hits, 0, "the mast must lie between the centre rays");
     assert!(
-        mast >= 10,
+        t.pixels >= 10,
         "the mast is there in the reference and missed by one ray"
     );
-    assert!(near > 0, "near misses found");
-    assert!(edges_err * 4 <= off_err, "found through the pixel cone");
-    let _ = std::fs::remove_dir_all(&dir);
+    assert!(t.near > 0, "near misses found");
+    assert!(t.edges_err * 4 <= t.off_err, "found through the pixel cone");
 }

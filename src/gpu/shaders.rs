@@ -93,13 +93,7 @@ pub fn tile(curved: bool) -> String {
 /// (group 3), the neighbourhood maxima cell by cell.
 pub fn tile_paged(curved: bool, pools: u32) -> String {
     [
-        &paged_consts(curved),
-        FRAME,
-        FULLSCREEN,
-        RAY_TABLE,
-        TERRAIN_PAGED,
-        &paged_pools(pools),
-        TERRAIN_PAGED_WINDOW,
+        &paged_prelude(curved, pools),
         include_str!("shaders/tile_paged.wgsl"),
         TRAVERSE,
         include_str!("shaders/tile.wgsl"),
@@ -107,14 +101,26 @@ pub fn tile_paged(curved: bool, pools: u32) -> String {
     .concat()
 }
 
-/// The paged builds' switches (no footprint LOD, no near misses).
-fn paged_consts(curved: bool) -> String {
-    super::variants::wgsl_bools(&[
+/// What the paged passes (tile pre-pass, cast) start with: their switches (no footprint LOD,
+/// no near misses), the frame, the full-screen triangle, the ray table and the terrain read
+/// from a pool of `pools` bindings through the window-relative interface.
+fn paged_prelude(curved: bool, pools: u32) -> String {
+    let consts = super::variants::wgsl_bools(&[
         ("CURVED", curved),
         ("LOD", false),
         ("PAGED", true),
         ("NEAR", false),
-    ])
+    ]);
+    [
+        &consts,
+        FRAME,
+        FULLSCREEN,
+        RAY_TABLE,
+        TERRAIN_PAGED,
+        &paged_pools(pools),
+        TERRAIN_PAGED_WINDOW,
+    ]
+    .concat()
 }
 
 /// Terrain cast pass (fragment): traversal only, writes the G-buffer; `curved` as in
@@ -140,13 +146,7 @@ pub fn cast(curved: bool, lod: bool, near: bool) -> String {
 /// mode (`TerrainRenderer::new_paged`).
 pub fn cast_paged(curved: bool, pools: u32) -> String {
     [
-        &paged_consts(curved),
-        FRAME,
-        FULLSCREEN,
-        RAY_TABLE,
-        TERRAIN_PAGED,
-        &paged_pools(pools),
-        TERRAIN_PAGED_WINDOW,
+        &paged_prelude(curved, pools),
         TRAVERSE,
         GBUFFER,
         include_str!("shaders/cast.wgsl"),
