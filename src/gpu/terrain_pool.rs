@@ -127,8 +127,9 @@ pub fn layout(table: &PageTable, n: usize) -> (PagedParams, Vec<PagedLevel>) {
 impl TerrainPool {
     /// Buffers for `slots` slots of tiles of `n` cells and the page table's shape. A pool
     /// larger than the adapter's storage-binding size is split into buffers of whole slots
-    /// (lavapipe and GL bind 128 MiB: a 256 MB pool of 256-cell tiles takes four of 128 slots); an error naming
-    /// `--terrain-memory` where it would need more than [`shaders::MAX_POOL_BINDINGS`].
+    /// (lavapipe and GL bind 128 MiB: a 256 MB pool of 256-cell tiles takes four of 128
+    /// slots); an error naming `--terrain-memory` where it would need more than
+    /// [`shaders::MAX_POOL_BINDINGS`] (or more slots than the residency map's 24 bits hold).
     ///
     /// [`shaders::MAX_POOL_BINDINGS`]: super::shaders::MAX_POOL_BINDINGS
     pub fn new(gpu: &Gpu, table: &PageTable, n: usize, slots: usize) -> Result<TerrainPool> {
@@ -164,7 +165,8 @@ impl TerrainPool {
             1 << fit.ilog2()
         };
         let max = super::shaders::MAX_POOL_BINDINGS as usize;
-        if pool_slots == 0 || slots.div_ceil(pool_slots) > max {
+        let too_many = slots > crate::db::pager::residency::SLOT_MASK as usize;
+        if pool_slots == 0 || slots.div_ceil(pool_slots) > max || too_many {
             let most = pool_slots as u64 * max as u64 * slot_bytes;
             return Err(crate::Error::Limit {
                 what: "terrain pool".into(),
