@@ -39,8 +39,15 @@ impl ScreenPoints {
                 .map(|p| (p - eye).normalize())
                 .filter(|d| d.is_finite())
         };
-        let sum: DVec3 = (0..self.points.len()).filter_map(dir).sum();
-        let axis = sum.try_normalize()?;
+        let (sum, lit) = (0..self.points.len())
+            .filter_map(dir)
+            .fold((DVec3::ZERO, 0usize), |(s, n), d| (s + d, n + 1));
+        if lit == 0 {
+            return None;
+        }
+        // Rays all round (a full-sphere master) may have no mean: any axis, the cone then
+        // opens to the whole sphere.
+        let axis = sum.try_normalize().unwrap_or(DVec3::Y);
         let (mut half, mut pixel) = (0f64, f64::INFINITY);
         for k in 0..self.points.len() {
             let Some(d) = dir(k) else { continue };
