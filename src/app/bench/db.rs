@@ -222,8 +222,9 @@ fn hover_in_memory(f: &FrameSetup, scene: &crate::scene::Scene) -> Result<f64> {
     f.median_ms(&mut full, Stage::Shade)
 }
 
-/// The largest window of the finest level that lies within the mosaic's extent and starts on
-/// a multiple of its own side (the paged window's alignment): `[lat_s, lon_w, lat_n, lon_e]`.
+/// The largest window of the finest level that lies within the mosaic's extent, starts on a
+/// multiple of its own side (the paged window's alignment) and has at most
+/// `terrain::MAX_SIDE` samples a side: `[lat_s, lon_w, lat_n, lon_e]`.
 fn aligned_window(h: &db::format::Header) -> Result<[f64; 4]> {
     let fine = h.levels[h.levels.len() - 1];
     let d = fine.per_degree;
@@ -234,6 +235,10 @@ fn aligned_window(h: &db::format::Header) -> Result<[f64; 4]> {
     let (j_lo, j_hi) = (lo(e.lat_min, 90.0), hi(e.lat_max, 90.0));
     for k in (4..=14).rev() {
         let side = 1i64 << k;
+        // A window renders at most MAX_SIDE samples a side (side + 1 samples for side cells).
+        if side + 1 > crate::terrain::MAX_SIDE as i64 {
+            continue;
+        }
         let (i0, j0) = (
             (i_lo + side - 1) / side * side,
             (j_lo + side - 1) / side * side,
