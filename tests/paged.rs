@@ -856,6 +856,15 @@ fn paged_pool_split_over_bindings_renders_the_same() {
     let limit = 5 * db::pager::slot_bytes(256);
     let split = TerrainPool::with_binding_limit(gpu, table, 256, slots, limit).unwrap();
     assert_eq!((one.bindings(), split.bindings()), (1, 4));
+    // Room for one slot a buffer: 13 bindings, over the four a pool may span.
+    let one_slot = db::pager::slot_bytes(256);
+    match TerrainPool::with_binding_limit(gpu, table, 256, slots, one_slot) {
+        Err(e) => assert!(
+            e.to_string().contains("--terrain-memory"),
+            "the error names the option: {e}"
+        ),
+        Ok(p) => panic!("a pool of {} bindings was accepted", p.bindings()),
+    }
     let mut r1 = relief::gpu::TerrainRenderer::new_paged(gpu, &terrain, one, origin).unwrap();
     let mut r3 = relief::gpu::TerrainRenderer::new_paged(gpu, &terrain, split, origin).unwrap();
     r1.apply_pages(gpu, &first, pager.page_table());
