@@ -1815,7 +1815,19 @@ fn sigint_and_sigterm_remove_unfinished_files() {
     let scene = cli_scene(&dir, "s.toml", PROCEDURAL, "");
     for (sig, code) in [(libc::SIGTERM, 143), (libc::SIGINT, 130)] {
         let out = dir.join(format!("out-{sig}"));
-        let mut child = relief_cmd()
+        let mut cmd = relief_cmd();
+        // A test run started in the background (`cmd &` in a script) hands its children SIGINT
+        // ignored, which relief keeps ignoring as it should: give the child the default
+        // dispositions, as an interactive shell does.
+        unsafe {
+            use std::os::unix::process::CommandExt;
+            cmd.pre_exec(|| {
+                libc::signal(libc::SIGINT, libc::SIG_DFL);
+                libc::signal(libc::SIGTERM, libc::SIG_DFL);
+                Ok(())
+            });
+        }
+        let mut child = cmd
             .args([
                 "render",
                 &s(&scene),
