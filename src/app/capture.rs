@@ -226,7 +226,7 @@ pub fn prepare(job: &RenderJob) -> Result<(Prepared, TerrainRenderer)> {
         scene.desc.output.height = h;
         scene.desc.validate()?;
     }
-    let memory = job.terrain_memory.or(scene.desc.terrain.memory);
+    let memory = paged_memory(job, &scene);
     let world = World::load_as(&scene, memory.is_some())?;
     let gpu = crate::app::gpu_options::open()?;
     log::info!("adapter: {}", gpu.describe());
@@ -316,6 +316,25 @@ fn last_frame(job: &RenderJob) -> Result<u32> {
     })
 }
 
+/// The pool size of a paged terrain: `--terrain-memory` or the scene's `[terrain] memory`.
+fn paged_memory(job: &RenderJob, scene: &Scene) -> Option<u64> {
+    job.terrain_memory.or(scene.desc.terrain.memory)
+}
+
+/// A channel's rays as the pager's cone, where the terrain is paged (none otherwise: the bundle
+/// walks every projector pixel).
+fn channel_rays(
+    job: &RenderJob,
+    scene: &Scene,
+    points: &crate::display::screen_points::ScreenPoints,
+    eye: glam::DVec3,
+    offset: glam::DMat3,
+) -> Option<ChannelRays> {
+    paged_memory(job, scene)?;
+    let bundle = points.ray_bundle(eye)?;
+    Some(ChannelRays { bundle, offset })
+}
+
 /// Sets `renderer` up to render through channel `job.display.channel` of the display config
 /// `config` (at the projector's resolution), direct or two-pass.
 fn through_channel(
@@ -351,10 +370,13 @@ fn through_channel(
     // Direct mode blends on the GPU; two-pass mode after its CPU warp.
     let blend = ChannelBlend::new(&cfg, d.channel);
     let mut projection = Projection {
-        rays: points.ray_bundle(eye).map(|bundle| ChannelRays {
-            bundle,
-            offset: channel.view.map_or(glam::DMat3::IDENTITY, |v| v.matrix()),
-        }),
+        rays: channel_rays(
+            job,
+            scene,
+            &points,
+            eye,
+            channel.view.map_or(glam::DMat3::IDENTITY, |v| v.matrix()),
+        ),
         ..Projection::default()
     };
     if d.two_pass {
@@ -406,12 +428,13 @@ fn dome_master(
     });
     renderer.set_display(gpu, &points, glam::DVec3::ZERO)?;
     Ok(Projection {
-        rays: points
-            .ray_bundle(glam::DVec3::ZERO)
-            .map(|bundle| ChannelRays {
-                bundle,
-                offset: glam::DMat3::IDENTITY,
-            }),
+        rays: channel_rays(
+            job,
+            scene,
+            &points,
+            glam::DVec3::ZERO,
+            glam::DMat3::IDENTITY,
+        ),
         meta: json!({
             "mode": format!("dome master: {fov}° angular fisheye, {size}x{size}"),
             "model": "zenith (vehicle up) at the centre, vehicle forward at the bottom, right to the right; radius proportional to the angle from the zenith",

@@ -433,33 +433,11 @@ impl AntialiasTargets {
         for (m, p) in list.iter().enumerate() {
             index[((p >> 16) * w + (p & 0xffff)) as usize] = m as u32;
         }
-        gpu.queue.write_texture(
-            self.index.as_image_copy(),
-            bytemuck::cast_slice(&index),
-            wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(w * 4),
-                rows_per_image: Some(h),
-            },
-            self.index.size(),
-        );
+        write_rows(gpu, &self.index, &index, w, h);
         let rows = (list.len() as u32).div_ceil(w);
         let mut data = list.to_vec();
         data.resize((rows * w) as usize, 0);
-        gpu.queue.write_texture(
-            self.pixels.as_image_copy(),
-            bytemuck::cast_slice(&data),
-            wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(w * 4),
-                rows_per_image: Some(rows),
-            },
-            wgpu::Extent3d {
-                width: w,
-                height: rows,
-                depth_or_array_layers: 1,
-            },
-        );
+        write_rows(gpu, &self.pixels, &data, w, rows);
     }
 
     /// The most rows an atlas has: about the frame's own (its targets then take about as
@@ -491,4 +469,22 @@ impl AntialiasTargets {
 /// kept for the resolve).
 pub(crate) fn copy_whole(enc: &mut wgpu::CommandEncoder, from: &wgpu::Texture, to: &wgpu::Texture) {
     enc.copy_texture_to_texture(from.as_image_copy(), to.as_image_copy(), from.size());
+}
+
+/// Writes `rows` rows of `w` u32 texels of `data` into the top of `texture`.
+fn write_rows(gpu: &Gpu, texture: &wgpu::Texture, data: &[u32], w: u32, rows: u32) {
+    gpu.queue.write_texture(
+        texture.as_image_copy(),
+        bytemuck::cast_slice(data),
+        wgpu::TexelCopyBufferLayout {
+            offset: 0,
+            bytes_per_row: Some(w * 4),
+            rows_per_image: Some(rows),
+        },
+        wgpu::Extent3d {
+            width: w,
+            height: rows,
+            depth_or_array_layers: 1,
+        },
+    );
 }

@@ -341,11 +341,13 @@ impl App {
             }
             // A paged terrain pages for the channel's rays (from the configured eye: an eye
             // feed moves them a little), not the scene camera's frustum.
-            if let (Some(p), Some(bundle)) = (&mut paging, c.points.ray_bundle(c.eye)) {
-                p.set_channel(crate::app::paged::ChannelRays {
-                    bundle,
-                    offset: c.view.map_or(glam::DMat3::IDENTITY, |v| v.matrix()),
-                });
+            if let Some(p) = &mut paging {
+                if let Some(bundle) = c.points.ray_bundle(c.eye) {
+                    p.set_channel(crate::app::paged::ChannelRays {
+                        bundle,
+                        offset: c.view.map_or(glam::DMat3::IDENTITY, |v| v.matrix()),
+                    });
+                }
             }
         }
         let mut win = Win {
