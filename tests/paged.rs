@@ -796,23 +796,7 @@ fn hover_against_full(gpu: &relief::gpu::Gpu, curved: bool, objects: &str) -> (u
         let gp = paged_r
             .capture(gpu, &terrain, &scene, &cam, &common::settings(true, true))
             .unwrap();
-        let (mut mask, mut depth, mut colour, mut terrain_px) = (0, 0, 0u64, 0);
-        for k in 0..(GW * GH) as usize {
-            let (g, f) = (gp.depth[k] as f64, full.depth[k] as f64);
-            terrain_px += f.is_finite() as usize;
-            match (g.is_finite(), f.is_finite()) {
-                (true, true) => depth += ((f - g).abs() > 1e-5 * f) as usize,
-                (false, false) => {}
-                _ => mask += 1,
-            }
-            // The free form shown (its index) counts as the hit mask.
-            mask += (gp.objects[k] != full.objects[k]) as usize;
-            for ch in 0..3 {
-                let d = gp.rgba[4 * k + ch] as i32 - full.rgba[4 * k + ch] as i32;
-                colour += d.unsigned_abs() as u64;
-            }
-        }
-        let mean = colour as f64 / (3 * GW * GH) as f64 / 255.0;
+        let (mask, depth, mean, terrain_px) = against_full(&gp, &full);
         eprintln!(
             "hover (curved {curved}) frame {frame:2}: resident {:2} missing {:2} | terrain {terrain_px} mask {mask} depth {depth} colour mean {mean:.5}",
             st.resident, st.missing
@@ -830,6 +814,37 @@ fn hover_against_full(gpu: &relief::gpu::Gpu, curved: bool, objects: &str) -> (u
     (
         converged.expect("the hover never matched full residency"),
         object_px,
+    )
+}
+
+/// A paged frame against the full-residency one: hit masks differing (the free form shown
+/// counts as the mask), depths beyond 1e-5 relative, mean colour difference (0..1), and the
+/// full-residency frame's terrain pixels.
+fn against_full(
+    gp: &relief::gpu::FrameOutput,
+    full: &relief::gpu::FrameOutput,
+) -> (usize, usize, f64, usize) {
+    let (mut mask, mut depth, mut colour, mut terrain_px) = (0, 0, 0u64, 0);
+    let n = full.depth.len();
+    for k in 0..n {
+        let (g, f) = (gp.depth[k] as f64, full.depth[k] as f64);
+        terrain_px += f.is_finite() as usize;
+        match (g.is_finite(), f.is_finite()) {
+            (true, true) => depth += ((f - g).abs() > 1e-5 * f) as usize,
+            (false, false) => {}
+            _ => mask += 1,
+        }
+        mask += (gp.objects[k] != full.objects[k]) as usize;
+        for ch in 0..3 {
+            let d = gp.rgba[4 * k + ch] as i32 - full.rgba[4 * k + ch] as i32;
+            colour += d.unsigned_abs() as u64;
+        }
+    }
+    (
+        mask,
+        depth,
+        colour as f64 / (3 * n) as f64 / 255.0,
+        terrain_px,
     )
 }
 
@@ -908,18 +923,7 @@ fn paged_pool_split_over_bindings_renders_the_same() {
 /// pager was given before, leaves most of the channel's rays outside.
 #[test]
 fn paged_display_channel_pages_for_its_own_rays() {
-    let dir = std::env::temp_dir().join(format!("relief-paged-channel-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let config = dir.join("left.toml");
-    std::fs::write(
-        &config,
-        "[screen]\nkind = \"cylinder\"\ncentre = [0.0, 0.0, 0.0]\nradius = 3.0\nbottom = -1.2\n\
-         top = 1.4\n[eye]\nposition = [0.0, 0.0, 0.0]\n[[channel]]\nname = \"left\"\n\
-         [channel.projector]\nposition = [0.0, -0.4, 0.9]\nheading = -62.0\npitch = -6.0\n\
-         width = 96\nheight = 72\nlens = { kind = \"perspective\", fov = 64.0, shift = [0.0, 0.0] }\n",
-    )
-    .unwrap();
-    let cfg = relief::display::DisplayConfig::load(&config).unwrap();
+    let (cfg, dir) = left_channel("own-rays");
     let points = cfg.channel_points(0).unwrap();
     let eye = DVec3::from(cfg.eye.position);
     let rays = relief::app::paged::ChannelRays {
@@ -978,4 +982,136 @@ fn paged_display_channel_pages_for_its_own_rays() {
         "the camera's frustum misses most of them"
     );
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The cylinder's left projector, 62° to the left of the camera's forward and 6° down,
+/// 96x72, written to a temporary directory (returned for removal).
+fn left_channel(name: &str) -> (relief::display::DisplayConfig, std::path::PathBuf) {
+    channel_config(name, [0.0, -0.4, 0.9], -62.0, -6.0, 64.0)
+}
+
+/// A cylinder (radius 3 m around the eye) with one 96x72 projector at `position` (metres from
+/// the eye), `heading` and `pitch` from the camera's forward (degrees), with a `fov`-degree
+/// lens, written to a temporary directory (returned for removal).
+fn channel_config(
+    name: &str,
+    position: [f64; 3],
+    heading: f64,
+    pitch: f64,
+    fov: f64,
+) -> (relief::display::DisplayConfig, std::path::PathBuf) {
+    let dir = std::env::temp_dir().join(format!(
+        "relief-paged-channel-{name}-{}",
+        std::process::id()
+    ));
+    std::fs::create_dir_all(&dir).unwrap();
+    let config = dir.join("channel.toml");
+    let text = format!(
+        "[screen]\nkind = \"cylinder\"\ncentre = [0.0, 0.0, 0.0]\nradius = 3.0\nbottom = -1.2\n\
+         top = 1.4\n[eye]\nposition = [0.0, 0.0, 0.0]\n[[channel]]\nname = \"left\"\n\
+         [channel.projector]\nposition = {position:?}\nheading = {heading:?}\npitch = {pitch:?}\n\
+         width = 96\nheight = 72\nlens = {{ kind = \"perspective\", fov = {fov:?}, shift = [0.0, 0.0] }}\n",
+    );
+    std::fs::write(&config, text).unwrap();
+    (relief::display::DisplayConfig::load(&config).unwrap(), dir)
+}
+
+/// A display channel through the pool: a narrow projector at the eye (16°, so its pixels want
+/// the finest tiles out to ~150 km) looking 130° left of the camera and 9° down, at terrain
+/// ~10–60 km away, partly in another finest tile than the eye's (77 km wide), rendered from its distortion table over the hover;
+/// the pager given the channel's own view (`app::paged::view_of` with its `ChannelRays`, as
+/// `render --display` does). Against the same channel rendered from the in-memory window: equal
+/// (hit masks, depth within 1e-5 relative, colour mean ≤ 1/255) within `CONVERGE_FRAMES`
+/// frames, and staying equal. Paged for the camera's view instead (what the pager was given
+/// before channels paged for their rays), the channel is still not equal at the end of the
+/// hover: the comparison sees it.
+#[test]
+fn paged_gpu_display_channel_matches_full_residency() {
+    let Some(gpu) = common::gpu() else { return };
+    let _lock = common::gpu_lock();
+    let own = channel_hover(gpu, true);
+    eprintln!("channel paged for its rays: converged after {own:?} frames");
+    let camera_only = channel_hover(gpu, false);
+    eprintln!("channel paged for the camera: converged after {camera_only:?} frames");
+    let at = own.expect("the channel never matched full residency");
+    assert!(at <= CONVERGE_FRAMES, "converged after {at} frames");
+    assert!(
+        camera_only.is_none(),
+        "paged for the camera's view alone, the channel matched too: the test cannot tell"
+    );
+}
+
+/// The channel test's pool: 32 MB, 52 slots. (The 13 of the 8 MB pool go to the coarse
+/// levels and the chain of tiles down to the eye's finest one, whatever the view.)
+const CHANNEL_POOL: u64 = 32 << 20;
+
+/// The hover rendered through the channel, paged for the channel's rays (`own`) or for
+/// the camera's view: the frame at which it first equalled the full-residency channel (it
+/// must stay equal), if it did.
+fn channel_hover(gpu: &relief::gpu::Gpu, own: bool) -> Option<usize> {
+    let path = mosaic();
+    let (terrain, origin, geo) = window(&path);
+    let store: Arc<dyn TileStore> = Arc::new(Store(Database::open(&path).unwrap()));
+    let opts = PagerOptions {
+        pool_bytes: CHANNEL_POOL,
+        ..PagerOptions::default()
+    };
+    let (mut pager, first) = Pager::new(store, opts).unwrap();
+    let (slots, _) = pager.slots();
+    let pool =
+        relief::gpu::terrain_pool::TerrainPool::new(gpu, pager.page_table(), 256, slots).unwrap();
+    let mut paged_r = relief::gpu::TerrainRenderer::new_paged(gpu, &terrain, pool, origin).unwrap();
+    let mut full_r = relief::gpu::TerrainRenderer::new(gpu, &terrain).unwrap();
+    paged_r.apply_pages(gpu, &first, pager.page_table());
+    let (cfg, dir) = channel_config(
+        if own { "own" } else { "camera" },
+        [0.0; 3],
+        -130.0,
+        -9.0,
+        16.0,
+    );
+    let points = cfg.channel_points(0).unwrap();
+    let eye = DVec3::from(cfg.eye.position);
+    paged_r.set_display(gpu, &points, eye).unwrap();
+    full_r.set_display(gpu, &points, eye).unwrap();
+    let rays = relief::app::paged::ChannelRays {
+        bundle: points.ray_bundle(eye).unwrap(),
+        offset: glam::DMat3::IDENTITY,
+    };
+    // The hover's position, looking out (heading 20°, level).
+    let c = Cam {
+        pitch: 0.0,
+        ..*script(&terrain).last().unwrap()
+    };
+    let cam = gpu_camera(&terrain, c);
+    let view = relief::app::paged::view_of(&geo, &terrain, &cam, own.then_some(&rays));
+    let scene =
+        common::synthetic_scene(points.width, points.height, "position = [0.0, 0.0, 5000.0]");
+    let full = full_r
+        .capture(gpu, &terrain, &scene, &cam, &common::settings(true, false))
+        .unwrap();
+    let mut converged = None;
+    for frame in 0..HOVER {
+        let (up, st) = pager.update(&view).unwrap();
+        assert!(st.resident_bytes <= CHANNEL_POOL);
+        paged_r.apply_pages(gpu, &up, pager.page_table());
+        let gp = paged_r
+            .capture(gpu, &terrain, &scene, &cam, &common::settings(true, true))
+            .unwrap();
+        let (mask, depth, mean, terrain_px) = against_full(&gp, &full);
+        eprintln!(
+            "channel (own rays {own}) frame {frame:2}: resident {:2} missing {:2} | terrain {terrain_px} mask {mask} depth {depth} colour mean {mean:.5}",
+            st.resident, st.missing
+        );
+        assert!(terrain_px > 1000, "the channel shows terrain");
+        let equal = mask == 0 && depth == 0 && mean <= 1.0 / 255.0;
+        match (converged, equal) {
+            (None, true) => converged = Some(frame),
+            (Some(at), false) => panic!("frame {frame}: diverged after converging at {at}"),
+            _ => {}
+        }
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    converged
 }
