@@ -356,8 +356,39 @@ fn objects_on_the_curved_earth_rest_on_the_ground_20_km_away() {
             "{what}: lowered base at {} m, the ellipsoid's ground {exact} m above the eye's plane",
             seen.z
         );
-        // Horizontal placement unchanged.
-        assert_eq!((seen.x, seen.y), (placed.x, placed.y));
+        // Horizontally, the offset from the eye is measured in the eye's metric: its east
+        // component is the exact ellipsoid's (ECEF, the eye's east-north-up frame) within
+        // the second-order term the grid does not model — a parallel `n` metres north of the
+        // eye is shorter by `n tan φ / N` (3.4 m over 20 km for the volume 1 km north) —
+        // and 0.5 m, where the window's centre-latitude spacing put it 19 m off (0.1%).
+        // North, the grid's parallel bends away from the eye's east axis by the other
+        // second-order term, `e² tan φ / 2N` (34 m at 20 km).
+        let foot = Geodetic {
+            lat: eye_lla[0],
+            lon: eye_lla[1],
+            height: 0.0,
+        };
+        let enu = geodesy::enu_basis(foot.lat, foot.lon).transpose()
+            * (geodesy::to_ecef(Geodetic {
+                lat,
+                lon,
+                height: 0.0,
+            }) - geodesy::to_ecef(foot));
+        let (east, north) = (seen.x - eye.x, seen.y - eye.y);
+        let tan_over_n = foot.lat.to_radians().tan() / geodesy::prime_vertical_radius(foot.lat);
+        let shorter = (enu.x * enu.y).abs() * tan_over_n;
+        assert!(
+            (east - enu.x).abs() <= 1.05 * shorter + 0.5,
+            "{what}: {east} m east of the eye, the ellipsoid's {} m (placed {} m)",
+            enu.x,
+            placed.x - eye.x
+        );
+        let bend = 0.5 * enu.x * enu.x * tan_over_n;
+        assert!(
+            (north - enu.y).abs() <= 1.05 * bend + 0.5,
+            "{what}: {north} m north of the eye, the ellipsoid's {} m, bend {bend} m",
+            enu.y
+        );
     }
     // Flat terrain (the .hgt default): nothing moves.
     let flat = load(&text("")).unwrap();

@@ -786,35 +786,78 @@ fn hover_against_full(gpu: &relief::gpu::Gpu, curved: bool, objects: &str) -> (u
         .capture(gpu, &terrain, &scene, &cam, &settings)
         .unwrap();
     let object_px = full.objects.iter().filter(|&&o| o != 0).count();
-    let mut converged = None;
-    for frame in 0..HOVER {
-        let (up, st) = pager.update(&view).unwrap();
-        assert!(st.resident_bytes <= POOL);
-        paged_r.apply_pages(gpu, &up, pager.page_table());
-        // The paged frame as a scene renders it (tile pre-pass on; the curved surface is
-        // nowhere above the flat maxima the cone tests), full residency from the top.
-        let gp = paged_r
-            .capture(gpu, &terrain, &scene, &cam, &common::settings(true, true))
-            .unwrap();
-        let (mask, depth, mean, terrain_px) = against_full(&gp, &full);
-        eprintln!(
-            "hover (curved {curved}) frame {frame:2}: resident {:2} missing {:2} | terrain {terrain_px} mask {mask} depth {depth} colour mean {mean:.5}",
-            st.resident, st.missing
-        );
-        assert!(terrain_px > 0);
-        let equal = mask == 0 && depth == 0 && mean <= 1.0 / 255.0;
-        match (converged, equal) {
-            (None, true) => converged = Some(frame),
-            (Some(at), false) => panic!("frame {frame}: diverged after converging at {at}"),
-            _ => {}
-        }
-        // Give the workers the time a real frame would (the GPU frames here are short).
-        std::thread::sleep(std::time::Duration::from_millis(10));
+    let converged = Hover {
+        gpu,
+        terrain: &terrain,
+        scene: &scene,
+        cam: &cam,
+        view: &view,
+        pool: POOL,
+        label: &format!("hover (curved {curved})"),
+        min_terrain: 1,
     }
+    .until_equal(&mut pager, &mut paged_r, &full);
     (
         converged.expect("the hover never matched full residency"),
         object_px,
     )
+}
+
+/// A hover through the pool against a full-residency frame.
+struct Hover<'a> {
+    gpu: &'a relief::gpu::Gpu,
+    terrain: &'a Terrain,
+    scene: &'a relief::scene::SceneDesc,
+    cam: &'a relief::scene::Camera,
+    view: &'a View,
+    /// The pool's budget (bytes).
+    pool: u64,
+    label: &'a str,
+    /// Terrain pixels the full-residency frame must have.
+    min_terrain: usize,
+}
+
+impl Hover<'_> {
+    /// `HOVER` frames, each: the pager updated for the view, its uploads applied, the paged
+    /// frame rendered as a scene renders it (tile pre-pass on; the curved surface is nowhere
+    /// above the flat maxima the cone tests) and compared with `full` (rendered from the top).
+    /// The frame at which they first matched (they must stay matched), if they did.
+    fn until_equal(
+        &self,
+        pager: &mut Pager,
+        paged_r: &mut relief::gpu::TerrainRenderer,
+        full: &relief::gpu::FrameOutput,
+    ) -> Option<usize> {
+        let mut converged = None;
+        for frame in 0..HOVER {
+            let (up, st) = pager.update(self.view).unwrap();
+            assert!(st.resident_bytes <= self.pool);
+            paged_r.apply_pages(self.gpu, &up, pager.page_table());
+            let settings = common::settings(true, true);
+            let gp = paged_r
+                .capture(self.gpu, self.terrain, self.scene, self.cam, &settings)
+                .unwrap();
+            let (mask, depth, mean, terrain_px) = against_full(&gp, full);
+            eprintln!(
+                "{} frame {frame:2}: resident {:2} missing {:2} | terrain {terrain_px} mask {mask} depth {depth} colour mean {mean:.5}",
+                self.label, st.resident, st.missing
+            );
+            assert!(
+                terrain_px >= self.min_terrain,
+                "{}: the view shows terrain",
+                self.label
+            );
+            let equal = mask == 0 && depth == 0 && mean <= 1.0 / 255.0;
+            match (converged, equal) {
+                (None, true) => converged = Some(frame),
+                (Some(at), false) => panic!("frame {frame}: diverged after converging at {at}"),
+                _ => {}
+            }
+            // Give the workers the time a real frame would (the GPU frames here are short).
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        }
+        converged
+    }
 }
 
 /// A paged frame against the full-residency one: hit masks differing (the free form shown
@@ -1090,28 +1133,17 @@ fn channel_hover(gpu: &relief::gpu::Gpu, own: bool) -> Option<usize> {
     let full = full_r
         .capture(gpu, &terrain, &scene, &cam, &common::settings(true, false))
         .unwrap();
-    let mut converged = None;
-    for frame in 0..HOVER {
-        let (up, st) = pager.update(&view).unwrap();
-        assert!(st.resident_bytes <= CHANNEL_POOL);
-        paged_r.apply_pages(gpu, &up, pager.page_table());
-        let gp = paged_r
-            .capture(gpu, &terrain, &scene, &cam, &common::settings(true, true))
-            .unwrap();
-        let (mask, depth, mean, terrain_px) = against_full(&gp, &full);
-        eprintln!(
-            "channel (own rays {own}) frame {frame:2}: resident {:2} missing {:2} | terrain {terrain_px} mask {mask} depth {depth} colour mean {mean:.5}",
-            st.resident, st.missing
-        );
-        assert!(terrain_px > 1000, "the channel shows terrain");
-        let equal = mask == 0 && depth == 0 && mean <= 1.0 / 255.0;
-        match (converged, equal) {
-            (None, true) => converged = Some(frame),
-            (Some(at), false) => panic!("frame {frame}: diverged after converging at {at}"),
-            _ => {}
-        }
-        std::thread::sleep(std::time::Duration::from_millis(10));
+    let converged = Hover {
+        gpu,
+        terrain: &terrain,
+        scene: &scene,
+        cam: &cam,
+        view: &view,
+        pool: CHANNEL_POOL,
+        label: &format!("channel (own rays {own})"),
+        min_terrain: 1000,
     }
+    .until_equal(&mut pager, &mut paged_r, &full);
     let _ = std::fs::remove_dir_all(&dir);
     converged
 }

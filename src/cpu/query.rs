@@ -81,7 +81,9 @@ pub fn height_above_terrain(terrain: &Terrain, p: DVec3) -> Option<f64> {
 /// may run below the lowest sample). Touching at the very end points (within `1e-6` of the
 /// length, at least 1 mm) does not count as blocking. `terrain.walls` plays no part here.
 pub fn line_of_sight(terrain: &Terrain, a: DVec3, b: DVec3) -> bool {
-    let d = b - a;
+    let curv = terrain.curvature(a);
+    // The segment in `a`'s tangent frame and metric: it still ends at `b`'s grid position.
+    let d = curv.metric_vector(b - a);
     let len = d.length();
     let eps = (len * 1e-6).max(1e-3);
     // Where the segment is over the grid, it is underground from its first point there on
@@ -108,8 +110,7 @@ pub fn line_of_sight(terrain: &Terrain, a: DVec3, b: DVec3) -> bool {
     if s0 > s1 {
         return true; // never over the grid
     }
-    let curv = terrain.curvature(a);
-    let first = terrain.frame.world_to_grid(a + d * s0);
+    let first = ga + (gb - ga) * s0;
     let ground =
         terrain.height_at_grid(first.x.clamp(0.0, cw as f64), first.y.clamp(0.0, ch as f64));
     if ground.is_some_and(|h| first.z + curv.drop(first.x, first.y) < h - eps) {

@@ -40,10 +40,14 @@ impl GridRay {
     }
     /// As [`GridRay::from_world`] in the tangent frame of another eye (`curv`, from
     /// [`Terrain::curvature`] of the camera): shadow rays of a picture.
+    ///
+    /// The direction is measured in the eye's metric ([`GridCurvature::metric`]): a metre
+    /// along the ray is a metre of the ground at the eye's latitude.
     pub fn seen_from(terrain: &Terrain, origin: DVec3, dir: DVec3, curv: GridCurvature) -> GridRay {
+        let d = terrain.frame.world_dir_to_grid(dir);
         GridRay {
             o: terrain.frame.world_to_grid(origin),
-            d: terrain.frame.world_dir_to_grid(dir),
+            d: DVec3::new(d.x / curv.metric.x, d.y / curv.metric.y, d.z),
             curv,
         }
     }
@@ -576,8 +580,9 @@ pub fn make_hit(terrain: &Terrain, r: &GridRay, t: f64, cell: [usize; 2]) -> Hit
     );
     let e = h00 - h10 - h01 + h11;
     let g = r.curv.drop_gradient(p.x, p.y);
-    let dhdx = h10 - h00 + e * v - g.x;
-    let dhdy = h01 - h00 + e * u - g.y;
+    // Per grid step; a step is `metric` times the frame's spacing in the eye's metric.
+    let dhdx = (h10 - h00 + e * v - g.x) / r.curv.metric.x;
+    let dhdy = (h01 - h00 + e * u - g.y) / r.curv.metric.y;
     Hit {
         t,
         point: terrain.frame.grid_to_world(p),

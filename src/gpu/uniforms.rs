@@ -50,7 +50,9 @@ pub fn frame_uniforms(
     tiles: [u32; 2],
 ) -> FrameUniforms {
     let fr = &terrain.frame;
-    let [sx, sy] = fr.spacing;
+    let curv = terrain.curvature(cam.pose.position);
+    // A grid step in the eye's metric (the frame's spacing on a flat terrain).
+    let [sx, sy] = [fr.spacing[0] * curv.metric.x, fr.spacing[1] * curv.metric.y];
     let eye = fr.world_to_grid(cam.pose.position);
     let sun = scene.sun.direction();
     let local =
@@ -91,7 +93,6 @@ pub fn frame_uniforms(
         } => (1, [step_cells, bisections as f32, 0.0, 0.0]),
     };
     let c = |v: [f32; 3], w: f32| [v[0], v[1], v[2], w];
-    let curv = terrain.curvature(cam.pose.position);
     let mut slack = (4.0 * crate::cpu::traverse::height_slack(terrain)).max(1e-3);
     if !curv.is_flat() {
         // f32 rounding of the drop (up to ~10 km at 350 km) in the cell bound test.
@@ -106,7 +107,7 @@ pub fn frame_uniforms(
         ],
         local_from_world: [v4(fr.axis_x, 0.0), v4(fr.axis_y, 0.0), v4(fr.normal, 0.0)],
         sun_local: v4(local(sun), scene.sun.intensity as f64),
-        sun_grid: v4(fr.world_dir_to_grid(sun), 0.0),
+        sun_grid: v4(fr.world_dir_to_grid(sun) / curv.metric.extend(1.0), 0.0),
         sun_colour: c(scene.sun.colour, (0.27f64).to_radians().cos() as f32),
         up_local: v4(local(glam::DVec3::Z), 0.0),
         sky_zenith: c(scene.sky.zenith, scene.sky.ambient),

@@ -2,6 +2,7 @@
 //! of the eye, as a quadratic form in grid coordinates, so that traversals can fold it into
 //! their bound tests and exact patch quadratics (see `docs/database.md#curved-earth`).
 
+use super::heightfield::metres_per_degree;
 use super::Terrain;
 use crate::geodesy::Curvature;
 use glam::{DVec2, DVec3};
@@ -13,8 +14,14 @@ use glam::{DVec2, DVec3};
 pub struct GridCurvature {
     /// The eye's grid position (x, y).
     pub eye: DVec2,
-    /// Drop per squared grid step along x and y (metres): `spacing²/(2N)`, `spacing²/(2M)`.
+    /// Drop per squared grid step along x and y (metres): `s.x²/(2N)`, `s.y²/(2M)`, with
+    /// `s` the metres of a grid step at the eye's latitude.
     pub k: DVec2,
+    /// Metres of a grid step at the eye's latitude over the terrain frame's spacing (taken
+    /// at the window's centre latitude), along x and y: the picture's horizontal metric is
+    /// the eye's, so that the ground around the eye has its true size whatever the window.
+    /// `(1, 1)` on a flat terrain.
+    pub metric: DVec2,
 }
 
 impl GridCurvature {
@@ -22,6 +29,7 @@ impl GridCurvature {
     pub const FLAT: GridCurvature = GridCurvature {
         eye: DVec2::ZERO,
         k: DVec2::ZERO,
+        metric: DVec2::ONE,
     };
 
     /// Drop (m) below the eye's tangent plane at grid `(x, y)`.
@@ -45,14 +53,21 @@ impl GridCurvature {
     }
 
     pub fn is_flat(&self) -> bool {
-        self.k == DVec2::ZERO
+        self.k == DVec2::ZERO && self.metric == DVec2::ONE
+    }
+
+    /// A world-frame vector (terrain axes x, y, normal) as the eye's metric measures it: its
+    /// components along the grid axes scaled by [`Self::metric`] (for a frame whose axes are
+    /// the world's x and y, as a georeferenced terrain's are).
+    pub fn metric_vector(&self, v: DVec3) -> DVec3 {
+        DVec3::new(v.x * self.metric.x, v.y * self.metric.y, v.z)
     }
 }
 
 impl Terrain {
     /// The curvature seen from the world point `eye`: [`GridCurvature::FLAT`] unless the
-    /// terrain is curved (`terrain.curved`), else the paraboloid at the eye's latitude (the
-    /// grid's axes are east and north, its spacing in metres).
+    /// terrain is curved (`terrain.curved`), else the paraboloid at the eye's latitude and the
+    /// metres of a grid step there (the grid's axes are east and north).
     pub fn curvature(&self, eye: DVec3) -> GridCurvature {
         let (true, Some(geo)) = (self.curved, self.field.geo) else {
             return GridCurvature::FLAT;
@@ -60,10 +75,13 @@ impl Terrain {
         let g = self.frame.world_to_grid(eye);
         let lat = (geo.lat0 + g.y * geo.dlat).clamp(-90.0, 90.0);
         let c = Curvature::at(lat);
-        let [sx, sy] = self.frame.spacing;
+        let (mx, my) = metres_per_degree(lat);
+        let (sx, sy) = (geo.dlon.abs() * mx, geo.dlat.abs() * my);
+        let [fx, fy] = self.frame.spacing;
         GridCurvature {
             eye: DVec2::new(g.x, g.y),
             k: DVec2::new(c.east * sx * sx, c.north * sy * sy),
+            metric: DVec2::new(sx / fx, sy / fy),
         }
     }
 }

@@ -372,14 +372,22 @@ impl Terrain {
 
     /// The rigid offset that keeps an object anchored at world `anchor` on the curved surface
     /// seen with `curv` ([`Terrain::curvature`] of the eye): the drop below the eye's tangent
-    /// plane there, down the base normal; zero on a flat terrain. Objects are placed on the
-    /// flat base plane (as the height samples are) and move by this each frame.
+    /// plane there, down the base normal, and its horizontal offset from the eye rescaled to
+    /// the eye's metric ([`curved::GridCurvature::metric`]); zero on a flat terrain. Objects
+    /// are placed on the flat base plane (as the height samples are) and move by this each
+    /// frame.
     pub fn curved_offset(&self, curv: &curved::GridCurvature, anchor: DVec3) -> DVec3 {
         if curv.is_flat() {
             return DVec3::ZERO;
         }
         let g = self.frame.world_to_grid(anchor);
-        -self.frame.normal * curv.drop(g.x, g.y)
+        // Horizontally: the anchor's offset from the eye, in grid steps, measured in the
+        // eye's metric instead of the frame's spacing.
+        let [sx, sy] = self.frame.spacing;
+        let (dx, dy) = (g.x - curv.eye.x, g.y - curv.eye.y);
+        self.frame.axis_x * (dx * sx * (curv.metric.x - 1.0))
+            + self.frame.axis_y * (dy * sy * (curv.metric.y - 1.0))
+            - self.frame.normal * curv.drop(g.x, g.y)
     }
 
     /// Height of the bilinear surface at grid position `(x, y)`, or `None` outside the grid.

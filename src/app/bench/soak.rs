@@ -39,6 +39,19 @@ pub struct SoakBench {
     pub frame_ms_p50: f64,
     pub frame_ms_p99: f64,
     pub frame_ms_max: f64,
+    /// A paged terrain (`[terrain] memory`): its pool and the last frame's paging.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub paging: Option<SoakPaging>,
+}
+
+/// The paging of a soak over a paged terrain.
+#[derive(Clone, Debug, Serialize)]
+pub struct SoakPaging {
+    pub pool_bytes: u64,
+    /// Frames rendered with a wanted tile not yet resident (from coarser levels, not waiting).
+    pub frames_with_missing: u32,
+    /// The last frame's paging, as in the frame JSON.
+    pub last: serde_json::Value,
 }
 
 fn counts(gpu: &Gpu) -> Vec<(String, usize)> {
@@ -52,15 +65,25 @@ fn counts(gpu: &Gpu) -> Vec<(String, usize)> {
 /// Renders `frames` frames of `scene_path` at `size` and reports memory and frame times.
 pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo, SoakBench)> {
     let scene = scene_at_size(scene_path, size)?;
-    let world = World::load(&scene)?;
+    // `[terrain] memory = MB`: through the paged tile pool, the window held hollow, the pager
+    // stepped every frame as `render --terrain-memory` does.
+    let memory = scene.desc.terrain.memory;
+    let world = World::load_as(&scene, memory.is_some())?;
     let gpu = crate::app::gpu_options::open()?;
-    let mut renderer = crate::app::upload::renderer(&gpu, &world)?;
+    let (mut renderer, mut paging) = match memory {
+        Some(mb) => {
+            let (r, p) = crate::app::paged::renderer(&gpu, &scene, &world, mb)?;
+            (r, Some(p))
+        }
+        None => (crate::app::upload::renderer(&gpu, &world)?, None),
+    };
     let settings = RenderSettings::from_scene(&scene.desc);
     let fps = scene.desc.path.as_ref().map_or(30.0, |p| p.fps);
     let [w0, w1] = window(frames);
     let mut rss = Vec::with_capacity(frames as usize);
     let mut times = Vec::with_capacity(frames as usize);
     let (mut start_counts, mut end_counts) = (Vec::new(), Vec::new());
+    let mut missing_frames = 0;
     for frame in 0..frames {
         if frame == w0 {
             start_counts = counts(&gpu);
@@ -71,6 +94,10 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo,
         let start = Instant::now();
         let cam = scene.camera(frame, &world.terrain);
         renderer.set_time(frame as f64 / fps);
+        if let Some(p) = &mut paging {
+            let st = p.step(&gpu, &mut renderer, &world.terrain, &cam)?;
+            missing_frames += (st.missing > 0) as u32;
+        }
         let out = renderer.capture(&gpu, &world.terrain, &scene.desc, &cam, &settings)?;
         std::hint::black_box(&out.rgba);
         times.push(start.elapsed().as_secs_f64() * 1e3);
@@ -104,6 +131,11 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo,
         frame_ms_p50: percentile(&times, 50.0).unwrap_or(0.0),
         frame_ms_p99: percentile(&times, 99.0).unwrap_or(0.0),
         frame_ms_max: times.iter().copied().fold(0.0, f64::max),
+        paging: paging.as_ref().map(|p| SoakPaging {
+            pool_bytes: p.pool_bytes,
+            last: p.json(),
+            frames_with_missing: missing_frames,
+        }),
     };
     Ok((RunInfo::new(&gpu, scene_path, size, frames), details))
 }
@@ -125,7 +157,7 @@ impl SoakBench {
             .collect();
         let total: usize = self.resources_end.iter().map(|(_, n)| n).sum();
         let [w0, w1] = self.window;
-        let notes = vec![
+        let mut notes = vec![
             format!("RSS slope fitted over frames {w0}..{w1}"),
             format!(
                 "wgpu objects at frames {w0} and {w1}: {}",
@@ -136,6 +168,14 @@ impl SoakBench {
                 }
             ),
         ];
+        if let Some(p) = &self.paging {
+            notes.push(format!(
+                "paged terrain, pool {} MiB: {} frame(s) rendered with a wanted tile missing; last frame {}",
+                p.pool_bytes >> 20,
+                p.frames_with_missing,
+                p.last
+            ));
+        }
         Table {
             rows: Vec::new(),
             summary,
