@@ -161,13 +161,20 @@ fn compare(t: &Terrain, paged: &PagedTerrain, cam: Cam) -> Compare {
 }
 
 /// The test's window: 8° x 8° of the finest level (2049² samples), its south-west sample on a
-/// multiple of 2048 (the paged window's alignment); its origin sample and georeference.
+/// multiple of 2048 (its pyramid's top cell: the paged traversal starts from that one cell);
+/// its origin sample and georeference.
 fn window(path: &std::path::Path) -> (Terrain, [i64; 2], relief::terrain::GeoRef) {
+    window_at(path, [46.0, 12.0, 54.0, 20.0])
+}
+
+/// The 8° x 8° window (2049² samples) of the finest level over `[lat, lon, lat, lon]`.
+fn window_at(
+    path: &std::path::Path,
+    bounds: [f64; 4],
+) -> (Terrain, [i64; 2], relief::terrain::GeoRef) {
     let database = Database::open(path).unwrap();
     let fine = database.header().levels.len() as u32 - 1;
-    // 8° x 8° of the finest level (2049² samples), its south-west sample on a multiple of
-    // 2048: the paged window's alignment.
-    let spec = db::window::resolve(&database, Some([46.0, 12.0, 54.0, 20.0]), Some(fine)).unwrap();
+    let spec = db::window::resolve(&database, Some(bounds), Some(fine)).unwrap();
     assert_eq!((spec.width, spec.height), (2049, 2049));
     let field = db::window::read(&database, &spec).unwrap();
     let frame = TerrainFrame {
@@ -237,8 +244,13 @@ struct Flight {
 
 impl Flight {
     fn start() -> Flight {
+        Self::start_at([46.0, 12.0, 54.0, 20.0])
+    }
+
+    /// The flight over the 8° x 8° window at `bounds`.
+    fn start_at(bounds: [f64; 4]) -> Flight {
         let path = mosaic();
-        let (terrain, origin, geo) = window(&path);
+        let (terrain, origin, geo) = window_at(&path, bounds);
         let top = terrain.pyramid.top();
         let store: Arc<dyn TileStore> = Arc::new(Store(Database::open(&path).unwrap()));
         let opts = PagerOptions {
@@ -482,7 +494,84 @@ fn gpu_compare(
 fn paged_gpu_flight_matches_twin_and_converges() {
     let Some(gpu) = common::gpu() else { return };
     let _lock = common::gpu_lock();
-    flight_against_twin(gpu, false);
+    flight_against_twin(gpu, false, [46.0, 12.0, 54.0, 20.0]);
+}
+
+/// `render --terrain-memory` of a scene whose window lies on no tile corner (`[46.3, 12.2, 50.1,
+/// 16.4]`): the hollow window and the pool's move out to the tile corner south-west of it
+/// (`db::window::on_tile_corners`), and with the camera placed geodetically on the curved
+/// earth (everything eye-relative in the eye's metric) the paged frame, once its view is
+/// resident, is the in-memory render of the scene's own window: depth within 1e-5 relative on
+/// the same terrain pixels, colour mean ≤ 1/255. Looking down from 3 km above the highest
+/// point, so the view wants the finest tiles everywhere.
+#[test]
+fn a_window_on_no_tile_corner_renders_paged_as_in_memory() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let _lock = common::gpu_lock();
+    let db_path = mosaic();
+    let dir = common::temp_dir("paged-unaligned");
+    let scene = dir.join("unaligned.toml");
+    std::fs::write(
+        &scene,
+        format!(
+            "[terrain]\ndatabase = {:?}\nwindow = [46.3, 12.2, 50.1, 16.4]\ncurved = true\n[camera]\ngeodetic = [48.2, 14.3, 6000.0]\nheading = 20.0\npitch = -60.0\nfov = 60.0\n[output]\nwidth = 96\nheight = 72\n",
+            db_path.display().to_string()
+        ),
+    )
+    .unwrap();
+    let sc = scene.to_str().unwrap();
+    let render = |name: &str, extra: &[&str]| {
+        let out = dir.join(name);
+        let o = out.to_str().unwrap();
+        let mut args = vec!["render", sc, "--out", o];
+        args.extend_from_slice(extra);
+        let r = common::relief_cli(&args, &[]);
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        let png = image::open(out.join("frame_0000.png")).unwrap().to_rgb8();
+        let (_, _, depth) =
+            relief::app::output::read_depth_tiff(&out.join("depth_0000.tiff")).unwrap();
+        (png, depth, out)
+    };
+    let (paged_png, paged_depth, paged_out) = render("paged", &["--terrain-memory", "8"]);
+    let meta = common::read_json(&paged_out.join("frame_0000.json"));
+    assert_eq!(meta["paging"]["missing"], 0, "{}", meta["paging"]);
+    let (mem_png, mem_depth, _) = render("memory", &[]);
+    let (mut terrain, mut mask, mut depth) = (0, 0, 0);
+    for (a, b) in paged_depth.iter().zip(&mem_depth) {
+        let (a, b) = (*a as f64, *b as f64);
+        terrain += b.is_finite() as usize;
+        match (a.is_finite(), b.is_finite()) {
+            (true, true) => depth += ((a - b).abs() > 1e-5 * b) as usize,
+            (false, false) => {}
+            _ => mask += 1,
+        }
+    }
+    let colour: u64 = paged_png
+        .as_raw()
+        .iter()
+        .zip(mem_png.as_raw())
+        .map(|(a, b)| (*a as i64 - *b as i64).unsigned_abs())
+        .sum();
+    let mean = colour as f64 / paged_png.as_raw().len() as f64 / 255.0;
+    eprintln!(
+        "unaligned window: terrain {terrain} mask {mask} depth {depth} colour mean {mean:.5}"
+    );
+    assert!(terrain > 5000, "the view shows terrain: {terrain} pixels");
+    assert_eq!((mask, depth), (0, 0), "paged differs from in memory");
+    assert!(mean <= 1.0 / 255.0, "colour mean {mean}");
+}
+
+/// A window aligned to tiles only (1° = one 256-cell tile east and north of the aligned one:
+/// its origin a multiple of 256 finest samples, not of its 2048-cell top cell): the paged
+/// traversal starts from the tile level's grid of cells (`cpu::paged::traversal_top` 8, not
+/// 11), and the flight matches the twin and converges to full residency as before.
+#[test]
+fn paged_gpu_flight_over_a_window_aligned_to_tiles_only() {
+    let Some(gpu) = common::gpu() else { return };
+    let _lock = common::gpu_lock();
+    flight_against_twin(gpu, false, [47.0, 13.0, 55.0, 21.0]);
 }
 
 /// The same flight on the curved earth (`CURVED` in the paged cast, shade and tile pre-pass;
@@ -492,10 +581,10 @@ fn paged_gpu_flight_matches_twin_and_converges() {
 fn paged_gpu_curved_flight_matches_twin_and_converges() {
     let Some(gpu) = common::gpu() else { return };
     let _lock = common::gpu_lock();
-    flight_against_twin(gpu, true);
+    flight_against_twin(gpu, true, [46.0, 12.0, 54.0, 20.0]);
 }
 
-fn flight_against_twin(gpu: &relief::gpu::Gpu, curved: bool) {
+fn flight_against_twin(gpu: &relief::gpu::Gpu, curved: bool, bounds: [f64; 4]) {
     let Flight {
         mut terrain,
         origin,
@@ -504,7 +593,7 @@ fn flight_against_twin(gpu: &relief::gpu::Gpu, curved: bool) {
         mut pager,
         mut pool,
         first,
-    } = Flight::start();
+    } = Flight::start_at(bounds);
     terrain.curved = curved;
     let slots = pool.len();
     let gpu_pool =
@@ -512,6 +601,9 @@ fn flight_against_twin(gpu: &relief::gpu::Gpu, curved: bool) {
     assert!(gpu_pool.size().1 <= POOL, "GPU pool over the budget");
     let mut paged_r =
         relief::gpu::TerrainRenderer::new_paged(gpu, &terrain, gpu_pool, origin).unwrap();
+    let start = relief::cpu::paged::traversal_top(origin, top);
+    assert_eq!(paged_r.pool().unwrap().traversal_top() as usize, start);
+    eprintln!("window at {origin:?}: pyramid top {top}, paged traversal from level {start}");
     let mut full_r = relief::gpu::TerrainRenderer::new(gpu, &terrain).unwrap();
     paged_r.apply_pages(gpu, &first, pager.page_table());
     let scene = common::synthetic_scene(GW, GH, "position = [0.0, 0.0, 5000.0]");

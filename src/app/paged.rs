@@ -68,7 +68,11 @@ pub fn renderer(
     // Host memory within the budget: the reads' cache no larger than the pool.
     database.set_cache_bytes(pool_bytes);
     let fine = database.header().levels.len() as u32 - 1;
-    let spec = db::window::resolve(&database, window, level)?;
+    // As `World::load_as` placed the hollow window: on a tile's corner.
+    let spec = db::window::on_tile_corners(
+        db::window::resolve(&database, window, level)?,
+        database.tile_cells(),
+    );
     if spec.level != fine {
         return Err(Error::invalid(
             "terrain.level",

@@ -6,10 +6,13 @@
 //! The traversal runs on a *window* of the database's finest level (its `Terrain` gives the
 //! box, the placement and the pyramid's shape; its heights are not read): window-relative
 //! cell `(i, j)` of pyramid level `L` is global cell `(origin >> L) + (i, j)` of virtual level
-//! `L` (cells of `2^L` finest cells on the finest level's global grid). So the window's
-//! south-west sample must lie on a multiple of `2^top` finest samples ([`PagedTerrain::new`]
-//! refuses anything else): then every window cell lies inside one cell of every coarser
-//! database level, and a coarse patch restricted to it is exactly a bilinear patch.
+//! `L` (cells of `2^L` finest cells on the finest level's global grid). So the traversal
+//! starts at the highest pyramid level whose cells the window's south-west sample is aligned
+//! to ([`traversal_top`]: the window pyramid's top where the origin is a multiple of its top
+//! cell, else the largest power of two dividing the origin, at least a tile's `n` cells:
+//! [`PagedTerrain::new`] refuses a window that does not start on a tile's corner); then every
+//! window cell it visits lies inside one cell of every coarser database level, and a coarse
+//! patch restricted to it is exactly a bilinear patch.
 //!
 //! Because every cell maximum read is a bound on every finer sample in its footprint (the
 //! database's cell maxima, `docs/database.md#cell-maxima`) and every patch is made of the
@@ -39,6 +42,8 @@ pub struct PagedTerrain<'a> {
     fine: u32,
     /// Global finest-level cell of the window's sample (0, 0).
     origin: [u64; 2],
+    /// The traversal's top level ([`traversal_top`]).
+    top: usize,
     /// The finest resident level and slot per tile-sized cell (what the GPU reads).
     map: ResidencyMap,
 }
@@ -46,7 +51,8 @@ pub struct PagedTerrain<'a> {
 impl<'a> PagedTerrain<'a> {
     /// The paged view of a window whose sample (0, 0) is sample `origin` of the finest level
     /// (`WindowSpec::i0, j0`), of a terrain whose pyramid has `top + 1` levels, tiles of `n`
-    /// cells. Errors where the origin is not a multiple of `2^top` or negative.
+    /// cells. Errors where the origin is negative or not on a tile's corner
+    /// ([`check_origin`]).
     pub fn new(
         table: &'a PageTable,
         slots: &'a [Option<Arc<Tile>>],
@@ -54,13 +60,15 @@ impl<'a> PagedTerrain<'a> {
         origin: [i64; 2],
         top: usize,
     ) -> Result<PagedTerrain<'a>> {
-        check_origin(origin, top)?;
         if !n.is_power_of_two() {
             return Err(Error::invalid(
                 "tile size",
                 format!("tiles of {n} cells: not a power of two"),
             ));
         }
+        check_origin(origin, n, top)?;
+        let window_top = top;
+        let top = traversal_top(origin, top);
         let origin = [origin[0] as u64, origin[1] as u64];
         let log2n = n.trailing_zeros();
         Ok(PagedTerrain {
@@ -70,7 +78,8 @@ impl<'a> PagedTerrain<'a> {
             log2n,
             fine: table.levels().len() as u32 - 1,
             origin,
-            map: ResidencyMap::new(table, log2n, origin, top as u32),
+            top,
+            map: ResidencyMap::new(table, log2n, origin, top as u32, window_top as u32),
         })
     }
 
@@ -199,20 +208,32 @@ impl<'a> PagedTerrain<'a> {
 }
 
 /// Refuses a paged window whose sample (0, 0), sample `origin` of the finest level, is
-/// negative or not a multiple of `2^top` finest samples (its pyramid's top cell).
-pub fn check_origin(origin: [i64; 2], top: usize) -> Result<()> {
-    let align = 1i64 << top.min(62);
+/// negative or not on a tile's corner: a multiple of `n` finest samples (or of the window
+/// pyramid's top cell, `2^top`, where that is smaller).
+pub fn check_origin(origin: [i64; 2], n: usize, top: usize) -> Result<()> {
+    let align = (1i64 << top.min(62)).min(n as i64);
     if origin.iter().any(|&o| o < 0 || o % align != 0) {
         return Err(Error::invalid(
             "terrain.window",
             format!(
-                "a paged window must start on a multiple of {align} finest samples \
-                 (its pyramid's top cell), got sample ({}, {})",
+                "a paged window must start on a tile's corner, a multiple of {align} finest \
+                 samples; got sample ({}, {})",
                 origin[0], origin[1]
             ),
         ));
     }
     Ok(())
+}
+
+/// The top level of a paged traversal over a window whose sample (0, 0) is finest sample
+/// `origin` and whose pyramid's top is `top`: the highest level `≤ top` whose cells the
+/// origin is aligned to (the largest power of two dividing both coordinates; 0 divides all),
+/// so that every window cell the traversal visits lies inside one database cell. A window
+/// aligned to its top cell starts from that one cell; one aligned to tiles only starts from
+/// a grid of tile-sized cells (more steps for rays that cross much of the window).
+pub fn traversal_top(origin: [i64; 2], top: usize) -> usize {
+    let twos = |o: i64| o.trailing_zeros() as usize;
+    top.min(twos(origin[0])).min(twos(origin[1]))
 }
 
 /// The paged traversal of `r` over `terrain`'s box (a terrain with walls; `terrain` gives the
@@ -228,7 +249,7 @@ pub fn intersect_paged(
 ) -> Option<(f64, [usize; 2])> {
     let (t0, t1) = clip_to_box(terrain, r, t_min, t_max)?;
     let pyr = &terrain.pyramid;
-    let top = pyr.top();
+    let top = paged.top;
     let slack = height_slack(terrain);
     let (mut level, mut t) = (top, t0);
     let cells = |level: usize| pyr.levels[level].cells;
@@ -298,4 +319,28 @@ fn finest_cell(terrain: &Terrain, level: usize, ix: i64, iy: i64, p: DVec3) -> [
         ((x.floor() as i64).clamp(i * s, (i + 1) * s - 1) as usize).min(n - 1)
     };
     [pick(p.x, ix, cw), pick(p.y, iy, ch)]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_traversal_starts_at_the_level_the_origin_is_aligned_to() {
+        // Aligned to the top cell (2^11): from the top.
+        assert_eq!(traversal_top([49152, 34816], 11), 11);
+        assert_eq!(traversal_top([0, 0], 11), 11);
+        // Aligned to tiles of 256 only.
+        assert_eq!(traversal_top([49408, 35072], 11), 8);
+        assert_eq!(traversal_top([49152, 35072], 11), 8);
+        // Tiles' corners are what a paged window needs; else one-line errors.
+        assert!(check_origin([49408, 35072], 256, 11).is_ok());
+        let e = check_origin([49408, 35073], 256, 11)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("tile's corner") && e.contains("256"), "{e}");
+        assert!(check_origin([-256, 0], 256, 11).is_err());
+        // A window smaller than a tile: its own top cell.
+        assert!(check_origin([64, 128], 256, 6).is_ok());
+    }
 }

@@ -222,6 +222,30 @@ fn heights_of(
     Ok(Some(Heights::Filled(out)))
 }
 
+/// `spec` with its south-west corner moved out to the tile corner south-west of it (a paged
+/// window starts on one: `cpu::paged::check_origin`) and its north-east corner kept, unless
+/// that takes a side over [`MAX_SIDE`] samples (then the far side is cut back). A window
+/// already on a tile corner is returned as it is.
+pub fn on_tile_corners(spec: WindowSpec, n: usize) -> WindowSpec {
+    let n = n.max(1) as i64;
+    let (i0, j0) = (spec.i0.div_euclid(n) * n, spec.j0.div_euclid(n) * n);
+    let grow = |side: usize, by: i64| (side + by as usize).min(MAX_SIDE.max(side));
+    let out = WindowSpec {
+        level: spec.level,
+        i0,
+        j0,
+        width: grow(spec.width, spec.i0 - i0),
+        height: grow(spec.height, spec.j0 - j0),
+    };
+    if out != spec {
+        log::info!(
+            "paged window moved to the tile corner south-west of it: {}x{} samples from ({}, {}), was {}x{} from ({}, {})",
+            out.width, out.height, out.i0, out.j0, spec.width, spec.height, spec.i0, spec.j0
+        );
+    }
+    out
+}
+
 /// Reads the window's samples into a height field (no-data samples filled, with a warning).
 /// Tiles missing at the window's level are filled from the nearest coarser level that has
 /// them, with a warning naming them.
@@ -370,4 +394,36 @@ pub fn load(path: &Path, window: Option<[f64; 4]>, level: Option<u32>) -> Result
         l.lat(spec.j0)
     );
     read(&db, &spec)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn spec(i0: i64, j0: i64, width: usize, height: usize) -> WindowSpec {
+        WindowSpec {
+            level: 3,
+            i0,
+            j0,
+            width,
+            height,
+        }
+    }
+
+    #[test]
+    fn paged_windows_move_out_to_the_tile_corner_keeping_their_far_corner() {
+        // On a corner already: unchanged.
+        assert_eq!(
+            on_tile_corners(spec(512, 768, 300, 40), 256),
+            spec(512, 768, 300, 40)
+        );
+        // Out to (256, 512), the north-east corner kept.
+        assert_eq!(
+            on_tile_corners(spec(300, 700, 100, 50), 256),
+            spec(256, 512, 144, 238)
+        );
+        // Grown past the largest side: the far side cut back.
+        let big = on_tile_corners(spec(1000, 0, MAX_SIDE, 10), 256);
+        assert_eq!((big.i0, big.width), (768, MAX_SIDE));
+    }
 }

@@ -497,6 +497,11 @@ impl TerrainRenderer {
         let t = self.targets.as_ref().expect("targets just ensured");
         let mut fu = frame_uniforms(job.terrain, job.scene, job.cam, s, t.tiles);
         fu.pyramid_dims = [self.base.data.pyramid_side, 0, 0, 0];
+        if let Some(pool) = &self.paged {
+            // The paged traversal and tile pre-pass start from the level the window's origin
+            // is aligned to (`grid.z` = levels used).
+            fu.grid[2] = fu.grid[2].min(pool.traversal_top() + 1);
+        }
         self.stamp = self.stamp.wrapping_add(1).max(1);
         let antialias = self.antialiased(job);
         // z: the centre rays of an anti-aliased frame look for free forms missed within the

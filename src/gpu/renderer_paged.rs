@@ -17,15 +17,16 @@ use crate::{Error, Result};
 impl TerrainRenderer {
     /// A renderer of the window `terrain` (a window of the database's finest level whose sample
     /// (0, 0) is sample `origin` of that level) through `pool`. Errors where the origin is not
-    /// a multiple of the window pyramid's top cell (`cpu::paged::PagedTerrain::new`'s rule) or
-    /// the terrain has walls off (the paged traversal is walls-on only).
+    /// on a tile's corner (`cpu::paged::check_origin`, `PagedTerrain::new`'s rule) or the
+    /// terrain has walls off (the paged traversal is walls-on only). The traversal starts at
+    /// [`TerrainPool::traversal_top`].
     pub fn new_paged(
         gpu: &Gpu,
         terrain: &Terrain,
         mut pool: TerrainPool,
         origin: [i64; 2],
     ) -> Result<TerrainRenderer> {
-        crate::cpu::paged::check_origin(origin, terrain.pyramid.top())?;
+        crate::cpu::paged::check_origin(origin, pool.tile_cells(), terrain.pyramid.top())?;
         if !terrain.walls {
             return Err(Error::invalid(
                 "terrain.walls",

@@ -65,6 +65,9 @@ pub struct TerrainPool {
     slots: usize,
     pool_slots: usize,
     n: usize,
+    /// The traversal's top level over the window (`cpu::paged::traversal_top`; 0 until
+    /// [`TerrainPool::set_window`]).
+    traversal_top: u32,
 }
 
 /// The binding of pool buffer `k` (`gpu::shaders::paged_pools`).
@@ -235,6 +238,7 @@ impl TerrainPool {
             slots,
             pool_slots,
             n,
+            traversal_top: 0,
         })
     }
 
@@ -243,15 +247,19 @@ impl TerrainPool {
         self.pools.len() as u32
     }
 
-    /// Sets the traversal window: its sample (0, 0) on the finest level's global grid (a
-    /// multiple of 2^top: `cpu::paged::check_origin`) and its pyramid's top level; makes the
-    /// window's residency map of the page table as last applied.
+    /// Sets the traversal window: its sample (0, 0) on the finest level's global grid (on a
+    /// tile's corner: `cpu::paged::check_origin`) and its pyramid's top level; makes the
+    /// window's residency map of the page table as last applied for the traversal's top
+    /// level ([`TerrainPool::traversal_top`]).
     pub fn set_window(&mut self, gpu: &Gpu, origin: [u32; 2], top: u32) {
         use wgpu::util::DeviceExt;
+        let o = [origin[0] as i64, origin[1] as i64];
+        self.traversal_top = crate::cpu::paged::traversal_top(o, top as usize) as u32;
         let m = ResidencyMap::new(
             &self.table_host,
             self.n.trailing_zeros(),
             [origin[0] as u64, origin[1] as u64],
+            self.traversal_top,
             top,
         );
         (self.params_host.map_side, self.params_host.map_levels) = m.shape();
@@ -272,6 +280,17 @@ impl TerrainPool {
             &self.pools,
         );
         self.map_host = Some(m);
+    }
+
+    /// Cells a tile side.
+    pub fn tile_cells(&self) -> usize {
+        self.n
+    }
+
+    /// The level the paged traversal starts from: the window pyramid's top where the window
+    /// is aligned to its top cell, else the highest level its origin is aligned to.
+    pub fn traversal_top(&self) -> u32 {
+        self.traversal_top
     }
 
     /// Slots in the pool and their bytes on the GPU.

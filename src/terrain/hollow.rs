@@ -67,7 +67,11 @@ pub(super) fn window(
 ) -> Result<Terrain> {
     let mut database = Database::open(path)?;
     database.set_cache_bytes(CACHE_BYTES);
-    let spec = db::window::resolve(&database, window, level)?;
+    // A paged window starts on a tile's corner.
+    let spec = db::window::on_tile_corners(
+        db::window::resolve(&database, window, level)?,
+        database.tile_cells(),
+    );
     let geo = db::window::georef(&database, &spec);
     let (lo, hi) = db::window::height_bounds(&database, &spec).ok_or_else(|| {
         Error::format(

@@ -52,12 +52,20 @@ pub fn pack(j: u32, slot: u32) -> u32 {
 }
 
 impl ResidencyMap {
-    /// The map of a window whose sample (0, 0) is sample `origin` of the finest level, whose
-    /// pyramid's top cell is `2^top` finest cells (`origin` a multiple of it), tiles of
-    /// `2^log2n` cells, from `table`. Slots must fit 24 bits (a pool of 16 M tiles).
-    pub fn new(table: &PageTable, log2n: u32, origin: [u64; 2], top: u32) -> ResidencyMap {
+    /// The map of a window whose sample (0, 0) is sample `origin` of the finest level, read by
+    /// a traversal whose top level is `top` (cells of `2^top` finest cells, `origin` a
+    /// multiple of it: `cpu::paged::traversal_top`), of a window whose own pyramid's top cell
+    /// is `2^window_top` finest cells (the map's side), tiles of `2^log2n` cells, from `table`.
+    /// Slots must fit 24 bits (a pool of 16 M tiles).
+    pub fn new(
+        table: &PageTable,
+        log2n: u32,
+        origin: [u64; 2],
+        top: u32,
+        window_top: u32,
+    ) -> ResidencyMap {
         let levels = top.saturating_sub(log2n) + 1;
-        let side = 1u32 << top.saturating_sub(log2n);
+        let side = 1u32 << window_top.max(top).saturating_sub(log2n);
         let mut m = ResidencyMap {
             side,
             levels,
