@@ -61,6 +61,23 @@ fn scene_named(
     p
 }
 
+/// `relief render SCENE --out OUT`'s first frame.
+fn render_frame(scene: &Path, out: &Path) -> image::RgbaImage {
+    let r = relief_command(
+        &[
+            "render",
+            scene.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    )
+    .output()
+    .unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    image::open(out.join("frame_0000.png")).unwrap().to_rgba8()
+}
+
 fn scene(dir: &Path, lla: [f64; 3], heading: f64, pitch: f64, roll: f64) -> PathBuf {
     scene_named(dir, "scene", lla, heading, pitch, roll)
 }
@@ -89,29 +106,10 @@ fn the_ownship_view_equals_render_of_the_same_geodetic_camera() {
     let (m, _) = ig.exchange_raw(&message(7, &[own.into()]), 7);
     assert_eq!(sof(&m).ig_frame, 0);
     ig.finish();
-    let rendered = dir.join("rendered");
-    let out = relief_command(
-        &[
-            "render",
-            scene.to_str().unwrap(),
-            "--out",
-            rendered.to_str().unwrap(),
-        ],
-        &[],
-    )
-    .output()
-    .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
     let a = image::open(served.join("frame_0000.png"))
         .unwrap()
         .to_rgba8();
-    let b = image::open(rendered.join("frame_0000.png"))
-        .unwrap()
-        .to_rgba8();
+    let b = render_frame(&scene, &dir.join("rendered"));
     let d = mean_diff(&a, &b);
     eprintln!("served vs rendered: mean difference {d:.4}/255");
     assert!(d <= 1.0, "mean difference {d}/255");
@@ -122,6 +120,93 @@ fn the_ownship_view_equals_render_of_the_same_geodetic_camera() {
     for k in 0..3 {
         assert!((g[k].as_f64().unwrap() - lla[k]).abs() < 1e-9, "{g:?}");
     }
+}
+
+/// A paged database scene (`--terrain-memory 8`) whose window follows the ownship: the
+/// scene's window is 2° x 2° (513² samples of the 16x16 × 257² mosaic) around 49N 15E; the host
+/// flies the ownship to 51N 17.3E, a degree and more beyond its north-east corner, looking
+/// down. The IG moves the window with the eye (`paging.window` in the frame JSON), pages the
+/// tiles there, and its 30th frame is `relief render` (in memory) of a scene with the same
+/// geodetic camera and a window around it: mean difference ≤ 1/255. Without the move the eye
+/// is off the window, which holds no terrain under it.
+#[test]
+fn a_paged_window_follows_the_ownship_past_its_edge() {
+    follow_past_the_edge("serve", &[]);
+}
+
+/// The same through `relief view --cigi` (Xvfb): its frame JSON has no `paging`, the picture
+/// alone shows the window moved.
+#[test]
+fn a_paged_window_follows_the_ownship_past_its_edge_in_view() {
+    let Some(x) = Xvfb::start() else { return };
+    follow_past_the_edge("view", &[("DISPLAY", x.1.as_str())]);
+}
+
+fn follow_past_the_edge(command: &str, env: &[(&str, &str)]) {
+    let dir = temp_dir(&format!("cigi-{command}-follow"));
+    let db = common::pager_mosaic();
+    let scene_at = |name: &str, window: [f64; 4], lla: [f64; 3], memory: &str| {
+        let text = format!(
+            "[terrain]\ndatabase = {db:?}\nwindow = {window:?}\ncurved = true\n{memory}\n\
+             [camera]\ngeodetic = {lla:?}\nheading = 20.0\npitch = -60.0\nfov = 60.0\n\
+             [output]\nwidth = 160\nheight = 120\n"
+        );
+        let p = dir.join(format!("{name}.toml"));
+        std::fs::write(&p, text).unwrap();
+        p
+    };
+    let there = [51.0, 17.3, 6000.0];
+    let served_scene = scene_at(
+        "served",
+        [48.0, 14.0, 50.0, 16.0],
+        [49.0, 15.0, 6000.0],
+        "memory = 8",
+    );
+    let served = dir.join("served");
+    let frames = 30u32;
+    let n = frames.to_string();
+    let ig = Ig::start_command(
+        command,
+        &served_scene,
+        &with_size(&[
+            "--cigi-sync",
+            "--frames",
+            &n,
+            "--capture-frames",
+            served.to_str().unwrap(),
+        ]),
+        host_socket(),
+        env,
+    );
+    let own = ownship(there, 20.0, -60.0, 0.0);
+    for f in 0..frames {
+        ig.exchange_raw(&message(f, &[own.into()]), f);
+    }
+    ig.finish();
+    let last = format!("{:04}", frames - 1);
+    let j = common::read_json(&served.join(format!("frame_{last}.json")));
+    let paging = &j["paging"];
+    eprintln!("{command}: last frame's paging: {paging}");
+    if command == "serve" {
+        // The scene's window starts at (49664, 35328): 14E and 48N at 256 samples a degree.
+        let window = [
+            paging["window"][0].as_i64().unwrap(),
+            paging["window"][1].as_i64().unwrap(),
+        ];
+        assert_ne!(window, [49664, 35328], "the window did not move");
+        assert_eq!(
+            paging["missing"], 0,
+            "the view's tiles are resident by then"
+        );
+    }
+    let reference = scene_at("reference", [50.0, 16.0, 52.0, 18.0], there, "");
+    let a = image::open(served.join(format!("frame_{last}.png")))
+        .unwrap()
+        .to_rgba8();
+    let b = render_frame(&reference, &dir.join("rendered"));
+    let d = mean_diff(&a, &b);
+    eprintln!("{command}: followed window vs in-memory render there: mean difference {d:.4}/255");
+    assert!(d <= 1.0, "mean difference {d}/255");
 }
 
 fn hat_hot(id: u16, kind: u8, lat: f64, lon: f64, alt: f64) -> HatHotRequest {

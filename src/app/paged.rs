@@ -13,6 +13,7 @@ use crate::terrain::desc::HeightSource;
 use crate::terrain::{GeoRef, Terrain};
 use crate::world::World;
 use crate::{Error, Result};
+use glam::DVec3;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -26,6 +27,25 @@ pub struct Paging {
     pub last: FrameStats,
     /// A display channel's rays, paged for instead of the camera's frustum.
     channel: Option<ChannelRays>,
+    /// The window this renderer's pool is set to ([`Paging::sync_window`]).
+    spec: db::WindowSpec,
+}
+
+/// Moves a paged scene's window with the eye ([`Follower::follow`]): the window now, and what
+/// it is rebuilt from when it moves. One per world; each paged renderer of the world then
+/// takes the new window ([`Paging::sync_window`]).
+pub struct Follower {
+    spec: db::WindowSpec,
+    /// Cells a tile side.
+    n: usize,
+    /// Samples per degree of the window's level.
+    per_degree: f64,
+    /// First and last sample of the window's level (its tiles' range).
+    lo: [i64; 2],
+    hi: [i64; 2],
+    desc: crate::terrain::TerrainDesc,
+    base_dir: std::path::PathBuf,
+    db_path: std::path::PathBuf,
 }
 
 /// Refuses `--terrain-memory` of 0 or more than 1 TiB.
@@ -39,17 +59,10 @@ fn pool_bytes(mb: u64) -> Result<u64> {
     Ok(mb << 20)
 }
 
-/// A paged renderer of `world` (the window of `scene`'s database, its finest level, loaded
-/// hollow by `World::load_as(scene, true)` or whole) with a pool of `mb` MB, its free forms,
-/// volumes and voxel models, and the pager feeding it (the floor already uploaded). A scene without a database is an error naming
-/// `--terrain-memory`.
-pub fn renderer(
-    gpu: &Gpu,
-    scene: &Scene,
-    world: &World,
-    mb: u64,
-) -> Result<(TerrainRenderer, Paging)> {
-    let pool_bytes = pool_bytes(mb)?;
+/// `scene`'s database, opened, and its window as a paged scene places it (as `World::load_as`
+/// placed the hollow window: on a tile's corner); a scene without a database is an error
+/// naming `--terrain-memory`.
+fn paged_window(scene: &Scene) -> Result<(Database, db::WindowSpec)> {
     let HeightSource::Database {
         path,
         window,
@@ -64,15 +77,29 @@ pub fn renderer(
             ),
         ));
     };
-    let mut database = Database::open(&scene.base_dir.join(path))?;
-    // Host memory within the budget: the reads' cache no larger than the pool.
-    database.set_cache_bytes(pool_bytes);
-    let fine = database.header().levels.len() as u32 - 1;
-    // As `World::load_as` placed the hollow window: on a tile's corner.
+    let database = Database::open(&scene.base_dir.join(path))?;
     let spec = db::window::on_tile_corners(
         db::window::resolve(&database, window, level)?,
         database.tile_cells(),
     );
+    Ok((database, spec))
+}
+
+/// A paged renderer of `world` (the window of `scene`'s database, its finest level, loaded
+/// hollow by `World::load_as(scene, true)` or whole) with a pool of `mb` MB, its free forms,
+/// volumes and voxel models, and the pager feeding it (the floor already uploaded). A scene without a database is an error naming
+/// `--terrain-memory`.
+pub fn renderer(
+    gpu: &Gpu,
+    scene: &Scene,
+    world: &World,
+    mb: u64,
+) -> Result<(TerrainRenderer, Paging)> {
+    let pool_bytes = pool_bytes(mb)?;
+    let (mut database, spec) = paged_window(scene)?;
+    // Host memory within the budget: the reads' cache no larger than the pool.
+    database.set_cache_bytes(pool_bytes);
+    let fine = database.header().levels.len() as u32 - 1;
     if spec.level != fine {
         return Err(Error::invalid(
             "terrain.level",
@@ -100,15 +127,14 @@ pub fn renderer(
     let pool = TerrainPool::new(gpu, pager.page_table(), n, slots)?;
     let mut r = TerrainRenderer::new_paged(gpu, terrain, pool, [spec.i0, spec.j0])?;
     r.apply_pages(gpu, &first, pager.page_table());
-    r.set_objects(gpu, &world.objects)?;
-    r.set_volumes(gpu, &world.volumes)?;
-    r.set_voxels(gpu, &world.voxels)?;
+    super::upload::objects(gpu, &mut r, world)?;
     let paging = Paging {
         pager,
         geo,
         pool_bytes,
         last: FrameStats::default(),
         channel: None,
+        spec,
     };
     Ok((r, paging))
 }
@@ -186,10 +212,37 @@ impl Paging {
         Ok(stats)
     }
 
+    /// Sets this renderer's pool to `world`'s window, sample `spec` of the database's finest
+    /// level, where [`Follower::follow`] moved it: the pool keeps its tiles and makes its
+    /// residency map for the new window; the world's objects, moved with it, are uploaded
+    /// again. Nothing where the pool is already there.
+    pub fn sync_window(
+        &mut self,
+        gpu: &Gpu,
+        r: &mut TerrainRenderer,
+        world: &World,
+        spec: db::WindowSpec,
+    ) -> Result<()> {
+        if spec == self.spec {
+            return Ok(());
+        }
+        r.set_paged_window(gpu, &world.terrain, [spec.i0, spec.j0])?;
+        super::upload::objects(gpu, r, world)?;
+        self.geo = world.terrain.field.geo.ok_or_else(|| {
+            Error::invalid(
+                "terrain",
+                "a database window has no georeference".to_string(),
+            )
+        })?;
+        self.spec = spec;
+        Ok(())
+    }
+
     /// The last frame's statistics as frame metadata (`paging` in the frame JSON).
     pub fn json(&self) -> serde_json::Value {
         let s = &self.last;
         serde_json::json!({
+            "window": [self.spec.i0, self.spec.j0],
             "pool_bytes": self.pool_bytes,
             "resident": s.resident,
             "resident_bytes": s.resident_bytes,
@@ -223,5 +276,85 @@ impl Paging {
             }
             std::thread::sleep(Duration::from_millis(2));
         }
+    }
+}
+
+impl Follower {
+    /// The follower of `scene`'s paged window (as [`renderer`] places it: the finest level,
+    /// on a tile corner).
+    pub fn new(scene: &Scene) -> Result<Follower> {
+        let (database, spec) = paged_window(scene)?;
+        let db_path = database.path().to_path_buf();
+        let n = database.tile_cells();
+        let lv = &database.header().levels[spec.level as usize];
+        Ok(Follower {
+            spec,
+            n,
+            per_degree: lv.per_degree,
+            lo: [lv.x0 as i64 * n as i64, lv.y0 as i64 * n as i64],
+            hi: [lv.x1 as i64 * n as i64, lv.y1 as i64 * n as i64],
+            desc: scene.desc.terrain.clone(),
+            base_dir: scene.base_dir.clone(),
+            db_path,
+        })
+    }
+
+    /// The window now.
+    pub fn spec(&self) -> db::WindowSpec {
+        self.spec
+    }
+
+    /// Moves the window to follow the eye at geodetic `[lat, lon, alt]` (on the window or off
+    /// it) where [`db::window::follow`] says so: `world.terrain` becomes the hollow terrain of
+    /// the new window (same size, on a tile corner) and the scene's free forms, volumes and
+    /// voxel models keep their places on the ground (moved from the old window's frame to
+    /// the new one's). Cameras and entities placed geodetically after this land in the new
+    /// frame; each paged renderer then takes the window with [`Paging::sync_window`].
+    /// Returns whether it moved.
+    pub fn follow(&mut self, world: &mut World, [lat, lon, _]: [f64; 3]) -> Result<bool> {
+        let at = [
+            (lon + 180.0) * self.per_degree,
+            (lat + 90.0) * self.per_degree,
+        ];
+        let Some(spec) = db::window::follow(self.spec, self.n, self.lo, self.hi, at) else {
+            return Ok(false);
+        };
+        let database = Database::open(&self.db_path)?;
+        let terrain =
+            crate::terrain::hollow::window_spec(&self.desc, &self.base_dir, database, &spec)?;
+        let old = &world.terrain;
+        let shift = DVec3::new(
+            (self.spec.i0 - spec.i0) as f64,
+            (self.spec.j0 - spec.j0) as f64,
+            0.0,
+        );
+        // The same sample of the level, in the new window's world frame.
+        let moved = |p: DVec3| {
+            terrain
+                .frame
+                .grid_to_world(old.frame.world_to_grid(p) + shift)
+                - p
+        };
+        for o in &mut world.objects {
+            *o = o.translated(moved(o.position));
+        }
+        for v in &mut world.volumes {
+            *v = v.translated(moved(v.anchor()));
+        }
+        for m in &mut world.voxels {
+            *m = m.translated(moved(m.position));
+        }
+        log::info!(
+            "paged window moved with the eye: {}x{} samples from ({}, {}), was from ({}, {})",
+            spec.width,
+            spec.height,
+            spec.i0,
+            spec.j0,
+            self.spec.i0,
+            self.spec.j0
+        );
+        world.terrain = terrain;
+        self.spec = spec;
+        Ok(true)
     }
 }

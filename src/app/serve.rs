@@ -82,13 +82,15 @@ pub fn run_with(
         terrain_memory: opts.terrain_memory,
         wait_resident: false,
     };
-    let (p, mut renderer) = prepare(&job)?;
+    let (mut p, mut renderer) = prepare(&job)?;
     if let Some(dir) = &opts.capture_frames {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     }
-    let frames = p.frames(&job);
-    let terrain = &p.world.terrain;
-    let base = p.scene.camera(0, terrain);
+    let base = p.scene.camera(0, &p.world.terrain);
+    let mut follower = match &p.paging {
+        Some(_) => Some(super::paged::Follower::new(&p.scene)?),
+        None => None,
+    };
     let mut log = match &opts.pose_log {
         Some(p) => Some(std::io::BufWriter::new(
             std::fs::File::create(p).map_err(|e| Error::io(p, e))?,
@@ -106,8 +108,11 @@ pub fn run_with(
         } else {
             ig.poll();
         }
-        let (pose, own) = ig.camera_pose(terrain, base.pose);
+        follow_ownship(&ig, follower.as_mut(), &mut p, &mut renderer)?;
+        let (pose, own) = ig.camera_pose(&p.world.terrain, base.pose);
         let cam = Camera::new(pose, base.width, base.height);
+        let terrain = &p.world.terrain;
+        let frames = p.frames(&job);
         let at = own
             .map(|o| o.geodetic)
             .or_else(|| terrain.world_to_geodetic(cam.pose.position));
@@ -158,7 +163,7 @@ pub fn run_with(
         }
     }
     // Queries kept for a frame that will not come are answered in one last datagram.
-    ig.finish(terrain);
+    ig.finish(&p.world.terrain);
     if let (Some(mut w), Some(path)) = (log, &opts.pose_log) {
         use std::io::Write as _;
         w.flush().map_err(|e| Error::io(path, e))?;
@@ -168,4 +173,22 @@ pub fn run_with(
         ig.summary(),
         ig.counters_json()
     ))
+}
+
+/// A paged window follows the host's ownship (also off the window), before the ownship is
+/// placed in its frame.
+fn follow_ownship(
+    ig: &CigiIg,
+    follower: Option<&mut super::paged::Follower>,
+    p: &mut super::capture::Prepared,
+    renderer: &mut crate::gpu::TerrainRenderer,
+) -> Result<()> {
+    if let (Some(lla), Some(f), Some(paging)) = (ig.ownship_geodetic(), follower, &p.paging) {
+        if f.follow(&mut p.world, lla)? {
+            paging
+                .borrow_mut()
+                .sync_window(&p.gpu, renderer, &p.world, f.spec())?;
+        }
+    }
+    Ok(())
 }

@@ -246,6 +246,37 @@ pub fn on_tile_corners(spec: WindowSpec, n: usize) -> WindowSpec {
     out
 }
 
+/// Where a paged window moves to follow its eye at `eye` (global sample coordinates of the
+/// window's level): once the eye is within a quarter of the window's side of an edge (or past
+/// it) with more of the level beyond that edge, the window of the same size centred on the
+/// eye (its south-west corner on the nearest tile corner, `n` cells) and kept within the level's tiles
+/// `[lo, hi]` (first and last sample) where the level is wide enough; `None` while it stays.
+pub fn follow(
+    spec: WindowSpec,
+    n: usize,
+    lo: [i64; 2],
+    hi: [i64; 2],
+    eye: [f64; 2],
+) -> Option<WindowSpec> {
+    let n = n.max(1) as i64;
+    let axis = |o: i64, side: usize, lo: i64, hi: i64, e: f64| -> i64 {
+        let w = side as i64 - 1;
+        let margin = w as f64 / 4.0;
+        let rel = e - o as f64;
+        let near_low = rel < margin && o > lo;
+        let near_high = rel > w as f64 - margin && o + w < hi;
+        if !(near_low || near_high) || !e.is_finite() {
+            return o;
+        }
+        let centred = ((e - w as f64 / 2.0) / n as f64).round() as i64 * n;
+        let last = ((hi - w).div_euclid(n) * n).max(lo);
+        centred.clamp(lo, last)
+    };
+    let i0 = axis(spec.i0, spec.width, lo[0], hi[0], eye[0]);
+    let j0 = axis(spec.j0, spec.height, lo[1], hi[1], eye[1]);
+    ((i0, j0) != (spec.i0, spec.j0)).then_some(WindowSpec { i0, j0, ..spec })
+}
+
 /// Reads the window's samples into a height field (no-data samples filled, with a warning).
 /// Tiles missing at the window's level are filled from the nearest coarser level that has
 /// them, with a warning naming them.
@@ -425,5 +456,28 @@ mod tests {
         // Grown past the largest side: the far side cut back.
         let big = on_tile_corners(spec(1000, 0, MAX_SIDE, 10), 256);
         assert_eq!((big.i0, big.width), (768, MAX_SIDE));
+    }
+
+    #[test]
+    fn a_followed_window_recentres_on_tile_corners_within_the_level() {
+        let w = spec(2048, 2048, 513, 513);
+        let (lo, hi) = ([0, 0], [8192, 8192]);
+        // The middle half: stays.
+        assert_eq!(
+            follow(w, 256, lo, hi, [2048.0 + 200.0, 2048.0 + 300.0]),
+            None
+        );
+        // Near the east edge: centred on the eye, on a tile corner.
+        let e = follow(w, 256, lo, hi, [2048.0 + 450.0, 2048.0 + 256.0]).unwrap();
+        assert_eq!(
+            (e.i0, e.j0, e.width, e.height),
+            (2048 + 256, 2048, 513, 513)
+        );
+        // Far past the north-west corner.
+        let f = follow(w, 256, lo, hi, [100.0, 7900.0]).unwrap();
+        assert_eq!((f.i0, f.j0), (0, 7680));
+        // At the level's west edge it cannot move further west.
+        let edge = spec(0, 2048, 513, 513);
+        assert_eq!(follow(edge, 256, lo, hi, [10.0, 2300.0]), None);
     }
 }

@@ -49,6 +49,42 @@ impl TerrainRenderer {
         Ok(r)
     }
 
+    /// Moves a paged renderer's window to `terrain` (a window of the same size of the same
+    /// level whose sample (0, 0) is sample `origin` of it): the pool keeps its tiles, its
+    /// residency map is made again for the new window. Errors as [`Self::new_paged`], and
+    /// where the renderer is not paged or the window's size differs.
+    pub fn set_paged_window(
+        &mut self,
+        gpu: &Gpu,
+        terrain: &Terrain,
+        origin: [i64; 2],
+    ) -> Result<()> {
+        let Some(pool) = &mut self.paged else {
+            return Err(Error::invalid(
+                "terrain.window",
+                "moving the window applies to a paged renderer (--terrain-memory)",
+            ));
+        };
+        crate::cpu::paged::check_origin(origin, pool.tile_cells(), terrain.pyramid.top())?;
+        if terrain.cells() != self.base.data.cells || terrain.drape.is_some() {
+            return Err(Error::invalid(
+                "terrain.window",
+                format!(
+                    "a moved window keeps its size ({:?} cells, not {:?}) and has no drape",
+                    self.base.data.cells,
+                    terrain.cells()
+                ),
+            ));
+        }
+        pool.set_window(
+            gpu,
+            [origin[0] as u32, origin[1] as u32],
+            terrain.pyramid.top() as u32,
+        );
+        self.lowered_for = None;
+        Ok(())
+    }
+
     /// Whether the terrain is read from a tile pool.
     pub fn is_paged(&self) -> bool {
         self.paged.is_some()

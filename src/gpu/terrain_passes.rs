@@ -33,6 +33,8 @@ pub(crate) struct TerrainData {
     pub drape: wgpu::Buffer,
     /// The terrain has a draped image (a shade-pipeline constant).
     pub has_drape: bool,
+    /// The terrain's cells along x and y (a paged window moved keeps them).
+    pub cells: [usize; 2],
     pub frame_ub: wgpu::Buffer,
     pub raygen_ub: wgpu::Buffer,
 }
@@ -126,6 +128,7 @@ impl TerrainData {
             pyramid_side,
             drape,
             has_drape: terrain.drape.is_some(),
+            cells: terrain.cells(),
             frame_ub: block("frame uniforms", std::mem::size_of::<FrameUniforms>()),
             raygen_ub: block("raygen uniforms", std::mem::size_of::<RayGenUniforms>()),
         })

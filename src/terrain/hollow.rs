@@ -65,13 +65,27 @@ pub(super) fn window(
     window: Option<[f64; 4]>,
     level: Option<u32>,
 ) -> Result<Terrain> {
-    let mut database = Database::open(path)?;
-    database.set_cache_bytes(CACHE_BYTES);
+    let database = Database::open(path)?;
     // A paged window starts on a tile's corner.
     let spec = db::window::on_tile_corners(
         db::window::resolve(&database, window, level)?,
         database.tile_cells(),
     );
+    window_spec(desc, base_dir, database, &spec)
+}
+
+/// The terrain of `desc` over window `spec` of `database` (opened from `desc`'s path),
+/// hollow: a paged window, also where it moves to follow the eye.
+pub fn window_spec(
+    desc: &TerrainDesc,
+    base_dir: &Path,
+    mut database: Database,
+    spec: &db::WindowSpec,
+) -> Result<Terrain> {
+    database.set_cache_bytes(CACHE_BYTES);
+    let spec = *spec;
+    let path = database.path().to_path_buf();
+    let path = path.as_path();
     let geo = db::window::georef(&database, &spec);
     let (lo, hi) = db::window::height_bounds(&database, &spec).ok_or_else(|| {
         Error::format(

@@ -289,6 +289,13 @@ impl CigiIg {
     /// attitude at the frame's host time (interpolated by [`Session::pose_at`]) and the fov of
     /// a View Definition with both left and right given. `None` for the position part while
     /// the host has not placed the ownship (or placed it off the terrain: `base` kept).
+    /// The host's ownship now (latitude, longitude, altitude), placed on the terrain or not
+    /// (a paged window follows it there); `None` before the host has placed it.
+    pub fn ownship_geodetic(&self) -> Option<[f64; 3]> {
+        let t = self.session.host_time_at(self.now());
+        self.session.pose_at(0, t).map(|p| [p.lat, p.lon, p.alt])
+    }
+
     pub fn camera_pose(
         &mut self,
         terrain: &Terrain,

@@ -117,6 +117,11 @@ impl App {
             } else {
                 ig.poll();
             }
+            // A paged window follows the ownship (also off the window); each window's pool
+            // takes it before its frame (`render`).
+            if let (Some(lla), Some(f)) = (ig.ownship_geodetic(), &mut p.follower) {
+                f.follow(&mut p.world, lla)?;
+            }
             let (cam, own) = ig.camera_pose(&p.world.terrain, pose);
             pose = cam;
             let at = own
@@ -371,6 +376,9 @@ impl Draw<'_> {
             .collect();
         let terrain = &prep.world.terrain;
         if let Some(p) = &mut w.paging {
+            if let Some(f) = &prep.follower {
+                p.sync_window(gpu, &mut w.renderer, &prep.world, f.spec())?;
+            }
             p.step(gpu, &mut w.renderer, terrain, &cam)?;
         }
         if dirs.is_empty() {

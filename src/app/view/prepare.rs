@@ -58,6 +58,8 @@ pub struct Prepared {
     pub stats_csv: Option<StatsCsv>,
     /// `--cigi`: the IG whose ownship drives the camera.
     pub cigi: Option<crate::app::cigi_ig::CigiIg>,
+    /// A paged window (`--terrain-memory`) driven by a CIGI host follows its ownship.
+    pub follower: Option<crate::app::paged::Follower>,
 }
 
 /// Loads and checks everything `opts` names.
@@ -103,6 +105,10 @@ pub fn prepare(opts: &ViewOptions) -> Result<Prepared> {
         }
         None => None,
     };
+    let follower = match (&cigi, paged) {
+        (Some(_), true) => Some(crate::app::paged::Follower::new(&scene)?),
+        _ => None,
+    };
     Ok(Prepared {
         opts: opts.clone(),
         resize_at,
@@ -115,6 +121,7 @@ pub fn prepare(opts: &ViewOptions) -> Result<Prepared> {
         eyes,
         recorder,
         stats_csv,
+        follower,
         cigi,
     })
 }
