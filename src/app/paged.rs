@@ -319,6 +319,7 @@ impl Follower {
         let Some(spec) = db::window::follow(self.spec, self.n, self.lo, self.hi, at) else {
             return Ok(false);
         };
+        let start = Instant::now();
         let database = Database::open(&self.db_path)?;
         let terrain =
             crate::terrain::hollow::window_spec(&self.desc, &self.base_dir, database, &spec)?;
@@ -345,13 +346,14 @@ impl Follower {
             *m = m.translated(moved(m.position));
         }
         log::info!(
-            "paged window moved with the eye: {}x{} samples from ({}, {}), was from ({}, {})",
+            "paged window moved with the eye: {}x{} samples from ({}, {}), was from ({}, {}); terrain and objects in {:.1} ms",
             spec.width,
             spec.height,
             spec.i0,
             spec.j0,
             self.spec.i0,
-            self.spec.j0
+            self.spec.j0,
+            start.elapsed().as_secs_f64() * 1e3
         );
         world.terrain = terrain;
         self.spec = spec;
