@@ -358,6 +358,11 @@ impl Draw<'_> {
             w.renderer.set_eye(e);
         }
         let cam = Camera::new(step.pose, rw, rh);
+        // A window moved with the ownship reaches this renderer's pool first (it uploads the
+        // objects again, which drops the placed entities: they are placed below).
+        if let (Some(p), Some(f)) = (&mut w.paging, &prep.follower) {
+            p.sync_window(gpu, &mut w.renderer, &prep.world, f.spec())?;
+        }
         // Animated voxel models follow the simulation clock.
         w.renderer.set_time(step.t);
         if let Some(i) = &step.instances {
@@ -376,9 +381,6 @@ impl Draw<'_> {
             .collect();
         let terrain = &prep.world.terrain;
         if let Some(p) = &mut w.paging {
-            if let Some(f) = &prep.follower {
-                p.sync_window(gpu, &mut w.renderer, &prep.world, f.spec())?;
-            }
             p.step(gpu, &mut w.renderer, terrain, &cam)?;
         }
         if dirs.is_empty() {
