@@ -46,6 +46,8 @@ pub struct Follower {
     desc: crate::terrain::TerrainDesc,
     base_dir: std::path::PathBuf,
     db_path: std::path::PathBuf,
+    /// The last window that could not be made (not tried again).
+    refused: Option<db::WindowSpec>,
 }
 
 /// Refuses `--terrain-memory` of 0 or more than 1 TiB.
@@ -281,13 +283,20 @@ impl Paging {
 
 impl Follower {
     /// The follower of `scene`'s paged window (as [`renderer`] places it: the finest level,
-    /// on a tile corner).
-    pub fn new(scene: &Scene) -> Result<Follower> {
+    /// on a tile corner); `None` (with a warning) for a draped terrain, whose image covers
+    /// the scene's window only.
+    pub fn new(scene: &Scene) -> Result<Option<Follower>> {
+        if scene.desc.terrain.drape.is_some() {
+            log::warn!(
+                "the paged window does not follow the eye: the terrain has a drape, which covers the scene's window only"
+            );
+            return Ok(None);
+        }
         let (database, spec) = paged_window(scene)?;
         let db_path = database.path().to_path_buf();
         let n = database.tile_cells();
         let lv = &database.header().levels[spec.level as usize];
-        Ok(Follower {
+        Ok(Some(Follower {
             spec,
             n,
             per_degree: lv.per_degree,
@@ -296,7 +305,8 @@ impl Follower {
             desc: scene.desc.terrain.clone(),
             base_dir: scene.base_dir.clone(),
             db_path,
-        })
+            refused: None,
+        }))
     }
 
     /// The window now.
@@ -319,10 +329,29 @@ impl Follower {
         let Some(spec) = db::window::follow(self.spec, self.n, self.lo, self.hi, at) else {
             return Ok(false);
         };
+        if self.refused == Some(spec) {
+            return Ok(false);
+        }
         let start = Instant::now();
-        let database = Database::open(&self.db_path)?;
-        let terrain =
-            crate::terrain::hollow::window_spec(&self.desc, &self.base_dir, database, &spec)?;
+        let built = Database::open(&self.db_path).and_then(|database| {
+            crate::terrain::hollow::window_spec(&self.desc, &self.base_dir, database, &spec)
+        });
+        // A window that cannot be made (no data under it, the file gone) leaves the window
+        // where it is: the IG keeps running.
+        let terrain = match built {
+            Ok(t) => t,
+            Err(e) => {
+                log::warn!(
+                    "the paged window stays at ({}, {}): moving it to ({}, {}) failed: {e}",
+                    self.spec.i0,
+                    self.spec.j0,
+                    spec.i0,
+                    spec.j0
+                );
+                self.refused = Some(spec);
+                return Ok(false);
+            }
+        };
         let old = &world.terrain;
         let shift = DVec3::new(
             (self.spec.i0 - spec.i0) as f64,

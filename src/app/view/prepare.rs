@@ -106,7 +106,7 @@ pub fn prepare(opts: &ViewOptions) -> Result<Prepared> {
         None => None,
     };
     let follower = match (&cigi, paged) {
-        (Some(_), true) => Some(crate::app::paged::Follower::new(&scene)?),
+        (Some(_), true) => crate::app::paged::Follower::new(&scene)?,
         _ => None,
     };
     Ok(Prepared {
