@@ -45,7 +45,6 @@ pub struct Follower {
     hi: [i64; 2],
     desc: crate::terrain::TerrainDesc,
     base_dir: std::path::PathBuf,
-    db_path: std::path::PathBuf,
     /// The last window that could not be made (not tried again).
     refused: Option<db::WindowSpec>,
 }
@@ -293,7 +292,6 @@ impl Follower {
             return Ok(None);
         }
         let (database, spec) = paged_window(scene)?;
-        let db_path = database.path().to_path_buf();
         let n = database.tile_cells();
         let lv = &database.header().levels[spec.level as usize];
         Ok(Some(Follower {
@@ -304,7 +302,6 @@ impl Follower {
             hi: [lv.x1 as i64 * n as i64, lv.y1 as i64 * n as i64],
             desc: scene.desc.terrain.clone(),
             base_dir: scene.base_dir.clone(),
-            db_path,
             refused: None,
         }))
     }
@@ -333,10 +330,19 @@ impl Follower {
             return Ok(false);
         }
         let start = Instant::now();
-        let built = Database::open(&self.db_path).and_then(|database| {
-            crate::terrain::hollow::window_spec(&self.desc, &self.base_dir, database, &spec)
-        });
-        // A window that cannot be made (no data under it, the file gone) leaves the window
+        // The world's hollow window's database (its index read once, its tile cache warm).
+        let database = match &world.terrain.hollow {
+            Some(h) => h.shared_database(),
+            None => {
+                return Err(Error::invalid(
+                    "--terrain-memory",
+                    "a window follows the eye on a paged (hollow) database window only",
+                ))
+            }
+        };
+        let built =
+            crate::terrain::hollow::window_spec(&self.desc, &self.base_dir, database, &spec);
+        // A window that cannot be made (no data under it, a read failing) leaves the window
         // where it is: the IG keeps running.
         let terrain = match built {
             Ok(t) => t,

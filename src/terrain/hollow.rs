@@ -32,6 +32,11 @@ impl Hollow {
         &self.db
     }
 
+    /// The same database, shared (a moved window reads through it).
+    pub fn shared_database(&self) -> Arc<Database> {
+        Arc::clone(&self.db)
+    }
+
     /// Height (metres, sea level and vertical scale applied) of the surface at grid position
     /// `(x, y)` of the window georeferenced by `geo`: the database's bilinear surface there on
     /// its finest level with data (`db::height_at`; for a window of the finest level the
@@ -65,24 +70,25 @@ pub(super) fn window(
     window: Option<[f64; 4]>,
     level: Option<u32>,
 ) -> Result<Terrain> {
-    let database = Database::open(path)?;
+    let mut database = Database::open(path)?;
+    database.set_cache_bytes(CACHE_BYTES);
     // A paged window starts on a tile's corner.
     let spec = db::window::on_tile_corners(
         db::window::resolve(&database, window, level)?,
         database.tile_cells(),
     );
-    window_spec(desc, base_dir, database, &spec)
+    window_spec(desc, base_dir, Arc::new(database), &spec)
 }
 
-/// The terrain of `desc` over window `spec` of `database` (opened from `desc`'s path),
-/// hollow: a paged window, also where it moves to follow the eye.
+/// The terrain of `desc` over window `spec` of `database` (opened from `desc`'s path, its
+/// cache bounded: [`CACHE_BYTES`]), hollow: a paged window, also where it moves to follow the
+/// eye (sharing the database, its index and cache, with the window it replaces).
 pub fn window_spec(
     desc: &TerrainDesc,
     base_dir: &Path,
-    mut database: Database,
+    database: Arc<Database>,
     spec: &db::WindowSpec,
 ) -> Result<Terrain> {
-    database.set_cache_bytes(CACHE_BYTES);
     let spec = *spec;
     let path = database.path().to_path_buf();
     let path = path.as_path();
@@ -128,7 +134,7 @@ pub fn window_spec(
     let pyramid = MaxPyramid::shape(field.width, field.height);
     let mut terrain = Terrain::assemble(field, frame, pyramid, range);
     terrain.hollow = Some(Hollow {
-        db: Arc::new(database),
+        db: database,
         sea_level: sea,
         vertical_scale: vs,
     });
