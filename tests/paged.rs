@@ -296,6 +296,9 @@ fn view(geo: &relief::terrain::GeoRef, c: Cam, width: u32, height: u32) -> View 
 
 #[test]
 fn paged_flight_no_holes_and_converges() {
+    // Its updates are timed (`UPDATE_MAX`): not beside this binary's GPU tests, whose
+    // software rasterisers take both cores.
+    let _lock = common::gpu_lock();
     let Flight {
         terrain,
         origin,
