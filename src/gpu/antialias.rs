@@ -19,17 +19,18 @@
 //!    frame's primary and shading passes run on it (without the tile pre-pass, and with
 //!    free-form bins bounding every ray of a bin: neighbouring entries are not neighbouring
 //!    rays).
-//! 3. **Resolve** (`aa_resolve.wgsl`): a full-screen pass writes the mean of each marked
-//!    pixel's samples, and the centre ray's capture data with flag 128, into the frame's
-//!    targets; the other pixels keep the centre rays' colour and data; the frame's ray table
-//!    is untouched.
+//! 3. **Resolve** (`aa_resolve.wgsl`): the mean of each marked pixel's samples into a compact
+//!    target (one texel per marked pixel), then one point per marked pixel, drawn over the
+//!    frame's targets, writes its mean and the centre ray's capture data with flag 128; the
+//!    other pixels are not touched (they keep the centre rays' colour and data), nor is the
+//!    frame's ray table.
 //!
 //! With every pixel marked and n = 16 this is relief's own supersampled reference (4x4 rays
 //! inside each pixel, the pixel's own cone).
 
 use super::util::{
-    float_texture_entry, fullscreen_pipeline, screen_texture, target_state, uint_texture_entry,
-    view,
+    float_texture_entry, fullscreen_pipeline, point_pipeline, screen_texture, target_state,
+    uint_texture_entry, view,
 };
 use super::{shaders, Gpu};
 use wgpu::TextureFormat as F;
@@ -128,16 +129,14 @@ pub(crate) struct AntialiasPasses {
     pub tile: wgpu::RenderPipeline,
     edges: wgpu::RenderPipeline,
     rays: wgpu::RenderPipeline,
-    resolve: wgpu::RenderPipeline,
-    layouts: [wgpu::BindGroupLayout; 3],
+    mean: wgpu::RenderPipeline,
+    scatter: wgpu::RenderPipeline,
+    layouts: [wgpu::BindGroupLayout; 4],
     params: wgpu::Buffer,
 }
 
 /// Rows of the atlas come in multiples of this (fewer new atlases as the list changes).
 const ATLAS_ROWS: u32 = 32;
-
-/// Not a marked pixel (WGSL `AA_NONE`).
-const NONE: u32 = u32::MAX;
 
 /// The atlas's width for a `width` frame: a multiple of 16 (its 4x4 groups, the free-form
 /// bins) at least 64.
@@ -155,37 +154,34 @@ pub fn samples(aa: Antialias) -> u32 {
     }
 }
 
-/// The screen-sized textures: the centre frame's colour and capture data, the mask and its
-/// readback, the list of marked pixels and each pixel's place in it, and the edge pass's bind
-/// group.
+/// The screen-sized textures: a copy of the centre frame's capture data, the mask and its
+/// readback, the list of marked pixels and their means, and the bind groups of the edge pass
+/// and of the resolve's scatter.
 pub(crate) struct AntialiasTargets {
     pub size: [u32; 2],
     pub centre_data: wgpu::Texture,
-    centre_data_view: wgpu::TextureView,
-    pub centre_colour: wgpu::Texture,
-    centre_colour_view: wgpu::TextureView,
-    index: wgpu::Texture,
-    index_view: wgpu::TextureView,
     centre_rays_view: wgpu::TextureView,
     mask: wgpu::Texture,
     mask_view: wgpu::TextureView,
     mask_rb: wgpu::Buffer,
     pixels: wgpu::Texture,
     pixels_view: wgpu::TextureView,
+    means_view: wgpu::TextureView,
     edges_bg: wgpu::BindGroup,
+    scatter_bg: wgpu::BindGroup,
 }
 
 /// The sample atlas of one size: its own frame targets (every pass of the samples runs on
-/// them) and the bind groups of the sample rays and the resolve.
+/// them) and the bind groups of the sample rays and the resolve's means.
 pub(crate) struct Atlas {
     pub targets: super::targets::Targets,
     rays_bg: wgpu::BindGroup,
-    resolve_bg: wgpu::BindGroup,
+    mean_bg: wgpu::BindGroup,
 }
 
-/// Bytes per screen pixel of [`AntialiasTargets`]: data 16, colour 4, mask 1 and its readback
-/// 1, list 4, index 4 (the atlas's frame targets come on top, sized by the samples).
-pub const TARGET_BYTES_PER_PIXEL: u64 = 30;
+/// Bytes per screen pixel of [`AntialiasTargets`]: data 16, mask 1 and its readback 1, list 4,
+/// means 4 (the atlas's frame targets come on top, sized by the samples).
+pub const TARGET_BYTES_PER_PIXEL: u64 = 26;
 
 fn texture(gpu: &Gpu, label: &str, size: [u32; 2], format: F) -> wgpu::Texture {
     screen_texture(&gpu.device, label, size, format, super::util::TARGET_USAGE)
@@ -199,6 +195,7 @@ impl AntialiasPasses {
     pub fn new(gpu: &Gpu, base: &super::terrain_passes::TerrainPasses) -> AntialiasPasses {
         let dev = &gpu.device;
         let fs = wgpu::ShaderStages::FRAGMENT;
+        let vfs = wgpu::ShaderStages::VERTEX_FRAGMENT;
         let p = super::util::uniform_entry(gpu.params, 0, fs);
         let u = |b| uint_texture_entry(b, fs);
         let f = |b| float_texture_entry(b, fs, wgpu::TextureViewDimension::D2);
@@ -211,7 +208,16 @@ impl AntialiasPasses {
         let layouts = [
             layout("aa edges", &[p, f(2), u(3)]),
             layout("aa rays", &[p, u(1), u(2)]),
-            layout("aa resolve", &[p, u(1), f(2), u(3), f(4)]),
+            layout("aa means", &[p, f(2)]),
+            layout(
+                "aa scatter",
+                &[
+                    super::util::uniform_entry(gpu.params, 0, vfs),
+                    uint_texture_entry(1, vfs),
+                    u(3),
+                    f(4),
+                ],
+            ),
         ];
         let module = |name: &str, src: String| super::shader_module(dev, gpu.params, name, &src);
         let state = |t: F| Some(target_state(t));
@@ -231,19 +237,29 @@ impl AntialiasPasses {
             &layouts[1],
             &[state(F::Rgba32Uint)],
         );
-        let resolve = fullscreen_pipeline(
+        let resolve = module("aa_resolve.wgsl", shaders::aa_resolve());
+        let mean = fullscreen_pipeline(
             dev,
-            "aa resolve",
-            &module("aa_resolve.wgsl", shaders::aa_resolve()),
-            "fs_resolve",
+            "aa means",
+            &resolve,
+            "fs_mean",
             &layouts[2],
+            &[state(F::Rgba8Unorm)],
+        );
+        let scatter = point_pipeline(
+            dev,
+            "aa scatter",
+            &resolve,
+            ["vs_scatter", "fs_scatter"],
+            &layouts[3],
             &[state(F::Rgba8Unorm), state(F::Rgba32Uint)],
         );
         AntialiasPasses {
             tile: base.tile_pipeline(gpu, "tile (anti-aliasing atlas)", "fs_tile_table"),
             edges,
             rays,
-            resolve,
+            mean,
+            scatter,
             layouts,
             params: dev.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("aa parameters"),
@@ -293,8 +309,8 @@ impl AntialiasPasses {
         colour: &wgpu::TextureView,
     ) -> AntialiasTargets {
         let centre_data = texture(gpu, "aa centre data", size, F::Rgba32Uint);
-        let centre_colour = texture(gpu, "aa centre colour", size, F::Rgba8Unorm);
-        let index = texture(gpu, "aa index", size, F::R32Uint);
+        let means = texture(gpu, "aa means", size, F::Rgba8Unorm);
+        let means_view = view_of(&means);
         let mask = texture(gpu, "aa mask", size, F::R8Uint);
         let pixels = texture(gpu, "aa marked pixels", size, F::R32Uint);
         let (data_v, mask_v) = (view_of(&centre_data), view_of(&mask));
@@ -307,6 +323,17 @@ impl AntialiasPasses {
                 view(3, &data_v),
             ],
         );
+        let pixels_view = view_of(&pixels);
+        let scatter_bg = self.group(
+            gpu,
+            3,
+            &[
+                super::util::buf(0, &self.params),
+                view(1, &pixels_view),
+                view(3, &data_v),
+                view(4, &means_view),
+            ],
+        );
         let mask_rb = gpu.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("aa mask readback"),
             size: u64::from(super::util::padded_row(size[0])) * u64::from(size[1]),
@@ -316,18 +343,15 @@ impl AntialiasPasses {
         AntialiasTargets {
             size,
             centre_data,
-            centre_data_view: data_v,
-            centre_colour_view: view_of(&centre_colour),
-            centre_colour,
-            index_view: view_of(&index),
-            index,
             centre_rays_view: ray_table.clone(),
             mask_view: mask_v,
             mask,
             mask_rb,
-            pixels_view: view_of(&pixels),
+            pixels_view,
             pixels,
+            means_view,
             edges_bg,
+            scatter_bg,
         }
     }
 
@@ -348,21 +372,11 @@ impl AntialiasPasses {
                 view(2, &t.pixels_view),
             ],
         );
-        let resolve_bg = self.group(
-            gpu,
-            2,
-            &[
-                params(),
-                view(1, &t.index_view),
-                view(2, &targets.colour_view),
-                view(3, &t.centre_data_view),
-                view(4, &t.centre_colour_view),
-            ],
-        );
+        let mean_bg = self.group(gpu, 2, &[params(), view(2, &targets.colour_view)]);
         Atlas {
             targets,
             rays_bg,
-            resolve_bg,
+            mean_bg,
         }
     }
 
@@ -389,16 +403,61 @@ impl AntialiasPasses {
         super::util::encode_fullscreen(enc, "aa rays", &self.rays, &a.rays_bg, &[out]);
     }
 
-    /// Records the resolve into the frame's colour and data targets.
+    /// Records the resolve of the batch's `count` marked pixels into the frame's colour and
+    /// data targets (their other pixels are kept): their means over the first rows of the
+    /// means target, then one point each.
     pub fn encode_resolve(
         &self,
         enc: &mut wgpu::CommandEncoder,
         a: &Atlas,
-        colour: &wgpu::TextureView,
-        data: &wgpu::TextureView,
+        t: &AntialiasTargets,
+        [colour, data]: [&wgpu::TextureView; 2],
+        count: u32,
     ) {
-        let out = [colour, data];
-        super::util::encode_fullscreen(enc, "aa resolve", &self.resolve, &a.resolve_bg, &out);
+        let attachment = |view, load| {
+            Some(wgpu::RenderPassColorAttachment {
+                view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load,
+                    store: wgpu::StoreOp::Store,
+                },
+            })
+        };
+        fn pass<'e>(
+            enc: &'e mut wgpu::CommandEncoder,
+            label: &str,
+            attachments: &[Option<wgpu::RenderPassColorAttachment>],
+        ) -> wgpu::RenderPass<'e> {
+            enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some(label),
+                color_attachments: attachments,
+                depth_stencil_attachment: None,
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            })
+        }
+        {
+            // Only the rows the batch fills are drawn (the rest is never read).
+            let rows = count.div_ceil(t.size[0]).max(1);
+            let clear = wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT);
+            let mut p = pass(enc, "aa means", &[attachment(&t.means_view, clear)]);
+            p.set_viewport(0.0, 0.0, t.size[0] as f32, rows as f32, 0.0, 1.0);
+            p.set_pipeline(&self.mean);
+            p.set_bind_group(0, &a.mean_bg, &[]);
+            p.draw(0..3, 0..1);
+        }
+        let load = wgpu::LoadOp::Load;
+        let mut p = pass(
+            enc,
+            "aa scatter",
+            &[attachment(colour, load), attachment(data, load)],
+        );
+        p.set_pipeline(&self.scatter);
+        p.set_bind_group(0, &t.scatter_bg, &[]);
+        p.draw(0..count, 0..1);
     }
 }
 
@@ -425,15 +484,9 @@ impl AntialiasTargets {
         Ok(out)
     }
 
-    /// Uploads the list of marked pixels (row by row in the screen's width) and each pixel's
-    /// place in it.
+    /// Uploads the list of marked pixels (row by row in the screen's width).
     pub fn write_pixels(&self, gpu: &Gpu, list: &[u32]) {
-        let [w, h] = self.size;
-        let mut index = vec![NONE; (w * h) as usize];
-        for (m, p) in list.iter().enumerate() {
-            index[((p >> 16) * w + (p & 0xffff)) as usize] = m as u32;
-        }
-        write_rows(gpu, &self.index, &index, w, h);
+        let w = self.size[0];
         let rows = (list.len() as u32).div_ceil(w);
         let mut data = list.to_vec();
         data.resize((rows * w) as usize, 0);

@@ -217,7 +217,46 @@ pub(crate) fn render_pipeline_in(
     targets: &[Option<wgpu::ColorTargetState>],
     depth_stencil: Option<wgpu::DepthStencilState>,
 ) -> wgpu::RenderPipeline {
-    let [vertex, entry] = entries;
+    let primitive = wgpu::PrimitiveState::default();
+    let stages = (m, entries);
+    pipeline_of(
+        dev,
+        label,
+        stages,
+        layout,
+        primitive,
+        targets,
+        depth_stencil,
+    )
+}
+
+/// A pipeline drawing points (one pixel each) whose vertex shader places them from the
+/// vertex index: entry points `entries` of module `m`, no vertex buffers, no depth.
+pub(crate) fn point_pipeline(
+    dev: &wgpu::Device,
+    label: &str,
+    m: &wgpu::ShaderModule,
+    entries: [&str; 2],
+    bgl: &wgpu::BindGroupLayout,
+    targets: &[Option<wgpu::ColorTargetState>],
+) -> wgpu::RenderPipeline {
+    let primitive = wgpu::PrimitiveState {
+        topology: wgpu::PrimitiveTopology::PointList,
+        ..Default::default()
+    };
+    let layout = pipeline_layout(dev, bgl);
+    pipeline_of(dev, label, (m, entries), &layout, primitive, targets, None)
+}
+
+fn pipeline_of(
+    dev: &wgpu::Device,
+    label: &str,
+    (m, [vertex, entry]): (&wgpu::ShaderModule, [&str; 2]),
+    layout: &wgpu::PipelineLayout,
+    primitive: wgpu::PrimitiveState,
+    targets: &[Option<wgpu::ColorTargetState>],
+    depth_stencil: Option<wgpu::DepthStencilState>,
+) -> wgpu::RenderPipeline {
     dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some(label),
         layout: Some(layout),
@@ -227,7 +266,7 @@ pub(crate) fn render_pipeline_in(
             compilation_options: Default::default(),
             buffers: &[],
         },
-        primitive: wgpu::PrimitiveState::default(),
+        primitive,
         depth_stencil,
         multisample: wgpu::MultisampleState::default(),
         fragment: Some(wgpu::FragmentState {

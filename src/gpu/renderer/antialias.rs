@@ -71,11 +71,13 @@ impl TerrainRenderer {
         };
         let (aa, at) = (&state.passes, state.targets.as_ref().expect("prepared"));
         let start = Instant::now();
+        // Timed frames (`--trace-passes`) log the split: edges and list, samples, resolve.
+        let mut laps = Laps::new(job.timed);
         copy_whole(&mut enc, &t.data, &at.centre_data);
-        copy_whole(&mut enc, &t.colour, &at.centre_colour);
         aa.encode_edges(&mut enc, at);
         gpu.queue.submit([enc.finish()]);
         let list = at.marked_pixels(gpu)?;
+        laps.lap(gpu, "edges and list")?;
         let marked = list.len() as u32;
         if marked > 0 {
             at.write_pixels(gpu, &list);
@@ -93,15 +95,13 @@ impl TerrainRenderer {
                 let count = batch.min(marked - first);
                 aa.write_params(gpu, at.size, aa_s, first, count);
                 let mut enc = gpu.device.create_command_encoder(&Default::default());
-                if first > 0 {
-                    // The resolve reads the centre copies: they take the earlier batches'.
-                    copy_whole(&mut enc, &t.data, &at.centre_data);
-                    copy_whole(&mut enc, &t.colour, &at.centre_colour);
-                }
                 self.encode_samples(job, prepared, atlas, b as u32, &mut enc)?;
-                aa.encode_resolve(&mut enc, atlas, &t.colour_view, &t.data_view);
+                laps.lap(gpu, "samples")?;
+                aa.encode_resolve(&mut enc, atlas, at, [&t.colour_view, &t.data_view], count);
                 gpu.queue.submit([enc.finish()]);
+                laps.lap(gpu, "resolve")?;
             }
+            laps.log(marked);
         }
         if job.timed {
             gpu.wait()?;
@@ -151,14 +151,69 @@ impl TerrainRenderer {
             };
             (full, shadows)
         });
-        let quiet = FrameJob {
-            timed: false,
+        // Timed (`--trace-passes`): every sub-pass on the atlas is waited for and logged.
+        let atlas_job = FrameJob {
             atlas: true,
             ..*job
         };
-        let mut scratch = PassTimes::default();
+        let mut times = PassTimes::default();
         aa.encode_rays(enc, atlas);
-        self.encode_primary(&quiet, enc, &mut scratch, at, rects.as_ref())?;
-        self.encode_shading(&quiet, enc, &mut scratch, at, prepared, rects.as_ref())
+        self.encode_primary(&atlas_job, enc, &mut times, at, rects.as_ref())?;
+        self.encode_shading(&atlas_job, enc, &mut times, at, prepared, rects.as_ref())?;
+        if job.timed {
+            log::info!(
+                "anti-aliasing atlas {}x{} batch {batch}: sample rays and tile {:.1} ms, cast {:.1} ms, free forms {:.1} ms, voxels {:.1} ms, voxel shadows {:.1} ms, shade {:.1} ms, volumes {:.1} ms",
+                at.width,
+                at.height,
+                times.tile_ms,
+                times.cast_ms,
+                times.objects_ms,
+                times.voxels_ms,
+                times.voxel_shadow_ms,
+                times.shade_ms,
+                times.volume_shadow_ms + times.volume_ms
+            );
+        }
+        Ok(())
+    }
+}
+
+/// Wall time of the anti-aliasing stages of a timed frame (`--trace-passes`), each waited for.
+struct Laps {
+    on: bool,
+    last: Instant,
+    laps: Vec<(&'static str, f64)>,
+}
+
+impl Laps {
+    fn new(on: bool) -> Laps {
+        Laps {
+            on,
+            last: Instant::now(),
+            laps: Vec::new(),
+        }
+    }
+
+    /// Waits for what was submitted and adds the time since the last lap to `stage`'s.
+    fn lap(&mut self, gpu: &crate::gpu::Gpu, stage: &'static str) -> Result<()> {
+        if self.on {
+            gpu.wait()?;
+            let ms = self.last.elapsed().as_secs_f64() * 1e3;
+            match self.laps.iter_mut().find(|(s, _)| *s == stage) {
+                Some((_, t)) => *t += ms,
+                None => self.laps.push((stage, ms)),
+            }
+            self.last = Instant::now();
+        }
+        Ok(())
+    }
+
+    fn log(&self, marked: u32) {
+        if self.on {
+            let laps: Vec<String> = (self.laps.iter())
+                .map(|(s, ms)| format!("{s} {ms:.1} ms"))
+                .collect();
+            log::info!("anti-aliasing, {marked} pixels: {}", laps.join(", "));
+        }
     }
 }

@@ -43,13 +43,28 @@ fn aa_offset(k: u32) -> vec2<f32> {
 // The atlas is made of 4x4 groups, each holding the n samples (4, 8 or 16) of 16 / n
 // consecutive marked pixels, so that a fragment block of the rasteriser casts the rays of
 // one or two pixels (coherent rays), and the groups follow the list row by row.
-fn aa_atlas_entry(m: u32, k: u32) -> vec2<i32> {
+struct AaEntries {
+    // The top-left entry of marked pixel m's group.
+    group: vec2<i32>,
+    // Its first sample's place in the group (row by row).
+    first: u32,
+}
+
+fn aa_entries(m: u32) -> AaEntries {
     let n = aa.size.w;
     let per = 16u / n;
     let groups = aa.atlas.x / 4u;
     let g = m / per;
-    let e = (m % per) * n + k;
-    return vec2<i32>(i32((g % groups) * 4u + e % 4u), i32((g / groups) * 4u + e / 4u));
+    var e: AaEntries;
+    e.group = vec2<i32>(i32((g % groups) * 4u), i32((g / groups) * 4u));
+    e.first = (m % per) * n;
+    return e;
+}
+
+// Sample k's entry of the pixel whose entries are `e`.
+fn aa_entry(e: AaEntries, k: u32) -> vec2<i32> {
+    let i = e.first + k;
+    return e.group + vec2<i32>(i32(i & 3u), i32(i >> 2u));
 }
 
 // The marked pixel m (x) and sample k (y) of atlas entry `a`.

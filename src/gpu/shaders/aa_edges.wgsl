@@ -29,18 +29,12 @@ fn contrast(a: vec3<f32>, b: vec3<f32>) -> f32 {
     return max(d.x, max(d.y, d.z));
 }
 
-// The kink of 1/distance across `px` along `axis`, relative (0 where the three pixels do not
-// show one surface).
-fn kink(px: vec2<i32>, axis: vec2<i32>, d0: vec4<u32>) -> f32 {
-    let a = px - axis;
-    let b = px + axis;
-    if (!aa_inside(a) || !aa_inside(b)) {
-        return 0.0;
-    }
-    let da = textureLoad(centre_data, a, 0);
-    let db = textureLoad(centre_data, b, 0);
+// The kink of 1/distance across a pixel from its neighbours on either side `da` and `db`
+// along one axis, relative (0 where the three pixels do not show one surface or a neighbour
+// lies off the screen: `inside`).
+fn kink(d0: vec4<u32>, da: vec4<u32>, db: vec4<u32>, inside: bool) -> f32 {
     let k = surface_key(d0);
-    if ((d0.w & 1u) == 0u || surface_key(da) != k || surface_key(db) != k) {
+    if (!inside || (d0.w & 1u) == 0u || surface_key(da) != k || surface_key(db) != k) {
         return 0.0;
     }
     let w0 = inverse_depth(d0);
@@ -62,11 +56,17 @@ fn fs_edges(@builtin(position) pos: vec4<f32>) -> @location(0) u32 {
     let threshold = aa.limits.x;
     var mark = false;
     var seen = 0.0;
+    // Right, left, down, up: each neighbour's data is loaded once (the kinks use them too).
     let ring = array<vec2<i32>, 4>(vec2<i32>(1, 0), vec2<i32>(-1, 0), vec2<i32>(0, 1), vec2<i32>(0, -1));
+    var d: array<vec4<u32>, 4>;
+    var inside: array<bool, 4>;
     for (var k = 0; k < 4; k += 1) {
         let q = px + ring[k];
-        if (aa_inside(q)) {
+        inside[k] = aa_inside(q);
+        d[k] = d0;
+        if (inside[k]) {
             let dq = textureLoad(centre_data, q, 0);
+            d[k] = dq;
             if (has_screen(dq)) {
                 let c = contrast(c0, textureLoad(centre_colour, q, 0).xyz);
                 seen = max(seen, c);
@@ -75,7 +75,7 @@ fn fs_edges(@builtin(position) pos: vec4<f32>) -> @location(0) u32 {
             }
         }
     }
-    let crease = max(kink(px, vec2<i32>(1, 0), d0), kink(px, vec2<i32>(0, 1), d0));
+    let crease = max(kink(d0, d[1], d[0], inside[0] && inside[1]), kink(d0, d[3], d[2], inside[2] && inside[3]));
     // Flag 64: the centre ray passed within its cone of terrain it missed (a ridge or spike
     // thinner than the pixel): marked whatever the colours say.
     let near = (d0.w & 64u) != 0u;
