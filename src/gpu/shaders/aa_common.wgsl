@@ -42,7 +42,24 @@ fn aa_offset(k: u32) -> vec2<f32> {
 
 // The atlas is made of 4x4 groups, each holding the n samples (4, 8 or 16) of 16 / n
 // consecutive marked pixels, so that a fragment block of the rasteriser casts the rays of
-// one or two pixels (coherent rays), and the groups follow the list row by row.
+// one or two pixels (coherent rays). The groups fill 16x16 bins (a free-form bin; 2x2 tiles
+// of the tile pre-pass) of 4x4 groups row by row, and the bins fill the atlas row by row, so
+// that a bin or a tile holds consecutive marked pixels of the list, close on the screen: its
+// rays' bounds stay tight.
+fn aa_group_origin(g: u32) -> vec2<u32> {
+    let bins = aa.atlas.x / 16u;
+    let b = g / 16u;
+    let i = g % 16u;
+    return vec2<u32>(((b % bins) * 4u + (i & 3u)) * 4u, ((b / bins) * 4u + (i >> 2u)) * 4u);
+}
+
+// The group of atlas entry `a` (the inverse of `aa_group_origin`).
+fn aa_atlas_group(a: vec2<u32>) -> u32 {
+    let bins = aa.atlas.x / 16u;
+    let b = (a.y / 16u) * bins + a.x / 16u;
+    return b * 16u + ((a.y / 4u) & 3u) * 4u + ((a.x / 4u) & 3u);
+}
+
 struct AaEntries {
     // The top-left entry of marked pixel m's group.
     group: vec2<i32>,
@@ -51,13 +68,10 @@ struct AaEntries {
 }
 
 fn aa_entries(m: u32) -> AaEntries {
-    let n = aa.size.w;
-    let per = 16u / n;
-    let groups = aa.atlas.x / 4u;
-    let g = m / per;
+    let per = 16u / aa.size.w;
     var e: AaEntries;
-    e.group = vec2<i32>(i32((g % groups) * 4u), i32((g / groups) * 4u));
-    e.first = (m % per) * n;
+    e.group = vec2<i32>(aa_group_origin(m / per));
+    e.first = (m % per) * aa.size.w;
     return e;
 }
 
@@ -70,9 +84,8 @@ fn aa_entry(e: AaEntries, k: u32) -> vec2<i32> {
 // The marked pixel m (x) and sample k (y) of atlas entry `a`.
 fn aa_atlas_sample(a: vec2<u32>) -> vec2<u32> {
     let n = aa.size.w;
-    let g = (a.y / 4u) * (aa.atlas.x / 4u) + a.x / 4u;
     let e = (a.y % 4u) * 4u + a.x % 4u;
-    return vec2<u32>(g * (16u / n) + e / n, e % n);
+    return vec2<u32>(aa_atlas_group(a) * (16u / n) + e / n, e % n);
 }
 
 // The linear colour of an 8-bit sRGB texel `c` (0..1, as loaded from an Rgba8Unorm target).
