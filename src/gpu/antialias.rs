@@ -135,7 +135,8 @@ pub(crate) struct AntialiasPasses {
     params: wgpu::Buffer,
 }
 
-/// Rows of the atlas come in multiples of this (fewer new atlases as the list changes).
+/// Rows of the atlas come in multiples of this (fewer new atlases as the list changes; a
+/// multiple of its 16-entry bins).
 const ATLAS_ROWS: u32 = 32;
 
 /// The atlas's width for a `width` frame: a multiple of 16 (its 4x4 groups, the free-form
@@ -440,10 +441,13 @@ impl AntialiasPasses {
             })
         }
         {
-            // Only the rows the batch fills are drawn (the rest is never read).
+            // Only the rows the batch fills are drawn, and the scatter reads only the texels
+            // of the batch's pixels, which lie in them.
             let rows = count.div_ceil(t.size[0]).max(1);
-            let clear = wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT);
-            let mut p = pass(enc, "aa means", &[attachment(&t.means_view, clear)]);
+            // SAFETY: every texel that is read is written by this pass first (above); a clear
+            // of the whole target would cost Mesa's CPU adapters a pass of its own.
+            let any = wgpu::LoadOp::DontCare(unsafe { wgpu::LoadOpDontCare::enabled() });
+            let mut p = pass(enc, "aa means", &[attachment(&t.means_view, any)]);
             p.set_viewport(0.0, 0.0, t.size[0] as f32, rows as f32, 0.0, 1.0);
             p.set_pipeline(&self.mean);
             p.set_bind_group(0, &a.mean_bg, &[]);
@@ -506,11 +510,12 @@ impl AntialiasTargets {
     }
 
     /// The atlas size for a batch of `marked` pixels with `aa`'s samples: [`atlas_width`],
-    /// rows of 4x4 groups (16 / n pixels each) in multiples of [`ATLAS_ROWS`].
+    /// rows of 16x16 bins (16 groups of 4x4 entries, 16 / n pixels each: a row of bins holds
+    /// `w` groups) in multiples of [`ATLAS_ROWS`].
     pub fn atlas_size(&self, marked: u32, aa: Antialias) -> [u32; 2] {
         let w = atlas_width(self.size[0]);
         let groups = marked.div_ceil(16 / samples(aa));
-        let rows = groups.div_ceil(w / 4) * 4;
+        let rows = groups.div_ceil(w) * 16;
         [
             w,
             (rows.div_ceil(ATLAS_ROWS).max(1) * ATLAS_ROWS).min(self.max_rows()),

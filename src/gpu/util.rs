@@ -218,11 +218,10 @@ pub(crate) fn render_pipeline_in(
     depth_stencil: Option<wgpu::DepthStencilState>,
 ) -> wgpu::RenderPipeline {
     let primitive = wgpu::PrimitiveState::default();
-    let stages = (m, entries);
     pipeline_of(
         dev,
         label,
-        stages,
+        (m, entries),
         layout,
         primitive,
         targets,
