@@ -425,28 +425,36 @@ fn a_minified_drape_is_its_mean_in_linear_light() {
 
 /// What a thin feature's test measures: the feature's pixels (where the 16-ray reference
 /// differs from one ray a pixel by 8 levels or more, in the given columns of a 160x90 frame),
-/// their error sums with one ray and with `"edges"`, how many `"edges"` flagged as near misses,
-/// and the free-form pixels of the one-ray frame.
+/// their error sums with one ray and with `"edges"`, how many `"edges"` flagged as near misses
+/// (and how many away from the feature), and the object pixels (free forms, voxel models) of
+/// the one-ray frame.
 struct ThinFeature {
     pixels: usize,
     off_err: u64,
     edges_err: u64,
     near: usize,
+    /// Pixels flagged as near misses more than two columns away from `columns`.
+    near_elsewhere: usize,
     object_pixels: usize,
 }
 
-/// Renders `scene` (160x90, over the 65x65 PNG heightfield `field` written beside it) with one
-/// ray a pixel, `"edges"` and the reference, and measures the feature in `columns`.
+/// Renders `scene` (160x90, over the 65x65 PNG heightfield `field` and the `files` written
+/// beside it) with one ray a pixel, `"edges"` and the reference, and measures the feature in
+/// `columns`.
 fn thin_feature(
     name: &str,
     field: &image::ImageBuffer<image::Luma<u16>, Vec<u16>>,
     png: &str,
+    files: &[(&str, Vec<u8>)],
     scene: &str,
     columns: std::ops::Range<usize>,
 ) -> ThinFeature {
     let dir = std::env::temp_dir().join(format!("relief-aa-{name}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     field.save(dir.join(png)).unwrap();
+    for (file, bytes) in files {
+        std::fs::write(dir.join(file), bytes).unwrap();
+    }
     let path = dir.join("scene.toml");
     std::fs::write(&path, scene).unwrap();
     let job = render_job(&[path.to_str().unwrap()]).unwrap();
@@ -468,7 +476,14 @@ fn thin_feature(
         off_err: 0,
         edges_err: 0,
         near: 0,
-        object_pixels: off.objects.iter().filter(|&&o| o != 0).count(),
+        near_elsewhere: (0..edges.flags.len())
+            .filter(|&k| edges.flags[k] & 64 != 0)
+            .filter(|&k| k % 160 + 2 < columns.start || k % 160 >= columns.end + 2)
+            .count(),
+        // Free-form ids, or voxel-model hits (flag 32).
+        object_pixels: (0..off.objects.len())
+            .filter(|&k| off.objects[k] != 0 || off.flags[k] & 32 != 0)
+            .count(),
     };
     for j in 0..90 {
         for i in columns.clone() {
@@ -484,8 +499,8 @@ fn thin_feature(
         }
     }
     eprintln!(
-        "{name}: {} centre-ray free-form pixels; {} pixels the centre rays miss; error sum {} -> {}; {} flagged as near misses",
-        t.object_pixels, t.pixels, t.off_err, t.edges_err, t.near
+        "{name}: {} centre-ray object pixels; {} pixels the centre rays miss; error sum {} -> {}; {} flagged as near misses, {} elsewhere",
+        t.object_pixels, t.pixels, t.off_err, t.edges_err, t.near, t.near_elsewhere
     );
     let _ = std::fs::remove_dir_all(&dir);
     t
@@ -507,6 +522,7 @@ fn a_needle_no_centre_ray_hits_is_found_through_the_pixel_cone() {
         "needle",
         &field,
         "spike.png",
+        &[],
         "[terrain]\nsource = \"spike.png\"\ncell_size = [10.0, 10.0]\npng_scale = 0.5\n\
          [render]\nshadows = false\n\
          [camera]\nposition = [320.0, -4000.0, 200.0]\nheading = 0.0\npitch = 2.0\nfov = 40.0\n\
@@ -518,6 +534,7 @@ fn a_needle_no_centre_ray_hits_is_found_through_the_pixel_cone() {
         "the needle is there in the reference and missed by one ray"
     );
     assert!(t.near > 0, "near misses found");
+    assert_eq!(t.near_elsewhere, 0, "near misses flagged away from the feature");
     assert!(t.edges_err * 4 <= t.off_err, "found through the pixel cone");
 }
 
@@ -536,6 +553,7 @@ fn a_mast_no_centre_ray_hits_is_found_through_the_pixel_cone() {
         "mast",
         &field,
         "flat.png",
+        &[],
         "[terrain]\nsource = \"flat.png\"\ncell_size = [10.0, 10.0]\n\
          [render]\nshadows = false\n\
          [camera]\nposition = [320.0, -1000.0, 40.0]\nheading = 0.0\npitch = 0.0\nfov = 40.0\n\
@@ -553,5 +571,51 @@ fn a_mast_no_centre_ray_hits_is_found_through_the_pixel_cone() {
         "the mast is there in the reference and missed by one ray"
     );
     assert!(t.near > 0, "near misses found");
+    assert_eq!(t.near_elsewhere, 0, "near misses flagged away from the feature");
+    assert!(t.edges_err * 4 <= t.off_err, "found through the pixel cone");
+}
+
+/// The same mast as a voxel model (one column of 100 voxels of 1.2 m): no centre ray hits it,
+/// and the centre rays' near misses of voxel models (`vox_near_miss`: the pixel wider than a
+/// voxel, the ray within the cone's reach of the model's box) find it.
+#[test]
+fn a_voxel_mast_no_centre_ray_hits_is_found_through_the_pixel_cone() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let _lock = common::gpu_lock();
+    let voxels = (0..100)
+        .map(|z| relief::voxel::Voxel {
+            pos: [0, 0, z],
+            index: 1,
+        })
+        .collect();
+    let mut palette = vec![[0, 0, 0, 255]; 256];
+    palette[1] = [230, 26, 26, 255];
+    let mast = relief::voxel::VoxelModel::new("mast", [1, 1, 100], palette, voxels).unwrap();
+    let field = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::new(65, 65);
+    let t = thin_feature(
+        "voxel-mast",
+        &field,
+        "flat.png",
+        &[("mast.rvs", relief::voxel::segment::encode(&mast))],
+        "[terrain]\nsource = \"flat.png\"\ncell_size = [10.0, 10.0]\n\
+         [render]\nshadows = false\n\
+         [camera]\nposition = [320.0, -1000.0, 40.0]\nheading = 0.0\npitch = 0.0\nfov = 40.0\n\
+         [output]\nwidth = 160\nheight = 90\n\
+         [[voxels]]\nname = \"mast\"\nfile = \"mast.rvs\"\nposition = [320.0, 0.0, 0.0]\n\
+         voxel_size = 1.2\n",
+        77..83,
+    );
+    assert_eq!(
+        t.object_pixels, 0,
+        "the mast must lie between the centre rays"
+    );
+    assert!(
+        t.pixels >= 10,
+        "the mast is there in the reference and missed by one ray"
+    );
+    assert!(t.near > 0, "near misses found");
+    assert_eq!(t.near_elsewhere, 0, "near misses flagged away from the feature");
     assert!(t.edges_err * 4 <= t.off_err, "found through the pixel cone");
 }

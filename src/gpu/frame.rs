@@ -98,7 +98,8 @@ pub struct FrameOutput {
     pub shadow_steps: Vec<u32>,
     /// Flags per pixel: 1 hit, 2 in shadow, 4 step limit reached, 16 free form, 32 voxel model,
     /// 128 anti-aliased (sub-pixel rays cast; the other outputs are the centre ray's), 64 (with
-    /// anti-aliasing, terrain and sky) the centre ray passed within its cone of a thin feature.
+    /// anti-aliasing, on terrain, free forms and sky) the centre ray passed within its cone of a
+    /// thin feature (terrain, a plain free form, a voxel model).
     pub flags: Vec<u32>,
     /// Free-form index + 1 per pixel (0 where no free form shows).
     pub objects: Vec<u32>,

@@ -130,9 +130,18 @@ pub struct VoxInstanceGpu {
     pub dims: [u32; 4],
     /// Brick grid size; w = palette offset of the shown frame.
     pub bdims: [u32; 4],
+    /// Bounding boxes (voxel units) of the occupied voxels in the model's z slabs
+    /// (`cpu::voxel::cover_boxes`, at most [`VOX_SLABS`]), for anti-aliasing's near misses:
+    /// lower corners, w = 1 where the slab holds voxels, 0 for an unused slot.
+    pub slab_lo: [[f32; 4]; VOX_SLABS],
+    /// Upper corners of the same boxes.
+    pub slab_hi: [[f32; 4]; VOX_SLABS],
 }
 
-const _: () = assert!(std::mem::size_of::<VoxInstanceGpu>() == 96);
+/// Slab boxes in a `VoxInstanceGpu` (WGSL `VOX_SLABS`).
+pub const VOX_SLABS: usize = crate::cpu::voxel::COVER_SLABS as usize;
+
+const _: () = assert!(std::mem::size_of::<VoxInstanceGpu>() == 96 + 32 * VOX_SLABS);
 
 /// Mirrors WGSL `VoxDraw` in `shaders/voxels.wgsl`: the instances one rectangle of a voxel
 /// pass runs, bound by dynamic offset. `mask[0] | mask[1] << 32`: bit k = instance k;

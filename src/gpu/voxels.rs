@@ -9,7 +9,7 @@
 //! models its mask names (a record per rectangle in `draws`, bound by dynamic offset), a
 //! rectangle of one model by the `_one` entry points.
 
-use super::types::{VoxDrawGpu, VoxInstanceGpu};
+use super::types::{VoxDrawGpu, VoxInstanceGpu, VOX_SLABS};
 use super::util::{
     buf, check_buffer_limit, fullscreen_pipeline_with, screen_texture, storage_entry, target_state,
     uint_texture_entry, uniform_entry, view,
@@ -348,8 +348,15 @@ impl VoxelPasses {
             .instances
             .iter()
             .zip(&self.frames)
-            .map(|(inst, refs)| {
+            .zip(&self.cover)
+            .map(|((inst, refs), cover)| {
                 let f = refs[inst.frame_at(time)];
+                let mut slab_lo = [[0.0; 4]; VOX_SLABS];
+                let mut slab_hi = [[0.0; 4]; VOX_SLABS];
+                for (k, b) in cover.iter().take(VOX_SLABS).enumerate() {
+                    let corner = |p: glam::DVec3| [p.x as f32, p.y as f32, p.z as f32, 1.0];
+                    (slab_lo[k], slab_hi[k]) = (corner(b[0]), corner(b[1]));
+                }
                 let m = inst.rotation.transpose() / inst.voxel_size;
                 let row = |v: glam::DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0];
                 let e = inst.to_local(eye);
@@ -364,6 +371,8 @@ impl VoxelPasses {
                         d[2].div_ceil(crate::voxel::BRICK),
                         f.palette,
                     ],
+                    slab_lo,
+                    slab_hi,
                 }
             })
             .collect();

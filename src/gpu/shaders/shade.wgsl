@@ -267,9 +267,10 @@ fn shade_surface(px: vec2<u32>, g: vec4<u32>, dir_w: vec3<f32>, dl: vec3<f32>) -
         lit *= textureLoad(volume_sun, vec2<i32>(px), 0).x;
     }
     // Flag 64 (blocked by a voxel model, set by the voxel shadow pass) is folded into 2; on
-    // terrain it then says the cast's near miss (G-buffer bit 31, anti-aliased frames).
+    // terrain and free forms it then says a cast's near miss (G-buffer bit 31, anti-aliased
+    // frames: the terrain's, or a voxel model's in front; a voxel hit keeps its steps there).
     flags &= 0xbfu;
-    if (!is_object && !is_voxel && (g.w >> 31u) != 0u) {
+    if (!is_voxel && (g.w >> 31u) != 0u) {
         flags |= 64u;
     }
     var c: vec3<f32>;

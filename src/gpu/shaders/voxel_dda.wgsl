@@ -16,7 +16,15 @@ struct VoxInstance {
     dims: vec4<u32>,
     // Brick grid size; w = offset of the frame's palette in `vox_palette`.
     bdims: vec4<u32>,
+    // Bounding boxes (voxel units) of the occupied voxels in the model's z slabs, for
+    // anti-aliasing's near misses (`vox_near_miss`): lower corners, w = 1 for a slab in use;
+    // upper corners.
+    slab_lo: array<vec4<f32>, VOX_SLABS>,
+    slab_hi: array<vec4<f32>, VOX_SLABS>,
 }
+
+// Slab boxes of a `VoxInstance` (`gpu::types::VOX_SLABS`).
+const VOX_SLABS: u32 = 4u;
 
 // `vox_instances` (binding 10, a uniform array of the scene's records: one gather per load
 // on Mesa's CPU adapters, not a loop over the lanes as from a storage buffer) is declared
@@ -40,6 +48,9 @@ const VOX_BRICK: i32 = 8;
 // Words of one octant's voxel codes in a brick's block (`gpu::voxels::CODE_WORDS`).
 const VOX_CODE_WORDS: u32 = 64u;
 const VOX_MAX_STEPS: u32 = 4096u;
+// An empty brick whose gap is at most this (a voxel lies within that many voxels of it,
+// towards the ray's octant) counts as `VoxTrace::touched`.
+const VOX_TOUCH_GAP: u32 = 2u;
 // Offset (voxels) a shadow ray leaves a voxel face by (`cpu::voxel::SHADOW_OFFSET_VOXELS`).
 const VOX_SHADOW_OFFSET: f32 = 0.01;
 
@@ -50,6 +61,9 @@ struct VoxTrace {
     axis: u32,
     index: u32,
     steps: u32,
+    // Whether the ray entered an occupied brick or crossed an empty one with a voxel within
+    // VOX_TOUCH_GAP voxels ahead (anti-aliasing's near misses, `vox_near_miss`).
+    touched: bool,
 }
 
 fn vox_dir(inst: VoxInstance, d: vec3<f32>) -> vec3<f32> {
@@ -87,6 +101,7 @@ fn vox_dda(inst: VoxInstance, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32
     var r: VoxTrace;
     r.hit = false;
     r.steps = 0u;
+    r.touched = false;
     let iv = vec3<f32>(vox_inv(d.x), vox_inv(d.y), vox_inv(d.z));
     let ta = -o * iv;
     let tb = (vec3<f32>(inst.dims.xyz) - o) * iv;
@@ -138,6 +153,7 @@ fn vox_dda(inst: VoxInstance, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32
         // An occupied brick is entered without moving: its cube is the brick itself and the
         // next cell is the voxel at the current point, clamped into it.
         let enter = !fine && (w & VOX_EMPTY_BIT) == 0u;
+        r.touched = r.touched || enter || (!fine && (w & VOX_EMPTY_BIT) != 0u && (w & 0xffffu) <= VOX_TOUCH_GAP);
         // A box of voxels [lo, hi) holding the current cell, known to be empty, grown from the
         // cell towards the ray's octant: an empty brick by its gap; the brick being entered
         // not at all; a voxel to the empty cube at its corner.
