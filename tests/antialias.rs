@@ -575,6 +575,44 @@ fn a_mast_no_centre_ray_hits_is_found_through_the_pixel_cone() {
     assert!(t.edges_err * 4 <= t.off_err, "found through the pixel cone");
 }
 
+/// The same mast as a perturbed free form (a slight bulge halfway up makes it one: the
+/// enclosure search, not the closed form): the near-miss search of perturbed objects
+/// (`ff_intersect` with a reach) finds it.
+#[test]
+fn a_perturbed_mast_no_centre_ray_hits_is_found_through_the_pixel_cone() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let _lock = common::gpu_lock();
+    let field = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::new(65, 65);
+    let t = thin_feature(
+        "perturbed-mast",
+        &field,
+        "flat.png",
+        &[],
+        "[terrain]\nsource = \"flat.png\"\ncell_size = [10.0, 10.0]\n\
+         [render]\nshadows = false\n\
+         [camera]\nposition = [320.0, -1000.0, 40.0]\nheading = 0.0\npitch = 0.0\nfov = 40.0\n\
+         [output]\nwidth = 160\nheight = 90\n\
+         [[objects]]\nshape = \"cylinder\"\nradius = 0.6\nheight = 120.0\n\
+         position = [320.0, 0.0, 0.0]\nmaterial = { colour = [0.9, 0.1, 0.1] }\n\
+         [[objects.perturb]]\nshape = \"sphere\"\nradius = 1.0\ncentre = [0.0, 0.0, 60.0]\n\
+         weight = -0.2\n",
+        77..83,
+    );
+    assert_eq!(
+        t.object_pixels, 0,
+        "the mast must lie between the centre rays"
+    );
+    assert!(
+        t.pixels >= 10,
+        "the mast is there in the reference and missed by one ray"
+    );
+    assert!(t.near > 0, "near misses found");
+    assert_eq!(t.near_elsewhere, 0, "near misses flagged away from the feature");
+    assert!(t.edges_err * 4 <= t.off_err, "found through the pixel cone");
+}
+
 /// The same mast as a voxel model (one column of 100 voxels of 1.2 m): no centre ray hits it,
 /// and the centre rays' near misses of voxel models (`vox_near_miss`: the pixel wider than a
 /// voxel, the ray within the cone's reach of the model's box) find it.

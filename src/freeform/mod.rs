@@ -21,6 +21,37 @@ pub const MAX_NODES: usize = 16;
 pub const MAX_OBJECTS: usize = 65_535;
 /// Deepest perturbation nesting: the base is depth 0, its perturbations depth 1, ...
 pub const MAX_DEPTH: u32 = 3;
+/// Most cells [`FreeForm::gradient_bound`] bounds one by one.
+const GRADIENT_CELLS: usize = 4096;
+/// [`FreeForm::gradient_bound`] stops when its bound is within this factor of a gradient found.
+const GRADIENT_SLACK: f64 = 1.5;
+
+/// A box of [`FreeForm::gradient_bound`]'s search, ordered by its bound.
+struct Cell {
+    bound: f64,
+    lo: DVec3,
+    hi: DVec3,
+}
+
+impl PartialEq for Cell {
+    fn eq(&self, o: &Cell) -> bool {
+        self.bound.total_cmp(&o.bound).is_eq()
+    }
+}
+
+impl Eq for Cell {}
+
+impl PartialOrd for Cell {
+    fn partial_cmp(&self, o: &Cell) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(o))
+    }
+}
+
+impl Ord for Cell {
+    fn cmp(&self, o: &Cell) -> std::cmp::Ordering {
+        self.bound.total_cmp(&o.bound)
+    }
+}
 
 /// A quadric `Ax²+By²+Cz²+Dxy+Exz+Fyz+Gx+Hy+Iz+K`; coefficients in that order.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -86,6 +117,32 @@ impl Quadric {
         let g = g1 - 2.0 * (m * c);
         let k = c.dot(m * c) - g1.dot(c) + k0;
         Quadric::from_parts(m, g, k)
+    }
+
+    /// Enclosures of the value and of each gradient component over the box `[lo, hi]`, in
+    /// centred form around its centre `c` (`δ` within the half-extents `h`): `Q(c + δ) =
+    /// Q(c) + Σ (∂ᵢQ(c) δᵢ + Mᵢᵢ δᵢ²) + Σ 2Mᵢⱼ δᵢ δⱼ`, each axis's quadratic exact on its
+    /// interval (so the value range is exact for a quadric without cross terms), each cross
+    /// term bounded by `|2Mᵢⱼ| hᵢ hⱼ`; each gradient component `∇Q(c) + 2Mδ` is linear, so
+    /// its range is exact.
+    pub fn box_ranges(&self, lo: DVec3, hi: DVec3) -> (Interval, [Interval; 3]) {
+        let (m, _, _) = self.parts();
+        let (c, h) = (0.5 * (lo + hi), 0.5 * (hi - lo));
+        let g = self.grad(c);
+        let mut value = Interval::point(self.eval(c));
+        for i in 0..3 {
+            let (a, b) = quadratic_range([m.col(i)[i], g[i], 0.0], -h[i], h[i]);
+            value = value + Interval::new(a, b);
+            for j in i + 1..3 {
+                let r = 2.0 * (m.col(j)[i] * h[i] * h[j]).abs();
+                value = value + Interval::new(-r, r);
+            }
+        }
+        let grad = [0, 1, 2].map(|k| {
+            let r = 2.0 * (0..3).map(|j| (m.col(j)[k] * h[j]).abs()).sum::<f64>();
+            Interval::new(g[k] - r, g[k] + r)
+        });
+        (value, grad)
     }
 
     /// `-Q`.
@@ -247,6 +304,67 @@ impl FreeForm {
         minors.iter().all(|&m| m >= -1e-9)
     }
 
+    /// A bound on `|∇F'|` over the bounding box widened by `margin` each way (object frame):
+    /// per node, enclosures of `Q'` and a bound on `|∇Q'|` from its quadric's
+    /// ([`Quadric::box_ranges`]) plus its children's, each child adding `w·max(Q',0)²`,
+    /// whose gradient `2·w·max(Q',0)·∇Q'` is at most `2·|w|·max(Q'.hi, 0)·|∇Q'|`.
+    /// Anti-aliasing's near misses of perturbed objects use it: a point within `r` of the
+    /// solid has `F' <= bound · r` (the segment to the solid lies in the widened box while
+    /// `r <= margin`).
+    pub fn gradient_bound(&self, margin: f64) -> f64 {
+        // Branch and bound: the cell with the largest bound is halved along its longest side
+        // (an enclosure over a smaller box is tighter, and a perturbation is zero on the cells
+        // it does not reach) until that bound is within GRADIENT_SLACK of the largest |∇F'|
+        // found at a cell centre, or GRADIENT_CELLS cells were made. The largest bound left
+        // bounds every cell.
+        let bounded = |lo: DVec3, hi: DVec3| Cell {
+            bound: self.cell_gradient_bound(lo, hi),
+            lo,
+            hi,
+        };
+        let (lo, hi) = (self.bounds[0] - margin, self.bounds[1] + margin);
+        let mut found = self.value_grad(0.5 * (lo + hi)).1.length();
+        let mut cells = std::collections::BinaryHeap::from([bounded(lo, hi)]);
+        for _ in 0..GRADIENT_CELLS / 2 {
+            let top = cells.pop().expect("a cell is pushed back for each popped");
+            // A NaN bound (a degenerate object) stops too: the search only makes it NaN again.
+            if top.bound <= GRADIENT_SLACK * found || top.bound.is_nan() {
+                return top.bound;
+            }
+            let axis = (top.hi - top.lo).max_position();
+            let mut mid = top.hi;
+            mid[axis] = 0.5 * (top.lo[axis] + top.hi[axis]);
+            let mut start = top.lo;
+            start[axis] = mid[axis];
+            for (a, b) in [(top.lo, mid), (start, top.hi)] {
+                found = found.max(self.value_grad(0.5 * (a + b)).1.length());
+                cells.push(bounded(a, b));
+            }
+        }
+        cells.peek().map_or(f64::INFINITY, |c| c.bound)
+    }
+
+    /// [`Self::gradient_bound`] over one box `[lo, hi]`.
+    fn cell_gradient_bound(&self, lo: DVec3, hi: DVec3) -> f64 {
+        // Per depth: the children's summed value enclosure and gradient bound.
+        let mut acc = [(Interval::point(0.0), 0.0); MAX_DEPTH as usize + 2];
+        for n in self.nodes.iter().rev() {
+            let d = n.depth as usize;
+            let (cv, cg) = std::mem::replace(&mut acc[d + 1], (Interval::point(0.0), 0.0));
+            let (v, g) = n.q.box_ranges(lo, hi);
+            let v = v + cv;
+            let g = g.map(|c| c.magnitude()).iter().map(|m| m * m).sum::<f64>().sqrt() + cg;
+            if d == 0 {
+                return g;
+            }
+            let top = v.hi.max(0.0);
+            let r = Interval::new(v.lo.max(0.0).powi(2), top * top).scale(n.weight);
+            acc[d].0 = acc[d].0 + r;
+            acc[d].1 += 2.0 * n.weight.abs() * top * g;
+        }
+        unreachable!("node 0 is the base quadric at depth 0")
+    }
+
     /// Half the bounding-box diagonal: the object's size scale.
     pub fn size(&self) -> f64 {
         0.5 * (self.bounds[1] - self.bounds[0]).length()
@@ -267,4 +385,66 @@ pub fn quadratic_range(c: [f64; 3], a: f64, b: f64) -> (f64, f64) {
         }
     }
     (lo, hi)
+}
+
+/// A closed interval `[lo, hi]` of reals, for enclosures over boxes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Interval {
+    pub lo: f64,
+    pub hi: f64,
+}
+
+impl Interval {
+    /// `[min(a, b), max(a, b)]`.
+    pub fn new(a: f64, b: f64) -> Interval {
+        Interval {
+            lo: a.min(b),
+            hi: a.max(b),
+        }
+    }
+
+    pub fn point(v: f64) -> Interval {
+        Interval { lo: v, hi: v }
+    }
+
+    /// `{v·s}`.
+    pub fn scale(self, s: f64) -> Interval {
+        Interval::new(self.lo * s, self.hi * s)
+    }
+
+    /// `{v²}`, exact (0 where the interval holds it).
+    pub fn square(self) -> Interval {
+        let (a, b) = (self.lo * self.lo, self.hi * self.hi);
+        if self.lo <= 0.0 && self.hi >= 0.0 {
+            Interval { lo: 0.0, hi: a.max(b) }
+        } else {
+            Interval::new(a, b)
+        }
+    }
+
+    /// The largest `|v|`.
+    pub fn magnitude(self) -> f64 {
+        self.lo.abs().max(self.hi.abs())
+    }
+}
+
+impl std::ops::Add for Interval {
+    type Output = Interval;
+    fn add(self, o: Interval) -> Interval {
+        Interval {
+            lo: self.lo + o.lo,
+            hi: self.hi + o.hi,
+        }
+    }
+}
+
+impl std::ops::Mul for Interval {
+    type Output = Interval;
+    fn mul(self, o: Interval) -> Interval {
+        let p = [self.lo * o.lo, self.lo * o.hi, self.hi * o.lo, self.hi * o.hi];
+        Interval {
+            lo: p.iter().copied().fold(f64::INFINITY, f64::min),
+            hi: p.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        }
+    }
 }

@@ -22,6 +22,9 @@ const OBJECT_FIX: &str = "use fewer or simpler free forms";
 /// Bin side in pixels (WGSL `FF_BIN` in `ff_consts.wgsl`, checked at compile time).
 pub const BIN: u32 = 16;
 const _: () = assert!(wgsl_u32(shaders::FF_CONSTS, "FF_BIN") == BIN);
+/// Margin, as a fraction of an object's half-diagonal, that the gradient bound of the
+/// near-miss search holds for (`FfObjectGpu::local_from_world[1][3]`).
+pub const NEAR_MARGIN: f64 = 0.25;
 /// Object indices stored per bin and list; a fuller bin falls back to testing every object.
 pub const BIN_CAPACITY: u32 = 255;
 
@@ -31,7 +34,7 @@ pub fn pack(objects: &[FreeForm]) -> (Vec<FfObjectGpu>, Vec<FfNodeGpu>) {
     let mut recs = Vec::with_capacity(objects.len());
     let mut nodes = Vec::new();
     for ff in objects {
-        recs.push(pack_record(ff, nodes.len() as u32));
+        recs.push(pack_record(ff, nodes.len() as u32, near_bound(ff)));
         for n in &ff.nodes {
             let c = n.q.0.map(|v| v as f32);
             nodes.push(FfNodeGpu {
@@ -44,15 +47,31 @@ pub fn pack(objects: &[FreeForm]) -> (Vec<FfObjectGpu>, Vec<FfNodeGpu>) {
     (recs, nodes)
 }
 
-/// The record of one object whose nodes start at node `first`.
-pub fn pack_record(ff: &FreeForm, first: u32) -> FfObjectGpu {
+/// The near-miss search's gradient bound and the margin (m) it holds for: over the box
+/// widened by a quarter of its half-diagonal (beyond, the object is a few pixels wide: see
+/// `ff_intersect`). It depends on the object's own frame only, so a posed copy keeps it.
+pub fn near_bound(ff: &FreeForm) -> [f32; 2] {
+    let margin = NEAR_MARGIN * ff.size();
+    [ff.gradient_bound(margin) as f32, margin as f32]
+}
+
+/// The record of one object whose nodes start at node `first`, with its [`near_bound`].
+pub fn pack_record(ff: &FreeForm, first: u32, [bound, margin]: [f32; 2]) -> FfObjectGpu {
     let rt = ff.rotation.transpose();
     let row = |v: glam::DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0];
     let (centre, radius) = ff.bounding_sphere();
     let [lo, hi] = ff.bounds;
     let m = &ff.material;
+    let with_w = |mut r: [f32; 4], w: f32| {
+        r[3] = w;
+        r
+    };
     FfObjectGpu {
-        local_from_world: [row(rt.row(0)), row(rt.row(1)), row(rt.row(2))],
+        local_from_world: [
+            with_w(row(rt.row(0)), bound),
+            with_w(row(rt.row(1)), margin),
+            row(rt.row(2)),
+        ],
         position: [
             ff.position.x as f32,
             ff.position.y as f32,
@@ -225,7 +244,7 @@ fn binned_pipelines(
     small: bool,
     cast_bgl: &wgpu::BindGroupLayout,
 ) -> (
-    [wgpu::RenderPipeline; 2],
+    [wgpu::RenderPipeline; 3],
     [wgpu::RenderPipeline; 2],
     [wgpu::RenderPipeline; 2],
 ) {
@@ -251,6 +270,11 @@ fn binned_pipelines(
         binned(
             &cast_mod,
             ["vs_bins_primary_general", "fs_objects_general"],
+            g,
+        ),
+        binned(
+            &cast_mod,
+            ["vs_bins_primary_general", "fs_objects_general_near"],
             g,
         ),
     ];
@@ -290,8 +314,9 @@ pub(crate) struct ObjectPasses {
     pub count: u32,
     /// Records drawn: the scene's objects and the instances of [`ObjectPasses::set_instances`].
     pub active: u32,
-    /// Per entity template, the first of its nodes (after the scene objects' nodes).
-    template_nodes: Vec<u32>,
+    /// Per entity template, the first of its nodes (after the scene objects' nodes) and its
+    /// [`near_bound`].
+    template_nodes: Vec<(u32, [f32; 2])>,
     /// The object records as placed, and per object its origin and bounding-sphere centre
     /// (world, f64): what [`ObjectPasses::set_offsets`] moves.
     placed: Vec<FfObjectGpu>,
@@ -305,8 +330,9 @@ pub(crate) struct ObjectPasses {
     bin_shadow: wgpu::ComputePipeline,
     /// Objects of each kind: [plain (one quadric), perturbed].
     kinds: [u32; 2],
-    /// Cast passes, [plain, perturbed].
-    cast: [wgpu::RenderPipeline; 2],
+    /// Cast passes, [plain, perturbed, perturbed with the near-miss search (anti-aliasing's
+    /// centre rays)].
+    cast: [wgpu::RenderPipeline; 3],
     /// Pass-through draws for `cast[k]`'s pass over the bins only the other kind lists.
     copy_through: [wgpu::RenderPipeline; 2],
     /// Shadow passes, [plain, perturbed].
@@ -353,9 +379,12 @@ impl ObjectPasses {
             .collect();
         let objects = &objects[..];
         let (packed, nodes) = pack(objects);
-        let template_nodes: Vec<u32> = packed[statics.len()..]
+        let template_nodes: Vec<(u32, [f32; 2])> = packed[statics.len()..]
             .iter()
-            .map(|r| r.box_min[3].to_bits())
+            .map(|r| {
+                let near = [r.local_from_world[0][3], r.local_from_world[1][3]];
+                (r.box_min[3].to_bits(), near)
+            })
             .collect();
         // The slots start as copies of their template (not drawn: `active` leaves them out).
         let mut recs = packed[..statics.len()].to_vec();
@@ -453,7 +482,10 @@ impl ObjectPasses {
         let room = self.count as usize - statics;
         let recs: Vec<FfObjectGpu> = instances
             .iter()
-            .filter_map(|(k, ff)| Some(pack_record(ff, *self.template_nodes.get(*k)?)))
+            .filter_map(|(k, ff)| {
+                let &(first, near) = self.template_nodes.get(*k)?;
+                Some(pack_record(ff, first, near))
+            })
             .take(room)
             .collect();
         if !recs.is_empty() {
@@ -650,14 +682,18 @@ impl ObjectPasses {
     /// perturbed pass reads that and writes the terrain's G-buffer over the same bins
     /// (passing through where only plain objects are listed), which then holds the result
     /// (`ObjectTargets::final_view`; elsewhere it is the terrain's hit, as it should be).
+    ///
+    /// `near`: anti-aliasing's centre rays, whose perturbed pass also flags near misses.
     pub fn encode_cast(
         &self,
         gpu: &Gpu,
         enc: &mut wgpu::CommandEncoder,
         t: &ObjectTargets,
-        terrain_gbuffer: &wgpu::Texture,
-        terrain_view: &wgpu::TextureView,
+        terrain: (&wgpu::Texture, &wgpu::TextureView),
+        near: bool,
     ) {
+        let (terrain_gbuffer, terrain_view) = terrain;
+        let general = &self.cast[if near { 2 } else { 1 }];
         self.bin(enc, t, false);
         gpu.trace_lap(enc, "bin primary");
         let load = wgpu::LoadOp::Load;
@@ -669,7 +705,7 @@ impl ObjectPasses {
             self.binned(enc, t, &plain, &t.gbuffer_view, load);
             gpu.trace_lap(enc, "cast plain");
             let general = [
-                (&self.cast[1], &t.cast_plain_bg),
+                (general, &t.cast_plain_bg),
                 (&self.copy_through[1], &t.cast_plain_bg),
             ];
             self.binned(enc, t, &general, terrain_view, load);
@@ -683,10 +719,11 @@ impl ObjectPasses {
         );
         gpu.trace_lap(enc, "copy");
         let kind = if self.kinds[0] > 0 { 0 } else { 1 };
+        let pass = if kind == 0 { &self.cast[0] } else { general };
         self.binned(
             enc,
             t,
-            &[(&self.cast[kind], &t.cast_bg)],
+            &[(pass, &t.cast_bg)],
             &t.gbuffer_view,
             load,
         );

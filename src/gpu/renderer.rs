@@ -605,9 +605,10 @@ impl TerrainRenderer {
             );
         }
         job.lap(enc, &mut times.tile_ms)?;
+        // Anti-aliasing's centre rays flag near misses (the atlas's samples need not).
+        let centre_rays = self.antialiased(job) && !job.atlas;
         let cast = if tile_on || s.mode == TraceMode::Pyramid {
-            // Anti-aliasing's centre rays flag near misses (the atlas's samples need not).
-            let near = self.antialiased(job) && !job.atlas && self.paged.is_none();
+            let near = centre_rays && self.paged.is_none();
             self.base.cast_pipeline(s.lod.is_some(), near)
         } else {
             &self.base.march
@@ -616,7 +617,8 @@ impl TerrainRenderer {
         encode_fullscreen_with(enc, "cast", cast, &t.cast_bg, pool, g);
         job.lap(enc, &mut times.cast_ms)?;
         if let Some((o, (ot, _))) = self.objects.as_ref().zip(t.objects.as_ref()) {
-            o.encode_cast(job.gpu, enc, ot, &t.gbuffer, &t.gbuffer_view);
+            let terrain = (&t.gbuffer, &t.gbuffer_view);
+            o.encode_cast(job.gpu, enc, ot, terrain, centre_rays);
             job.lap(enc, &mut times.objects_ms)?;
         }
         let voxels = self.voxels.as_ref().zip(t.voxels.as_ref());

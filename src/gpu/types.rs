@@ -59,7 +59,8 @@ const _: () = assert!(std::mem::size_of::<RayGenUniforms>() == 96);
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct FfObjectGpu {
-    /// Rows of the object-from-world rotation.
+    /// Rows of the object-from-world rotation; `[0][3]`: a bound on `|∇F'|` over the box
+    /// widened by `[1][3]` metres (`FreeForm::gradient_bound`, anti-aliasing's near misses).
     pub local_from_world: [[f32; 4]; 3],
     /// World position of the object origin; w = shadow-ray offset (m).
     pub position: [f32; 4],

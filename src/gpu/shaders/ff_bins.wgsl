@@ -201,7 +201,7 @@ fn ff_nearest(px: vec2<u32>, list: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32
         if (id == FF_NONE) {
             break;
         }
-        let h = ff_intersect(id, ro, rd, t_min, far, false);
+        let h = ff_intersect(id, ro, rd, t_min, far, false, 0.0);
         best.iterations += h.iterations;
         if (h.hit && h.t < far) {
             far = h.t;
@@ -225,7 +225,7 @@ fn ff_blocked(px: vec2<u32>, ro: vec3<f32>, rd: vec3<f32>) -> bool {
         if (id == FF_NONE) {
             return false;
         }
-        if (ff_intersect(id, ro, rd, 0.0, BIG, true).hit) {
+        if (ff_intersect(id, ro, rd, 0.0, BIG, true, 0.0).hit) {
             return true;
         }
         id = ff_next(&w, ro, rd, 0.0, BIG);
@@ -281,6 +281,21 @@ fn ff_plain_near(px: vec2<u32>, ro: vec3<f32>, rd: vec3<f32>, reach: f32, t_max:
     for (var j = 0u; j < n; j += 1u) {
         let id = ff_list_id(l, j);
         if (id != FF_NONE && ff_plain_near_miss(id, ro, rd, reach, t_max)) {
+            near = true;
+        }
+    }
+    return near;
+}
+
+// The same for the perturbed objects of the pixel's list (`ff_intersect`'s near-miss search;
+// only `fs_objects_general_near` calls it).
+fn ff_general_near(px: vec2<u32>, ro: vec3<f32>, rd: vec3<f32>, reach: f32, t_max: f32) -> bool {
+    let l = ff_list(px, 0u, true);
+    let n = select(0u, l.n, reach > 0.0);
+    var near = false;
+    for (var j = 0u; j < n; j += 1u) {
+        let id = ff_list_id(l, j);
+        if (id != FF_NONE && !near && ff_intersect(id, ro, rd, 0.0, t_max, true, reach).hit) {
             near = true;
         }
     }
