@@ -99,7 +99,7 @@ pub struct FrameOutput {
     /// Flags per pixel: 1 hit, 2 in shadow, 4 step limit reached, 16 free form, 32 voxel model,
     /// 128 anti-aliased (sub-pixel rays cast; the other outputs are the centre ray's), 64 (with
     /// anti-aliasing, on terrain, free forms and sky) the centre ray passed within its cone of a
-    /// thin feature (terrain, a plain free form, a voxel model).
+    /// thin feature (terrain, a free form, a voxel model).
     pub flags: Vec<u32>,
     /// Free-form index + 1 per pixel (0 where no free form shows).
     pub objects: Vec<u32>,
