@@ -506,6 +506,38 @@ fn thin_feature(
     t
 }
 
+/// The thin-feature tests' checks: the feature is there in the reference and missed by one
+/// ray a pixel, near misses are flagged beside it and nowhere else, and with `"edges"` its
+/// error sum falls to a quarter or less.
+fn assert_found_through_the_cone(t: &ThinFeature) {
+    assert!(
+        t.pixels >= 10,
+        "the feature is there in the reference and missed by one ray"
+    );
+    assert!(t.near > 0, "near misses found");
+    assert_eq!(t.near_elsewhere, 0, "near misses flagged away from the feature");
+    assert!(t.edges_err * 4 <= t.off_err, "found through the pixel cone");
+}
+
+/// A mast 1.2 m wide and 120 m tall, 1 km away on a flat field, about a quarter of a pixel
+/// wide and standing between two pixel columns, so that no centre ray hits it: `model` (the
+/// scene's TOML for it, `files` written beside the scene) at x = 320 m.
+fn mast(name: &str, files: &[(&str, Vec<u8>)], model: &str) {
+    let field = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::new(65, 65);
+    let scene = format!(
+        "[terrain]\nsource = \"flat.png\"\ncell_size = [10.0, 10.0]\n\
+         [render]\nshadows = false\n\
+         [camera]\nposition = [320.0, -1000.0, 40.0]\nheading = 0.0\npitch = 0.0\nfov = 40.0\n\
+         [output]\nwidth = 160\nheight = 90\n{model}"
+    );
+    let t = thin_feature(name, &field, "flat.png", files, &scene, 77..83);
+    assert_eq!(
+        t.object_pixels, 0,
+        "the mast must lie between the centre rays"
+    );
+    assert_found_through_the_cone(&t);
+}
+
 /// A spike 500 m tall on a flat field (one sample of a 10 m grid): a needle about half a pixel
 /// wide, centred between two pixel columns, so that no centre ray hits its upper part. The
 /// near misses of the pixel cones find it: with `"edges"` its pixels come within a few levels
@@ -529,93 +561,48 @@ fn a_needle_no_centre_ray_hits_is_found_through_the_pixel_cone() {
          [output]\nwidth = 160\nheight = 90\n",
         78..82,
     );
-    assert!(
-        t.pixels >= 10,
-        "the needle is there in the reference and missed by one ray"
-    );
-    assert!(t.near > 0, "near misses found");
-    assert_eq!(t.near_elsewhere, 0, "near misses flagged away from the feature");
-    assert!(t.edges_err * 4 <= t.off_err, "found through the pixel cone");
+    assert_found_through_the_cone(&t);
 }
 
-/// A mast (a plain cylinder 1.2 m wide) 1 km away on a flat field, about a quarter of a pixel
-/// wide and standing between two pixel columns, so that no centre ray hits it: the centre
-/// rays' near misses of plain free forms (`ff_plain_near`) find it, and with `"edges"` its
-/// pixels come close to the reference, where one ray a pixel leaves it out.
+/// The mast as a plain cylinder: the centre rays' near misses of plain free forms
+/// (`ff_plain_near`) find it, and with `"edges"` its pixels come close to the reference,
+/// where one ray a pixel leaves it out.
 #[test]
 fn a_mast_no_centre_ray_hits_is_found_through_the_pixel_cone() {
     if common::gpu().is_none() {
         return;
     }
     let _lock = common::gpu_lock();
-    let field = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::new(65, 65);
-    let t = thin_feature(
+    mast(
         "mast",
-        &field,
-        "flat.png",
         &[],
-        "[terrain]\nsource = \"flat.png\"\ncell_size = [10.0, 10.0]\n\
-         [render]\nshadows = false\n\
-         [camera]\nposition = [320.0, -1000.0, 40.0]\nheading = 0.0\npitch = 0.0\nfov = 40.0\n\
-         [output]\nwidth = 160\nheight = 90\n\
-         [[objects]]\nshape = \"cylinder\"\nradius = 0.6\nheight = 120.0\n\
+        "[[objects]]\nshape = \"cylinder\"\nradius = 0.6\nheight = 120.0\n\
          position = [320.0, 0.0, 0.0]\nmaterial = { colour = [0.9, 0.1, 0.1] }\n",
-        77..83,
     );
-    assert_eq!(
-        t.object_pixels, 0,
-        "the mast must lie between the centre rays"
-    );
-    assert!(
-        t.pixels >= 10,
-        "the mast is there in the reference and missed by one ray"
-    );
-    assert!(t.near > 0, "near misses found");
-    assert_eq!(t.near_elsewhere, 0, "near misses flagged away from the feature");
-    assert!(t.edges_err * 4 <= t.off_err, "found through the pixel cone");
 }
 
-/// The same mast as a perturbed free form (a slight bulge halfway up makes it one: the
-/// enclosure search, not the closed form): the near-miss search of perturbed objects
-/// (`ff_intersect` with a reach) finds it.
+/// The mast as a perturbed free form (a slight bulge halfway up makes it one: the enclosure
+/// search, not the closed form): the near-miss search of perturbed objects (`ff_intersect`
+/// with a reach) finds it.
 #[test]
 fn a_perturbed_mast_no_centre_ray_hits_is_found_through_the_pixel_cone() {
     if common::gpu().is_none() {
         return;
     }
     let _lock = common::gpu_lock();
-    let field = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::new(65, 65);
-    let t = thin_feature(
+    mast(
         "perturbed-mast",
-        &field,
-        "flat.png",
         &[],
-        "[terrain]\nsource = \"flat.png\"\ncell_size = [10.0, 10.0]\n\
-         [render]\nshadows = false\n\
-         [camera]\nposition = [320.0, -1000.0, 40.0]\nheading = 0.0\npitch = 0.0\nfov = 40.0\n\
-         [output]\nwidth = 160\nheight = 90\n\
-         [[objects]]\nshape = \"cylinder\"\nradius = 0.6\nheight = 120.0\n\
+        "[[objects]]\nshape = \"cylinder\"\nradius = 0.6\nheight = 120.0\n\
          position = [320.0, 0.0, 0.0]\nmaterial = { colour = [0.9, 0.1, 0.1] }\n\
          [[objects.perturb]]\nshape = \"sphere\"\nradius = 1.0\ncentre = [0.0, 0.0, 60.0]\n\
          weight = -0.2\n",
-        77..83,
     );
-    assert_eq!(
-        t.object_pixels, 0,
-        "the mast must lie between the centre rays"
-    );
-    assert!(
-        t.pixels >= 10,
-        "the mast is there in the reference and missed by one ray"
-    );
-    assert!(t.near > 0, "near misses found");
-    assert_eq!(t.near_elsewhere, 0, "near misses flagged away from the feature");
-    assert!(t.edges_err * 4 <= t.off_err, "found through the pixel cone");
 }
 
-/// The same mast as a voxel model (one column of 100 voxels of 1.2 m): no centre ray hits it,
-/// and the centre rays' near misses of voxel models (`vox_near_miss`: the pixel wider than a
-/// voxel, the ray within the cone's reach of the model's box) find it.
+/// The mast as a voxel model (one column of 100 voxels of 1.2 m): the centre rays' near
+/// misses of voxel models (`vox_near_miss`: the pixel wider than a voxel, the ray within the
+/// cone's reach of a slab's box beside the model) find it.
 #[test]
 fn a_voxel_mast_no_centre_ray_hits_is_found_through_the_pixel_cone() {
     if common::gpu().is_none() {
@@ -630,30 +617,11 @@ fn a_voxel_mast_no_centre_ray_hits_is_found_through_the_pixel_cone() {
         .collect();
     let mut palette = vec![[0, 0, 0, 255]; 256];
     palette[1] = [230, 26, 26, 255];
-    let mast = relief::voxel::VoxelModel::new("mast", [1, 1, 100], palette, voxels).unwrap();
-    let field = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::new(65, 65);
-    let t = thin_feature(
+    let model = relief::voxel::VoxelModel::new("mast", [1, 1, 100], palette, voxels).unwrap();
+    mast(
         "voxel-mast",
-        &field,
-        "flat.png",
-        &[("mast.rvs", relief::voxel::segment::encode(&mast))],
-        "[terrain]\nsource = \"flat.png\"\ncell_size = [10.0, 10.0]\n\
-         [render]\nshadows = false\n\
-         [camera]\nposition = [320.0, -1000.0, 40.0]\nheading = 0.0\npitch = 0.0\nfov = 40.0\n\
-         [output]\nwidth = 160\nheight = 90\n\
-         [[voxels]]\nname = \"mast\"\nfile = \"mast.rvs\"\nposition = [320.0, 0.0, 0.0]\n\
+        &[("mast.rvs", relief::voxel::segment::encode(&model))],
+        "[[voxels]]\nname = \"mast\"\nfile = \"mast.rvs\"\nposition = [320.0, 0.0, 0.0]\n\
          voxel_size = 1.2\n",
-        77..83,
     );
-    assert_eq!(
-        t.object_pixels, 0,
-        "the mast must lie between the centre rays"
-    );
-    assert!(
-        t.pixels >= 10,
-        "the mast is there in the reference and missed by one ray"
-    );
-    assert!(t.near > 0, "near misses found");
-    assert_eq!(t.near_elsewhere, 0, "near misses flagged away from the feature");
-    assert!(t.edges_err * 4 <= t.off_err, "found through the pixel cone");
 }
