@@ -113,7 +113,8 @@ fn fs_voxels(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
     var best: VoxTrace;
     var best_k = 0u;
     var steps = 0u;
-    // Instances whose DDA entered an occupied brick (bit k of x | y << 32).
+    // Instances whose DDA came within a brick of a voxel (`VoxTrace::touched`; bit k of
+    // x | y << 32).
     var touched = vec2<u32>(0u);
     var m = vox_draw.mask.xy;
     while (any(m != vec2<u32>(0u))) {
