@@ -440,7 +440,7 @@ struct ThinFeature {
 
 /// Renders `scene` (160x90, over the 65x65 PNG heightfield `field` and the `files` written
 /// beside it) with one ray a pixel, `"edges"` and the reference, and measures the feature in
-/// `columns`.
+/// `columns` and `rows`.
 fn thin_feature(
     name: &str,
     field: &image::ImageBuffer<image::Luma<u16>, Vec<u16>>,
@@ -448,6 +448,7 @@ fn thin_feature(
     files: &[(&str, Vec<u8>)],
     scene: &str,
     columns: std::ops::Range<usize>,
+    rows: std::ops::Range<usize>,
 ) -> ThinFeature {
     let dir = std::env::temp_dir().join(format!("relief-aa-{name}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -485,7 +486,7 @@ fn thin_feature(
             .filter(|&k| off.objects[k] != 0 || off.flags[k] & 32 != 0)
             .count(),
     };
-    for j in 0..90 {
+    for j in rows {
         for i in columns.clone() {
             let k = j * 160 + i;
             let eo = largest_channel_difference(&off.rgba, &reference.rgba, k);
@@ -530,7 +531,7 @@ fn mast(name: &str, files: &[(&str, Vec<u8>)], model: &str) {
          [camera]\nposition = [320.0, -1000.0, 40.0]\nheading = 0.0\npitch = 0.0\nfov = 40.0\n\
          [output]\nwidth = 160\nheight = 90\n{model}"
     );
-    let t = thin_feature(name, &field, "flat.png", files, &scene, 77..83);
+    let t = thin_feature(name, &field, "flat.png", files, &scene, 77..83, 0..90);
     assert_eq!(
         t.object_pixels, 0,
         "the mast must lie between the centre rays"
@@ -560,6 +561,7 @@ fn a_needle_no_centre_ray_hits_is_found_through_the_pixel_cone() {
          [camera]\nposition = [320.0, -4000.0, 200.0]\nheading = 0.0\npitch = 2.0\nfov = 40.0\n\
          [output]\nwidth = 160\nheight = 90\n",
         78..82,
+        0..90,
     );
     assert_found_through_the_cone(&t);
 }
@@ -609,6 +611,16 @@ fn a_voxel_mast_no_centre_ray_hits_is_found_through_the_pixel_cone() {
         return;
     }
     let _lock = common::gpu_lock();
+    mast(
+        "voxel-mast",
+        &[("mast.rvs", voxel_mast())],
+        "[[voxels]]\nname = \"mast\"\nfile = \"mast.rvs\"\nposition = [320.0, 0.0, 0.0]\n\
+         voxel_size = 1.2\n",
+    );
+}
+
+/// A segment file of one column of 100 voxels.
+fn voxel_mast() -> Vec<u8> {
     let voxels = (0..100)
         .map(|z| relief::voxel::Voxel {
             pos: [0, 0, z],
@@ -618,10 +630,39 @@ fn a_voxel_mast_no_centre_ray_hits_is_found_through_the_pixel_cone() {
     let mut palette = vec![[0, 0, 0, 255]; 256];
     palette[1] = [230, 26, 26, 255];
     let model = relief::voxel::VoxelModel::new("mast", [1, 1, 100], palette, voxels).unwrap();
-    mast(
-        "voxel-mast",
-        &[("mast.rvs", relief::voxel::segment::encode(&model))],
-        "[[voxels]]\nname = \"mast\"\nfile = \"mast.rvs\"\nposition = [320.0, 0.0, 0.0]\n\
+    relief::voxel::segment::encode(&model)
+}
+
+/// The voxel mast's shadow: the mast 1 km away at the far side of the field, the sun due north
+/// behind it and 20° up, lays its shadow on the field towards the eye (200 m up, looking 10°
+/// down) as a stripe 1.2 m wide, a quarter to a third of a pixel, between two pixel columns,
+/// so that no centre ray's sun ray is blocked. The sun rays of the pixels' footprints pass
+/// through the mast's voxels (`vox_shadow_near`), and the stripe's pixels (rows 50-71, below
+/// the mast's foot and the field's far edge) get their samples.
+#[test]
+fn a_voxel_masts_shadow_no_centre_ray_sees_is_found_through_the_pixel_cone() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let _lock = common::gpu_lock();
+    let field = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::new(65, 65);
+    let t = thin_feature(
+        "voxel-mast-shadow",
+        &field,
+        "flat.png",
+        &[("mast.rvs", voxel_mast())],
+        "[terrain]\nsource = \"flat.png\"\ncell_size = [10.0, 10.0]\n\
+         [sun]\nazimuth = 0.0\nelevation = 20.0\n\
+         [camera]\nposition = [320.0, -400.0, 200.0]\nheading = 0.0\npitch = -10.0\nfov = 40.0\n\
+         [output]\nwidth = 160\nheight = 90\n\
+         [[voxels]]\nname = \"mast\"\nfile = \"mast.rvs\"\nposition = [320.0, 600.0, 0.0]\n\
          voxel_size = 1.2\n",
+        77..83,
+        50..72,
     );
+    assert_eq!(
+        t.object_pixels, 0,
+        "the mast must lie between the centre rays"
+    );
+    assert_found_through_the_cone(&t);
 }

@@ -624,7 +624,7 @@ impl TerrainRenderer {
         let voxels = self.voxels.as_ref().zip(t.voxels.as_ref());
         if let (Some((v, vt)), Some((cast, shadows))) = (voxels, voxel_rects) {
             v.update(job.gpu, job.cam.pose.position, self.time, cast, shadows);
-            v.encode_cast(enc, vt, final_gbuffer(t), cast);
+            v.encode_cast(enc, vt, final_gbuffer(t), cast, centre_rays);
             job.lap(enc, &mut times.voxels_ms)?;
         }
         Ok(())
@@ -645,7 +645,9 @@ impl TerrainRenderer {
         let voxels = self.voxels.as_ref().zip(t.voxels.as_ref());
         if let (Some((v, vt)), Some((_, shadows))) = (voxels, voxel_rects) {
             if !shadows.is_empty() {
-                v.encode_shadows(enc, vt, final_gbuffer(t), shadows);
+                // Anti-aliasing's centre rays flag their sun rays' near misses too.
+                let centre_rays = self.antialiased(job) && !job.atlas;
+                v.encode_shadows(enc, vt, final_gbuffer(t), shadows, centre_rays);
                 job.lap(enc, &mut times.voxel_shadow_ms)?;
             }
         }

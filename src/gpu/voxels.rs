@@ -234,11 +234,10 @@ pub(crate) struct VoxelPasses {
     data: wgpu::Buffer,
     palette: wgpu::Buffer,
     bgl: wgpu::BindGroupLayout,
-    /// Entry points for rectangles of several instances, and of one (`_one`).
-    cast: wgpu::RenderPipeline,
-    cast_one: wgpu::RenderPipeline,
-    shadow: wgpu::RenderPipeline,
-    shadow_one: wgpu::RenderPipeline,
+    /// Per pass (cast, shadows), for frames without and with anti-aliasing's near-miss
+    /// search (`_near`), the entry points for rectangles of several instances and of one
+    /// (`_one`).
+    pipelines: [[[wgpu::RenderPipeline; 2]; 2]; 2],
 }
 
 /// Size-dependent resources.
@@ -325,10 +324,25 @@ impl VoxelPasses {
             draw_stride,
             data,
             palette,
-            cast: p("voxel cast", "fs_voxels"),
-            cast_one: p("voxel cast, one instance", "fs_voxels_one"),
-            shadow: p("voxel shadows", "fs_vox_shadow"),
-            shadow_one: p("voxel shadows, one instance", "fs_vox_shadow_one"),
+            pipelines: [
+                [
+                    [p("voxel cast", "fs_voxels"), p("voxel cast, one instance", "fs_voxels_one")],
+                    [
+                        p("voxel cast, near misses", "fs_voxels_near"),
+                        p("voxel cast, one instance, near misses", "fs_voxels_one_near"),
+                    ],
+                ],
+                [
+                    [
+                        p("voxel shadows", "fs_vox_shadow"),
+                        p("voxel shadows, one instance", "fs_vox_shadow_one"),
+                    ],
+                    [
+                        p("voxel shadows, near misses", "fs_vox_shadow_near"),
+                        p("voxel shadows, one instance, near misses", "fs_vox_shadow_one_near"),
+                    ],
+                ],
+            ],
             bgl,
         })
     }
@@ -534,7 +548,8 @@ impl VoxelPasses {
         }
     }
 
-    /// Records the cast (`pass` 0) or shadow pass (1) over `rects` of `gbuffer`, each
+    /// Records the cast (`pass` 0) or shadow pass (1), with the near-miss search (`near` 1) or
+    /// without (0), over `rects` of `gbuffer`, each
     /// rectangle running its own instances (records written by `update`): copy the rectangles
     /// aside, then draw them into the G-buffer, each pixel reading its copy (pixels a pass
     /// leaves as they are discard).
@@ -543,7 +558,7 @@ impl VoxelPasses {
         enc: &mut wgpu::CommandEncoder,
         t: &VoxelTargets,
         gbuffer: (&wgpu::Texture, &wgpu::TextureView),
-        pass: usize,
+        [pass, near]: [usize; 2],
         rects: &[InstanceRect],
     ) {
         let rects = self.drawn(rects);
@@ -574,10 +589,7 @@ impl VoxelPasses {
                 },
             );
         }
-        let pipelines = [
-            [&self.cast, &self.cast_one],
-            [&self.shadow, &self.shadow_one],
-        ][pass];
+        let pipelines = &self.pipelines[pass][near];
         let mut rp = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("voxels"),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {
@@ -596,7 +608,7 @@ impl VoxelPasses {
         });
         for (i, r) in rects.iter().enumerate() {
             // A rectangle of one instance runs the `_one` entry point.
-            rp.set_pipeline(pipelines[(r.instances.count_ones() == 1) as usize]);
+            rp.set_pipeline(&pipelines[(r.instances.count_ones() == 1) as usize]);
             let offset = (pass * slots + i) as u64 * self.draw_stride;
             rp.set_bind_group(0, &t.bg, &[offset as u32]);
             let r = r.rect;
@@ -606,26 +618,29 @@ impl VoxelPasses {
     }
 
     /// Records the voxel cast over `rects` (after the terrain and free-form casts; the same
-    /// rectangles as given to `update`).
+    /// rectangles as given to `update`); `near`: anti-aliasing's centre rays, flagging near
+    /// misses.
     pub fn encode_cast(
         &self,
         enc: &mut wgpu::CommandEncoder,
         t: &VoxelTargets,
         gbuffer: (&wgpu::Texture, &wgpu::TextureView),
         rects: &[InstanceRect],
+        near: bool,
     ) {
-        self.over_rects(enc, t, gbuffer, 0, rects);
+        self.over_rects(enc, t, gbuffer, [0, near as usize], rects);
     }
 
     /// Records the voxel shadow rays over `rects` (before shading; the same rectangles as
-    /// given to `update`).
+    /// given to `update`); `near` as for [`Self::encode_cast`].
     pub fn encode_shadows(
         &self,
         enc: &mut wgpu::CommandEncoder,
         t: &VoxelTargets,
         gbuffer: (&wgpu::Texture, &wgpu::TextureView),
         rects: &[InstanceRect],
+        near: bool,
     ) {
-        self.over_rects(enc, t, gbuffer, 1, rects);
+        self.over_rects(enc, t, gbuffer, [1, near as usize], rects);
     }
 }

@@ -97,7 +97,9 @@ fn vox_local(c: vec3<i32>) -> u32 {
     return u32(l.x + VOX_BRICK * (l.y + VOX_BRICK * l.z));
 }
 
-fn vox_dda(inst: VoxInstance, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32) -> VoxTrace {
+// `near` (a constant where called: anti-aliasing's `_near` passes) also tracks
+// `VoxTrace::touched`.
+fn vox_dda(inst: VoxInstance, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, near: bool) -> VoxTrace {
     var r: VoxTrace;
     r.hit = false;
     r.steps = 0u;
@@ -153,7 +155,9 @@ fn vox_dda(inst: VoxInstance, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32
         // An occupied brick is entered without moving: its cube is the brick itself and the
         // next cell is the voxel at the current point, clamped into it.
         let enter = !fine && (w & VOX_EMPTY_BIT) == 0u;
-        r.touched = r.touched || enter || (!fine && (w & VOX_EMPTY_BIT) != 0u && (w & 0xffffu) <= VOX_TOUCH_GAP);
+        if (near) {
+            r.touched = r.touched || enter || (!fine && (w & VOX_EMPTY_BIT) != 0u && (w & 0xffffu) <= VOX_TOUCH_GAP);
+        }
         // A box of voxels [lo, hi) holding the current cell, known to be empty, grown from the
         // cell towards the ray's octant: an empty brick by its gap; the brick being entered
         // not at all; a voxel to the empty cube at its corner.
