@@ -54,7 +54,7 @@ const FF_BINS: &str = include_str!("shaders/ff_bins.wgsl");
 pub const FF_CONSTS: &str = include_str!("shaders/ff_consts.wgsl");
 const SRGB: &str = include_str!("shaders/srgb.wgsl");
 const HAZE: &str = include_str!("shaders/haze.wgsl");
-const VOXEL_DDA: &str = include_str!("shaders/voxel_dda.wgsl");
+pub(crate) const VOXEL_DDA: &str = include_str!("shaders/voxel_dda.wgsl");
 const VOLUME_TYPES: &str = include_str!("shaders/volume_types.wgsl");
 
 /// Ray generation (compute): pinhole ray table.

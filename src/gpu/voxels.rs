@@ -40,6 +40,7 @@ const _: () = assert!(crate::voxel::JUMP_BITS == 4);
 
 const _: () =
     assert!(crate::voxel::desc::MAX_INSTANCES * std::mem::size_of::<VoxInstanceGpu>() <= 16384);
+const _: () = assert!(shaders::wgsl_u32(shaders::VOXEL_DDA, "VOX_SLABS") as usize == VOX_SLABS);
 
 /// Where one frame's data lies in the shared buffers.
 #[derive(Clone, Copy, Debug)]
