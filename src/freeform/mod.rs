@@ -412,16 +412,6 @@ impl Interval {
         Interval::new(self.lo * s, self.hi * s)
     }
 
-    /// `{v²}`, exact (0 where the interval holds it).
-    pub fn square(self) -> Interval {
-        let (a, b) = (self.lo * self.lo, self.hi * self.hi);
-        if self.lo <= 0.0 && self.hi >= 0.0 {
-            Interval { lo: 0.0, hi: a.max(b) }
-        } else {
-            Interval::new(a, b)
-        }
-    }
-
     /// The largest `|v|`.
     pub fn magnitude(self) -> f64 {
         self.lo.abs().max(self.hi.abs())
@@ -434,17 +424,6 @@ impl std::ops::Add for Interval {
         Interval {
             lo: self.lo + o.lo,
             hi: self.hi + o.hi,
-        }
-    }
-}
-
-impl std::ops::Mul for Interval {
-    type Output = Interval;
-    fn mul(self, o: Interval) -> Interval {
-        let p = [self.lo * o.lo, self.lo * o.hi, self.hi * o.lo, self.hi * o.hi];
-        Interval {
-            lo: p.iter().copied().fold(f64::INFINITY, f64::min),
-            hi: p.iter().copied().fold(f64::NEG_INFINITY, f64::max),
         }
     }
 }
