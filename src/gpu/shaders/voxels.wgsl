@@ -3,10 +3,11 @@
 // packed world normal, flags 1 | 32 | instance << 8 | steps << 16) and the shadow pass (sets
 // flag 64 where a voxel blocks the sun). On anti-aliasing's centre rays (the `_near` entry
 // points) both also set the near-miss bit (31) of a pixel whose ray, or whose sun ray, passes
-// a model within its cone (`vox_near_miss`, `vox_shadow_near`). Both read a copy of the G-buffer and draw into the G-buffer itself: a
-// pixel they leave as it is discards, at the end: a fragment discarded
-// earlier may go on running as a helper invocation on Mesa's CPU adapters (its SIMD lanes do
-// not leave the DDA loop), so pixels without work get an empty ray interval instead.
+// a model within its cone (`vox_near_miss`, `vox_shadow_near`). Both read a copy of the
+// G-buffer and draw into the G-buffer itself: a pixel they leave as it is discards, at the
+// end: a fragment discarded earlier may go on running as a helper invocation on Mesa's CPU
+// adapters (its SIMD lanes do not leave the DDA loop), so pixels without work get an empty
+// ray interval instead.
 //
 // Each rectangle (a piece of the partition of the models' rectangles, `cpu::voxel`) runs
 // exactly the instances whose own rectangles hold it. A rectangle of one instance is drawn by
@@ -53,7 +54,7 @@ fn vox_reach(px: vec2<u32>) -> f32 {
 }
 
 // Near miss of a voxel model (anti-aliasing's centre rays, the `_near` passes; `d` the ray's
-// direction in voxel units per metre, `touched` whether its DDA entered an occupied brick):
+// direction in voxel units per metre, `touched` whether its DDA came within a brick of a voxel):
 // may the ray, which hits none of the model's voxels before `t_max`, pass within `reach` t of
 // one where its pixel is at least a voxel wide (2 half-angles t >= the voxel size)? There the
 // model's detail is finer than the pixels: a mast or a twig one voxel wide can lie between
@@ -231,14 +232,14 @@ fn vox_sun_trace(inst: VoxInstance, p: vec4<f32>, near: bool) -> VoxTrace {
     return vox_dda(inst, inst.eye_local.xyz + vox_dir(inst, p.xyz), vox_dir(inst, frame.sun_world.xyz), 0.0, select(-1.0, BIG, p.w != 0.0), near);
 }
 
-// Anti-aliasing's centre rays (the `_near` shadow passes): the near-miss bit (31) for G-buffer pixel
-// `g` (terrain or a free form; a voxel hit keeps its step count in bit 31) whose footprint
-// is at least a voxel wide (2 half-angles times its distance `t`: the sun rays of the
-// footprint form a beam that wide), when its sun ray `tr` from `p` met a voxel of `inst`, came
-// within a brick of one (`VoxTrace::touched`), or passed within √2 footprint radii of a slab's
-// box (a mast's shadow between two pixels' sun rays). A crown finer than the pixels dapples
-// the ground below at a scale no centre ray's shadow shows: gaps let the sun through a
-// shadowed pixel, leaves shade part of a lit one.
+// Anti-aliasing's centre rays (the `_near` shadow passes): the near-miss bit (31) for
+// G-buffer pixel `g` (terrain or a free form; a voxel hit keeps its step count in bit 31)
+// whose footprint is at least a voxel wide (2 half-angles times its distance `t`: the sun
+// rays of the footprint form a beam that wide), when its sun ray `tr` from `p` met a voxel of
+// `inst`, came within a brick of one (`VoxTrace::touched`), or passed within √2 footprint
+// radii of a slab's box (a mast's shadow between two pixels' sun rays). A crown finer than
+// the pixels dapples the ground below at a scale no centre ray's shadow shows: gaps let the
+// sun through a shadowed pixel, leaves shade part of a lit one.
 fn vox_shadow_near(inst: VoxInstance, tr: VoxTrace, g: vec4<u32>, px: vec2<u32>, p: vec4<f32>) -> bool {
     let t = bitcast<f32>(g.x);
     let k = 1.41412 * vox_reach(px) / inst.eye_local.w;
