@@ -516,7 +516,10 @@ fn assert_found_through_the_cone(t: &ThinFeature) {
         "the feature is there in the reference and missed by one ray"
     );
     assert!(t.near > 0, "near misses found");
-    assert_eq!(t.near_elsewhere, 0, "near misses flagged away from the feature");
+    assert_eq!(
+        t.near_elsewhere, 0,
+        "near misses flagged away from the feature"
+    );
     assert!(t.edges_err * 4 <= t.off_err, "found through the pixel cone");
 }
 

@@ -228,10 +228,18 @@ fn gradient_bound_holds_over_the_widened_box() {
                 )
             };
             let g = ff.value_grad(p).1.length();
-            assert!(g <= bound * (1.0 + 1e-9), "{}: |grad| {g} at {p} over the bound {bound}", ff.name);
+            assert!(
+                g <= bound * (1.0 + 1e-9),
+                "{}: |grad| {g} at {p} over the bound {bound}",
+                ff.name
+            );
             most = most.max(g);
         }
-        assert!(bound.is_finite() && bound <= 3.0 * most, "{}: bound {bound}, largest {most}", ff.name);
+        assert!(
+            bound.is_finite() && bound <= 3.0 * most,
+            "{}: bound {bound}, largest {most}",
+            ff.name
+        );
         eprintln!("{}: bound {bound:.3}, largest found {most:.3}", ff.name);
         perturbed += usize::from(ff.nodes.len() > 1);
     }

@@ -353,7 +353,13 @@ impl FreeForm {
             let (cv, cg) = std::mem::replace(&mut acc[d + 1], (Interval::point(0.0), 0.0));
             let (v, g) = n.q.box_ranges(lo, hi);
             let v = v + cv;
-            let g = g.map(|c| c.magnitude()).iter().map(|m| m * m).sum::<f64>().sqrt() + cg;
+            let g = g
+                .map(|c| c.magnitude())
+                .iter()
+                .map(|m| m * m)
+                .sum::<f64>()
+                .sqrt()
+                + cg;
             if d == 0 {
                 return g;
             }

@@ -720,13 +720,7 @@ impl ObjectPasses {
         gpu.trace_lap(enc, "copy");
         let kind = if self.kinds[0] > 0 { 0 } else { 1 };
         let pass = if kind == 0 { &self.cast[0] } else { general };
-        self.binned(
-            enc,
-            t,
-            &[(pass, &t.cast_bg)],
-            &t.gbuffer_view,
-            load,
-        );
+        self.binned(enc, t, &[(pass, &t.cast_bg)], &t.gbuffer_view, load);
         gpu.trace_lap(
             enc,
             if kind == 0 {

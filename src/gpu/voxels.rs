@@ -327,10 +327,16 @@ impl VoxelPasses {
             palette,
             pipelines: [
                 [
-                    [p("voxel cast", "fs_voxels"), p("voxel cast, one instance", "fs_voxels_one")],
+                    [
+                        p("voxel cast", "fs_voxels"),
+                        p("voxel cast, one instance", "fs_voxels_one"),
+                    ],
                     [
                         p("voxel cast, near misses", "fs_voxels_near"),
-                        p("voxel cast, one instance, near misses", "fs_voxels_one_near"),
+                        p(
+                            "voxel cast, one instance, near misses",
+                            "fs_voxels_one_near",
+                        ),
                     ],
                 ],
                 [
@@ -340,7 +346,10 @@ impl VoxelPasses {
                     ],
                     [
                         p("voxel shadows, near misses", "fs_vox_shadow_near"),
-                        p("voxel shadows, one instance, near misses", "fs_vox_shadow_one_near"),
+                        p(
+                            "voxel shadows, one instance, near misses",
+                            "fs_vox_shadow_one_near",
+                        ),
                     ],
                 ],
             ],

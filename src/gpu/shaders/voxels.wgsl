@@ -242,7 +242,8 @@ fn vox_sun_trace(inst: VoxInstance, p: vec4<f32>, near: bool) -> VoxTrace {
 // sun through a shadowed pixel, leaves shade part of a lit one.
 fn vox_shadow_near(inst: VoxInstance, tr: VoxTrace, g: vec4<u32>, px: vec2<u32>, p: vec4<f32>) -> bool {
     let t = bitcast<f32>(g.x);
-    let k = 1.41412 * vox_reach(px) / inst.eye_local.w;
+    let reach = vox_reach(px);
+    let k = 1.41412 * reach / inst.eye_local.w;
     if ((g.w & 33u) != 1u || p.w == 0.0 || k * t < 1.0) {
         return false;
     }
@@ -255,7 +256,7 @@ fn vox_shadow_near(inst: VoxInstance, tr: VoxTrace, g: vec4<u32>, px: vec2<u32>,
     }
     var near = false;
     for (var j = 0u; j < VOX_SLABS; j++) {
-        let span = vox_slab_span(inst, j, o, iv, vox_reach(px) * t / inst.eye_local.w, BIG);
+        let span = vox_slab_span(inst, j, o, iv, reach * t / inst.eye_local.w, BIG);
         near = near || span.x <= span.y;
     }
     return near;
