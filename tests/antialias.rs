@@ -636,36 +636,75 @@ fn voxel_mast() -> Vec<u8> {
     relief::voxel::segment::encode(&model)
 }
 
-/// The voxel mast's shadow: the mast 1 km away at the far side of the field, the sun due north
-/// behind it and 20° up, lays its shadow on the field towards the eye (200 m up, looking 10°
-/// down) as a stripe 1.2 m wide, a quarter to a third of a pixel, between two pixel columns,
-/// so that no centre ray's sun ray is blocked. The sun rays of the pixels' footprints pass
-/// through the mast's voxels (`vox_shadow_near`), and the stripe's pixels (rows 50-71, below
-/// the mast's foot and the field's far edge) get their samples.
+/// A mast's shadow: the mast (`model`, the scene's TOML for it at x = 320 m, y = 600 m, 1.2 m
+/// wide; `files` written beside the scene) 1 km away at the far side of the field, the sun due
+/// north behind it and 20° up, lays its shadow on the field towards the eye (200 m up, looking
+/// 10° down) as a stripe 1.2 m wide, a quarter to a third of a pixel, between two pixel
+/// columns, so that no centre ray's sun ray is blocked. The sun rays of the pixels' footprints
+/// pass the mast, and the stripe's pixels (rows 50-71, below the mast's foot and the field's
+/// far edge) get their samples.
+fn masts_shadow(name: &str, files: &[(&str, Vec<u8>)], model: &str) {
+    let field = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::new(65, 65);
+    let scene = format!(
+        "[terrain]\nsource = \"flat.png\"\ncell_size = [10.0, 10.0]\n\
+         [sun]\nazimuth = 0.0\nelevation = 20.0\n\
+         [camera]\nposition = [320.0, -400.0, 200.0]\nheading = 0.0\npitch = -10.0\nfov = 40.0\n\
+         [output]\nwidth = 160\nheight = 90\n{model}"
+    );
+    let t = thin_feature(name, &field, "flat.png", files, &scene, 77..83, 50..72);
+    assert_eq!(
+        t.object_pixels, 0,
+        "the mast must lie between the centre rays"
+    );
+    assert_found_through_the_cone(&t);
+}
+
+/// The voxel mast's shadow: the sun rays of the footprints pass through the mast's voxels
+/// (`vox_shadow_near`).
 #[test]
 fn a_voxel_masts_shadow_no_centre_ray_sees_is_found_through_the_pixel_cone() {
     if common::gpu().is_none() {
         return;
     }
     let _lock = common::gpu_lock();
-    let field = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::new(65, 65);
-    let t = thin_feature(
+    masts_shadow(
         "voxel-mast-shadow",
-        &field,
-        "flat.png",
         &[("mast.rvs", voxel_mast())],
-        "[terrain]\nsource = \"flat.png\"\ncell_size = [10.0, 10.0]\n\
-         [sun]\nazimuth = 0.0\nelevation = 20.0\n\
-         [camera]\nposition = [320.0, -400.0, 200.0]\nheading = 0.0\npitch = -10.0\nfov = 40.0\n\
-         [output]\nwidth = 160\nheight = 90\n\
-         [[voxels]]\nname = \"mast\"\nfile = \"mast.rvs\"\nposition = [320.0, 600.0, 0.0]\n\
+        "[[voxels]]\nname = \"mast\"\nfile = \"mast.rvs\"\nposition = [320.0, 600.0, 0.0]\n\
          voxel_size = 1.2\n",
-        77..83,
-        50..72,
     );
-    assert_eq!(
-        t.object_pixels, 0,
-        "the mast must lie between the centre rays"
+}
+
+/// The plain cylinder's shadow: the beam of a footprint's sun rays passes within reach of it
+/// (`ff_plain_near` over the shadow list, in the free-form shadow pass's `_near` twin).
+#[test]
+fn a_masts_shadow_no_centre_ray_sees_is_found_through_the_pixel_cone() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let _lock = common::gpu_lock();
+    masts_shadow(
+        "mast-shadow",
+        &[],
+        "[[objects]]\nshape = \"cylinder\"\nradius = 0.6\nheight = 120.0\n\
+         position = [320.6, 600.0, 0.0]\nmaterial = { colour = [0.9, 0.1, 0.1] }\n",
     );
-    assert_found_through_the_cone(&t);
+}
+
+/// The perturbed mast's shadow (`ff_general_near` over the shadow list: the enclosure search
+/// with the footprint's beam as its reach).
+#[test]
+fn a_perturbed_masts_shadow_no_centre_ray_sees_is_found_through_the_pixel_cone() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let _lock = common::gpu_lock();
+    masts_shadow(
+        "perturbed-mast-shadow",
+        &[],
+        "[[objects]]\nshape = \"cylinder\"\nradius = 0.6\nheight = 120.0\n\
+         position = [320.6, 600.0, 0.0]\nmaterial = { colour = [0.9, 0.1, 0.1] }\n\
+         [[objects.perturb]]\nshape = \"sphere\"\nradius = 1.0\ncentre = [0.0, 0.0, 60.0]\n\
+         weight = -0.2\n",
+    );
 }

@@ -246,23 +246,22 @@ fn binned_pipelines(
 ) -> (
     [wgpu::RenderPipeline; 3],
     [wgpu::RenderPipeline; 2],
-    [wgpu::RenderPipeline; 2],
+    [wgpu::RenderPipeline; 4],
 ) {
     let dev = &gpu.device;
     let module = |label: &str, src: String| super::shader_module(dev, gpu.params, label, &src);
     let cast_mod = module("objects.wgsl", shaders::objects(small, tables));
     let shadow_mod = module("ff_shadow.wgsl", shaders::ff_shadow(small, tables));
     // One pass per list and object kind, drawn as a quad per bin with such objects.
+    let binned_masked = |m: &wgpu::ShaderModule, entries: [&str; 2], format, write_mask| {
+        let target = wgpu::ColorTargetState {
+            write_mask,
+            ..target_state(format)
+        };
+        render_pipeline(dev, entries[1], m, entries, cast_bgl, &[Some(target)], None)
+    };
     let binned = |m: &wgpu::ShaderModule, entries: [&str; 2], format| {
-        render_pipeline(
-            dev,
-            entries[1],
-            m,
-            entries,
-            cast_bgl,
-            &[Some(target_state(format))],
-            None,
-        )
+        binned_masked(m, entries, format, wgpu::ColorWrites::ALL)
     };
     let g = wgpu::TextureFormat::Rgba32Uint;
     let cast = [
@@ -292,18 +291,25 @@ fn binned_pipelines(
             g,
         ),
     ];
-    let r = wgpu::TextureFormat::R32Uint;
+    // The shadow target: blocked (first channel), the near-miss passes' flag (second).
+    let rg = wgpu::TextureFormat::Rg32Uint;
+    let shadow = |kind: &str, near: bool| {
+        let entries = [
+            format!("vs_bins_shadow_{kind}"),
+            format!("fs_ff_shadow_{kind}{}", if near { "_near" } else { "" }),
+        ];
+        let mask = if near {
+            wgpu::ColorWrites::GREEN
+        } else {
+            wgpu::ColorWrites::RED
+        };
+        binned_masked(&shadow_mod, [&entries[0], &entries[1]], rg, mask)
+    };
     let shadow = [
-        binned(
-            &shadow_mod,
-            ["vs_bins_shadow_plain", "fs_ff_shadow_plain"],
-            r,
-        ),
-        binned(
-            &shadow_mod,
-            ["vs_bins_shadow_general", "fs_ff_shadow_general"],
-            r,
-        ),
+        shadow("plain", false),
+        shadow("general", false),
+        shadow("plain", true),
+        shadow("general", true),
     ];
     (cast, copy_through, shadow)
 }
@@ -335,8 +341,9 @@ pub(crate) struct ObjectPasses {
     cast: [wgpu::RenderPipeline; 3],
     /// Pass-through draws for `cast[k]`'s pass over the bins only the other kind lists.
     copy_through: [wgpu::RenderPipeline; 2],
-    /// Shadow passes, [plain, perturbed].
-    shadow: [wgpu::RenderPipeline; 2],
+    /// Shadow passes, [plain, perturbed], then their near-miss twins (anti-aliasing's centre
+    /// rays: the sun rays of a pixel's footprint).
+    shadow: [wgpu::RenderPipeline; 4],
     pub shade: ShadePipelines,
 }
 
@@ -534,7 +541,7 @@ impl ObjectPasses {
         };
         let (gbuffer, gbuffer_view) =
             target("g-buffer with free forms", wgpu::TextureFormat::Rgba32Uint);
-        let (_, shadow_view) = target("free-form shadows", wgpu::TextureFormat::R32Uint);
+        let (_, shadow_view) = target("free-form shadows", wgpu::TextureFormat::Rg32Uint);
         let bin_bg = |label, depth: &wgpu::TextureView| {
             dev.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some(label),
@@ -732,14 +739,22 @@ impl ObjectPasses {
     }
 
     /// Records the shadow binning and the free-form shadow passes (after the free-form cast,
-    /// before shading).
-    pub fn encode_shadows(&self, gpu: &Gpu, enc: &mut wgpu::CommandEncoder, t: &ObjectTargets) {
+    /// before shading). `near`: anti-aliasing's centre rays, whose near-miss twins follow.
+    pub fn encode_shadows(
+        &self,
+        gpu: &Gpu,
+        enc: &mut wgpu::CommandEncoder,
+        t: &ObjectTargets,
+        near: bool,
+    ) {
         self.bin(enc, t, true);
         gpu.trace_lap(enc, "bin shadow");
-        // Both kinds in one render pass (they only mark blocked pixels, in any order): one
-        // pass's fixed cost less on Mesa's CPU adapters.
-        let draws: Vec<_> = (0..2)
-            .filter(|&k| self.kinds[k] > 0)
+        // Both kinds in one render pass (they only mark blocked pixels, in any order, and the
+        // near-miss twins write the other channel): one pass's fixed cost less on Mesa's CPU
+        // adapters.
+        let passes = if near { 4 } else { 2 };
+        let draws: Vec<_> = (0..passes)
+            .filter(|&k| self.kinds[k % 2] > 0)
             .map(|k| (&self.shadow[k], &t.shadow_bg))
             .collect();
         // No clear (on lavapipe a clear costs about what a pass does): blocked pixels carry

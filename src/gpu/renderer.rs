@@ -642,11 +642,11 @@ impl TerrainRenderer {
         voxel_rects: Option<&VoxelRects>,
     ) -> Result<()> {
         let gpu = job.gpu;
+        // Anti-aliasing's centre rays flag their sun rays' near misses too.
+        let centre_rays = self.antialiased(job) && !job.atlas;
         let voxels = self.voxels.as_ref().zip(t.voxels.as_ref());
         if let (Some((v, vt)), Some((_, shadows))) = (voxels, voxel_rects) {
             if !shadows.is_empty() {
-                // Anti-aliasing's centre rays flag their sun rays' near misses too.
-                let centre_rays = self.antialiased(job) && !job.atlas;
                 v.encode_shadows(enc, vt, final_gbuffer(t), shadows, centre_rays);
                 job.lap(enc, &mut times.voxel_shadow_ms)?;
             }
@@ -654,7 +654,7 @@ impl TerrainRenderer {
         let (pipeline, bg) = match self.objects.as_ref().zip(t.objects.as_ref()) {
             Some((o, (ot, bg))) => {
                 if job.s.shadows {
-                    o.encode_shadows(gpu, enc, ot);
+                    o.encode_shadows(gpu, enc, ot, centre_rays);
                 }
                 (o.shade.get(prepared.shade_index), bg)
             }

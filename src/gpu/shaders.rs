@@ -47,6 +47,8 @@ const CAST_STORAGE: &str = "@group(0) @binding(1) var<storage, read> heights: ar
                             @group(0) @binding(2) var<storage, read> pyramid: array<f32>;\n";
 const GBUFFER: &str = include_str!("shaders/gbuffer.wgsl");
 const RAY_TABLE: &str = include_str!("shaders/ray_table.wgsl");
+/// A pixel's footprint for anti-aliasing's shadow searches (after RAY_TABLE and FRAME).
+const FOOTPRINT: &str = include_str!("shaders/footprint.wgsl");
 const FREEFORM: &str = include_str!("shaders/freeform.wgsl");
 const FF_BINS: &str = include_str!("shaders/ff_bins.wgsl");
 /// Constants shared by the binning pass and the passes reading its lists (`FF_BIN`,
@@ -273,6 +275,7 @@ pub fn ff_bin(tables: FfTables) -> String {
         RAY_TABLE,
         &freeform(false, tables),
         FF_CONSTS,
+        FOOTPRINT,
         include_str!("shaders/ff_bin.wgsl"),
     ]
     .concat()
@@ -288,6 +291,7 @@ pub fn ff_shadow(small: bool, tables: FfTables) -> String {
         &freeform(small, tables),
         FF_CONSTS,
         FF_BINS,
+        FOOTPRINT,
         include_str!("shaders/ff_shadow.wgsl"),
     ]
     .concat()

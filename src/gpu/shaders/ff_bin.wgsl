@@ -157,8 +157,11 @@ fn bin_objects(b: vec2<u32>, list: u32) {
     let uv_hi = hi3.xy;
     let w_lo = lo3.z;
     // Padding of the sun-frame bounds: the shadow rays' offset off a free-form surface, and
-    // (by a wide margin) f32 rounding of points up to t_hi away.
-    let pad = max_off + 0.1 + 1.0e-4 * t_hi;
+    // (by a wide margin) f32 rounding of points up to t_hi away. Anti-aliasing's centre rays
+    // (`frame.stamp.z` = 1) search the beam of a pixel's footprint too (`footprint_beam`: at
+    // most FOOTPRINT_BEAM_CAP pixel widths, 2 t w).
+    let beam = select(0.0, FOOTPRINT_BEAM_CAP * 2.0 * t_hi * 1.1 * cone, frame.stamp.z != 0u && list == 1u);
+    let pad = max_off + 0.1 + 1.0e-4 * t_hi + beam;
     let cap = frame.objects.w;
     var n_plain = 0u;
     var n_general = 0u;

@@ -201,7 +201,7 @@ fn ff_nearest(px: vec2<u32>, list: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32
         if (id == FF_NONE) {
             break;
         }
-        let h = ff_intersect(id, ro, rd, t_min, far, false, 0.0);
+        let h = ff_intersect(id, ro, rd, t_min, far, false, vec2<f32>(0.0));
         best.iterations += h.iterations;
         if (h.hit && h.t < far) {
             far = h.t;
@@ -225,7 +225,7 @@ fn ff_blocked(px: vec2<u32>, ro: vec3<f32>, rd: vec3<f32>) -> bool {
         if (id == FF_NONE) {
             return false;
         }
-        if (ff_intersect(id, ro, rd, 0.0, BIG, true, 0.0).hit) {
+        if (ff_intersect(id, ro, rd, 0.0, BIG, true, vec2<f32>(0.0)).hit) {
             return true;
         }
         id = ff_next(&w, ro, rd, 0.0, BIG);
@@ -271,16 +271,17 @@ fn ff_plain_nearest(px: vec2<u32>, list: u32, ro: vec3<f32>, rd: vec3<f32>, t_mi
 }
 
 // Anti-aliasing's centre rays (`frame.stamp.z` = 1): whether the ray, which hit no plain object
-// of the pixel's list, passes within `reach` t of one before `t_max` (`ff_plain_near_miss`):
-// a mast or wire thinner than the pixel that no centre ray hits. Without anti-aliasing the
-// loop runs no iteration (a uniform count: the SIMD lanes skip it together).
-fn ff_plain_near(px: vec2<u32>, ro: vec3<f32>, rd: vec3<f32>, reach: f32, t_max: f32) -> bool {
-    let l = ff_list(px, 0u, false);
+// of the pixel's bin `list` (0 primary, 1 shadow), passes within r(t) = cone.x + cone.y t of
+// one before `t_max` (`ff_plain_near_miss`), object `skip` left out: a mast or wire thinner
+// than the pixel that no centre ray hits, or the thin shadow it casts. Without anti-aliasing
+// the loop runs no iteration (a uniform count: the SIMD lanes skip it together).
+fn ff_plain_near(px: vec2<u32>, list: u32, ro: vec3<f32>, rd: vec3<f32>, cone: vec2<f32>, t_max: f32, skip: u32) -> bool {
+    let l = ff_list(px, list, false);
     let n = select(0u, l.n, frame.stamp.z != 0u);
     var near = false;
     for (var j = 0u; j < n; j += 1u) {
         let id = ff_list_id(l, j);
-        if (id != FF_NONE && ff_plain_near_miss(id, ro, rd, reach, t_max)) {
+        if (id != FF_NONE && id != skip && ff_plain_near_miss(id, ro, rd, cone, t_max)) {
             near = true;
         }
     }
@@ -288,14 +289,14 @@ fn ff_plain_near(px: vec2<u32>, ro: vec3<f32>, rd: vec3<f32>, reach: f32, t_max:
 }
 
 // The same for the perturbed objects of the pixel's list (`ff_intersect`'s near-miss search;
-// only `fs_objects_general_near` calls it).
-fn ff_general_near(px: vec2<u32>, ro: vec3<f32>, rd: vec3<f32>, reach: f32, t_max: f32) -> bool {
-    let l = ff_list(px, 0u, true);
-    let n = select(0u, l.n, reach > 0.0);
+// only the `_near` passes call it).
+fn ff_general_near(px: vec2<u32>, list: u32, ro: vec3<f32>, rd: vec3<f32>, cone: vec2<f32>, t_max: f32, skip: u32) -> bool {
+    let l = ff_list(px, list, true);
+    let n = select(0u, l.n, any(cone != vec2<f32>(0.0)));
     var near = false;
     for (var j = 0u; j < n; j += 1u) {
         let id = ff_list_id(l, j);
-        if (id != FF_NONE && !near && ff_intersect(id, ro, rd, 0.0, t_max, true, reach).hit) {
+        if (id != FF_NONE && id != skip && !near && ff_intersect(id, ro, rd, 0.0, t_max, true, cone).hit) {
             near = true;
         }
     }

@@ -345,18 +345,19 @@ fn ff_entry_face(ob: FfObject, span: FfSpan, t_min: f32) -> vec3<f32> {
 // which interval (k, i) is [i, i + 1] · L / 2^k; phases 2 and 3 evaluate F' at the ends of
 // the leaf for the final linear interpolation.
 //
-// `near_reach` > 0 (with `any`): the near-miss search of anti-aliasing's centre rays instead,
-// for a ray that hits nothing: does it pass within near_reach t of the solid? A point that
-// close has F' <= G near_reach t (G = local_0.w, the gradient bound), so the search runs
-// over the box widened by the reach at the far side of the bounding sphere, with every
-// enclosure lowered by G near_reach times the interval's far end: the intervals it skips
+// `cone` not 0 (with `any`): the near-miss search of anti-aliasing's centre rays instead, for
+// a ray that hits nothing: does it pass within r(t) = cone.x + cone.y t of the solid (a
+// pixel's cone from the eye: (0, its reach); the sun rays of a pixel's footprint: (the
+// beam's radius, 0))? A point that close has F' <= G r(t) (G = local_0.w, the gradient
+// bound), so the search runs over the box widened by r at the far side of the bounding
+// sphere, with every enclosure lowered by G r at the interval's far end: the intervals it skips
 // hold no such point. G bounds the whole box and can be many times the gradient where the
 // ray passes (a hangar's roof against its thin perturbations), so a leaf (L / 2^FF_NEAR_LEVELS)
 // still admitted is then tested by the first-order distance estimate F' / |∇F'| at its
 // middle, as plain objects are (`ff_near_leaf`); F'(p0) <= 0 at the widened box's entry is
 // the solid beside the box. Beyond the margin the bound holds for (an object a few pixels
 // wide), every ray through the widened box is a near miss.
-fn ff_intersect(id: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32, t_max: f32, any: bool, near_reach: f32) -> FfHit {
+fn ff_intersect(id: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32, t_max: f32, any: bool, cone: vec2<f32>) -> FfHit {
     var h: FfHit;
     h.hit = false;
     h.t = t_max;
@@ -365,14 +366,14 @@ fn ff_intersect(id: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32, t_max: f32, a
     let ob = ff_objects[id];
     // Every near-miss step hangs on `near`, a constant where the caller passes 0: the
     // shader compiler then drops them from the plain search.
-    let near = near_reach > 0.0;
+    let near = cone.x != 0.0 || cone.y != 0.0;
     var boxed = ob;
-    var slope = 0.0;
+    var lower = vec2<f32>(0.0);
     if (near) {
-        let widen = near_reach * (length(ob.sphere.xyz - ro) + ob.sphere.w);
+        let widen = cone.x + cone.y * (length(ob.sphere.xyz - ro) + ob.sphere.w);
         boxed.box_min = vec4<f32>(ob.box_min.xyz - vec3<f32>(widen), ob.box_min.w);
         boxed.box_max = vec4<f32>(ob.box_max.xyz + vec3<f32>(widen), ob.box_max.w);
-        slope = ob.local_0.w * near_reach;
+        lower = ob.local_0.w * cone;
         if (widen > ob.local_1.w) {
             let wide = ff_span(boxed, ro, rd, t_min, t_max);
             h.hit = wide.t0 <= wide.t1;
@@ -425,7 +426,7 @@ fn ff_intersect(id: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32, t_max: f32, a
             raw = ff_enclose(first, count, p0, d, a, b).x;
         }
         // Lowered in the near-miss search.
-        let e = select(raw, raw - slope * (t0 + b), near);
+        let e = select(raw, raw - lower.x - lower.y * (t0 + b), near);
         h.iterations += 1u;
         if (phase == 0u) {
             if (raw <= 0.0) {
@@ -468,7 +469,7 @@ fn ff_intersect(id: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32, t_max: f32, a
                 phase = 2u;
                 continue;
             }
-            if (!near || ff_near_leaf(first, count, p0 + d * (a + 0.5 * w), t0 + a + 0.5 * w, near_reach, 0.5 * w)) {
+            if (!near || ff_near_leaf(first, count, p0 + d * (a + 0.5 * w), t0 + a + 0.5 * w, cone, 0.5 * w)) {
                 s = a;
                 break;
             }
@@ -495,10 +496,11 @@ fn ff_intersect(id: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32, t_max: f32, a
 
 // A leaf of the near-miss search (`ff_intersect`) that its lowered enclosure admits is a
 // near miss when the first-order distance estimate F' / |∇F'| at its middle `p` (ray
-// distance `t`) is within the reach there plus half the leaf (`half`), or F' <= 0 there.
-fn ff_near_leaf(first: u32, count: u32, p: vec3<f32>, t: f32, reach: f32, half: f32) -> bool {
+// distance `t`) is within the cone's radius there plus half the leaf (`half`), or F' <= 0
+// there.
+fn ff_near_leaf(first: u32, count: u32, p: vec3<f32>, t: f32, cone: vec2<f32>, half: f32) -> bool {
     let vg = ff_value_grad(first, count, p);
-    return vg.x <= (reach * t + half) * length(vg.yzw);
+    return vg.x <= (cone.x + cone.y * t + half) * length(vg.yzw);
 }
 
 // A plain object (one quadric, no perturbations: `box_max.w` bits = 1) in closed form, with
@@ -538,18 +540,16 @@ fn ff_plain_hit(id: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32, t_max: f32) -
     return h;
 }
 
-// Unit world normal of a hit from `ff_intersect`: the box face it carries, else the
-// normalised gradient of F' (continuous across the perturbations' breakpoints).
 // Near miss of a plain object (anti-aliasing): does the ray, which misses the object, pass
-// within `reach` t of it before `t_max`? The box is widened by the cone's radius at the far
-// side of the object's bounding sphere; over the ray's span through the widened box the
-// quadric's lowest value F (the vertex of F(s) = a s² + b s + c, or an end) and its gradient
+// within r(t) = cone.x + cone.y t of it before `t_max` (`cone`: see `ff_intersect`)? The box
+// is widened by r at the far side of the object's bounding sphere; over the ray's span
+// through the widened box the quadric's lowest value F (the vertex of F(s) = a s² + b s + c, or an end) and its gradient
 // there give the distance estimate F / |∇F|, never more than the distance for spheres and
 // cylinders ((ρ² - r²) / 2ρ <= ρ - r) and exact for planes; F <= 0 there is the solid beside
 // the box itself (a cap's or a slab's edge within reach).
-fn ff_plain_near_miss(id: u32, ro: vec3<f32>, rd: vec3<f32>, reach: f32, t_max: f32) -> bool {
+fn ff_plain_near_miss(id: u32, ro: vec3<f32>, rd: vec3<f32>, cone: vec2<f32>, t_max: f32) -> bool {
     let ob = ff_objects[id];
-    let widen = reach * (length(ob.sphere.xyz - ro) + ob.sphere.w);
+    let widen = cone.x + cone.y * (length(ob.sphere.xyz - ro) + ob.sphere.w);
     var wide = ob;
     wide.box_min = vec4<f32>(ob.box_min.xyz - vec3<f32>(widen), ob.box_min.w);
     wide.box_max = vec4<f32>(ob.box_max.xyz + vec3<f32>(widen), ob.box_max.w);
@@ -567,8 +567,11 @@ fn ff_plain_near_miss(id: u32, ro: vec3<f32>, rd: vec3<f32>, reach: f32, t_max: 
     }
     let f = ff_quad(c, s);
     let g = ff_grad(node, p0 + span.d * s);
-    return f <= 0.0 || f < reach * (span.t0 + s) * length(g);
+    return f <= 0.0 || f < (cone.x + cone.y * (span.t0 + s)) * length(g);
 }
+
+// Unit world normal of a hit from `ff_intersect`: the box face it carries, else the
+// normalised gradient of F' (continuous across the perturbations' breakpoints).
 
 fn ff_normal(id: u32, h: FfHit, ro: vec3<f32>, rd: vec3<f32>) -> vec3<f32> {
     if (dot(h.n, h.n) > 0.0) {

@@ -32,7 +32,7 @@ fn fs_objects_plain(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32>
         // Anti-aliasing's centre rays: a plain object missed within the pixel's cone (its
         // corners: sqrt 2 times the half-angle) sets the near-miss bit (31), as the terrain's
         // NEAR cast does.
-        let near = ff_plain_near(px, frame.eye_world.xyz, e.xyz, 1.4143 * max(e.w, 0.0), max(far, 0.0));
+        let near = ff_plain_near(px, 0u, frame.eye_world.xyz, e.xyz, vec2<f32>(0.0, 1.4143 * max(e.w, 0.0)), max(far, 0.0), FF_NONE);
         g.w |= select(0u, 0x80000000u, near && far >= 0.0);
         return g;
     }
@@ -48,7 +48,7 @@ fn objects_general(px: vec2<u32>, near: bool) -> vec4<u32> {
         var g = textureLoad(gbuffer_in, vec2<i32>(px), 0);
         if (near) {
             let e = ray_entry(px);
-            let missed = ff_general_near(px, frame.eye_world.xyz, e.xyz, 1.4143 * max(e.w, 0.0), max(far, 0.0));
+            let missed = ff_general_near(px, 0u, frame.eye_world.xyz, e.xyz, vec2<f32>(0.0, 1.4143 * max(e.w, 0.0)), max(far, 0.0), FF_NONE);
             g.w |= select(0u, 0x80000000u, missed && far >= 0.0);
         }
         return g;

@@ -266,11 +266,12 @@ fn shade_surface(px: vec2<u32>, g: vec4<u32>, dir_w: vec3<f32>, dl: vec3<f32>) -
     if (VOLUME_SHADOWS) {
         lit *= textureLoad(volume_sun, vec2<i32>(px), 0).x;
     }
-    // Flag 64 (blocked by a voxel model, set by the voxel shadow pass) is folded into 2; on
-    // terrain and free forms it then says a cast's near miss (G-buffer bit 31, anti-aliased
-    // frames: the terrain's, or a voxel model's in front; a voxel hit keeps its steps there).
+    // Flag 64 (blocked by a voxel model, set by the voxel shadow pass) is folded into 2; it
+    // then says a near miss of anti-aliased frames: on terrain and free forms the cast's or a
+    // voxel model's sun rays' (G-buffer bit 31; a voxel hit keeps its steps there), on any
+    // surface the free-form sun rays' (`objects_shadow_near`).
     flags &= 0xbfu;
-    if (!is_voxel && (g.w >> 31u) != 0u) {
+    if ((!is_voxel && (g.w >> 31u) != 0u) || objects_shadow_near(px)) {
         flags |= 64u;
     }
     var c: vec3<f32>;

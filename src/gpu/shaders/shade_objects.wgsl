@@ -8,6 +8,12 @@ fn objects_shadow(px: vec2<u32>) -> bool {
     return textureLoad(ff_shadow, vec2<i32>(px), 0).x == frame.stamp.x;
 }
 
+// Anti-aliasing's centre rays: the sun rays of the pixel's footprint pass a free form that its
+// own sun ray misses (the `_near` shadow passes' second channel).
+fn objects_shadow_near(px: vec2<u32>) -> bool {
+    return frame.stamp.z != 0u && textureLoad(ff_shadow, vec2<i32>(px), 0).y == frame.stamp.x;
+}
+
 fn object_shadow_offset(g: vec4<u32>) -> f32 {
     return ff_objects[g.y & 0xffffu].position.w;
 }

@@ -5,6 +5,10 @@ fn objects_shadow(px: vec2<u32>) -> bool {
     return false;
 }
 
+fn objects_shadow_near(px: vec2<u32>) -> bool {
+    return false;
+}
+
 fn object_shadow_offset(g: vec4<u32>) -> f32 {
     return 0.0;
 }
