@@ -11,10 +11,7 @@ use relief::app::quality::{self, render_all, render_job, Quality, QualityRow};
 use relief::colour::{linear_to_srgb8, srgb_to_linear};
 use relief::gpu::{Antialias, FrameOutput};
 
-const EDGES: Antialias = Antialias {
-    samples: 16,
-    every_pixel: false,
-};
+const EDGES: Antialias = Antialias::EDGES;
 
 /// The figures of `words`' run, 10 frames in motion, off and with edges.
 fn measure(words: &[&str]) -> Option<(QualityRow, QualityRow)> {
@@ -193,6 +190,81 @@ impl Four {
     }
 }
 
+/// The first motion frame of `scene` at `size`, once per choice.
+fn frames(scene: &str, size: &str, choices: &[Antialias]) -> Vec<FrameOutput> {
+    let path = common::terrains().join(scene);
+    let job = render_job(&[path.to_str().unwrap(), "--size", size]).unwrap();
+    let (mut p, mut r) = capture::prepare(&job).unwrap();
+    let cams = quality::motion_cameras(&p.scene, &p.world.terrain, 1);
+    choices
+        .iter()
+        .map(|&c| render_all(&mut p, &mut r, &job, &cams, c).unwrap().frames[0].clone())
+        .collect()
+}
+
+/// `"edges"` gives each edge pixel 4, 8 or 16 samples by its contrast. Each pixel it
+/// anti-aliases equals the same pixel of the frame whose edge pixels all get 4, 8 or 16 (the
+/// same sub-pixel positions: the first 4 or 8 of the 4x4 grid), so the mixed atlas (a group
+/// holds one pixel's 16 samples, two pixels' 8 or four pixels' 4; the tree's list fills
+/// several batches) is laid out and resolved right. It marks the pixels the fixed counts mark,
+/// all three counts occur, and the extra rays it reports are the sum of its pixels' counts:
+/// fewer than 16 a pixel.
+#[test]
+fn edges_gives_each_edge_pixel_4_8_or_16_samples_by_its_contrast() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let _lock = common::gpu_lock();
+    let fixed = [4u32, 8, 16];
+    for scene in ["alps.toml", "tree.toml"] {
+        let mut choices = vec![EDGES];
+        choices.extend(fixed.map(Antialias::edges));
+        let f = frames(scene, "320x180", &choices);
+        let (edges, by_count) = (&f[0], &f[1..]);
+        let flagged =
+            |o: &FrameOutput| -> Vec<bool> { o.flags.iter().map(|v| v & 128 != 0).collect() };
+        for o in by_count {
+            assert_eq!(
+                flagged(edges),
+                flagged(o),
+                "{scene}: the same pixels are marked"
+            );
+        }
+        let (mut per_count, mut none) = ([0u64; 3], Vec::new());
+        for k in (0..W * H).filter(|&k| edges.flags[k] & 128 != 0) {
+            // The fewest samples whose frame shows the pixel as `"edges"` does.
+            match (0..3)
+                .find(|&i| largest_channel_difference(&edges.rgba, &by_count[i].rgba, k) == 0)
+            {
+                Some(i) => per_count[i] += 1,
+                None => none.push(k),
+            }
+        }
+        let pixels = edges.antialiased_pixels();
+        let rays = edges.antialias_rays();
+        eprintln!(
+            "{scene}: {pixels} pixels anti-aliased, equal to the frame with 4 / 8 / 16 samples: {per_count:?}, to none: {}; {rays} extra rays ({:.2} a pixel anti-aliased)",
+            none.len(),
+            rays as f64 / pixels as f64
+        );
+        assert!(
+            none.is_empty(),
+            "{scene}: pixels {none:?} match no sample count"
+        );
+        assert!(
+            per_count.iter().all(|&c| c > 0),
+            "{scene}: every count occurs"
+        );
+        for (o, n) in by_count.iter().zip(fixed) {
+            assert_eq!(o.antialias_rays(), u64::from(n) * pixels);
+        }
+        assert!(
+            rays > 4 * pixels && rays < 16 * pixels,
+            "{scene}: {rays} extra rays"
+        );
+    }
+}
+
 fn largest_channel_difference(a: &[u8], b: &[u8], k: usize) -> u8 {
     (0..3)
         .map(|c| a[4 * k + c].abs_diff(b[4 * k + c]))
@@ -329,8 +401,14 @@ fn the_command_line_reports_extra_rays_and_leaves_the_pattern() {
     );
     eprintln!("160x90 alps: {pixels} pixels anti-aliased, {rays} extra rays");
     assert_eq!(aa["samples"].as_u64(), Some(16));
+    assert_eq!(aa["adaptive"].as_bool(), Some(true));
     assert!(pixels > 0 && pixels < 160 * 90 / 2);
-    assert_eq!(rays, 16 * pixels);
+    assert!(rays >= 4 * pixels && rays < 16 * pixels, "4 to 16 a pixel");
+    let sixteen = frame_json(&run("sixteen", &["--size", "160x90", "--antialias", "16"]));
+    let aa = &sixteen["antialias"];
+    assert_eq!(aa["adaptive"].as_bool(), Some(false));
+    assert_eq!(aa["pixels"].as_u64(), Some(pixels));
+    assert_eq!(aa["extra_rays"].as_u64(), Some(16 * pixels));
     let off = frame_json(&run("off", &["--size", "160x90"]));
     assert_eq!(off["antialias"]["extra_rays"].as_u64(), Some(0));
 

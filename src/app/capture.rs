@@ -54,14 +54,14 @@ pub fn frame_metadata(
     let pixels = (out.width * out.height) as f64;
     let hits = out.flags.iter().filter(|f| *f & 1 != 0).count();
     let aa_pixels = out.antialiased_pixels();
-    let aa_samples = u64::from(settings.antialias.rays_per_pixel());
     json!({
         "frame": frame,
         "antialias": {
-            "samples": aa_samples,
+            "samples": settings.antialias.rays_per_pixel(),
+            "adaptive": settings.antialias.adaptive,
             "every_pixel": settings.antialias.every_pixel,
             "pixels": aa_pixels,
-            "extra_rays": aa_pixels * aa_samples,
+            "extra_rays": out.antialias_rays(),
         },
         "time_s": scene.desc.path.as_ref().map(|p| frame as f64 / p.fps),
         "width": out.width,

@@ -94,8 +94,8 @@ impl Rendered {
     /// Extra rays per frame, mean.
     pub fn extra_rays(&self) -> f64 {
         let n = self.frames.len().max(1) as f64;
-        let rays: u64 = self.frames.iter().map(|f| f.antialiased_pixels()).sum();
-        rays as f64 * f64::from(self.antialias.rays_per_pixel()) / n
+        let rays: u64 = self.frames.iter().map(|f| f.antialias_rays()).sum();
+        rays as f64 / n
     }
 }
 

@@ -238,6 +238,8 @@ pub fn render_two_pass(
         times.volume_shadow_ms += t.volume_shadow_ms;
         times.volume_ms += t.volume_ms;
         times.readback_ms += t.readback_ms;
+        times.antialias_ms += t.antialias_ms;
+        times.antialias_rays += t.antialias_rays;
         rendered.push((*f, out.rgba));
         depths.push(out.depth);
     }

@@ -8,9 +8,12 @@
 //!    jump on one surface), where the colour changes by more than a threshold; or a colour
 //!    step to a neighbour above a larger threshold on one surface (detail finer than the
 //!    pixel); or a near miss the centre ray's cone found (flag 64: the centre rays are cast
-//!    with the `NEAR` traversal). Read back, the mask becomes the list of marked pixels.
-//! 2. The **sample atlas**: a target of the list's n samples only (entry i = sample i % n of
-//!    marked pixel i / n, row by row), with its own frame targets. Mesa's CPU rasterisers run
+//!    with the `NEAR` traversal). The mask holds each marked pixel's sample count: 4, 8 or 16
+//!    by its contrast with `"edges"` (at most about 2 levels of error against 16 samples:
+//!    [`ADAPT_4`], [`ADAPT_8`]), else the chosen count. Read back, it becomes the list of
+//!    marked pixels ([`Marked`]: the 16s, then the 8s, then the 4s).
+//! 2. The **sample atlas**: a target of the list's samples only (4x4 groups, each holding one
+//!    pixel's 16 samples, two pixels' 8 or four pixels' 4), with its own frame targets. Mesa's CPU rasterisers run
 //!    every lane of a fragment block, so a full-screen pass with most pixels switched off would
 //!    cost nearly a full pass; on the atlas the samples cost what their rays cost, and every
 //!    pass runs once for all n samples. **Sample rays** (`aa_rays.wgsl`) write its ray table:
@@ -38,27 +41,49 @@ use wgpu::TextureFormat as F;
 /// How a frame is anti-aliased (`[render] antialias`, `--antialias`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize)]
 pub struct Antialias {
-    /// Sub-pixel rays per anti-aliased pixel: 0 (off), 4, 8 or 16.
+    /// Sub-pixel rays per anti-aliased pixel: 0 (off), 4, 8 or 16; the most a pixel gets
+    /// when `adaptive`.
     pub samples: u32,
     /// Every pixel, not only edges (the supersampled reference).
     pub every_pixel: bool,
+    /// Each marked pixel's count (4, 8 or 16) chosen from its contrast ([`ADAPT_4`],
+    /// [`ADAPT_8`]; `"edges"`).
+    pub adaptive: bool,
 }
 
 impl Antialias {
     pub const OFF: Antialias = Antialias {
         samples: 0,
         every_pixel: false,
+        adaptive: false,
+    };
+    /// `"edges"`: 4 to 16 rays per edge pixel, by contrast.
+    pub const EDGES: Antialias = Antialias {
+        samples: 16,
+        every_pixel: false,
+        adaptive: true,
     };
     /// The reference: 16 rays (4x4) in every pixel.
     pub const REFERENCE: Antialias = Antialias {
         samples: 16,
         every_pixel: true,
+        adaptive: false,
     };
+
+    /// `n` rays (4, 8 or 16) in every edge pixel.
+    pub const fn edges(n: u32) -> Antialias {
+        Antialias {
+            samples: n,
+            every_pixel: false,
+            adaptive: false,
+        }
+    }
     pub fn is_on(self) -> bool {
         self.samples > 0
     }
 
-    /// Sub-pixel rays each anti-aliased pixel gets (0 when off; see [`samples`]).
+    /// Sub-pixel rays each anti-aliased pixel gets, the most when adaptive (0 when off; see
+    /// [`samples`]).
     pub fn rays_per_pixel(self) -> u32 {
         if self.is_on() {
             samples(self)
@@ -72,6 +97,7 @@ impl Antialias {
         Antialias {
             samples: o.samples(),
             every_pixel: o.every_pixel(),
+            adaptive: o.adaptive(),
         }
     }
 }
@@ -83,6 +109,15 @@ pub const KINK: f32 = 0.02;
 /// Colour contrast to a neighbour (sRGB, 0..1) above which a pixel is marked on one surface
 /// too: detail finer than the pixel (far slopes, a drape's texture).
 pub const DETAIL: f32 = 12.0 / 255.0;
+/// Adaptive counts (`"edges"`): a marked pixel whose largest colour step to a neighbour (sRGB,
+/// 0..1) is at most this gets 4 samples. A straight edge's coverage from the first 4 samples
+/// of the 4x4 grid differs from all 16's by at most a quarter of the pixel (0.078 in the mean
+/// over random edges), from the first 8's by at most an eighth (0.044): with these two
+/// limits the colour of an edge pixel moves by at most about 2 levels from the 16 samples'.
+pub const ADAPT_4: f32 = 8.0 / 255.0;
+/// Adaptive counts: at most this (and above [`ADAPT_4`]), 8 samples; above it, 16 (and near
+/// misses, whose centre colour does not show what they missed, always 16).
+pub const ADAPT_8: f32 = 16.0 / 255.0;
 
 /// Sample positions on the 4x4 grid inside a pixel (column, row), ordered so that the first 4
 /// are a rotated grid (one per row and column) and the first 8 two of them (two per row and
@@ -118,6 +153,8 @@ pub struct AaUniforms {
     pub size: [u32; 4],
     pub atlas: [u32; 4],
     pub limits: [f32; 4],
+    pub adapt: [f32; 4],
+    pub counts: [u32; 4],
     pub offsets: [[f32; 4]; 8],
     pub linear: [[f32; 4]; 64],
 }
@@ -271,18 +308,30 @@ impl AntialiasPasses {
         }
     }
 
-    /// Writes the parameters of a `size` frame anti-aliased as `aa`, for the batch of `count`
-    /// marked pixels from place `first` of the list.
-    pub fn write_params(&self, gpu: &Gpu, size: [u32; 2], aa: Antialias, first: u32, count: u32) {
+    /// Writes the parameters of a `size` frame anti-aliased as `aa`, for `batch` of the list
+    /// (the edge pass reads none of it).
+    pub fn write_params(&self, gpu: &Gpu, size: [u32; 2], aa: Antialias, batch: &Batch) {
         let mut offsets = [[0.0f32; 4]; 8];
         for (k, o) in offsets.iter_mut().enumerate() {
             let (a, b) = (sample_offset(2 * k), sample_offset(2 * k + 1));
             *o = [a[0], a[1], b[0], b[1]];
         }
         let u = AaUniforms {
-            size: [size[0], size[1], count, samples(aa)],
-            atlas: [atlas_width(size[0]), aa.every_pixel as u32, first, 0],
+            size: [size[0], size[1], batch.count, samples(aa)],
+            atlas: [
+                atlas_width(size[0]),
+                aa.every_pixel as u32,
+                batch.first,
+                (aa.adaptive && !aa.every_pixel) as u32,
+            ],
             limits: [CONTRAST, KINK, DETAIL, 0.0],
+            adapt: [ADAPT_4, ADAPT_8, 0.0, 0.0],
+            counts: [
+                batch.counts[0],
+                batch.counts[1],
+                batch.counts[2],
+                batch.group,
+            ],
             offsets,
             linear: std::array::from_fn(|i| {
                 std::array::from_fn(|j| crate::colour::srgb_to_linear((4 * i + j) as u8) as f32)
@@ -467,25 +516,11 @@ impl AntialiasPasses {
 
 impl AntialiasTargets {
     /// The mask read back (after [`AntialiasPasses::encode_edges`] was submitted): the
-    /// marked pixels, packed x | y << 16.
-    pub fn marked_pixels(&self, gpu: &Gpu) -> crate::Result<Vec<u32>> {
+    /// marked pixels by sample count.
+    pub fn marked_pixels(&self, gpu: &Gpu) -> crate::Result<Marked> {
         let [w, h] = self.size;
         let bytes = super::util::read_buffer(gpu, &self.mask_rb, w, h)?;
-        // Tile by tile (8x8), so that pixels close in the list are close on the screen: the
-        // atlas's tiles and free-form bins then hold neighbouring rays, with narrow cones.
-        let mut out = Vec::new();
-        for ty in (0..h).step_by(8) {
-            for tx in (0..w).step_by(8) {
-                for y in ty..(ty + 8).min(h) {
-                    for x in tx..(tx + 8).min(w) {
-                        if bytes[(y * w + x) as usize] != 0 {
-                            out.push(x | (y << 16));
-                        }
-                    }
-                }
-            }
-        }
-        Ok(out)
+        Ok(Marked::from_mask(&bytes, w, h))
     }
 
     /// Uploads the list of marked pixels (row by row in the screen's width).
@@ -503,24 +538,118 @@ impl AntialiasTargets {
         self.size[1].div_ceil(ATLAS_ROWS).max(1) * ATLAS_ROWS
     }
 
-    /// Marked pixels one atlas holds with `aa`'s samples.
-    pub fn batch(&self, aa: Antialias) -> u32 {
-        let groups = (atlas_width(self.size[0]) / 4) * (self.max_rows() / 4);
-        groups * (16 / samples(aa))
+    /// Groups (4x4 entries: one pixel's 16 samples, two pixels' 8 or four pixels' 4) one
+    /// atlas holds.
+    pub fn batch_groups(&self) -> u32 {
+        (atlas_width(self.size[0]) / 4) * (self.max_rows() / 4)
     }
 
-    /// The atlas size for a batch of `marked` pixels with `aa`'s samples: [`atlas_width`],
-    /// rows of 16x16 bins (16 groups of 4x4 entries, 16 / n pixels each: a row of bins holds
-    /// `w` groups) in multiples of [`ATLAS_ROWS`].
-    pub fn atlas_size(&self, marked: u32, aa: Antialias) -> [u32; 2] {
+    /// The atlas size for a batch of `groups`: [`atlas_width`], rows of 16x16 bins (16
+    /// groups of 4x4 entries: a row of bins holds `w` groups) in multiples of [`ATLAS_ROWS`].
+    pub fn atlas_size(&self, groups: u32) -> [u32; 2] {
         let w = atlas_width(self.size[0]);
-        let groups = marked.div_ceil(16 / samples(aa));
         let rows = groups.div_ceil(w) * 16;
         [
             w,
             (rows.div_ceil(ATLAS_ROWS).max(1) * ATLAS_ROWS).min(self.max_rows()),
         ]
     }
+}
+
+/// The marked pixels of a frame, packed x | y << 16: those with 16 samples first, then those
+/// with 8, then those with 4, each part tile by tile (8x8), so that pixels close in the list
+/// are close on the screen (the atlas's tiles and free-form bins then hold neighbouring rays,
+/// with narrow cones).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub(crate) struct Marked {
+    pub pixels: Vec<u32>,
+    /// Pixels with 16, 8 and 4 samples.
+    pub counts: [u32; 3],
+}
+
+/// The sample counts of [`Marked`]'s parts, in list order.
+const PARTS: [u32; 3] = [16, 8, 4];
+
+impl Marked {
+    /// From the edge pass's mask (`w` x `h`, each byte the pixel's sample count or 0).
+    pub fn from_mask(mask: &[u8], w: u32, h: u32) -> Marked {
+        let mut parts: [Vec<u32>; 3] = Default::default();
+        for ty in (0..h).step_by(8) {
+            for tx in (0..w).step_by(8) {
+                for y in ty..(ty + 8).min(h) {
+                    for x in tx..(tx + 8).min(w) {
+                        let n = u32::from(mask[(y * w + x) as usize]);
+                        if let Some(p) = PARTS.iter().position(|&k| k == n) {
+                            parts[p].push(x | (y << 16));
+                        }
+                    }
+                }
+            }
+        }
+        let counts = parts.each_ref().map(|p| p.len() as u32);
+        Marked {
+            pixels: parts.concat(),
+            counts,
+        }
+    }
+
+    /// Atlas groups the list fills (a pixel with 8 samples shares one with another, one with
+    /// 4 with three others).
+    pub fn groups(&self) -> u32 {
+        let [a, b, c] = self.counts;
+        a + b.div_ceil(2) + c.div_ceil(4)
+    }
+
+    /// The place in the list of group `g`'s first pixel (the list's length for
+    /// [`Marked::groups`]).
+    pub fn first_pixel(&self, g: u32) -> u32 {
+        let [a, b, c] = self.counts;
+        let g4 = a + b.div_ceil(2);
+        if g <= a {
+            g
+        } else if g <= g4 {
+            (a + (g - a) * 2).min(a + b)
+        } else {
+            (a + b + (g - g4) * 4).min(a + b + c)
+        }
+    }
+
+    /// Sub-pixel rays the list casts.
+    pub fn rays(&self) -> u64 {
+        (self.counts.iter().zip(PARTS))
+            .map(|(&c, n)| u64::from(c) * u64::from(n))
+            .sum()
+    }
+
+    /// The batches of an atlas of `per_batch` groups.
+    pub fn batches(&self, per_batch: u32) -> Vec<Batch> {
+        let groups = self.groups();
+        (0..groups)
+            .step_by(per_batch.max(1) as usize)
+            .map(|g| {
+                let end = (g + per_batch).min(groups);
+                let first = self.first_pixel(g);
+                Batch {
+                    counts: self.counts,
+                    group: g,
+                    groups: end - g,
+                    first,
+                    count: self.first_pixel(end) - first,
+                }
+            })
+            .collect()
+    }
+}
+
+/// One atlas's share of a [`Marked`] list: groups `group..group + groups`, pixels
+/// `first..first + count`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) struct Batch {
+    pub counts: [u32; 3],
+    pub group: u32,
+    pub groups: u32,
+    pub first: u32,
+    pub count: u32,
 }
 
 /// Records a copy of all of `from` into `to` (same size and format: the centre frame's data
@@ -545,4 +674,76 @@ fn write_rows(gpu: &Gpu, texture: &wgpu::Texture, data: &[u32], w: u32, rows: u3
             depth_or_array_layers: 1,
         },
     );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{Batch, Marked};
+
+    /// A 16x8 mask: pixel (x, y) gets the count `f(x, y)` (0: unmarked).
+    fn mask(f: impl Fn(u32, u32) -> u8) -> Vec<u8> {
+        (0..8)
+            .flat_map(|y| (0..16).map(move |x| (x, y)))
+            .map(|(x, y)| f(x, y))
+            .collect()
+    }
+
+    #[test]
+    fn the_list_holds_the_16s_then_the_8s_then_the_4s_each_tile_by_tile() {
+        // Column x gets 16 samples for x = 1, 9; 8 for x = 2, 3, 10; 4 for x = 12..15.
+        let m = Marked::from_mask(
+            &mask(|x, _| match x {
+                1 | 9 => 16,
+                2 | 3 | 10 => 8,
+                12..=15 => 4,
+                _ => 0,
+            }),
+            16,
+            8,
+        );
+        assert_eq!(m.counts, [16, 24, 32]);
+        let xy = |p: u32| (p & 0xffff, p >> 16);
+        let parts = [&m.pixels[..16], &m.pixels[16..40], &m.pixels[40..]];
+        assert!(parts[0].iter().all(|&p| [1, 9].contains(&xy(p).0)));
+        assert!(parts[1].iter().all(|&p| [2, 3, 10].contains(&xy(p).0)));
+        assert!(parts[2].iter().all(|&p| xy(p).0 >= 12));
+        // Tile by tile (8x8): the left tile's 16s, row by row, before the right tile's.
+        let first: Vec<_> = parts[0].iter().map(|&p| xy(p)).collect();
+        assert_eq!(&first[..3], &[(1, 0), (1, 1), (1, 2)]);
+        assert_eq!(first[8], (9, 0));
+        assert_eq!(m.rays(), 16 * 16 + 8 * 24 + 4 * 32);
+        // Other bytes are no count.
+        assert_eq!(Marked::from_mask(&mask(|_, _| 3), 16, 8), Marked::default());
+    }
+
+    #[test]
+    fn groups_and_batches_cover_every_pixel_once() {
+        let m = Marked {
+            pixels: (0..15).collect(),
+            counts: [3, 5, 7],
+        };
+        // 3 groups of one 16, 3 of two 8s (the last half empty), 2 of four 4s.
+        assert_eq!(m.groups(), 8);
+        let firsts: Vec<u32> = (0..=8).map(|g| m.first_pixel(g)).collect();
+        assert_eq!(firsts, [0, 1, 2, 3, 5, 7, 8, 12, 15]);
+        for per in 1..=9 {
+            let b = m.batches(per);
+            assert_eq!(b.iter().map(|b| b.groups).sum::<u32>(), 8);
+            assert!(b.iter().all(|b| b.groups <= per && b.counts == m.counts));
+            let mut next = (0, 0);
+            for Batch {
+                group,
+                groups,
+                first,
+                count,
+                ..
+            } in b
+            {
+                assert_eq!((group, first), next, "batches follow one another");
+                next = (group + groups, first + count);
+            }
+            assert_eq!(next, (8, 15));
+        }
+        assert!(Marked::default().batches(4).is_empty());
+    }
 }

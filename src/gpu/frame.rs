@@ -62,6 +62,9 @@ pub struct PassTimes {
     /// Anti-aliasing: edge mask, every sample's passes, resolve (0 when off).
     pub antialias_ms: f64,
     pub readback_ms: f64,
+    /// Not a time: the sub-pixel rays anti-aliasing cast in the frame (the sum of the marked
+    /// pixels' sample counts), which rides with the frame's times to its output.
+    pub antialias_rays: u64,
 }
 
 impl PassTimes {
@@ -123,5 +126,10 @@ impl FrameOutput {
             .iter()
             .filter(|f| *f & FLAG_ANTIALIASED != 0)
             .count() as u64
+    }
+
+    /// Sub-pixel rays anti-aliasing cast for the frame (0 when off).
+    pub fn antialias_rays(&self) -> u64 {
+        self.times.antialias_rays
     }
 }

@@ -2,14 +2,16 @@
 
 use serde::{Deserialize, Serialize};
 
-/// `"off"`, `"edges"` (edge pixels get [`AntialiasOption::EDGE_SAMPLES`] sub-pixel rays), `4`,
-/// `8` or `16` (edge pixels get that many), or `"reference"` (every pixel gets 16: the
+/// `"off"`, `"edges"` (edge pixels get 4 to 16 sub-pixel rays, by their contrast), `4`, `8`
+/// or `16` (every edge pixel gets that many), or `"reference"` (every pixel gets 16: the
 /// supersampled reference the tests measure against).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(try_from = "Raw", into = "Raw")]
 pub enum AntialiasOption {
     #[default]
     Off,
+    /// 4 to 16 rays per edge pixel, by its contrast.
+    Adaptive,
     Edges(u32),
     Reference,
 }
@@ -41,6 +43,7 @@ impl From<AntialiasOption> for Raw {
     fn from(a: AntialiasOption) -> Raw {
         match a {
             AntialiasOption::Off => Raw::Word("off".into()),
+            AntialiasOption::Adaptive => Raw::Word("edges".into()),
             AntialiasOption::Edges(n) => Raw::Samples(n.into()),
             AntialiasOption::Reference => Raw::Word("reference".into()),
         }
@@ -48,14 +51,11 @@ impl From<AntialiasOption> for Raw {
 }
 
 impl AntialiasOption {
-    /// Sub-pixel rays per edge pixel of `"edges"`.
-    pub const EDGE_SAMPLES: u32 = 16;
-
     /// `off`, `edges`, `reference`, `4`, `8` or `16` (the CLI's `--antialias` too).
     pub fn parse(s: &str) -> Result<AntialiasOption, String> {
         match s.trim() {
             "off" | "false" => Ok(AntialiasOption::Off),
-            "edges" | "on" | "true" => Ok(AntialiasOption::Edges(Self::EDGE_SAMPLES)),
+            "edges" | "on" | "true" => Ok(AntialiasOption::Adaptive),
             "reference" => Ok(AntialiasOption::Reference),
             "4" => Ok(AntialiasOption::Edges(4)),
             "8" => Ok(AntialiasOption::Edges(8)),
@@ -66,13 +66,18 @@ impl AntialiasOption {
         }
     }
 
-    /// Sub-pixel rays per anti-aliased pixel (0: off).
+    /// Sub-pixel rays per anti-aliased pixel, the most when adaptive (0: off).
     pub fn samples(self) -> u32 {
         match self {
             AntialiasOption::Off => 0,
             AntialiasOption::Edges(n) => n,
-            AntialiasOption::Reference => 16,
+            AntialiasOption::Adaptive | AntialiasOption::Reference => 16,
         }
+    }
+
+    /// Each edge pixel's count chosen from its contrast (`"edges"`).
+    pub fn adaptive(self) -> bool {
+        self == AntialiasOption::Adaptive
     }
 
     /// Every pixel gets the samples (the reference), not only edge pixels.
@@ -99,10 +104,11 @@ mod tests {
     #[test]
     fn words_and_counts() {
         assert_eq!(parse("\"off\""), Ok(AntialiasOption::Off));
-        assert_eq!(parse("\"edges\""), Ok(AntialiasOption::Edges(16)));
+        assert_eq!(parse("\"edges\""), Ok(AntialiasOption::Adaptive));
+        assert_eq!(parse("16"), Ok(AntialiasOption::Edges(16)));
         assert_eq!(parse("8"), Ok(AntialiasOption::Edges(8)));
         assert_eq!(parse("\"reference\""), Ok(AntialiasOption::Reference));
-        assert_eq!(parse("true"), Ok(AntialiasOption::Edges(16)));
+        assert_eq!(parse("true"), Ok(AntialiasOption::Adaptive));
         assert_eq!(parse("false"), Ok(AntialiasOption::Off));
         for bad in ["5", "0", "-4", "\"smooth\"", "1e9", "8.5", "[4]"] {
             let e = parse(bad).unwrap_err();

@@ -14,21 +14,14 @@ use std::path::Path;
 /// Size of the quality figures' frames (the reference casts 16 rays a pixel).
 pub const QUALITY_SIZE: (u32, u32) = (320, 180);
 
-/// The choices measured: off, then 4, 8 and 16 rays per edge pixel.
-pub const CHOICES: [Antialias; 4] = [
+/// The choices measured: off, then 4, 8 and 16 rays per edge pixel, then `"edges"` (4 to 16
+/// by contrast).
+pub const CHOICES: [Antialias; 5] = [
     Antialias::OFF,
-    Antialias {
-        samples: 4,
-        every_pixel: false,
-    },
-    Antialias {
-        samples: 8,
-        every_pixel: false,
-    },
-    Antialias {
-        samples: 16,
-        every_pixel: false,
-    },
+    Antialias::edges(4),
+    Antialias::edges(8),
+    Antialias::edges(16),
+    Antialias::EDGES,
 ];
 
 /// One choice's frame time.
@@ -52,10 +45,11 @@ pub struct AntialiasBench {
 }
 
 fn name(a: Antialias) -> String {
-    match (a.samples, a.every_pixel) {
-        (0, _) => "off".into(),
-        (n, false) => format!("edges {n}"),
-        (n, true) => format!("every pixel {n}"),
+    match (a.samples, a.every_pixel, a.adaptive) {
+        (0, _, _) => "off".into(),
+        (_, false, true) => "edges".into(),
+        (n, false, false) => format!("edges {n}"),
+        (n, true, _) => format!("every pixel {n}"),
     }
 }
 
@@ -79,8 +73,7 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo,
             settings: &p.settings,
             frames,
         };
-        let pixels_aa = frame.capture(&mut renderer)?.antialiased_pixels();
-        let extra = pixels_aa * u64::from(choice.rays_per_pixel());
+        let extra = frame.capture(&mut renderer)?.antialias_rays();
         let frame_ms = frame.median_ms(&mut renderer, Stage::Shade)?;
         let base = timings.first().map_or(frame_ms, |t| t.frame_ms);
         timings.push(AaTiming {

@@ -4,7 +4,7 @@
 
 use super::{FrameJob, Prepared, TerrainRenderer, VoxelRects};
 use crate::cpu::voxel::{InstanceRect, PixelRect};
-use crate::gpu::antialias::{copy_whole, AntialiasPasses, AntialiasTargets, Atlas};
+use crate::gpu::antialias::{copy_whole, AntialiasPasses, AntialiasTargets, Atlas, Batch};
 use crate::gpu::frame::PassTimes;
 use crate::gpu::objects::BIN_CAPACITY;
 use crate::gpu::targets::Targets;
@@ -41,7 +41,9 @@ impl TerrainRenderer {
             let colour = &t.colour_view;
             state.targets = Some(state.passes.targets(gpu, size, &t.ray_table_view, colour));
         }
-        state.passes.write_params(gpu, size, job.s.antialias, 0, 0);
+        state
+            .passes
+            .write_params(gpu, size, job.s.antialias, &Batch::default());
     }
 
     /// The frame targets of a `size` atlas (no edge blend: it follows the resolve).
@@ -78,26 +80,30 @@ impl TerrainRenderer {
         gpu.queue.submit([enc.finish()]);
         let list = at.marked_pixels(gpu)?;
         laps.lap(gpu, "edges and list")?;
-        let marked = list.len() as u32;
+        let marked = list.pixels.len() as u32;
+        times.antialias_rays = list.rays();
         if marked > 0 {
-            at.write_pixels(gpu, &list);
+            at.write_pixels(gpu, &list.pixels);
             let aa_s = job.s.antialias;
-            let batch = at.batch(aa_s);
-            let size = at.atlas_size(marked.min(batch), aa_s);
-            log::debug!("anti-aliasing: {marked} pixels marked, atlas {size:?}");
+            let batches = list.batches(at.batch_groups());
+            let size = at.atlas_size(batches[0].groups);
+            log::debug!(
+                "anti-aliasing: {marked} pixels marked (16, 8, 4 samples: {:?}), atlas {size:?}",
+                list.counts
+            );
             let mut atlas = state.atlas.borrow_mut();
             if atlas.as_ref().map(|a| [a.targets.width, a.targets.height]) != Some(size) {
                 *atlas = None;
                 *atlas = Some(aa.atlas(gpu, at, self.atlas_targets(job, size)?));
             }
             let atlas = atlas.as_ref().expect("just made");
-            for (b, first) in (0..marked).step_by(batch as usize).enumerate() {
-                let count = batch.min(marked - first);
-                aa.write_params(gpu, at.size, aa_s, first, count);
+            for (b, batch) in batches.iter().enumerate() {
+                aa.write_params(gpu, at.size, aa_s, batch);
                 let mut enc = gpu.device.create_command_encoder(&Default::default());
                 self.encode_samples(job, prepared, atlas, b as u32, &mut enc)?;
                 laps.lap(gpu, "samples")?;
-                aa.encode_resolve(&mut enc, atlas, at, [&t.colour_view, &t.data_view], count);
+                let targets = [&t.colour_view, &t.data_view];
+                aa.encode_resolve(&mut enc, atlas, at, targets, batch.count);
                 gpu.queue.submit([enc.finish()]);
                 laps.lap(gpu, "resolve")?;
             }

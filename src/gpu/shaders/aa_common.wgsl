@@ -2,16 +2,24 @@
 // by `gpu::antialias::AaUniforms`) and the sample list's layout.
 
 struct AaParams {
-    // Screen width, height; marked pixels in this batch; samples per marked pixel n.
+    // Screen width, height; marked pixels in this batch; the most samples a marked pixel
+    // gets (4, 8 or 16).
     size: vec4<u32>,
     // x: atlas width (entries a row, a multiple of 4); y: 1 = every pixel marked (the
     // reference); z: the batch's first place in the list of marked pixels (a list longer than
-    // the atlas holds runs in batches).
+    // the atlas holds runs in batches); w: 1 = the sample count is chosen per pixel from its
+    // contrast (`"edges"`), 0 = every marked pixel gets size.w.
     atlas: vec4<u32>,
     // x: colour contrast (sRGB, 0..1) below which a discontinuity is not worth extra rays;
     // y: inverse-depth kink, relative, above which a surface has a crease; z: colour step to
     // a neighbour above which a pixel is marked on one surface too (detail finer than it).
     limits: vec4<f32>,
+    // Adaptive counts (atlas.w = 1): a marked pixel whose largest colour step to a neighbour
+    // is at most x gets 4 samples, at most y 8, else 16 (near misses always 16).
+    adapt: vec4<f32>,
+    // The list holds the pixels with 16 samples first, then those with 8, then those with
+    // 4: x, y, z of them. w: the batch's first group (4x4 atlas entries) of the whole list.
+    counts: vec4<u32>,
     // Sample k's offset from the pixel centre (pixels): offsets[k / 2].xy or .zw.
     offsets: array<vec4<f32>, 8>,
     // The linear value of each 8-bit sRGB value v: linear[v / 4][v % 4] (exact, and a load
@@ -40,12 +48,13 @@ fn aa_offset(k: u32) -> vec2<f32> {
     return select(o.xy, o.zw, (k & 1u) == 1u);
 }
 
-// The atlas is made of 4x4 groups, each holding the n samples (4, 8 or 16) of 16 / n
-// consecutive marked pixels, so that a fragment block of the rasteriser casts the rays of
+// The atlas is made of 4x4 groups, each holding the samples of one marked pixel with 16, two
+// with 8 or four with 4 (the list's pixels with 16 samples come first, so their groups do,
+// then the 8s', then the 4s'), so that a fragment block of the rasteriser casts the rays of
 // one or two pixels (coherent rays). The groups fill 16x16 bins (a free-form bin; 2x2 tiles
 // of the tile pre-pass) of 4x4 groups row by row, and the bins fill the atlas row by row, so
 // that a bin or a tile holds consecutive marked pixels of the list, close on the screen: its
-// rays' bounds stay tight.
+// rays' bounds stay tight. A batch's atlas starts at group counts.w of the whole list.
 fn aa_group_origin(g: u32) -> vec2<u32> {
     let bins = aa.atlas.x / 16u;
     let b = g / 16u;
@@ -60,18 +69,39 @@ fn aa_atlas_group(a: vec2<u32>) -> u32 {
     return b * 16u + ((a.y / 4u) & 3u) * 4u + ((a.x / 4u) & 3u);
 }
 
+// The first group of the pixels with 4 samples (those with 8 share a group by two).
+fn aa_group4() -> u32 {
+    return aa.counts.x + (aa.counts.y + 1u) / 2u;
+}
+
 struct AaEntries {
-    // The top-left entry of marked pixel m's group.
+    // The top-left entry of marked pixel m's group in the batch's atlas.
     group: vec2<i32>,
     // Its first sample's place in the group (row by row).
     first: u32,
+    // Its samples: 4, 8 or 16.
+    n: u32,
 }
 
+// The entries of marked pixel m (its place in the whole list).
 fn aa_entries(m: u32) -> AaEntries {
-    let per = 16u / aa.size.w;
+    let c = aa.counts;
+    var g = m;
     var e: AaEntries;
-    e.group = vec2<i32>(aa_group_origin(m / per));
-    e.first = (m % per) * aa.size.w;
+    e.first = 0u;
+    e.n = 16u;
+    if (m >= c.x + c.y) {
+        let j = m - c.x - c.y;
+        g = aa_group4() + j / 4u;
+        e.first = (j % 4u) * 4u;
+        e.n = 4u;
+    } else if (m >= c.x) {
+        let j = m - c.x;
+        g = c.x + j / 2u;
+        e.first = (j % 2u) * 8u;
+        e.n = 8u;
+    }
+    e.group = vec2<i32>(aa_group_origin(g - c.w));
     return e;
 }
 
@@ -81,11 +111,28 @@ fn aa_entry(e: AaEntries, k: u32) -> vec2<i32> {
     return e.group + vec2<i32>(i32(i & 3u), i32(i >> 2u));
 }
 
-// The marked pixel m (x) and sample k (y) of atlas entry `a`.
+// The marked pixel m (x, its place in the whole list) and sample k (y) of atlas entry `a`;
+// x = AA_NONE where the entry holds no sample (past the batch, or the unused half or
+// quarters of the last group of pixels with 8 or 4).
 fn aa_atlas_sample(a: vec2<u32>) -> vec2<u32> {
-    let n = aa.size.w;
+    let c = aa.counts;
+    let g = aa_atlas_group(a) + c.w;
     let e = (a.y % 4u) * 4u + a.x % 4u;
-    return vec2<u32>(aa_atlas_group(a) * (16u / n) + e / n, e % n);
+    let g4 = aa_group4();
+    var m = g;
+    var k = e;
+    var end = c.x;
+    if (g >= g4) {
+        m = c.x + c.y + (g - g4) * 4u + e / 4u;
+        k = e % 4u;
+        end = c.x + c.y + c.z;
+    } else if (g >= c.x) {
+        m = c.x + (g - c.x) * 2u + e / 8u;
+        k = e % 8u;
+        end = c.x + c.y;
+    }
+    let batch_end = aa.atlas.z + aa.size.z;
+    return vec2<u32>(select(AA_NONE, m, m < min(end, batch_end)), k);
 }
 
 // The linear colour of an 8-bit sRGB texel `c` (0..1, as loaded from an Rgba8Unorm target).

@@ -3,8 +3,8 @@
 // (sky, terrain, free form by id, voxel model), a shadow boundary, or a crease or depth jump
 // on one surface (1/distance is affine along a plane's image, so its second difference
 // across the pixel is a kink), where the colour also changes by more than the contrast
-// threshold; or a colour step to a neighbour above the detail threshold. The mask is 1 where
-// the pixel gets sub-pixel rays; read back, it makes the sample list.
+// threshold; or a colour step to a neighbour above the detail threshold. The mask holds the
+// sub-pixel rays the pixel gets (0, 4, 8 or 16); read back, it makes the sample list.
 
 @group(0) @binding(2) var centre_colour: texture_2d<f32>;
 @group(0) @binding(3) var centre_data: texture_2d<u32>;
@@ -49,7 +49,7 @@ fn fs_edges(@builtin(position) pos: vec4<f32>) -> @location(0) u32 {
         return 0u;
     }
     if (aa.atlas.y != 0u) {
-        return 1u;
+        return aa.size.w;
     }
     let c0 = textureLoad(centre_colour, px, 0).xyz;
     let key = surface_key(d0);
@@ -80,5 +80,14 @@ fn fs_edges(@builtin(position) pos: vec4<f32>) -> @location(0) u32 {
     // thinner than the pixel): marked whatever the colours say.
     let near = (d0.w & 64u) != 0u;
     mark = mark || (crease > aa.limits.y && seen > threshold) || seen > aa.limits.z || near;
-    return select(0u, 1u, mark);
+    if (!mark) {
+        return 0u;
+    }
+    // The pixel's sample count: `"edges"` chooses it from the largest colour step to a
+    // neighbour (a low-contrast edge's coverage needs fewer samples for the same error in
+    // colour); a near miss's centre colour does not show what it missed: all 16.
+    if (aa.atlas.w == 0u || near || seen > aa.adapt.y) {
+        return aa.size.w;
+    }
+    return select(8u, 4u, seen <= aa.adapt.x);
 }

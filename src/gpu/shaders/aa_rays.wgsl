@@ -1,5 +1,5 @@
 // Anti-aliasing, sample-ray pass over the sample atlas (`aa_atlas_sample`: sample k of marked
-// pixel m). Its ray leaves from the sample's sub-pixel position: the centre direction
+// pixel m of the list). Its ray leaves from the sample's sub-pixel position: the centre direction
 // moved along the table's own derivatives (one-sided differences towards the sample, the
 // other side at the screen's or the table's edge), so it works through any ray table
 // (pinhole, distortion table, dome master); its cone stays the pixel's. Entries past the
@@ -29,10 +29,10 @@ fn table_slope(px: vec2<i32>, axis: vec2<i32>, o: f32, d0: vec3<f32>) -> vec3<f3
 @fragment
 fn fs_sample_rays(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
     let mk = aa_atlas_sample(vec2<u32>(pos.xy));
-    if (mk.x >= aa.size.z) {
+    if (mk.x == AA_NONE) {
         return bitcast<vec4<u32>>(vec4<f32>(0.0, 0.0, 1.0, -1.0));
     }
-    let px = aa_pixel(aa_pixels, aa.atlas.z + mk.x);
+    let px = aa_pixel(aa_pixels, mk.x);
     let e = centre_ray(px);
     let o = aa_offset(mk.y);
     let d = normalize(e.xyz + o.x * table_slope(px, vec2<i32>(1, 0), o.x, e.xyz) + o.y * table_slope(px, vec2<i32>(0, 1), o.y, e.xyz));

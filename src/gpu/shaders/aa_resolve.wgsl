@@ -1,6 +1,6 @@
 // Anti-aliasing, resolve: two passes.
 // 1. `fs_mean` (full screen over the first rows of the `means` target, one texel per marked
-//    pixel of the batch, row by row in the screen's width): the mean of its n samples
+//    pixel of the batch, row by row in the screen's width): the mean of its 4, 8 or 16 samples
 //    (`aa_entries`) in linear light, sRGB-encoded once. Its fragment blocks are full: Mesa's
 //    CPU rasterisers shade a whole block for a point, so averaging there would cost each
 //    marked pixel a block's worth of sample loads.
@@ -18,9 +18,9 @@
 @fragment
 fn fs_mean(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
     let q = vec2<u32>(pos.xy);
-    let m = q.y * aa.size.x + q.x;
-    let n = select(0u, aa.size.w, m < aa.size.z);
-    let e = aa_entries(m);
+    let i = q.y * aa.size.x + q.x;
+    let e = aa_entries(aa.atlas.z + i);
+    let n = select(0u, e.n, i < aa.size.z);
     var sum = vec3<f32>(0.0);
     for (var k = 0u; k < n; k += 1u) {
         sum += aa_decode(textureLoad(sample_colour, aa_entry(e, k), 0).xyz);
