@@ -57,8 +57,9 @@ pub struct RenderToggles {
     /// Footprint level of detail: on, off or a scale factor (overrides `[render] lod`).
     #[arg(long, value_name = "on|off|SCALE", value_parser = crate::scene::Lod::parse)]
     pub lod: Option<crate::scene::Lod>,
-    /// Edge anti-aliasing: off, edges, 4, 8, 16 (sub-pixel rays per edge pixel) or reference
-    /// (16 in every pixel) (overrides `[render] antialias`).
+    /// Edge anti-aliasing: off, edges (4 to 16 sub-pixel rays per edge pixel, by its
+    /// contrast), 4, 8, 16 (that many per edge pixel) or reference (16 in every pixel)
+    /// (overrides `[render] antialias`).
     #[arg(long, value_name = "off|edges|N|reference", value_parser = crate::scene::AntialiasOption::parse)]
     pub antialias: Option<crate::scene::AntialiasOption>,
 }
