@@ -258,6 +258,13 @@ fn edges_gives_each_edge_pixel_4_8_or_16_samples_by_its_contrast() {
         for (o, n) in by_count.iter().zip(fixed) {
             assert_eq!(o.antialias_rays(), u64::from(n) * pixels);
         }
+        // Every anti-aliased pixel is counted once, under the count it got.
+        let counts = edges.times.antialias_counts;
+        assert_eq!(counts.iter().sum::<u64>(), pixels);
+        assert!(
+            counts.iter().all(|&c| c > 0),
+            "{scene}: every count occurs: {counts:?}"
+        );
         assert!(
             rays > 4 * pixels && rays < 16 * pixels,
             "{scene}: {rays} extra rays"
@@ -404,6 +411,10 @@ fn the_command_line_reports_extra_rays_and_leaves_the_pattern() {
     assert_eq!(aa["adaptive"].as_bool(), Some(true));
     assert!(pixels > 0 && pixels < 160 * 90 / 2);
     assert!(rays >= 4 * pixels && rays < 16 * pixels, "4 to 16 a pixel");
+    let by = &aa["pixels_by_samples"];
+    let n = |k: &str| by[k].as_u64().unwrap();
+    assert_eq!(n("16") + n("8") + n("4"), pixels);
+    assert_eq!(16 * n("16") + 8 * n("8") + 4 * n("4"), rays);
     let sixteen = frame_json(&run("sixteen", &["--size", "160x90", "--antialias", "16"]));
     let aa = &sixteen["antialias"];
     assert_eq!(aa["adaptive"].as_bool(), Some(false));

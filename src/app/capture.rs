@@ -62,6 +62,11 @@ pub fn frame_metadata(
             "every_pixel": settings.antialias.every_pixel,
             "pixels": aa_pixels,
             "extra_rays": out.antialias_rays(),
+            "pixels_by_samples": {
+                "16": out.times.antialias_counts[0],
+                "8": out.times.antialias_counts[1],
+                "4": out.times.antialias_counts[2],
+            },
         },
         "time_s": scene.desc.path.as_ref().map(|p| frame as f64 / p.fps),
         "width": out.width,

@@ -239,7 +239,9 @@ pub fn render_two_pass(
         times.volume_ms += t.volume_ms;
         times.readback_ms += t.readback_ms;
         times.antialias_ms += t.antialias_ms;
-        times.antialias_rays += t.antialias_rays;
+        for (sum, n) in times.antialias_counts.iter_mut().zip(t.antialias_counts) {
+            *sum += n;
+        }
         rendered.push((*f, out.rgba));
         depths.push(out.depth);
     }

@@ -570,6 +570,13 @@ pub(crate) struct Marked {
 /// The sample counts of [`Marked`]'s parts, in list order.
 const PARTS: [u32; 3] = [16, 8, 4];
 
+/// Sub-pixel rays cast for `counts` pixels with 16, 8 and 4 samples.
+pub(crate) fn sample_rays(counts: [u64; 3]) -> u64 {
+    (counts.iter().zip(PARTS))
+        .map(|(&c, n)| c * u64::from(n))
+        .sum()
+}
+
 impl Marked {
     /// From the edge pass's mask (`w` x `h`, each byte the pixel's sample count or 0).
     pub fn from_mask(mask: &[u8], w: u32, h: u32) -> Marked {
@@ -612,13 +619,6 @@ impl Marked {
         } else {
             (a + b + (g - g4) * 4).min(a + b + c)
         }
-    }
-
-    /// Sub-pixel rays the list casts.
-    pub fn rays(&self) -> u64 {
-        (self.counts.iter().zip(PARTS))
-            .map(|(&c, n)| u64::from(c) * u64::from(n))
-            .sum()
     }
 
     /// The batches of an atlas of `per_batch` groups.
@@ -711,7 +711,10 @@ mod tests {
         let first: Vec<_> = parts[0].iter().map(|&p| xy(p)).collect();
         assert_eq!(&first[..3], &[(1, 0), (1, 1), (1, 2)]);
         assert_eq!(first[8], (9, 0));
-        assert_eq!(m.rays(), 16 * 16 + 8 * 24 + 4 * 32);
+        assert_eq!(
+            super::sample_rays(m.counts.map(u64::from)),
+            16 * 16 + 8 * 24 + 4 * 32
+        );
         // Other bytes are no count.
         assert_eq!(Marked::from_mask(&mask(|_, _| 3), 16, 8), Marked::default());
     }

@@ -62,9 +62,9 @@ pub struct PassTimes {
     /// Anti-aliasing: edge mask, every sample's passes, resolve (0 when off).
     pub antialias_ms: f64,
     pub readback_ms: f64,
-    /// Not a time: the sub-pixel rays anti-aliasing cast in the frame (the sum of the marked
-    /// pixels' sample counts), which rides with the frame's times to its output.
-    pub antialias_rays: u64,
+    /// Not a time: the pixels anti-aliasing gave 16, 8 and 4 sub-pixel rays in the frame,
+    /// which ride with the frame's times to its output.
+    pub antialias_counts: [u64; 3],
 }
 
 impl PassTimes {
@@ -130,6 +130,6 @@ impl FrameOutput {
 
     /// Sub-pixel rays anti-aliasing cast for the frame (0 when off).
     pub fn antialias_rays(&self) -> u64 {
-        self.times.antialias_rays
+        super::antialias::sample_rays(self.times.antialias_counts)
     }
 }

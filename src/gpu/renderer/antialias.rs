@@ -81,7 +81,7 @@ impl TerrainRenderer {
         let list = at.marked_pixels(gpu)?;
         laps.lap(gpu, "edges and list")?;
         let marked = list.pixels.len() as u32;
-        times.antialias_rays = list.rays();
+        times.antialias_counts = list.counts.map(u64::from);
         if marked > 0 {
             at.write_pixels(gpu, &list.pixels);
             let aa_s = job.s.antialias;
