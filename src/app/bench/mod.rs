@@ -125,9 +125,9 @@ pub enum BenchCommand {
         args: BenchArgs,
     },
     /// Edge anti-aliasing: frame time with 4, 8 and 16 rays per edge pixel and with `edges`
-    /// (4 to 16 by contrast) against none, the
-    /// extra rays, and p99 error and temporal excess against 16 rays per pixel on --frames
-    /// frames in motion at 320x180 (default scene: terrains/alps.toml).
+    /// (4 to 16 by contrast) against none, the extra rays, and p99 error and temporal excess
+    /// against 16 rays per pixel on --frames frames in motion at 320x180 (default scene:
+    /// terrains/alps.toml).
     Antialias {
         #[command(flatten)]
         args: BenchArgs,
