@@ -13,15 +13,20 @@ fn centre_ray(q: vec2<i32>) -> vec4<f32> {
 }
 
 // Change of the direction per pixel along `axis`, measured towards the side `o` points to.
+// Each neighbour is loaded once, before the branches: Mesa's CPU rasterisers run both sides
+// of a branch under a lane mask, so a load written in a condition and again in its body
+// costs two. (Off the screen a load is bounds-checked and its value unused.)
 fn table_slope(px: vec2<i32>, axis: vec2<i32>, o: f32, d0: vec3<f32>) -> vec3<f32> {
     let s = select(-1, 1, o >= 0.0);
     let near = px + axis * s;
     let far = px - axis * s;
-    if (aa_inside(near) && centre_ray(near).w >= 0.0) {
-        return (centre_ray(near).xyz - d0) * f32(s);
+    let rn = centre_ray(near);
+    let rf = centre_ray(far);
+    if (aa_inside(near) && rn.w >= 0.0) {
+        return (rn.xyz - d0) * f32(s);
     }
-    if (aa_inside(far) && centre_ray(far).w >= 0.0) {
-        return (d0 - centre_ray(far).xyz) * f32(s);
+    if (aa_inside(far) && rf.w >= 0.0) {
+        return (d0 - rf.xyz) * f32(s);
     }
     return vec3<f32>(0.0);
 }
