@@ -10,6 +10,7 @@ use relief::app::capture;
 use relief::app::quality::{self, render_all, render_job, Quality, QualityRow};
 use relief::colour::{linear_to_srgb8, srgb_to_linear};
 use relief::gpu::{Antialias, FrameOutput};
+use std::ops::Range;
 
 const EDGES: Antialias = Antialias::EDGES;
 
@@ -117,18 +118,12 @@ const W: usize = 320;
 const H: usize = 180;
 
 fn four(scene: &str) -> Four {
-    let path = common::terrains().join(scene);
-    let render = |size: &str, choices: &[Antialias]| {
-        let job = render_job(&[path.to_str().unwrap(), "--size", size]).unwrap();
-        let (mut p, mut r) = capture::prepare(&job).unwrap();
-        let cams = quality::motion_cameras(&p.scene, &p.world.terrain, 1);
-        choices
-            .iter()
-            .map(|&c| render_all(&mut p, &mut r, &job, &cams, c).unwrap().frames[0].clone())
-            .collect::<Vec<_>>()
-    };
-    let mut small = render("320x180", &[Antialias::OFF, EDGES, Antialias::REFERENCE]);
-    let big = render("1280x720", &[Antialias::OFF]).remove(0);
+    let mut small = frames(
+        scene,
+        "320x180",
+        &[Antialias::OFF, EDGES, Antialias::REFERENCE],
+    );
+    let big = frames(scene, "1280x720", &[Antialias::OFF]).remove(0);
     let (reference, edges, off) = (small.remove(2), small.remove(1), small.remove(0));
     Four {
         off,
@@ -612,23 +607,45 @@ fn assert_found_through_the_cone(t: &ThinFeature) {
     assert!(t.edges_err * 4 <= t.off_err, "found through the pixel cone");
 }
 
-/// A mast 1.2 m wide and 120 m tall, 1 km away on a flat field, about a quarter of a pixel
-/// wide and standing between two pixel columns, so that no centre ray hits it: `model` (the
-/// scene's TOML for it, `files` written beside the scene) at x = 320 m.
-fn mast(name: &str, files: &[(&str, Vec<u8>)], model: &str) {
+/// A mast on a flat field (the 65x65 `flat.png`, 10 m cells) seen as `view` (the scene's
+/// camera and light) with the mast `model` (its TOML, `files` written beside the scene): no
+/// centre ray may see it, and the pixels of `rows` in columns 77-82 get its coverage through
+/// the pixel cone.
+fn thin_mast(name: &str, files: &[(&str, Vec<u8>)], view: &str, model: &str, rows: Range<usize>) {
     let field = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::new(65, 65);
     let scene = format!(
-        "[terrain]\nsource = \"flat.png\"\ncell_size = [10.0, 10.0]\n\
-         [render]\nshadows = false\n\
-         [camera]\nposition = [320.0, -1000.0, 40.0]\nheading = 0.0\npitch = 0.0\nfov = 40.0\n\
+        "[terrain]\nsource = \"flat.png\"\ncell_size = [10.0, 10.0]\n{view}\
          [output]\nwidth = 160\nheight = 90\n{model}"
     );
-    let t = thin_feature(name, &field, "flat.png", files, &scene, 77..83, 0..90);
+    let t = thin_feature(name, &field, "flat.png", files, &scene, 77..83, rows);
     assert_eq!(
         t.object_pixels, 0,
         "the mast must lie between the centre rays"
     );
     assert_found_through_the_cone(&t);
+}
+
+/// The scene TOML of a red cylinder 1.2 m wide and 120 m tall standing at (x, y); `perturbed`:
+/// with a slight bulge halfway up, which makes it a perturbed free form (the enclosure search,
+/// not the closed form).
+fn cylinder_mast(x: f64, y: f64, perturbed: bool) -> String {
+    let bulge =
+        "[[objects.perturb]]\nshape = \"sphere\"\nradius = 1.0\ncentre = [0.0, 0.0, 60.0]\n\
+                 weight = -0.2\n";
+    format!(
+        "[[objects]]\nshape = \"cylinder\"\nradius = 0.6\nheight = 120.0\n\
+         position = [{x:?}, {y:?}, 0.0]\nmaterial = {{ colour = [0.9, 0.1, 0.1] }}\n{}",
+        if perturbed { bulge } else { "" }
+    )
+}
+
+/// A mast 1.2 m wide and 120 m tall, 1 km away on a flat field, about a quarter of a pixel
+/// wide and standing between two pixel columns, so that no centre ray hits it: `model` (the
+/// scene's TOML for it, `files` written beside the scene) at x = 320 m.
+fn mast(name: &str, files: &[(&str, Vec<u8>)], model: &str) {
+    let view = "[render]\nshadows = false\n\
+                [camera]\nposition = [320.0, -1000.0, 40.0]\nheading = 0.0\npitch = 0.0\nfov = 40.0\n";
+    thin_mast(name, files, view, model, 0..90);
 }
 
 /// A spike 500 m tall on a flat field (one sample of a 10 m grid): a needle about half a pixel
@@ -667,12 +684,7 @@ fn a_mast_no_centre_ray_hits_is_found_through_the_pixel_cone() {
         return;
     }
     let _lock = common::gpu_lock();
-    mast(
-        "mast",
-        &[],
-        "[[objects]]\nshape = \"cylinder\"\nradius = 0.6\nheight = 120.0\n\
-         position = [320.0, 0.0, 0.0]\nmaterial = { colour = [0.9, 0.1, 0.1] }\n",
-    );
+    mast("mast", &[], &cylinder_mast(320.0, 0.0, false));
 }
 
 /// The mast as a perturbed free form (a slight bulge halfway up makes it one: the enclosure
@@ -684,14 +696,7 @@ fn a_perturbed_mast_no_centre_ray_hits_is_found_through_the_pixel_cone() {
         return;
     }
     let _lock = common::gpu_lock();
-    mast(
-        "perturbed-mast",
-        &[],
-        "[[objects]]\nshape = \"cylinder\"\nradius = 0.6\nheight = 120.0\n\
-         position = [320.0, 0.0, 0.0]\nmaterial = { colour = [0.9, 0.1, 0.1] }\n\
-         [[objects.perturb]]\nshape = \"sphere\"\nradius = 1.0\ncentre = [0.0, 0.0, 60.0]\n\
-         weight = -0.2\n",
-    );
+    mast("perturbed-mast", &[], &cylinder_mast(320.0, 0.0, true));
 }
 
 /// The mast as a voxel model (one column of 100 voxels of 1.2 m): the centre rays' near
@@ -733,19 +738,9 @@ fn voxel_mast() -> Vec<u8> {
 /// pass the mast, and the stripe's pixels (rows 50-71, below the mast's foot and the field's
 /// far edge) get their samples.
 fn masts_shadow(name: &str, files: &[(&str, Vec<u8>)], model: &str) {
-    let field = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::new(65, 65);
-    let scene = format!(
-        "[terrain]\nsource = \"flat.png\"\ncell_size = [10.0, 10.0]\n\
-         [sun]\nazimuth = 0.0\nelevation = 20.0\n\
-         [camera]\nposition = [320.0, -400.0, 200.0]\nheading = 0.0\npitch = -10.0\nfov = 40.0\n\
-         [output]\nwidth = 160\nheight = 90\n{model}"
-    );
-    let t = thin_feature(name, &field, "flat.png", files, &scene, 77..83, 50..72);
-    assert_eq!(
-        t.object_pixels, 0,
-        "the mast must lie between the centre rays"
-    );
-    assert_found_through_the_cone(&t);
+    let view = "[sun]\nazimuth = 0.0\nelevation = 20.0\n\
+                [camera]\nposition = [320.0, -400.0, 200.0]\nheading = 0.0\npitch = -10.0\nfov = 40.0\n";
+    thin_mast(name, files, view, model, 50..72);
 }
 
 /// The voxel mast's shadow: the sun rays of the footprints pass through the mast's voxels
@@ -772,12 +767,7 @@ fn a_masts_shadow_no_centre_ray_sees_is_found_through_the_pixel_cone() {
         return;
     }
     let _lock = common::gpu_lock();
-    masts_shadow(
-        "mast-shadow",
-        &[],
-        "[[objects]]\nshape = \"cylinder\"\nradius = 0.6\nheight = 120.0\n\
-         position = [320.6, 600.0, 0.0]\nmaterial = { colour = [0.9, 0.1, 0.1] }\n",
-    );
+    masts_shadow("mast-shadow", &[], &cylinder_mast(320.6, 600.0, false));
 }
 
 /// The perturbed mast's shadow (`ff_general_near` over the shadow list: the enclosure search
@@ -791,9 +781,6 @@ fn a_perturbed_masts_shadow_no_centre_ray_sees_is_found_through_the_pixel_cone()
     masts_shadow(
         "perturbed-mast-shadow",
         &[],
-        "[[objects]]\nshape = \"cylinder\"\nradius = 0.6\nheight = 120.0\n\
-         position = [320.6, 600.0, 0.0]\nmaterial = { colour = [0.9, 0.1, 0.1] }\n\
-         [[objects.perturb]]\nshape = \"sphere\"\nradius = 1.0\ncentre = [0.0, 0.0, 60.0]\n\
-         weight = -0.2\n",
+        &cylinder_mast(320.6, 600.0, true),
     );
 }
