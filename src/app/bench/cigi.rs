@@ -1,6 +1,6 @@
 //! `relief bench cigi`: the CIGI IG under a host, in one process. The IG is `relief serve`'s
-//! loop ([`crate::app::serve::run_with`], asynchronous, `--cigi-host` fixed) on a thread; the
-//! host is this thread on a loopback socket, sending one datagram per host frame at 60 Hz
+//! loop ([`crate::app::serve::run_with`], asynchronous, `--cigi-host` fixed) on this thread;
+//! the host is another on a loopback socket, sending one datagram per host frame at 60 Hz
 //! (IG Control with a valid timestamp and the ownship at the scene camera's geodetic
 //! position). Phases of `--frames` host frames each, after 60 warm-up frames:
 //!
@@ -340,6 +340,41 @@ fn oracle_rate(terrain: &crate::terrain::Terrain, at: [f64; 3], load: Load) -> (
     (answered as f64 / spent, invalid)
 }
 
+/// The host's flight: one datagram per host frame to the IG at `ig` with the ownship at
+/// `lla`/`hpr`, the warm-up and every phase of `frames` host frames, the flood's last
+/// (`flood` switched on for it, then done).
+fn fly(
+    socket: UdpSocket,
+    ig: SocketAddr,
+    lla: [f64; 3],
+    hpr: [f32; 3],
+    frames: u32,
+    flood: &Flood,
+) -> Vec<Phase> {
+    let mut host = Host {
+        socket,
+        ig,
+        t0: Instant::now(),
+        frame: 1000,
+        ownship: EntityControl::placed(0, 0, lla, hpr),
+        sent: Vec::new(),
+        sofs: Vec::new(),
+        responses: 0,
+        buf: vec![0; 65536],
+    };
+    let none = (Load::Nothing, 0);
+    host.phase("warm-up", WARM_UP, none, None);
+    let mut phases = vec![host.phase("quiet", frames, none, None)];
+    phases.push(host.phase("hat_hot", frames, (Load::HatHot, BATCH), None));
+    phases.push(host.phase("los", frames, (Load::Los, BATCH), None));
+    phases.push(host.phase("hat_hot_1000", frames, (Load::HatHot, BIG_BATCH), None));
+    phases.push(host.phase("los_1000", frames, (Load::Los, BIG_BATCH), None));
+    flood.on.store(true, Relaxed);
+    phases.push(host.phase("flood", frames, none, Some(flood)));
+    flood.done.store(true, Relaxed);
+    phases
+}
+
 /// Runs the host against an in-process IG on `scene_path` at `size`, `frames` host frames a
 /// phase.
 pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo, CigiBench)> {
@@ -380,53 +415,46 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo,
         sent: 0.into(),
     };
     let (tx, rx) = std::sync::mpsc::channel();
+    // The IG, the GPU user, runs on this thread and the host on a scoped one: Mesa's GL
+    // (libglvnd's EGL) has corrupted the heap when a thread that used EGL exits after its
+    // display was terminated (wgpu issue 4285), and the view and serve commands keep their
+    // GPU on the main thread too.
     std::thread::scope(|s| {
-        let ig = s.spawn(|| {
-            run_with(&opts, &stop, |gpu| {
-                let ig = CigiIg::open(&opts.cigi)?;
-                let info = (gpu.info.name.clone(), format!("{:?}", gpu.info.backend));
-                let _ = tx.send((info, ig.local_addr()));
-                Ok(ig)
-            })
+        let stop = &stop;
+        let flood = &flood;
+        let host = s.spawn(move || {
+            // The IG stops when the host ends, a panic included.
+            struct StopOnDrop<'a>(&'a AtomicBool);
+            impl Drop for StopOnDrop<'_> {
+                fn drop(&mut self) {
+                    self.0.store(true, Relaxed);
+                }
+            }
+            let _stop = StopOnDrop(stop);
+            let hosted = rx.recv().ok().and_then(|(info, addr)| Some((info, addr?)));
+            let measured = hosted.map(|(info, addr)| {
+                let flood_socket = socket.try_clone().map_err(io)?;
+                let flooder = s.spawn(move || flood_loop(flood_socket, addr, flood));
+                let hpr = [p.heading, p.pitch, p.roll].map(|a| a as f32);
+                let phases = fly(socket, addr, lla, hpr, frames, flood);
+                let _ = flooder.join();
+                Ok::<_, Error>((info, phases))
+            });
+            measured
         });
-        let hosted = rx.recv().ok().and_then(|(info, addr)| Some((info, addr?)));
-        let measured = hosted.map(|(info, addr)| {
-            let flood_socket = socket.try_clone().map_err(io)?;
-            let fl = &flood;
-            let flooder = s.spawn(move || flood_loop(flood_socket, addr, fl));
-            let mut host = Host {
-                socket,
-                ig: addr,
-                t0: Instant::now(),
-                frame: 1000,
-                ownship: EntityControl::placed(
-                    0,
-                    0,
-                    lla,
-                    [p.heading, p.pitch, p.roll].map(|a| a as f32),
-                ),
-                sent: Vec::new(),
-                sofs: Vec::new(),
-                responses: 0,
-                buf: vec![0; 65536],
-            };
-            let none = (Load::Nothing, 0);
-            host.phase("warm-up", WARM_UP, none, None);
-            let mut phases = vec![host.phase("quiet", frames, none, None)];
-            phases.push(host.phase("hat_hot", frames, (Load::HatHot, BATCH), None));
-            phases.push(host.phase("los", frames, (Load::Los, BATCH), None));
-            phases.push(host.phase("hat_hot_1000", frames, (Load::HatHot, BIG_BATCH), None));
-            phases.push(host.phase("los_1000", frames, (Load::Los, BIG_BATCH), None));
-            flood.on.store(true, Relaxed);
-            phases.push(host.phase("flood", frames, none, Some(&flood)));
-            flood.done.store(true, Relaxed);
-            let _ = flooder.join();
-            Ok::<_, Error>((info, phases))
+        let cigi = &opts.cigi;
+        let summary = run_with(&opts, stop, move |gpu| {
+            let ig = CigiIg::open(cigi)?;
+            let info = (gpu.info.name.clone(), format!("{:?}", gpu.info.backend));
+            let _ = tx.send((info, ig.local_addr()));
+            Ok(ig)
         });
-        stop.store(true, Relaxed);
-        let summary = ig
+        // An IG that failed before its socket opened dropped `tx` with the closure: the
+        // host's `recv` returned and it ended.
+        let measured = host
             .join()
-            .map_err(|_| Error::invalid("bench cigi", "the IG thread panicked"))??;
+            .map_err(|_| Error::invalid("bench cigi", "the host thread panicked"))?;
+        let summary = summary?;
         let ((adapter, backend), phases) =
             measured.ok_or_else(|| Error::invalid("bench cigi", "the IG did not start"))??;
         let hat_hot = oracle_rate(&world.terrain, lla, Load::HatHot);

@@ -115,7 +115,7 @@ pub enum BenchCommand {
         #[command(flatten)]
         args: BenchArgs,
     },
-    /// The CIGI IG (`relief serve`'s loop on a thread) under a host in the same process over
+    /// The CIGI IG (`relief serve`'s loop) under a host on another thread of the same process over
     /// loopback: HAT/HOT and LOS responses a second (100 and 1,000 queries per host frame), the CPU
     /// oracle's own rates, host-datagram-to-Start-of-Frame latency and the Start of Frame
     /// period, quiet and under 10,000 malformed datagrams a second; --frames host frames per
