@@ -415,10 +415,11 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo,
         sent: 0.into(),
     };
     let (tx, rx) = std::sync::mpsc::channel();
-    // The IG, the GPU user, runs on this thread and the host on a scoped one: Mesa's GL
-    // (libglvnd's EGL) has corrupted the heap when a thread that used EGL exits after its
-    // display was terminated (wgpu issue 4285), and the view and serve commands keep their
-    // GPU on the main thread too.
+    // The IG, the GPU user, runs on this thread and the host on a scoped one, as `serve`
+    // and `view` keep their GPU on the main thread: a GL heap corruption was seen in this
+    // command once in CI and once in ~240 runs here, and wgpu issue 4285 traced one like it
+    // to libglvnd freeing EGL's thread state as a thread that used EGL exits
+    // (docs/robustness.md).
     std::thread::scope(|s| {
         let stop = &stop;
         let flood = &flood;
@@ -432,15 +433,14 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo,
             }
             let _stop = StopOnDrop(stop);
             let hosted = rx.recv().ok().and_then(|(info, addr)| Some((info, addr?)));
-            let measured = hosted.map(|(info, addr)| {
+            hosted.map(|(info, addr)| {
                 let flood_socket = socket.try_clone().map_err(io)?;
                 let flooder = s.spawn(move || flood_loop(flood_socket, addr, flood));
                 let hpr = [p.heading, p.pitch, p.roll].map(|a| a as f32);
                 let phases = fly(socket, addr, lla, hpr, frames, flood);
                 let _ = flooder.join();
                 Ok::<_, Error>((info, phases))
-            });
-            measured
+            })
         });
         let cigi = &opts.cigi;
         let summary = run_with(&opts, stop, move |gpu| {
