@@ -675,6 +675,37 @@ fn a_needle_no_centre_ray_hits_is_found_through_the_pixel_cone() {
     assert_found_through_the_cone(&t);
 }
 
+/// A spike's shadow: a spike 500 m tall (one sample of a 5 m grid, 65x257 samples) at the
+/// field's north end, the sun due north behind it and 30° up, lays its shadow on the field
+/// towards the eye (1 km up, 1.2-1.5 km away, looking 40° down) as a stripe that narrows
+/// from the spike's 10 m base to nothing over 866 m. Its far part, thinner than the pixels
+/// (5-6 m there), lies between the two pixel columns whose sun rays pass either side of the
+/// spike, so that no centre ray's sun ray is blocked. The sun rays of the pixels' footprints
+/// pass within their beam of the spike (the shade pass's terrain sun ray with a reach), and
+/// the stripe's pixels get their samples.
+#[test]
+fn a_spikes_shadow_no_centre_ray_sees_is_found_through_the_pixel_cone() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let _lock = common::gpu_lock();
+    let mut field = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::new(65, 257);
+    field.put_pixel(32, 257 - 1 - 240, image::Luma([1000]));
+    let t = thin_feature(
+        "spike-shadow",
+        &field,
+        "spike.png",
+        &[],
+        "[terrain]\nsource = \"spike.png\"\ncell_size = [5.0, 5.0]\npng_scale = 0.5\n\
+         [sun]\nazimuth = 0.0\nelevation = 30.0\n\
+         [camera]\nposition = [160.0, -200.0, 1000.0]\nheading = 0.0\npitch = -40.0\nfov = 40.0\n\
+         [output]\nwidth = 160\nheight = 90\n",
+        77..83,
+        50..90,
+    );
+    assert_found_through_the_cone(&t);
+}
+
 /// The mast as a plain cylinder: the centre rays' near misses of plain free forms
 /// (`ff_plain_near`) find it, and with `"edges"` its pixels come close to the reference,
 /// where one ray a pixel leaves it out.

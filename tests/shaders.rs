@@ -43,7 +43,7 @@ fn every_specialised_variant_validates_with_naga() {
     use relief::gpu::variants::ShadeFeatures;
     use relief::gpu::variants::VolumeSwitches;
     let bit = |bits: u32, k: u32| bits & (1 << k) != 0;
-    for bits in 0..256 {
+    for bits in 0..512 {
         let f = ShadeFeatures {
             shadows: bit(bits, 0),
             drape: bit(bits, 1),
@@ -53,6 +53,7 @@ fn every_specialised_variant_validates_with_naga() {
             lod: bit(bits, 5),
             paged: [0, 2][bit(bits, 6) as usize],
             drape_mips: bit(bits, 7),
+            near: bit(bits, 8),
         };
         validate(&format!("shade {f:?}"), &shaders::shade(f));
         for tables in [

@@ -109,7 +109,9 @@ struct Prepared {
     stamp: u32,
     /// The frame's uniforms (the anti-aliasing atlas's are these with its size).
     uniforms: super::types::FrameUniforms,
-    shade_index: usize,
+    /// The shade pipelines of the frame's rays (with anti-aliasing, its centre rays', which
+    /// search their sun rays' footprints) and of anti-aliasing's samples.
+    shade_index: [usize; 2],
     /// Per volume, its pipeline for the current switches (empty when no volume is integrated).
     volume_pipelines: Vec<usize>,
 }
@@ -482,6 +484,7 @@ impl TerrainRenderer {
             lod: s.lod.is_some() && s.mode == TraceMode::Pyramid && self.paged.is_none(),
             paged: self.paged.as_ref().map_or(0, |p| p.bindings()),
             drape_mips: self.base.data.has_drape && s.antialias.is_on(),
+            near: false,
         };
         if features.lod {
             self.base.prepare_cast_lod(gpu);
@@ -489,10 +492,16 @@ impl TerrainRenderer {
         if self.antialiased(job) && self.paged.is_none() {
             self.base.prepare_cast_near(gpu);
         }
-        let shade_index = match &mut self.objects {
-            Some(o) => o.shade.prepare(&gpu.device, features),
-            None => self.base.shade.prepare(&gpu.device, features),
-        };
+        // Anti-aliasing's centre rays search their sun rays' footprint beams (the paged
+        // traversal has no NEAR build); its samples need not.
+        let near = self.antialiased(job) && s.shadows && self.paged.is_none();
+        let shade_index = [near, false].map(|near| {
+            let f = ShadeFeatures { near, ..features };
+            match &mut self.objects {
+                Some(o) => o.shade.prepare(&gpu.device, f),
+                None => self.base.shade.prepare(&gpu.device, f),
+            }
+        });
         self.lower_objects(job);
         let t = self.targets.as_ref().expect("targets just ensured");
         let mut fu = frame_uniforms(job.terrain, job.scene, job.cam, s, t.tiles);
@@ -651,14 +660,15 @@ impl TerrainRenderer {
                 job.lap(enc, &mut times.voxel_shadow_ms)?;
             }
         }
+        let index = prepared.shade_index[job.atlas as usize];
         let (pipeline, bg) = match self.objects.as_ref().zip(t.objects.as_ref()) {
             Some((o, (ot, bg))) => {
                 if job.s.shadows {
                     o.encode_shadows(gpu, enc, ot, centre_rays);
                 }
-                (o.shade.get(prepared.shade_index), bg)
+                (o.shade.get(index), bg)
             }
-            None => (self.base.shade.get(prepared.shade_index), &t.shade_bg),
+            None => (self.base.shade.get(index), &t.shade_bg),
         };
         self.volumes.write_uniforms(gpu, job.cam.pose.position);
         if prepared.features.volume_shadows

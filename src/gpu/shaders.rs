@@ -215,6 +215,7 @@ pub fn shade(f: ShadeFeatures) -> String {
         RAY_TABLE,
         &shade_terrain(f.paged),
         TRAVERSE,
+        FOOTPRINT,
         GBUFFER,
         SRGB,
         HAZE,
@@ -234,6 +235,7 @@ pub fn shade_objects(f: ShadeFeatures, tables: FfTables) -> String {
         RAY_TABLE,
         &shade_terrain(f.paged),
         TRAVERSE,
+        FOOTPRINT,
         GBUFFER,
         &freeform(false, tables),
         SRGB,
@@ -479,6 +481,7 @@ pub fn all() -> Vec<(&'static str, String)> {
             "shade (paged)",
             shade(ShadeFeatures {
                 paged: 1,
+                near: false,
                 ..ShadeFeatures::ALL
             }),
         ),
@@ -487,6 +490,7 @@ pub fn all() -> Vec<(&'static str, String)> {
             shade_objects(
                 ShadeFeatures {
                     paged: 3,
+                    near: false,
                     ..ShadeFeatures::ALL
                 },
                 FfTables::Storage,

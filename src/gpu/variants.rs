@@ -45,6 +45,9 @@ pub struct ShadeFeatures {
     /// The drape sampled at mip levels picked by the pixel's footprint, trilinear
     /// (`DRAPE_MIPS`, with `render.antialias`).
     pub drape_mips: bool,
+    /// Anti-aliasing's centre rays (`NEAR`): the terrain sun ray looks for rises its
+    /// footprint's beam passes within reach of (near misses, flag 64).
+    pub near: bool,
 }
 
 impl ShadeFeatures {
@@ -58,6 +61,7 @@ impl ShadeFeatures {
         lod: true,
         paged: 0,
         drape_mips: true,
+        near: true,
     };
     /// None compiled in.
     pub const NONE: ShadeFeatures = ShadeFeatures {
@@ -69,6 +73,7 @@ impl ShadeFeatures {
         lod: false,
         paged: 0,
         drape_mips: false,
+        near: false,
     };
 }
 
@@ -82,8 +87,7 @@ impl Switches for ShadeFeatures {
             ("CURVED", self.curved),
             ("LOD", self.lod),
             ("PAGED", self.paged > 0),
-            // The shadow rays never flag near misses.
-            ("NEAR", false),
+            ("NEAR", self.near),
             ("DRAPE_MIPS", self.drape_mips),
         ])
     }

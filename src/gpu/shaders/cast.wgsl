@@ -34,7 +34,7 @@ fn fs_cast(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
         lod_k = frame.lod.x * e.w;
     }
     // NEAR (anti-aliasing): features within the pixel's cone that its centre ray misses.
-    let tr = traverse_lod(primary_ray(e), t_min, BIG, frame.mode.y, level, lod_k, select(0.0, e.w, NEAR));
+    let tr = traverse_lod(primary_ray(e), t_min, BIG, frame.mode.y, level, lod_k, vec3<f32>(0.0, select(0.0, e.w, NEAR), 0.0));
     var g = encode_gbuffer(tr);
     if (PAGED && tr.hit) {
         // The paged build: the finest resident level over the hit cell for the shade pass.

@@ -49,17 +49,6 @@ fn fs_ff_shadow_general(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<
     return vec4<u32>(frame.stamp.x, 0u, 0u, 0u);
 }
 
-// Hit distance of the G-buffer at `px` + `o`: negative where it shows no surface or lies off
-// the screen.
-fn neighbour_t(px: vec2<u32>, o: vec2<i32>) -> f32 {
-    let q = vec2<i32>(px) + o;
-    if (any(q < vec2<i32>(0)) || any(q >= vec2<i32>(frame.size.xy))) {
-        return -1.0;
-    }
-    let g = textureLoad(gbuffer, q, 0);
-    return select(-1.0, bitcast<f32>(g.x), (g.w & 1u) != 0u);
-}
-
 // The `_near` shadow passes (anti-aliasing's centre rays, drawn after the ordinary ones with
 // only the second channel written): a pixel whose sun ray no object of the kind blocks gets
 // the frame's stamp there when the sun rays of its footprint, a beam `footprint_beam` wide,
@@ -73,9 +62,7 @@ fn shadow_near(px: vec2<u32>, general: bool) -> vec4<u32> {
     }
     let g = textureLoad(gbuffer, vec2<i32>(px), 0);
     let own = select(FF_NONE, g.y & 0xffffu, (g.w & 16u) != 0u);
-    let tx = vec2<f32>(neighbour_t(px, vec2<i32>(-1, 0)), neighbour_t(px, vec2<i32>(1, 0)));
-    let ty = vec2<f32>(neighbour_t(px, vec2<i32>(0, -1)), neighbour_t(px, vec2<i32>(0, 1)));
-    let cone = vec2<f32>(footprint_beam(px, bitcast<f32>(g.x), tx, ty, sun), 0.0);
+    let cone = vec2<f32>(pixel_beam(px, bitcast<f32>(g.x), sun), 0.0);
     var near: bool;
     if (general) {
         near = !ff_blocked(px, o.xyz, sun) && ff_general_near(px, 1u, o.xyz, sun, cone, BIG, own);

@@ -18,8 +18,9 @@ struct Trace {
     patches: u32,
     hit: bool,
     exhausted: bool,
-    // NEAR: before its hit (or missing), the ray passed within its cone's radius of the
-    // surface somewhere it did not hit: a feature thinner than the pixel may be there.
+    // NEAR: before its hit (or missing), the ray passed within its reach (a pixel cone's
+    // radius, a footprint beam's) of the surface somewhere it did not hit: a feature thinner
+    // than the pixel may be there.
     near: bool,
 }
 
@@ -330,17 +331,18 @@ fn traverse(r: Ray, t_min: f32, t_max: f32, max_steps: u32) -> Trace {
 // As `traverse`, starting at pyramid level `start_level` (≤ top) instead of the top: valid from
 // any level, since a cell is only skipped after its own maximum was tested.
 fn traverse_from(r: Ray, t_min: f32, t_max: f32, max_steps: u32, start_level: u32) -> Trace {
-    return traverse_lod(r, t_min, t_max, max_steps, start_level, 0.0, 0.0);
+    return traverse_lod(r, t_min, t_max, max_steps, start_level, 0.0, vec3<f32>(0.0));
 }
 
 // As `traverse_from` with footprint level of detail (`LOD` pipelines; `lod_k` see `lod_stops`,
 // 0: never): a cell within the ray's footprint that the ray cannot skip is intersected as
 // its level's bilinear patch instead of being descended into.
-// NEAR (anti-aliasing's centre rays): `near_k` is the pixel cone's half-angle; cells the ray
-// passes within near_k t of are tested too, and a patch it misses by less than that sets
-// `near`. Without NEAR (a compile-time constant) the traversal is the exact one, step for
-// step.
-fn traverse_lod(r: Ray, t_min: f32, t_max: f32, max_steps: u32, start_level: u32, lod_k: f32, near_k: f32) -> Trace {
+// NEAR (anti-aliasing's centre rays): the ray's reach at t is near.x + near.y t (the pixel
+// cone: (0, its half-angle); a footprint's beam of sun rays: (its radius, 0)); cells the ray
+// passes within its reach of are tested too, and a patch it misses by less than that beyond
+// t = near.z sets `near`. The hits are those of the exact traversal; without NEAR (a
+// compile-time constant) it is the exact one, step for step.
+fn traverse_lod(r: Ray, t_min: f32, t_max: f32, max_steps: u32, start_level: u32, lod_k: f32, near: vec3<f32>) -> Trace {
     var res: Trace;
     res.t = BIG;
     res.hit = false;
@@ -388,7 +390,8 @@ fn traverse_lod(r: Ray, t_min: f32, t_max: f32, max_steps: u32, start_level: u32
             t_exit = max(min(min(exits.x, exits.y), t1), w.t);
             var cmax = cell_max(w.level, w.cell) + frame.heights_range.w;
             if (NEAR) {
-                cmax += near_k * t_exit;
+                // Near misses count from near.z on: the reach widens no cell before it.
+                cmax += select(0.0, near.x + near.y * t_exit, t_exit >= near.z);
             }
             var z_low = min(r.o.z + r.d.z * w.t, r.o.z + r.d.z * t_exit);
             if (CURVED) {
@@ -420,10 +423,10 @@ fn traverse_lod(r: Ray, t_min: f32, t_max: f32, max_steps: u32, start_level: u32
         let ph = patch_hit(r, select(0u, w.level, LOD || PAGED), w.cell.x, w.cell.y, w.t, t_exit, under);
         under = ph.y != 0.0;
         let th = ph.x;
-        if (NEAR && th < 0.0 && !res.near) {
+        if (NEAR && th < 0.0 && !res.near && w.t >= near.z) {
             let cmax = cell_max(0u, w.cell) + frame.heights_range.w;
             let z_low = min(r.o.z + r.d.z * w.t, r.o.z + r.d.z * t_exit);
-            res.near = misses_by_less(t_exit, near_k, cmax - z_low);
+            res.near = misses_by_less(near.x + near.y * t_exit, cmax - z_low);
         }
         if (th >= 0.0) {
             res.hit = true;
@@ -445,13 +448,12 @@ fn traverse_lod(r: Ray, t_min: f32, t_max: f32, max_steps: u32, start_level: u32
     return res;
 }
 
-// NEAR: whether the ray's segment [ta, tb] through a level-0 cell's box, missing its patch,
-// may pass within near_k t of a feature thinner than the pixel: the cell is no wider than the
-// cone there and the ray passes more than near_k t below the cell's highest corner (`depth`),
-// so a steep rise stands beside it. (A ray grazing a surface from above is left to the edge
-// rules: flagging it would mark every far slope.)
-fn misses_by_less(tb: f32, near_k: f32, depth: f32) -> bool {
-    let reach = near_k * tb;
+// NEAR: whether the ray's segment through a level-0 cell's box, missing its patch, may pass
+// within `reach` (at the segment's far end) of a feature thinner than the pixel: the cell is
+// no wider than twice the reach and the ray passes more than the reach below the cell's
+// highest corner (`depth`), so a steep rise stands beside it. (A ray grazing a surface from
+// above is left to the edge rules: flagging it would mark every far slope.)
+fn misses_by_less(reach: f32, depth: f32) -> bool {
     return max(frame.spacing.x, frame.spacing.y) <= 2.0 * reach && depth > reach;
 }
 
