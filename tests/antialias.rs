@@ -706,6 +706,43 @@ fn a_spikes_shadow_no_centre_ray_sees_is_found_through_the_pixel_cone() {
     assert_found_through_the_cone(&t);
 }
 
+/// Near misses on the curved earth: the alps seen to 110 km (`alps-far.toml`, most pixels
+/// wider than a sample) flat and on the curved earth, whose datum drops 785 m below the eye's
+/// tangent plane at 100 km. The drop changes the far picture a little, not how many rays pass
+/// near a rise they miss: the near-miss tests measure the ray's height above the curved datum
+/// as the traversal does, and the flat frame has next to none. (They once took its height
+/// above the tangent plane, so that the drop counted as a rise: 5,547 near misses, a tenth of
+/// the pixels, each given 16 samples.)
+#[test]
+fn the_curved_earth_adds_no_near_misses() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let _lock = common::gpu_lock();
+    let flat = common::terrains().join("alps-far.toml");
+    let text = std::fs::read_to_string(&flat).unwrap();
+    let hgt = common::terrains().join("N47E009.hgt");
+    let source = format!("source = {:?}\ncurved = true", hgt.to_str().unwrap());
+    let curved_text = text.replace("source = \"N47E009.hgt\"", &source);
+    assert_ne!(curved_text, text);
+    let dir = std::env::temp_dir().join(format!("relief-aa-curved-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let curved = dir.join("alps-far-curved.toml");
+    std::fs::write(&curved, curved_text).unwrap();
+    let near = |scene: &std::path::Path| {
+        let f = frames(scene.to_str().unwrap(), "320x180", &[EDGES]).remove(0);
+        f.flags.iter().filter(|&&g| g & 64 != 0).count()
+    };
+    let (n_flat, n_curved) = (near(&flat), near(&curved));
+    let _ = std::fs::remove_dir_all(&dir);
+    eprintln!("alps-far near misses at 320x180: flat {n_flat}, curved {n_curved}");
+    // At most a thousandth of the pixels more than the flat frame's.
+    assert!(
+        n_curved <= n_flat + 320 * 180 / 1000,
+        "the curved earth's drop counted as a rise: {n_curved} near misses against {n_flat}"
+    );
+}
+
 /// The mast as a plain cylinder: the centre rays' near misses of plain free forms
 /// (`ff_plain_near`) find it, and with `"edges"` its pixels come close to the reference,
 /// where one ray a pixel leaves it out.

@@ -425,7 +425,10 @@ fn traverse_lod(r: Ray, t_min: f32, t_max: f32, max_steps: u32, start_level: u32
         let th = ph.x;
         if (NEAR && th < 0.0 && !res.near && w.t >= near.z) {
             let cmax = cell_max(0u, w.cell) + frame.heights_range.w;
-            let z_low = min(r.o.z + r.d.z * w.t, r.o.z + r.d.z * t_exit);
+            var z_low = min(r.o.z + r.d.z * w.t, r.o.z + r.d.z * t_exit);
+            if (CURVED) {
+                z_low = lowest_lifted(r, w.t, t_exit, lq);
+            }
             res.near = misses_by_less(near.x + near.y * t_exit, cmax - z_low);
         }
         if (th >= 0.0) {
