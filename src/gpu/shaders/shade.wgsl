@@ -21,6 +21,8 @@
 // DRAPE: colour from the draped RGB image instead of the elevation/slope ramp.
 // VOXELS: the scene has voxel models (G-buffer flag 32, voxel shadow flag 64).
 // VOLUME_SHADOWS: density volumes shadow the surfaces (the volume-sun pass's target).
+// NEAR: anti-aliasing's centre rays: the terrain sun ray searches its footprint's beam for
+// rises it misses (flag 64).
 
 struct Out {
     @location(0) colour: vec4<f32>,
