@@ -446,6 +446,60 @@ fn the_command_line_reports_extra_rays_and_leaves_the_pattern() {
     );
 }
 
+/// `relief bench antialias --json`: every choice's frame time and ratio (against plain frames
+/// alternated with its own, the `off` row 1), the extra rays each casts, and the quality rows
+/// of the same choices; the figures are the bench's, not the frames' (160x90, 2 frames).
+#[test]
+fn the_bench_reports_each_choices_ratio_extra_rays_and_quality() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let _lock = common::gpu_lock();
+    let alps = common::terrains().join("alps.toml");
+    let args = [
+        "bench",
+        "antialias",
+        alps.to_str().unwrap(),
+        "--size",
+        "160x90",
+        "--frames",
+        "2",
+        "--json",
+    ];
+    let out = relief(&args);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let d = &v["details"];
+    let timings = d["timings"].as_array().unwrap();
+    let rows = d["quality"]["rows"].as_array().unwrap();
+    assert_eq!((timings.len(), rows.len()), (5, 5));
+    assert_eq!(timings[0]["ratio"], 1.0);
+    assert_eq!(timings[0]["extra_rays"], 0);
+    for t in timings {
+        let (ms, ratio) = (
+            t["frame_ms"].as_f64().unwrap(),
+            t["ratio"].as_f64().unwrap(),
+        );
+        assert!(ms > 0.0 && ratio.is_finite() && ratio > 0.0, "{t}");
+    }
+    let rays: Vec<u64> = timings
+        .iter()
+        .map(|t| t["extra_rays"].as_u64().unwrap())
+        .collect();
+    // 4, 8 and 16 samples in each edge pixel: the same pixels, so 1 : 2 : 4.
+    assert!(
+        rays[1] > 0 && rays[2] == 2 * rays[1] && rays[3] == 4 * rays[1],
+        "{rays:?}"
+    );
+    assert!(rays[4] > rays[1] && rays[4] < rays[3], "{rays:?}");
+    let p99 = |k: usize| rows[k]["p99_error"].as_f64().unwrap();
+    assert!(p99(3) < p99(0), "16 samples an edge pixel against one ray");
+}
+
 /// A flat procedural terrain under a drape `drape.png` (stretched over the grid), seen from
 /// 4 km up looking down: each pixel covers about 4x4 texels.
 fn drape_scene(dir: &std::path::Path, drape: &image::RgbImage) -> std::path::PathBuf {

@@ -4,9 +4,10 @@
 //! at 320x180 against relief's 16-rays-per-pixel reference.
 
 use super::table::{Figures, Row, RunInfo, Table};
-use super::timing::FrameSetup;
+use super::timing::interleaved_ms;
+use crate::app::figures::median;
 use crate::app::quality::{self, Quality};
-use crate::gpu::{Antialias, Stage};
+use crate::gpu::{Antialias, RenderSettings, Stage};
 use crate::Result;
 use serde::Serialize;
 use std::path::Path;
@@ -55,35 +56,49 @@ fn name(a: Antialias) -> String {
 
 /// Times `scene_path` at `size` with each of [`CHOICES`] (`frames` timed frames each), then
 /// the quality figures on `frames` frames at [`QUALITY_SIZE`].
+///
+/// Each choice's frames alternate one by one with frames without anti-aliasing (each timed
+/// alone, submit to idle), and its ratio is the median of its frames over the median of the
+/// plain frames between them: on a shared machine the plain frame's time drifts by a fifth
+/// over the minutes a run takes, and a baseline measured once at the start would put that
+/// drift into every ratio. The `off` row gives the median of all plain frames.
 pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo, AntialiasBench)> {
     let scene_arg = scene_path.to_string_lossy();
     let size_arg = format!("{}x{}", size.0, size.1);
     let job = quality::render_job(&[&scene_arg, "--size", &size_arg])?;
-    let (mut p, mut renderer) = crate::app::capture::prepare(&job)?;
+    let (p, mut renderer) = crate::app::capture::prepare(&job)?;
     let cam = p.scene.camera(0, &p.world.terrain);
     let pixels = f64::from(size.0 * size.1);
+    let (gpu, terrain, desc) = (&p.gpu, &p.world.terrain, &p.scene.desc);
+    let settings = CHOICES.map(|antialias| RenderSettings {
+        antialias,
+        ..p.settings
+    });
     let mut timings: Vec<AaTiming> = Vec::new();
-    for choice in CHOICES {
-        p.settings.antialias = choice;
-        let frame = FrameSetup {
-            gpu: &p.gpu,
-            terrain: &p.world.terrain,
-            desc: &p.scene.desc,
-            cam: &cam,
-            settings: &p.settings,
-            frames,
-        };
-        let extra = frame.capture(&mut renderer)?.antialias_rays();
-        let frame_ms = frame.median_ms(&mut renderer, Stage::Shade)?;
-        let base = timings.first().map_or(frame_ms, |t| t.frame_ms);
+    let mut plain = Vec::new();
+    for (k, choice) in CHOICES.into_iter().enumerate() {
+        // A warm-up (shader compilation on first use, the atlas's size) and the extra rays.
+        let extra = (renderer.capture(gpu, terrain, desc, &cam, &settings[k])?).antialias_rays();
+        let (mut frame_ms, mut ratio) = (0.0, 1.0);
+        if k > 0 {
+            let [off, with] = interleaved_ms(frames, |i| {
+                let s = &settings[if i == 0 { 0 } else { k }];
+                renderer.render(gpu, terrain, desc, &cam, s, Stage::Shade)?;
+                gpu.wait()
+            })?;
+            plain.extend_from_slice(&off);
+            frame_ms = median(with);
+            ratio = frame_ms / median(off);
+        }
         timings.push(AaTiming {
             antialias: choice,
             frame_ms,
-            ratio: frame_ms / base,
+            ratio,
             extra_rays: extra,
             extra_rays_per_pixel: extra as f64 / pixels,
         });
     }
+    timings[0].frame_ms = median(plain);
     let run = RunInfo::new(&p.gpu, scene_path, size, frames);
     drop((p, renderer));
     let q_size = format!("{}x{}", QUALITY_SIZE.0, QUALITY_SIZE.1);

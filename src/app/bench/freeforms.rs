@@ -3,7 +3,7 @@
 //! and spread over the whole terrain.
 
 use super::table::{Figures, Row, RunInfo, Table};
-use super::timing::{scene_at_size, FrameSetup};
+use super::timing::{interleaved_ms, scene_at_size, FrameSetup};
 use crate::app::figures::median;
 use crate::freeform::FreeForm;
 use crate::gpu::{RenderSettings, Stage, TerrainRenderer};
@@ -13,7 +13,6 @@ use crate::world::World;
 use crate::{Error, Result};
 use serde::Serialize;
 use std::path::Path;
-use std::time::Instant;
 
 /// What `relief bench freeforms` measures (the report's `details`).
 #[derive(Clone, Debug, Serialize)]
@@ -141,16 +140,11 @@ impl FrameSetup<'_> {
             // Warm-up: shader compilation on first use, target allocation.
             r.capture(gpu, terrain, desc, cam, s)?;
         }
-        let mut times = [Vec::new(), Vec::new()];
-        for round in 0..self.frames.max(1) as usize {
-            for k in [round % 2, 1 - round % 2] {
-                let r = if k == 0 { &mut *plain } else { &mut with };
-                let start = Instant::now();
-                r.render(gpu, terrain, desc, cam, s, Stage::Shade)?;
-                gpu.wait()?;
-                times[k].push(start.elapsed().as_secs_f64() * 1e3);
-            }
-        }
+        let times = interleaved_ms(self.frames, |k| {
+            let r = if k == 0 { &mut *plain } else { &mut with };
+            r.render(gpu, terrain, desc, cam, s, Stage::Shade)?;
+            gpu.wait()
+        })?;
         let [a, b] = times.map(median);
         Ok((a, b))
     }

@@ -46,8 +46,8 @@ pub struct BenchArgs {
     #[arg(long, value_parser = parse_size, default_value = "1280x720")]
     pub size: (u32, u32),
     /// Timed frames per configuration (submitted in pairs as a frame loop does; the median
-    /// over the pairs is reported; the freeforms headline ratio alternates single frames of
-    /// its two configurations instead). Default 10; 600 for soak.
+    /// over the pairs is reported; the freeforms headline ratio and the antialias ratios
+    /// alternate single frames with their baseline's instead). Default 10; 600 for soak.
     #[arg(long)]
     pub frames: Option<u32>,
     /// Print one JSON object instead of text.

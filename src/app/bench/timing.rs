@@ -60,3 +60,22 @@ impl FrameSetup<'_> {
         Ok(median(times))
     }
 }
+
+/// `rounds` frames of each of two configurations, one of each in turn (the order swapped every
+/// round), each timed alone: `frame(k)` renders configuration k and waits for the GPU.
+/// Milliseconds of each. Interleaving keeps the slow spells of a shared machine from landing
+/// on one configuration only.
+pub fn interleaved_ms(
+    rounds: u32,
+    mut frame: impl FnMut(usize) -> Result<()>,
+) -> Result<[Vec<f64>; 2]> {
+    let mut times = [Vec::new(), Vec::new()];
+    for round in 0..rounds.max(1) as usize {
+        for k in [round % 2, 1 - round % 2] {
+            let start = Instant::now();
+            frame(k)?;
+            times[k].push(start.elapsed().as_secs_f64() * 1e3);
+        }
+    }
+    Ok(times)
+}
