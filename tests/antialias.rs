@@ -733,7 +733,7 @@ fn a_needle_no_centre_ray_hits_is_found_through_the_pixel_cone() {
 /// field's north end, the sun due north behind it and 30° up, lays its shadow on the field
 /// towards the eye (1 km up, 1.2-1.5 km away, looking 40° down) as a stripe that narrows
 /// from the spike's 10 m base to nothing over 866 m. Its far part, thinner than the pixels
-/// (5-6 m there), lies between the two pixel columns whose sun rays pass either side of the
+/// (about 6 m there), lies between the two pixel columns whose sun rays pass either side of the
 /// spike, so that no centre ray's sun ray is blocked. The sun rays of the pixels' footprints
 /// pass within their beam of the spike (the shade pass's terrain sun ray with a reach), and
 /// the stripe's pixels get their samples.
