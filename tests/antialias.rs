@@ -833,9 +833,17 @@ fn a_voxel_mast_no_centre_ray_hits_is_found_through_the_pixel_cone() {
     mast(
         "voxel-mast",
         &[("mast.rvs", voxel_mast())],
-        "[[voxels]]\nname = \"mast\"\nfile = \"mast.rvs\"\nposition = [320.0, 0.0, 0.0]\n\
-         voxel_size = 1.2\n",
+        &voxel_mast_at(0.0),
     );
+}
+
+/// The scene TOML of the voxel mast (`voxel_mast`, written beside the scene as `mast.rvs`,
+/// voxels of 1.2 m) standing at (320 m, y).
+fn voxel_mast_at(y: f64) -> String {
+    format!(
+        "[[voxels]]\nname = \"mast\"\nfile = \"mast.rvs\"\nposition = [320.0, {y:?}, 0.0]\n\
+         voxel_size = 1.2\n"
+    )
 }
 
 /// A segment file of one column of 100 voxels.
@@ -876,8 +884,7 @@ fn a_voxel_masts_shadow_no_centre_ray_sees_is_found_through_the_pixel_cone() {
     masts_shadow(
         "voxel-mast-shadow",
         &[("mast.rvs", voxel_mast())],
-        "[[voxels]]\nname = \"mast\"\nfile = \"mast.rvs\"\nposition = [320.0, 600.0, 0.0]\n\
-         voxel_size = 1.2\n",
+        &voxel_mast_at(600.0),
     );
 }
 
