@@ -837,6 +837,29 @@ fn a_voxel_mast_no_centre_ray_hits_is_found_through_the_pixel_cone() {
     );
 }
 
+/// The voxel mast in a model two bricks wide (16x1x100 voxels of 1.2 m, the mast the first
+/// voxel column of the second brick), placed so that the mast lies inside pixel column 79
+/// between its centre ray and the brick boundary: that ray crosses only the empty first
+/// brick, moving away from the mast, and must still be flagged (the brick's symmetric gap
+/// within the cone's reach, `VoxTrace::touched`). Column 80's ray crosses the mast's brick.
+#[test]
+fn a_voxel_mast_beside_the_empty_brick_a_ray_crosses_is_found_through_the_pixel_cone() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let _lock = common::gpu_lock();
+    // Bottom centre at x = 318.4 m: the model spans 308.8-328.0 m, the mast 318.4-319.6 m;
+    // column 79's centre ray passes at 317.7 m, 0.6 voxels left of the brick boundary, and
+    // column 79 covers 315.4-320.0 m at the mast's distance.
+    let model = "[[voxels]]\nname = \"mast\"\nfile = \"mast.rvs\"\nposition = [318.4, 0.0, 0.0]\n\
+                 voxel_size = 1.2\n";
+    mast(
+        "voxel-mast-brick-gap",
+        &[("mast.rvs", voxel_mast_in_brick(8, 16))],
+        model,
+    );
+}
+
 /// The scene TOML of the voxel mast (`voxel_mast`, written beside the scene as `mast.rvs`,
 /// voxels of 1.2 m) standing at (320 m, y).
 fn voxel_mast_at(y: f64) -> String {
@@ -848,15 +871,21 @@ fn voxel_mast_at(y: f64) -> String {
 
 /// A segment file of one column of 100 voxels.
 fn voxel_mast() -> Vec<u8> {
+    voxel_mast_in_brick(0, 1)
+}
+
+/// A segment file of a model `width` x 1 x 100 voxels holding one column of 100 voxels at
+/// x = `x`.
+fn voxel_mast_in_brick(x: u32, width: u32) -> Vec<u8> {
     let voxels = (0..100)
         .map(|z| relief::voxel::Voxel {
-            pos: [0, 0, z],
+            pos: [x, 0, z],
             index: 1,
         })
         .collect();
     let mut palette = vec![[0, 0, 0, 255]; 256];
     palette[1] = [230, 26, 26, 255];
-    let model = relief::voxel::VoxelModel::new("mast", [1, 1, 100], palette, voxels).unwrap();
+    let model = relief::voxel::VoxelModel::new("mast", [width, 1, 100], palette, voxels).unwrap();
     relief::voxel::segment::encode(&model)
 }
 

@@ -27,8 +27,20 @@ const VOXEL_FIX: &str = "use smaller voxel models or fewer animation frames";
 
 // Every scene's instance records fit the smallest uniform binding WebGPU guarantees (16 KiB).
 /// Marks an empty brick's entry in `vox_data` (WGSL `VOX_EMPTY_BIT`); the low 16 bits hold
-/// its gap in voxels towards the table's octant (`Bricks::brick_gap`).
+/// its gap in voxels towards the table's octant (`Bricks::brick_gap`), the bits from
+/// [`NEAR_GAP_SHIFT`] its gap in every direction.
 pub const EMPTY_BIT: u32 = 0x8000_0000;
+/// Shift of an empty brick's gap in every direction in its table entry (WGSL
+/// `VOX_NEAR_GAP_SHIFT`): the least of its eight octants' gaps, at most [`NEAR_GAP_MAX`]. The
+/// union of the boxes grown towards each octant by at least that much covers the box grown by
+/// it in every direction, so every voxel within `g - 1` of the brick's box is empty; the near
+/// search of anti-aliased centre rays (`VoxTrace::touched`) counts a brick the ray crosses
+/// where that distance is within the ray's reach.
+pub const NEAR_GAP_SHIFT: u32 = 16;
+/// Largest gap in every direction an entry holds (15 bits below [`EMPTY_BIT`]).
+const NEAR_GAP_MAX: u16 = 0x7fff;
+const _: () =
+    assert!(shaders::wgsl_u32(shaders::VOXEL_DDA, "VOX_NEAR_GAP_SHIFT") == NEAR_GAP_SHIFT);
 
 /// Words of one octant's voxel codes in a brick's block (WGSL `VOX_CODE_WORDS`).
 pub const CODE_WORDS: usize = BRICK_VOXELS / 8;
@@ -107,9 +119,9 @@ impl Packed {
         // Brick tables first, then the pool (`vox_data` in voxel_dda.wgsl). A frame has a table
         // per octant of ray directions; an entry is its block's word address in the same
         // buffer, or VOX_EMPTY_BIT | the brick's gap in voxels towards the octant
-        // (`Bricks::brick_gap`). A block holds for each octant the brick's 512 4-bit voxel
-        // codes (0 = occupied, else the octant's cube side, `Bricks::pool_jump`; 8 a word),
-        // then the palette indices (4 a word).
+        // (`Bricks::brick_gap`) | its gap in every direction << NEAR_GAP_SHIFT. A block holds
+        // for each octant the brick's 512 4-bit voxel codes (0 = occupied, else the octant's
+        // cube side, `Bricks::pool_jump`; 8 a word), then the palette indices (4 a word).
         let mut table: Vec<u32> = Vec::new();
         let mut pool: Vec<u32> = Vec::new();
         let mut palette: Vec<u32> = Vec::new();
@@ -132,7 +144,8 @@ impl Packed {
                 for oct in 0..8 {
                     table.extend(b.table.iter().zip(&b.brick_gap).map(|(&i, g)| {
                         if i == EMPTY_BRICK {
-                            EMPTY_BIT | g[oct] as u32
+                            let around = g.iter().copied().min().unwrap_or(0).min(NEAR_GAP_MAX);
+                            EMPTY_BIT | (around as u32) << NEAR_GAP_SHIFT | g[oct] as u32
                         } else {
                             base + i
                         }

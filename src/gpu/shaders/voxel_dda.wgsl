@@ -33,11 +33,13 @@ const VOX_SLABS: u32 = 4u;
 // storage-buffer load costs Mesa's CPU adapters a loop over the SIMD lanes, and both levels'
 // code runs in every step). A frame has a brick table per octant of ray directions: a brick's
 // entry is the word address in this buffer of its block, or VOX_EMPTY_BIT | how far in voxels
-// its box can grow towards the octant and stay empty (`Bricks::brick_gap`). A block holds, for
-// each octant, its 512 voxels' 4-bit codes (64 words, 8 voxels each): 0 = occupied, else the
-// side of the largest empty cube with the voxel as its corner towards that octant
-// (`Bricks::pool_jump`); a ray reads only its octant's table and codes. Then the palette
-// indices (128 words, 4 voxels each, read once a ray hits).
+// its box can grow towards the octant and stay empty (`Bricks::brick_gap`, bits 0-15) | how
+// far it can grow in every direction (the least of its eight octants' gaps, capped at 0x7fff,
+// from bit VOX_NEAR_GAP_SHIFT: anti-aliasing's near misses, `VoxTrace::touched`). A block
+// holds, for each octant, its 512 voxels' 4-bit codes (64 words, 8 voxels each): 0 =
+// occupied, else the side of the largest empty cube with the voxel as its corner towards that
+// octant (`Bricks::pool_jump`); a ray reads only its octant's table and codes. Then the
+// palette indices (128 words, 4 voxels each, read once a ray hits).
 @group(0) @binding(11) var<storage, read> vox_data: array<u32>;
 // sRGB RGBA8 per palette index.
 @group(0) @binding(13) var<storage, read> vox_palette: array<u32>;
@@ -48,9 +50,9 @@ const VOX_BRICK: i32 = 8;
 // Words of one octant's voxel codes in a brick's block (`gpu::voxels::CODE_WORDS`).
 const VOX_CODE_WORDS: u32 = 64u;
 const VOX_MAX_STEPS: u32 = 4096u;
-// An empty brick whose gap is at most this (a voxel lies within that many voxels of it,
-// towards the ray's octant) counts as `VoxTrace::touched`.
-const VOX_TOUCH_GAP: u32 = 2u;
+// Shift of an empty brick's gap in every direction in its table entry
+// (`gpu::voxels::NEAR_GAP_SHIFT`).
+const VOX_NEAR_GAP_SHIFT: u32 = 16u;
 // Offset (voxels) a shadow ray leaves a voxel face by (`cpu::voxel::SHADOW_OFFSET_VOXELS`).
 const VOX_SHADOW_OFFSET: f32 = 0.01;
 
@@ -61,8 +63,9 @@ struct VoxTrace {
     axis: u32,
     index: u32,
     steps: u32,
-    // Whether the ray entered an occupied brick or crossed an empty one with a voxel within
-    // VOX_TOUCH_GAP voxels ahead (anti-aliasing's near misses, `vox_near_miss`).
+    // Whether the ray entered an occupied brick or crossed an empty one that may have a voxel
+    // within the reach of where the ray leaves it (anti-aliasing's near misses,
+    // `vox_near_miss`, `vox_shadow_near`).
     touched: bool,
 }
 
@@ -98,8 +101,12 @@ fn vox_local(c: vec3<i32>) -> u32 {
 }
 
 // `near` (a constant where called: anti-aliasing's `_near` passes) also tracks
-// `VoxTrace::touched`.
-fn vox_dda(inst: VoxInstance, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, near: bool) -> VoxTrace {
+// `VoxTrace::touched` with the reach `reach.x + reach.y t` in voxels: every brick the ray
+// crosses counts, so until one has touched, its jumps over empty bricks stay that reach
+// inside their gap in every direction (the bricks a jump passes may lie beside voxels the
+// jump's one-sided box leaves out; with the reach R at the span's far end, a point of the
+// brick's box grown by g - 1 - R lies at least R from any voxel).
+fn vox_dda(inst: VoxInstance, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, near: bool, reach: vec2<f32>) -> VoxTrace {
     var r: VoxTrace;
     r.hit = false;
     r.steps = 0u;
@@ -138,6 +145,8 @@ fn vox_dda(inst: VoxInstance, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32
     // Brick level (`cell` in bricks of 8³ voxels) or voxel level (`cell` in voxels, inside the
     // brick whose block starts at word `block`). Every step runs all of this on Mesa's CPU
     // adapters (both sides of a branch, masked), so both levels share one load and one exit.
+    // Anti-aliasing's near search: the reach at the far end of the span, in whole voxels.
+    let far_reach = i32(ceil(min(reach.x + reach.y * t1, 32768.0)));
     var fine = false;
     var cell = clamp(vec3<i32>(floor((o + d * t0) / f32(VOX_BRICK))), vec3<i32>(0), bd - 1);
     var block = 0u;
@@ -155,13 +164,14 @@ fn vox_dda(inst: VoxInstance, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32
         // An occupied brick is entered without moving: its cube is the brick itself and the
         // next cell is the voxel at the current point, clamped into it.
         let enter = !fine && (w & VOX_EMPTY_BIT) == 0u;
-        if (near) {
-            r.touched = r.touched || enter || (!fine && (w & VOX_EMPTY_BIT) != 0u && (w & 0xffffu) <= VOX_TOUCH_GAP);
-        }
         // A box of voxels [lo, hi) holding the current cell, known to be empty, grown from the
-        // cell towards the ray's octant: an empty brick by its gap; the brick being entered
-        // not at all; a voxel to the empty cube at its corner.
-        let ext = select(select(i32(w & 0xffffu), 1, enter), side, fine) - 1;
+        // cell towards the ray's octant: an empty brick by its gap (less the reach while a near
+        // search has not touched); the brick being entered not at all; a voxel to the empty
+        // cube at its corner.
+        let gap_ahead = i32(w & 0xffffu);
+        let gap_around = i32((w >> VOX_NEAR_GAP_SHIFT) & 0x7fffu);
+        let gap = select(gap_ahead, max(min(gap_ahead, gap_around - far_reach), 1), near && !r.touched);
+        let ext = select(select(gap, 1, enter), side, fine) - 1;
         let base = select(cell * VOX_BRICK, cell, fine);
         let lo = base - select(vec3<i32>(ext), vec3<i32>(0), pos);
         let hi = base + select(VOX_BRICK, 1, fine) + select(vec3<i32>(0), vec3<i32>(ext), pos);
@@ -172,6 +182,13 @@ fn vox_dda(inst: VoxInstance, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32
         if (!enter) {
             t = min(min(te.x, te.y), te.z);
             axis = select(select(2u, 1u, ey), 0u, ex);
+        }
+        if (near) {
+            // An empty brick whose every voxel within g - 1 of its box is empty (g its gap
+            // around): a point of it lies at least g - 1 voxels from any voxel, and the reach
+            // is largest where the ray leaves it (t, now). A jump beyond the brick stays
+            // farther than that from every voxel (above).
+            r.touched = r.touched || enter || (!fine && f32(gap_around - 1) <= reach.x + reach.y * t);
         }
         if (t > t1) {
             return r;

@@ -54,16 +54,17 @@ fn vox_reach(px: vec2<u32>) -> f32 {
 }
 
 // Near miss of a voxel model (anti-aliasing's centre rays, the `_near` passes; `d` the ray's
-// direction in voxel units per metre, `touched` whether its DDA came within a brick of a voxel):
+// direction in voxel units per metre, `touched` whether its DDA, searching with this reach,
+// came within a brick or the reach of a voxel):
 // may the ray, which hits none of the model's voxels before `t_max`, pass within `reach` t of
 // one where its pixel is at least a voxel wide (2 half-angles t >= the voxel size)? There the
 // model's detail is finer than the pixels: a mast or a twig one voxel wide can lie between
 // two centre rays, and no colour difference would mark it; nearer, voxels are wider than
 // pixels, a neighbouring centre ray hits any voxel and the colour rules mark the edge.
 // * Through the model's box: when the ray crossed an occupied brick (within a brick of a
-//   voxel) or an empty one with a voxel close ahead (`VoxTrace::touched`). A ray crossing
-//   only other empty bricks is not flagged, though a voxel at the border of the next brick
-//   may lie within its reach; the pixel on the voxel's other side is.
+//   voxel) or an empty one whose gap in every direction is within the reach where the ray
+//   leaves it (`VoxTrace::touched`): a voxel at the border of a brick the ray passes beside
+//   counts.
 // * Beside the box: when it passes within reach of the bounding box of a slab's occupied
 //   voxels, widened by the reach at the far side of its bounding sphere (as for plain free
 //   forms). This finds a mast whose box is itself thinner than a pixel.
@@ -123,19 +124,20 @@ fn vox_hit(inst: VoxInstance, k: u32, tr: VoxTrace, dw: vec3<f32>, steps: u32) -
 fn voxels_cast(px: vec2<u32>, near: bool) -> vec4<u32> {
     let g = textureLoad(gbuffer_in, vec2<i32>(px), 0);
     let dw = ray_dir(px);
+    let reach = vox_reach(px);
     var best_t = vox_far(g);
     var found = false;
     var best: VoxTrace;
     var best_k = 0u;
     var steps = 0u;
-    // Instances whose DDA came within a brick of a voxel (`VoxTrace::touched`; bit k of
-    // x | y << 32).
+    // Instances whose DDA came within a brick or the cone's reach of a voxel
+    // (`VoxTrace::touched`; bit k of x | y << 32).
     var touched = vec2<u32>(0u);
     var m = vox_draw.mask.xy;
     while (any(m != vec2<u32>(0u))) {
         let k = vox_next(&m);
         let inst = vox_instances[k];
-        let tr = vox_dda(inst, inst.eye_local.xyz, vox_dir(inst, dw), 0.0, best_t, near);
+        let tr = vox_dda(inst, inst.eye_local.xyz, vox_dir(inst, dw), 0.0, best_t, near, vec2<f32>(0.0, reach / inst.eye_local.w));
         steps += tr.steps;
         if (near) {
             let bit = 1u << (k & 31u);
@@ -150,7 +152,6 @@ fn voxels_cast(px: vec2<u32>, near: bool) -> vec4<u32> {
     }
     if (!found) {
         if (near) {
-            let reach = vox_reach(px);
             var missed = false;
             m = vox_draw.mask.xy;
             while (any(m != vec2<u32>(0u))) {
@@ -175,7 +176,7 @@ fn voxels_cast_one(px: vec2<u32>, near: bool) -> vec4<u32> {
     let inst = vox_draw.inst;
     let far = vox_far(g);
     let d = vox_dir(inst, dw);
-    let tr = vox_dda(inst, inst.eye_local.xyz, d, 0.0, far, near);
+    let tr = vox_dda(inst, inst.eye_local.xyz, d, 0.0, far, near, vec2<f32>(0.0, vox_reach(px) / inst.eye_local.w));
     if (!tr.hit) {
         if (near && vox_near_miss(inst, d, vox_reach(px), far, tr.touched)) {
             return vec4<u32>(g.xyz, g.w | 0x80000000u);
@@ -226,17 +227,20 @@ fn vox_shadow_origin(px: vec2<u32>, g: vec4<u32>) -> vec4<f32> {
     return vec4<f32>(p, 1.0);
 }
 
-// The sun ray from the shadow origin `p` through instance `inst` (`near`: tracking
-// `VoxTrace::touched`).
-fn vox_sun_trace(inst: VoxInstance, p: vec4<f32>, near: bool) -> VoxTrace {
-    return vox_dda(inst, inst.eye_local.xyz + vox_dir(inst, p.xyz), vox_dir(inst, frame.sun_world.xyz), 0.0, select(-1.0, BIG, p.w != 0.0), near);
+// The sun ray from the shadow origin `p` of G-buffer pixel `g` at `px` through instance
+// `inst` (`near`: tracking `VoxTrace::touched` within the footprint's beam, see
+// `vox_shadow_near`).
+fn vox_sun_trace(inst: VoxInstance, p: vec4<f32>, g: vec4<u32>, px: vec2<u32>, near: bool) -> VoxTrace {
+    let beam = vox_reach(px) * bitcast<f32>(g.x) / inst.eye_local.w;
+    return vox_dda(inst, inst.eye_local.xyz + vox_dir(inst, p.xyz), vox_dir(inst, frame.sun_world.xyz), 0.0, select(-1.0, BIG, p.w != 0.0), near, vec2<f32>(beam, 0.0));
 }
 
 // Anti-aliasing's centre rays (the `_near` shadow passes): the near-miss bit (31) for
 // G-buffer pixel `g` (terrain or a free form; a voxel hit keeps its step count in bit 31)
 // whose footprint is at least a voxel wide (2 half-angles times its distance `t`: the sun
 // rays of the footprint form a beam that wide), when its sun ray `tr` from `p` met a voxel of
-// `inst`, came within a brick of one (`VoxTrace::touched`), or passed within √2 footprint
+// `inst`, came within a brick or the beam of one (`VoxTrace::touched`, searched with the
+// beam, `vox_sun_trace`), or passed within √2 footprint
 // radii of a slab's box (a mast's shadow between two pixels' sun rays). A crown finer than
 // the pixels dapples the ground below at a scale no centre ray's shadow shows: gaps let the
 // sun through a shadowed pixel, leaves shade part of a lit one.
@@ -271,7 +275,7 @@ fn vox_shadow(px: vec2<u32>, near: bool) -> vec4<u32> {
     var m = vox_draw.mask.xy;
     while (any(m != vec2<u32>(0u))) {
         let inst = vox_instances[vox_next(&m)];
-        let tr = vox_sun_trace(inst, p, near);
+        let tr = vox_sun_trace(inst, p, g, px, near);
         if (near) {
             flagged = flagged || vox_shadow_near(inst, tr, g, px, p);
         }
@@ -290,7 +294,7 @@ fn vox_shadow(px: vec2<u32>, near: bool) -> vec4<u32> {
 fn vox_shadow_one(px: vec2<u32>, near: bool) -> vec4<u32> {
     let g = textureLoad(gbuffer_in, vec2<i32>(px), 0);
     let p = vox_shadow_origin(px, g);
-    let tr = vox_sun_trace(vox_draw.inst, p, near);
+    let tr = vox_sun_trace(vox_draw.inst, p, g, px, near);
     let flagged = near && vox_shadow_near(vox_draw.inst, tr, g, px, p);
     if (!tr.hit && !flagged) {
         discard;
