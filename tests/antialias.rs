@@ -25,13 +25,14 @@ fn measure(words: &[&str]) -> Option<(QualityRow, QualityRow)> {
     } = quality::measure(&job, 10, &[Antialias::OFF, EDGES]).unwrap();
     let (off, edges) = (rows[0].clone(), rows[1].clone());
     eprintln!(
-        "{words:?}: the reference changes {reference_change:.3}/255 a frame\n  off:   p99 {:.1}, mean {:.3}, temporal excess {:.3}\n  edges: p99 {:.1}, mean {:.3}, temporal excess {:.3}; {:.0} extra rays a frame ({:.3} a pixel)",
+        "{words:?}: the reference changes {reference_change:.3}/255 a frame\n  off:   p99 {:.1}, mean {:.3}, temporal excess {:.3}\n  edges: p99 {:.1}, mean {:.3}, temporal excess {:.3} ({:.3?}); {:.0} extra rays a frame ({:.3} a pixel)",
         off.p99_error,
         off.mean_error,
         off.temporal_excess,
         edges.p99_error,
         edges.mean_error,
         edges.temporal_excess,
+        edges.temporal_excess_parts,
         edges.extra_rays,
         edges.extra_rays_per_pixel
     );
@@ -498,6 +499,16 @@ fn the_bench_reports_each_choices_ratio_extra_rays_and_quality() {
     assert!(rays[4] > rays[1] && rays[4] < rays[3], "{rays:?}");
     let p99 = |k: usize| rows[k]["p99_error"].as_f64().unwrap();
     assert!(p99(3) < p99(0), "16 samples an edge pixel against one ray");
+    // The temporal excess by the pixels' kind adds up; without anti-aliasing none is marked.
+    for r in rows {
+        let parts = &r["temporal_excess_parts"];
+        let part = |k: &str| parts[k].as_f64().unwrap();
+        let sum = part("marked") + part("sky") + part("smooth") + part("detail");
+        let total = r["temporal_excess"].as_f64().unwrap();
+        assert!((sum - total).abs() < 1e-9, "{r}");
+    }
+    assert_eq!(rows[0]["temporal_excess_parts"]["marked"], 0.0);
+    assert!(rows[3]["temporal_excess_parts"]["marked"].as_f64().unwrap() > 0.0);
 }
 
 /// A flat procedural terrain under a drape `drape.png` (stretched over the grid), seen from

@@ -11,7 +11,7 @@
 //! reference (16 rays per pixel, `antialias = "reference"`).
 
 use super::capture::{Frames, Prepared};
-use crate::gpu::{Antialias, FrameOutput, TerrainRenderer};
+use crate::gpu::{Antialias, FrameOutput, TerrainRenderer, FLAG_ANTIALIASED};
 use crate::scene::Camera;
 use crate::{Error, Result};
 use serde::Serialize;
@@ -63,6 +63,83 @@ pub fn temporal_excess(images: &[Vec<u8>], reference: &[Vec<u8>]) -> f64 {
     }
 }
 
+/// Largest channel step (levels) to a neighbour at most this counts as smooth
+/// ([`ExcessParts::smooth`]).
+pub const SMOOTH_STEP: u8 = 2;
+
+/// Where a run's temporal excess comes from: its sum split by the pixels' kind, each part
+/// divided by the same count (pixels × channels × consecutive pairs), so that the parts add
+/// up to [`temporal_excess`]. A pixel of a pair counts as
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct ExcessParts {
+    /// anti-aliased (flag 128) in either frame of the pair;
+    pub marked: f64,
+    /// else sky (no surface) in the first frame: 8-bit rounding of the centre ray's colour
+    /// against the reference's mean of 16;
+    pub sky: f64,
+    /// else a surface whose largest channel step to a 4-neighbour is at most [`SMOOTH_STEP`]
+    /// levels in the first frame (the same rounding, on surfaces);
+    pub smooth: f64,
+    /// else detail finer than the pixel that the edge rules leave unmarked.
+    pub detail: f64,
+}
+
+/// [`temporal_excess`] of `frames` against `reference` (the same cameras), split into
+/// [`ExcessParts`].
+pub fn excess_parts(frames: &[FrameOutput], reference: &[FrameOutput]) -> ExcessParts {
+    let mut parts = ExcessParts::default();
+    let mut n = 0u64;
+    for t in 1..frames.len().min(reference.len()) {
+        let (i0, i1, r0, r1) = (&frames[t - 1], &frames[t], &reference[t - 1], &reference[t]);
+        let (w, h) = (i0.width as usize, i0.height as usize);
+        for k in 0..w * h {
+            let excess: f64 = (0..3)
+                .map(|c| {
+                    let di = f64::from(i1.rgba[4 * k + c]) - f64::from(i0.rgba[4 * k + c]);
+                    let dr = f64::from(r1.rgba[4 * k + c]) - f64::from(r0.rgba[4 * k + c]);
+                    (di - dr).abs()
+                })
+                .sum();
+            n += 3;
+            let part = if (i0.flags[k] | i1.flags[k]) & FLAG_ANTIALIASED != 0 {
+                &mut parts.marked
+            } else if !i0.depth[k].is_finite() {
+                &mut parts.sky
+            } else if largest_step(&i0.rgba, w, h, k) <= SMOOTH_STEP {
+                &mut parts.smooth
+            } else {
+                &mut parts.detail
+            };
+            *part += excess;
+        }
+    }
+    let n = n.max(1) as f64;
+    ExcessParts {
+        marked: parts.marked / n,
+        sky: parts.sky / n,
+        smooth: parts.smooth / n,
+        detail: parts.detail / n,
+    }
+}
+
+/// Largest channel difference of pixel `k` of the RGBA8 `w` x `h` image `rgba` to its
+/// 4-neighbours.
+fn largest_step(rgba: &[u8], w: usize, h: usize, k: usize) -> u8 {
+    let (x, y) = (k % w, k / w);
+    let neighbours = [
+        (x > 0).then(|| k - 1),
+        (x + 1 < w).then(|| k + 1),
+        (y > 0).then(|| k - w),
+        (y + 1 < h).then(|| k + w),
+    ];
+    neighbours
+        .into_iter()
+        .flatten()
+        .flat_map(|q| (0..3).map(move |c| rgba[4 * k + c].abs_diff(rgba[4 * q + c])))
+        .max()
+        .unwrap_or(0)
+}
+
 /// Mean over pixels and channels of the change between consecutive frames (the reference's
 /// own motion, for scale).
 pub fn temporal_change(images: &[Vec<u8>]) -> f64 {
@@ -106,6 +183,8 @@ pub struct QualityRow {
     pub p99_error: f64,
     pub mean_error: f64,
     pub temporal_excess: f64,
+    /// The temporal excess by the pixels' kind.
+    pub temporal_excess_parts: ExcessParts,
     /// Extra rays per frame, and as a fraction of the frame's pixels.
     pub extra_rays: f64,
     pub extra_rays_per_pixel: f64,
@@ -147,6 +226,7 @@ pub fn compare(r: &Rendered, reference: &Rendered) -> Result<QualityRow> {
         p99_error: quantile(&errors, 0.99),
         mean_error: errors.iter().map(|&e| f64::from(e)).sum::<f64>() / errors.len().max(1) as f64,
         temporal_excess: temporal_excess(&r.images(), &reference.images()),
+        temporal_excess_parts: excess_parts(&r.frames, &reference.frames),
         extra_rays: extra,
         extra_rays_per_pixel: extra / pixels,
     })
@@ -212,4 +292,65 @@ pub fn measure(
         rows,
         reference_change: temporal_change(&reference.images()),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gpu::PassTimes;
+
+    /// A 4x1 frame: pixel colours (grey levels), sky where `depth` is infinite, flags.
+    fn frame(grey: [u8; 4], depth: [f32; 4], flags: [u32; 4]) -> FrameOutput {
+        FrameOutput {
+            width: 4,
+            height: 1,
+            rgba: grey.iter().flat_map(|&g| [g, g, g, 255]).collect(),
+            depth: depth.to_vec(),
+            steps: vec![0; 4],
+            patch_tests: vec![0; 4],
+            shadow_steps: vec![0; 4],
+            flags: flags.to_vec(),
+            objects: vec![0; 4],
+            volume_samples: Vec::new(),
+            volume_segments: Vec::new(),
+            volume_sun: Vec::new(),
+            times: PassTimes::default(),
+        }
+    }
+
+    #[test]
+    fn the_parts_add_up_to_the_temporal_excess_and_sort_pixels_by_kind() {
+        let inf = f32::INFINITY;
+        let depth = [inf, 10.0, 10.0, 10.0];
+        // Pixel 0: sky; 1: a surface 2 levels from both neighbours (smooth); 2: anti-aliased
+        // in the second frame, 20 levels from pixel 3; 3: detail.
+        let first = frame([100, 102, 104, 124], depth, [0, 1, 1, 1]);
+        let frames = [
+            first.clone(),
+            frame([101, 104, 107, 127], depth, [0, 1, 1 | 128, 1]),
+        ];
+        let reference = [
+            first.clone(),
+            frame([100, 102, 104, 126], depth, [0, 1, 1, 1]),
+        ];
+        let parts = excess_parts(&frames, &reference);
+        // Excess per channel: sky 1, smooth 2, marked 3, detail 1; 12 channel values.
+        assert_eq!(
+            parts,
+            ExcessParts {
+                marked: 9.0 / 12.0,
+                sky: 3.0 / 12.0,
+                smooth: 6.0 / 12.0,
+                detail: 3.0 / 12.0,
+            }
+        );
+        let images = |f: &[FrameOutput]| f.iter().map(|f| f.rgba.clone()).collect::<Vec<_>>();
+        let total = temporal_excess(&images(&frames), &images(&reference));
+        let sum = parts.marked + parts.sky + parts.smooth + parts.detail;
+        assert!((sum - total).abs() < 1e-12, "{sum} against {total}");
+        // Not anti-aliased, pixel 2 (20 levels from pixel 3) is detail.
+        let plain = [first, frame([101, 104, 107, 127], depth, [0, 1, 1, 1])];
+        let parts = excess_parts(&plain, &reference);
+        assert_eq!((parts.marked, parts.detail), (0.0, 12.0 / 12.0));
+    }
 }

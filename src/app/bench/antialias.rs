@@ -128,7 +128,11 @@ impl AntialiasBench {
                     .with("extra_per_pixel", t.extra_rays_per_pixel)
                     .with("p99_error", q.p99_error)
                     .with("mean_error", q.mean_error)
-                    .with("temporal_excess", q.temporal_excess);
+                    .with("temporal_excess", q.temporal_excess)
+                    .with("te_marked", q.temporal_excess_parts.marked)
+                    .with("te_sky", q.temporal_excess_parts.sky)
+                    .with("te_smooth", q.temporal_excess_parts.smooth)
+                    .with("te_detail", q.temporal_excess_parts.detail);
                 Row::new(name(t.antialias), figures)
             })
             .collect();
@@ -139,6 +143,10 @@ impl AntialiasBench {
                 self.quality_frames, self.quality_size.0, self.quality_size.1
             ),
             "reference_change: the reference's own mean change between consecutive frames".into(),
+            format!(
+                "te_marked, te_sky, te_smooth, te_detail: the temporal excess from pixels anti-aliased in either frame of a pair, else sky, else surfaces at most {} levels from every neighbour, else the rest (they add up to temporal_excess)",
+                quality::SMOOTH_STEP
+            ),
         ];
         Table {
             rows,
