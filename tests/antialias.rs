@@ -844,7 +844,7 @@ fn a_voxel_mast_no_centre_ray_hits_is_found_through_the_pixel_cone() {
     mast(
         "voxel-mast",
         &[("mast.rvs", voxel_mast())],
-        &voxel_mast_at(0.0),
+        &voxel_mast_at(320.0, 0.0),
     );
 }
 
@@ -862,20 +862,18 @@ fn a_voxel_mast_beside_the_empty_brick_a_ray_crosses_is_found_through_the_pixel_
     // Bottom centre at x = 318.4 m: the model spans 308.8-328.0 m, the mast 318.4-319.6 m;
     // column 79's centre ray passes at 317.7 m, 0.6 voxels left of the brick boundary, and
     // column 79 covers 315.4-320.0 m at the mast's distance.
-    let model = "[[voxels]]\nname = \"mast\"\nfile = \"mast.rvs\"\nposition = [318.4, 0.0, 0.0]\n\
-                 voxel_size = 1.2\n";
     mast(
         "voxel-mast-brick-gap",
         &[("mast.rvs", voxel_mast_in_brick(8, 16))],
-        model,
+        &voxel_mast_at(318.4, 0.0),
     );
 }
 
 /// The scene TOML of the voxel mast (`voxel_mast`, written beside the scene as `mast.rvs`,
-/// voxels of 1.2 m) standing at (320 m, y).
-fn voxel_mast_at(y: f64) -> String {
+/// voxels of 1.2 m), its model's bottom centre at (x, y).
+fn voxel_mast_at(x: f64, y: f64) -> String {
     format!(
-        "[[voxels]]\nname = \"mast\"\nfile = \"mast.rvs\"\nposition = [320.0, {y:?}, 0.0]\n\
+        "[[voxels]]\nname = \"mast\"\nfile = \"mast.rvs\"\nposition = [{x:?}, {y:?}, 0.0]\n\
          voxel_size = 1.2\n"
     )
 }
@@ -924,7 +922,27 @@ fn a_voxel_masts_shadow_no_centre_ray_sees_is_found_through_the_pixel_cone() {
     masts_shadow(
         "voxel-mast-shadow",
         &[("mast.rvs", voxel_mast())],
-        &voxel_mast_at(600.0),
+        &voxel_mast_at(320.0, 600.0),
+    );
+}
+
+/// The voxel mast's shadow beside an empty brick: the mast the last voxel column of the first
+/// brick of a model two bricks wide (16x1x100 voxels), its shadow inside pixel column 80 left of
+/// that column's sun rays, which cross only the empty second brick, moving away from the mast
+/// (a sun due north: towards +x in the DDA's octant), and must still be flagged (the brick's
+/// gap in every direction within the footprint's beam, `VoxTrace::touched`).
+#[test]
+fn a_voxel_masts_shadow_beside_the_empty_brick_its_sun_rays_cross_is_found() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let _lock = common::gpu_lock();
+    // Bottom centre at x = 321.4 m: the mast spans 320.2-321.4 m, column 80's ground points
+    // lie at 321.6 m and beyond in the stripe's rows.
+    masts_shadow(
+        "voxel-mast-shadow-brick-gap",
+        &[("mast.rvs", voxel_mast_in_brick(7, 16))],
+        &voxel_mast_at(321.4, 600.0),
     );
 }
 
