@@ -33,8 +33,19 @@ fn fs_cast(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<u32> {
     if (LOD) {
         lod_k = frame.lod.x * e.w;
     }
-    // NEAR (anti-aliasing): features within the pixel's cone that its centre ray misses.
-    let tr = traverse_lod(primary_ray(e), t_min, BIG, frame.mode.y, level, lod_k, vec3<f32>(0.0, select(0.0, e.w, NEAR), 0.0));
+    // NEAR (anti-aliasing): features within the pixel's cone that its centre ray misses. A
+    // near miss needs a level-0 cell no wider than the cone's diameter (`misses_by_less`),
+    // which it is from t_w = cell / (2 half-angle) on: the search starts one cell's span along
+    // the ray before that (the ray crosses a cell within sqrt 2 / |d.xy| metres of t), and the
+    // cells before it are not widened (the flags are the same; the steps fewer).
+    let ray = primary_ray(e);
+    var near = vec3<f32>(0.0);
+    if (NEAR) {
+        let t_w = max(frame.spacing.x, frame.spacing.y) / max(2.0 * e.w, 1.0e-30);
+        let span = 1.5 / max(length(ray.d.xy), 1.0e-20);
+        near = vec3<f32>(0.0, e.w, max(t_w - span, 0.0));
+    }
+    let tr = traverse_lod(ray, t_min, BIG, frame.mode.y, level, lod_k, near);
     var g = encode_gbuffer(tr);
     if (PAGED && tr.hit) {
         // The paged build: the finest resident level over the hit cell for the shade pass.
