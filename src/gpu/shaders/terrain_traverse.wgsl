@@ -380,6 +380,10 @@ fn traverse_lod(r: Ray, t_min: f32, t_max: f32, max_steps: u32, start_level: u32
         var candidate = false;
         var exits = vec2<f32>(0.0);
         var t_exit = 0.0;
+        // NEAR: the candidate cell's own maximum and the segment's lowest point, for the
+        // near-miss test after its patch test (kept, not loaded again).
+        var cand_max = 0.0;
+        var cand_low = 0.0;
         loop {
             if (res.steps >= max_steps) {
                 res.exhausted = true;
@@ -388,7 +392,8 @@ fn traverse_lod(r: Ray, t_min: f32, t_max: f32, max_steps: u32, start_level: u32
             res.steps += 1u;
             exits = cell_exits(r, dir, w);
             t_exit = max(min(min(exits.x, exits.y), t1), w.t);
-            var cmax = cell_max(w.level, w.cell) + frame.heights_range.w;
+            let cell_top = cell_max(w.level, w.cell) + frame.heights_range.w;
+            var cmax = cell_top;
             if (NEAR) {
                 // Near misses count from near.z on: the reach widens no cell before it.
                 cmax += select(0.0, near.x + near.y * t_exit, t_exit >= near.z);
@@ -405,6 +410,8 @@ fn traverse_lod(r: Ray, t_min: f32, t_max: f32, max_steps: u32, start_level: u32
                     continue;
                 }
                 candidate = true;
+                cand_max = cell_top;
+                cand_low = z_low;
                 break;
             }
             if (t_exit >= t1) {
@@ -424,12 +431,7 @@ fn traverse_lod(r: Ray, t_min: f32, t_max: f32, max_steps: u32, start_level: u32
         under = ph.y != 0.0;
         let th = ph.x;
         if (NEAR && th < 0.0 && !res.near && w.t >= near.z) {
-            let cmax = cell_max(0u, w.cell) + frame.heights_range.w;
-            var z_low = min(r.o.z + r.d.z * w.t, r.o.z + r.d.z * t_exit);
-            if (CURVED) {
-                z_low = lowest_lifted(r, w.t, t_exit, lq);
-            }
-            res.near = misses_by_less(near.x + near.y * t_exit, cmax - z_low);
+            res.near = misses_by_less(near.x + near.y * t_exit, cand_max - cand_low);
         }
         if (th >= 0.0) {
             res.hit = true;
