@@ -190,6 +190,9 @@ fn follow_past_the_edge(command: &str, env: &[(&str, &str)]) {
         }
     };
     let n = cap.to_string();
+    // Warnings only: a frame's info line a frame for up to `cap` frames would fill the stderr
+    // pipe the test reads only at the end.
+    let env: Vec<(&str, &str)> = env.iter().copied().chain([("RUST_LOG", "warn")]).collect();
     let mut ig = Ig::start_command(
         command,
         &served_scene,
@@ -201,7 +204,7 @@ fn follow_past_the_edge(command: &str, env: &[(&str, &str)]) {
             served.to_str().unwrap(),
         ]),
         host_socket(),
-        env,
+        &env,
     );
     let own = ownship(there, 20.0, -60.0, 0.0);
     let mut resident = None;
