@@ -34,60 +34,57 @@ fn contrast(a: vec3<f32>, b: vec3<f32>) -> f32 {
 // lies off the screen: `inside`).
 fn kink(d0: vec4<u32>, da: vec4<u32>, db: vec4<u32>, inside: bool) -> f32 {
     let k = surface_key(d0);
-    if (!inside || (d0.w & 1u) == 0u || surface_key(da) != k || surface_key(db) != k) {
-        return 0.0;
-    }
+    let one = inside && (d0.w & 1u) != 0u && surface_key(da) == k && surface_key(db) == k;
     let w0 = inverse_depth(d0);
-    return abs(inverse_depth(da) - 2.0 * w0 + inverse_depth(db)) / w0;
+    return select(0.0, abs(inverse_depth(da) - 2.0 * w0 + inverse_depth(db)) / w0, one);
+}
+
+// The colour step from the pixel (colour `c0`, data `d0`) to its neighbour at `q` (data `dq`;
+// 0 where the neighbour shows no screen), and whether the neighbour shows another surface or
+// lies across a shadow boundary (y: 1).
+fn neighbour_step(c0: vec3<f32>, d0: vec4<u32>, dq: vec4<u32>, q: vec2<i32>) -> vec2<f32> {
+    let c = select(0.0, contrast(c0, textureLoad(centre_colour, q, 0).xyz), has_screen(dq));
+    let apart = surface_key(dq) != surface_key(d0) || ((dq.w ^ d0.w) & 2u) != 0u;
+    return vec2<f32>(c, select(0.0, 1.0, apart));
 }
 
 @fragment
 fn fs_edges(@builtin(position) pos: vec4<f32>) -> @location(0) u32 {
+    // Straight-line code, no arrays or loops: Mesa's CPU rasterisers run a fragment block's
+    // every instruction under a lane mask, so what the pass costs is the code it holds.
+    // Neighbours off the screen are clamped onto the pixel itself: no step to them.
     let px = vec2<i32>(pos.xy);
+    let last = vec2<i32>(aa.size.xy) - 1;
     let d0 = textureLoad(centre_data, px, 0);
-    if (!has_screen(d0)) {
-        return 0u;
-    }
-    if (aa.atlas.y != 0u) {
-        return aa.size.w;
-    }
     let c0 = textureLoad(centre_colour, px, 0).xyz;
-    let key = surface_key(d0);
+    let qr = vec2<i32>(min(px.x + 1, last.x), px.y);
+    let ql = vec2<i32>(max(px.x - 1, 0), px.y);
+    let qd = vec2<i32>(px.x, min(px.y + 1, last.y));
+    let qu = vec2<i32>(px.x, max(px.y - 1, 0));
+    let dr = textureLoad(centre_data, qr, 0);
+    let dl = textureLoad(centre_data, ql, 0);
+    let dd = textureLoad(centre_data, qd, 0);
+    let du = textureLoad(centre_data, qu, 0);
+    let sr = neighbour_step(c0, d0, dr, qr);
+    let sl = neighbour_step(c0, d0, dl, ql);
+    let sd = neighbour_step(c0, d0, dd, qd);
+    let su = neighbour_step(c0, d0, du, qu);
     let threshold = aa.limits.x;
-    var mark = false;
-    var seen = 0.0;
-    // Right, left, down, up: each neighbour's data is loaded once (the kinks use them too).
-    let ring = array<vec2<i32>, 4>(vec2<i32>(1, 0), vec2<i32>(-1, 0), vec2<i32>(0, 1), vec2<i32>(0, -1));
-    var d: array<vec4<u32>, 4>;
-    var inside: array<bool, 4>;
-    for (var k = 0; k < 4; k += 1) {
-        let q = px + ring[k];
-        inside[k] = aa_inside(q);
-        d[k] = d0;
-        if (inside[k]) {
-            let dq = textureLoad(centre_data, q, 0);
-            d[k] = dq;
-            if (has_screen(dq)) {
-                let c = contrast(c0, textureLoad(centre_colour, q, 0).xyz);
-                seen = max(seen, c);
-                let apart = surface_key(dq) != key || ((dq.w ^ d0.w) & 2u) != 0u;
-                mark = mark || (apart && c > threshold);
-            }
-        }
-    }
-    let crease = max(kink(d0, d[1], d[0], inside[0] && inside[1]), kink(d0, d[3], d[2], inside[2] && inside[3]));
+    let seen = max(max(sr.x, sl.x), max(sd.x, su.x));
+    let apart = max(max(sr.y * sr.x, sl.y * sl.x), max(sd.y * sd.x, su.y * su.x));
+    let inside_x = px.x > 0 && px.x < last.x;
+    let inside_y = px.y > 0 && px.y < last.y;
+    let crease = max(kink(d0, dl, dr, inside_x), kink(d0, du, dd, inside_y));
     // Flag 64: the centre ray passed within its cone of terrain it missed (a ridge or spike
     // thinner than the pixel): marked whatever the colours say.
     let near = (d0.w & 64u) != 0u;
-    mark = mark || (crease > aa.limits.y && seen > threshold) || seen > aa.limits.z || near;
-    if (!mark) {
-        return 0u;
-    }
+    let mark = apart > threshold || (crease > aa.limits.y && seen > threshold) || seen > aa.limits.z || near;
     // The pixel's sample count: `"edges"` chooses it from the largest colour step to a
     // neighbour (a low-contrast edge's coverage needs fewer samples for the same error in
     // colour); a near miss's centre colour does not show what it missed: all 16.
-    if (aa.atlas.w == 0u || near || seen > aa.adapt.y) {
-        return aa.size.w;
-    }
-    return select(8u, 4u, seen <= aa.adapt.x);
+    let adaptive = select(8u, 4u, seen <= aa.adapt.x);
+    let count = select(adaptive, aa.size.w, aa.atlas.w == 0u || near || seen > aa.adapt.y);
+    let marked = select(0u, count, mark);
+    // Pixels showing no screen are never marked; the reference (atlas.y) marks every other.
+    return select(0u, select(marked, aa.size.w, aa.atlas.y != 0u), has_screen(d0));
 }
