@@ -637,6 +637,14 @@ fn debug_views_show_depth_and_traversal_steps() {
 /// focus and the pointer, W is held for `hold`, then Escape is pressed.
 #[cfg(target_os = "linux")]
 fn fly_forward_then_escape(display: &str, hold: std::time::Duration) -> Result<(), String> {
+    keys_then_escape(display, &[(x11_dl::keysym::XK_w, hold)])
+}
+
+/// Key presses through XTEST (as a user's): the first mapped window named `relief…` gets the
+/// focus and the pointer, each key of `presses` is held for its time in turn, then Escape is
+/// pressed.
+#[cfg(target_os = "linux")]
+fn keys_then_escape(display: &str, presses: &[(u32, std::time::Duration)]) -> Result<(), String> {
     use std::ffi::CString;
     use x11_dl::{keysym, xlib, xtest};
     let x = xlib::Xlib::open().map_err(|e| format!("libX11: {e}"))?;
@@ -697,10 +705,12 @@ fn fly_forward_then_escape(display: &str, hold: std::time::Duration) -> Result<(
             (t.XTestFakeKeyEvent)(dpy, code as u32, down as i32, 0);
             (x.XFlush)(dpy);
         };
-        key(keysym::XK_w, true);
-        std::thread::sleep(hold);
-        key(keysym::XK_w, false);
-        std::thread::sleep(std::time::Duration::from_millis(200));
+        for &(sym, hold) in presses {
+            key(sym, true);
+            std::thread::sleep(hold);
+            key(sym, false);
+            std::thread::sleep(std::time::Duration::from_millis(200));
+        }
         key(keysym::XK_Escape, true);
         key(keysym::XK_Escape, false);
         (x.XCloseDisplay)(dpy);
@@ -767,6 +777,63 @@ fn keyboard_flies_the_camera_and_escape_quits() {
         "moved {moved} m in {frames_moving} frames"
     );
     assert!((last["x"] - 20000.0).abs() < 1e-6 && last["alt"] == 2500.0);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// E turns anti-aliasing off and on again while the window runs: the statistics CSV's
+/// anti-aliased pixels and extra rays go from the frame's figures to none and back.
+#[cfg(target_os = "linux")]
+#[test]
+fn the_e_key_turns_anti_aliasing_off_and_on() {
+    let Some((x, _lock)) = window_env() else {
+        return;
+    };
+    let dir = temp_dir("aa-key");
+    let csv = dir.join("stats.csv");
+    let child = Command::new(env!("CARGO_BIN_EXE_relief"))
+        .args([
+            "view",
+            "terrains/alps.toml",
+            "--size",
+            "96x72",
+            "--antialias",
+            "edges",
+            "--rate",
+            "30",
+            "--frames",
+            "900",
+            "--no-shadows",
+            "--stats-csv",
+            &s(&csv),
+        ])
+        .env("NODEVICE_SELECT", "1")
+        .env("DISPLAY", &x.display)
+        .env_remove("WAYLAND_DISPLAY")
+        .current_dir(project_dir())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let ms = std::time::Duration::from_millis;
+    let e = x11_dl::keysym::XK_e;
+    let keys = keys_then_escape(&x.display, &[(e, ms(50)), (e, ms(50))]);
+    let o = child.wait_with_output().unwrap();
+    keys.unwrap();
+    check_ok("relief view (E)", &o);
+    let rows = read_csv(&csv);
+    assert!(rows.len() < 900, "Escape did not end the run");
+    // Runs of frames with and without anti-aliasing: on (from the command line), off, on.
+    let on: Vec<bool> = rows.iter().map(|r| r["aa_pixels"] > 0.0).collect();
+    let mut runs: Vec<bool> = on.clone();
+    runs.dedup();
+    assert_eq!(runs, [true, false, true], "anti-aliased frames: {on:?}");
+    for r in &rows {
+        let (p, rays) = (r["aa_pixels"], r["aa_extra_rays"]);
+        assert!(
+            (4.0 * p..=16.0 * p).contains(&rays),
+            "{p} anti-aliased pixels, {rays} extra rays"
+        );
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }
 

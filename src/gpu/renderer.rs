@@ -717,7 +717,8 @@ impl TerrainRenderer {
     }
 
     /// Renders one frame up to `stage` without reading it back (for benchmarks and the frame
-    /// loop: the caller waits or presents).
+    /// loop: the caller waits or presents). The times are not taken (zero); the
+    /// anti-aliased pixels' counts are (`PassTimes::antialias_counts`).
     pub fn render(
         &mut self,
         gpu: &Gpu,
@@ -726,7 +727,7 @@ impl TerrainRenderer {
         cam: &Camera,
         s: &RenderSettings,
         stage: Stage,
-    ) -> Result<()> {
+    ) -> Result<PassTimes> {
         let job = FrameJob {
             gpu,
             terrain,
@@ -737,7 +738,7 @@ impl TerrainRenderer {
             timed: false,
             atlas: false,
         };
-        self.run_passes(&job).map(|_| ())
+        self.run_passes(&job)
     }
 
     /// Renders one frame, timing each pass, and reads colour and data back.

@@ -51,6 +51,8 @@ struct Drawn {
     gpu_ms: f64,
     /// Blocked waiting for the GPU to finish (no timestamp queries).
     gpu_wait: Duration,
+    /// Anti-aliased pixels with 16, 8 and 4 samples, over the windows.
+    antialias_counts: [u64; 3],
 }
 
 /// What drawing one window needs besides the window.
@@ -174,8 +176,11 @@ impl App {
             if w.hidden {
                 continue;
             }
-            let size = ctx.render(gpu, w)?;
+            let (size, counts) = ctx.render(gpu, w)?;
             d.first_size.get_or_insert(size);
+            for (a, c) in d.antialias_counts.iter_mut().zip(counts) {
+                *a += c;
+            }
             ctx.present(gpu, w, wi, size, &mut d)?;
         }
         if let (Some(tm), Some(s)) = (&mut run.timer, slot) {
@@ -246,6 +251,8 @@ impl App {
             pitch: pose.pitch,
             roll: pose.roll,
             rss_kib: crate::app::figures::resident_kib().unwrap_or(0),
+            aa_pixels: d.antialias_counts.iter().sum(),
+            aa_extra_rays: crate::gpu::antialias::sample_rays(d.antialias_counts),
         };
         self.stats.push(stat);
         if d.last_present.is_some() {
@@ -279,7 +286,8 @@ impl App {
         Ok(())
     }
 
-    /// The text overlay's lines: motion mode, frame rate, GPU time, pose, view and fog.
+    /// The text overlay's lines: motion mode, frame rate, GPU time, pose, view and fog,
+    /// anti-aliasing.
     fn overlay_text(&self) -> Vec<String> {
         let m = &self.prep.motion;
         let p = m.pose;
@@ -337,7 +345,30 @@ impl App {
             last.map_or("-".into(), |s| format!("{:.1} MS", s.latency_ms)),
             self.stats.iter().map(|s| s.dropped as u64).sum::<u64>()
         ));
+        let aa = self.prep.settings.antialias;
+        lines.push(match last.filter(|_| aa.is_on()) {
+            Some(s) => format!(
+                "AA {}  {} PX  {:.2} RAYS/PX",
+                antialias_name(aa),
+                s.aa_pixels,
+                s.aa_extra_rays as f64 / (f64::from(s.width) * f64::from(s.height)).max(1.0)
+            ),
+            None => format!("AA {}", antialias_name(aa)),
+        });
         lines
+    }
+}
+
+/// The overlay's name of an anti-aliasing choice (`[render] antialias`'s words).
+fn antialias_name(a: crate::gpu::Antialias) -> String {
+    if !a.is_on() {
+        "OFF".into()
+    } else if a.every_pixel {
+        "REFERENCE".into()
+    } else if a.adaptive {
+        "EDGES".into()
+    } else {
+        a.samples.to_string()
     }
 }
 
@@ -347,8 +378,9 @@ impl Draw<'_> {
         w.channel.map_or(0, |c| self.prep.channels[c].index)
     }
 
-    /// Renders window `w`'s view (and captures it when asked); returns its render size.
-    fn render(&self, gpu: &Gpu, w: &mut Win) -> Result<(u32, u32)> {
+    /// Renders window `w`'s view (and captures it when asked); returns its render size and
+    /// its anti-aliased pixels with 16, 8 and 4 samples.
+    fn render(&self, gpu: &Gpu, w: &mut Win) -> Result<((u32, u32), [u64; 3])> {
         let (prep, step) = (self.prep, self.step);
         let (rw, rh) = match w.channel {
             Some(c) => (prep.channels[c].width, prep.channels[c].height),
@@ -383,13 +415,14 @@ impl Draw<'_> {
         if let Some(p) = &mut w.paging {
             p.step(gpu, &mut w.renderer, terrain, &cam)?;
         }
-        if dirs.is_empty() {
-            (w.renderer).render(gpu, terrain, self.desc, &cam, &prep.settings, Stage::Shade)?;
+        let times = if dirs.is_empty() {
+            (w.renderer).render(gpu, terrain, self.desc, &cam, &prep.settings, Stage::Shade)?
         } else {
             let out = (w.renderer).capture(gpu, terrain, self.desc, &cam, &prep.settings)?;
             self.write_capture(gpu, w, &cam, &out, &dirs)?;
-        }
-        Ok((rw, rh))
+            out.times
+        };
+        Ok(((rw, rh), times.antialias_counts))
     }
 
     /// Writes window `w`'s frame `out` (as `relief render` does) to each of `dirs`.

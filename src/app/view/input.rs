@@ -1,6 +1,6 @@
 //! Input of the window loop: the controls from the held keys and the mouse (or the control
-//! script), the eye feed, and the quick-look keys (overlay, debug view, fog, sun, reset,
-//! motion mode, screenshot).
+//! script), the eye feed, and the quick-look keys (overlay, debug view, fog, anti-aliasing,
+//! sun, reset, motion mode, screenshot).
 
 use super::motion::{Controls, Mode};
 use super::prepare::EyeSource;
@@ -81,6 +81,14 @@ impl App {
                     0.0
                 } else {
                     self.fog_visibility
+                };
+            }
+            KeyCode::KeyE => {
+                let a = &mut self.prep.settings.antialias;
+                *a = if a.is_on() {
+                    crate::gpu::Antialias::OFF
+                } else {
+                    self.antialias_on
                 };
             }
             KeyCode::KeyR => self.prep.motion.reset(t),

@@ -62,6 +62,10 @@ pub struct FrameStat {
     pub roll: f64,
     /// Resident set size of the process after the frame (KiB; 0 where the OS does not say).
     pub rss_kib: u64,
+    /// Anti-aliased pixels over the windows (0 with `antialias = "off"`).
+    pub aa_pixels: u64,
+    /// The sub-pixel rays they got.
+    pub aa_extra_rays: u64,
 }
 
 /// Slots of `period_ms` missed by a frame that came `interval_ms` after the previous one.
@@ -146,7 +150,7 @@ pub fn summarize(frames: &[FrameStat]) -> Summary {
     }
 }
 
-pub const CSV_HEADER: &str = "frame,sim_time_s,start_s,frame_ms,cpu_ms,acquire_ms,present_ms,gpu_ms,present_interval_ms,latency_ms,dropped,width,height,x,y,alt,agl,heading,pitch,roll,rss_kib";
+pub const CSV_HEADER: &str = "frame,sim_time_s,start_s,frame_ms,cpu_ms,acquire_ms,present_ms,gpu_ms,present_interval_ms,latency_ms,dropped,width,height,x,y,alt,agl,heading,pitch,roll,rss_kib,aa_pixels,aa_extra_rays";
 
 /// Writes [`FrameStat`] rows to a CSV file, flushed per row (a run that stops keeps every
 /// row written so far).
@@ -170,7 +174,7 @@ impl StatsCsv {
         let [x, y, z] = s.position;
         writeln!(
             self.out,
-            "{},{:.6},{:.6},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{},{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{}",
+            "{},{:.6},{:.6},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{},{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{},{}",
             s.frame,
             s.sim_time,
             s.start_s,
@@ -191,7 +195,9 @@ impl StatsCsv {
             s.heading,
             s.pitch,
             s.roll,
-            s.rss_kib
+            s.rss_kib,
+            s.aa_pixels,
+            s.aa_extra_rays
         )
         .and_then(|()| self.out.flush())
         .map_err(|e| Error::io(&self.path, e))

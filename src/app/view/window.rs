@@ -105,6 +105,9 @@ pub(super) struct App {
     /// Scene as the quick-look keys changed it.
     pub(super) desc: SceneDesc,
     pub(super) fog_visibility: f64,
+    /// What the anti-aliasing key (E) turns on: the scene's or the command line's choice,
+    /// `"edges"` where that is off.
+    pub(super) antialias_on: crate::gpu::Antialias,
     pub(super) sun_hour: Option<f64>,
     pub(super) frame: u64,
     pub(super) loop_start: Option<Instant>,
@@ -134,6 +137,9 @@ impl App {
         let desc = prep.scene.desc.clone();
         App {
             fog_visibility: desc.fog.visibility,
+            antialias_on: Some(prep.settings.antialias)
+                .filter(|a| a.is_on())
+                .unwrap_or(crate::gpu::Antialias::EDGES),
             overlay: !prep.opts.no_overlay,
             view_mode: prep.opts.debug_view,
             desc,
