@@ -348,10 +348,10 @@ impl App {
         let aa = self.prep.settings.antialias;
         lines.push(match last.filter(|_| aa.is_on()) {
             Some(s) => format!(
-                "AA {}  {} PX  {:.2} RAYS/PX",
+                "AA {}  {} PX  {} RAYS",
                 antialias_name(aa),
                 s.aa_pixels,
-                s.aa_extra_rays as f64 / (f64::from(s.width) * f64::from(s.height)).max(1.0)
+                s.aa_extra_rays
             ),
             None => format!("AA {}", antialias_name(aa)),
         });
