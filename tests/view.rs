@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{project_dir, relief_command, temp_dir, terrains};
+use common::{relief_command, temp_dir, terrains};
 use relief::app::view::motion::{self, Controls, Mode, Motion};
 use relief::app::view::{present, stats};
 use std::io::BufRead;
@@ -633,11 +633,19 @@ fn debug_views_show_depth_and_traversal_steps() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// Key presses through XTEST (as a user's): the first mapped window named `relief…` gets the
-/// focus and the pointer, W is held for `hold`, then Escape is pressed.
+/// Runs `relief args` on `display`, pressing `presses` then Escape in its window
+/// (`keys_then_escape`); returns its output once it has ended.
 #[cfg(target_os = "linux")]
-fn fly_forward_then_escape(display: &str, hold: std::time::Duration) -> Result<(), String> {
-    keys_then_escape(display, &[(x11_dl::keysym::XK_w, hold)])
+fn run_with_keys(display: &str, args: &[&str], presses: &[(u32, std::time::Duration)]) -> Output {
+    let child = relief_command(args, &[("DISPLAY", display)])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let keys = keys_then_escape(display, presses);
+    let o = child.wait_with_output().unwrap();
+    keys.unwrap();
+    o
 }
 
 /// Key presses through XTEST (as a user's): the first mapped window named `relief…` gets the
@@ -726,35 +734,25 @@ fn keyboard_flies_the_camera_and_escape_quits() {
     };
     let dir = temp_dir("keys");
     let path = dir.join("flown.csv");
-    let child = Command::new(env!("CARGO_BIN_EXE_relief"))
-        .args([
-            "view",
-            "terrains/alps.toml",
-            "--size",
-            "96x72",
-            "--mode",
-            "free",
-            "--start",
-            "20000,40000,2500,180",
-            "--rate",
-            "30",
-            "--frames",
-            "900",
-            "--no-shadows",
-            "--record",
-            &s(&path),
-        ])
-        .env("NODEVICE_SELECT", "1")
-        .env("DISPLAY", &x.display)
-        .env_remove("WAYLAND_DISPLAY")
-        .current_dir(project_dir())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let keys = fly_forward_then_escape(&x.display, std::time::Duration::from_millis(1000));
-    let o = child.wait_with_output().unwrap();
-    keys.unwrap();
+    let args = [
+        "view",
+        "terrains/alps.toml",
+        "--size",
+        "96x72",
+        "--mode",
+        "free",
+        "--start",
+        "20000,40000,2500,180",
+        "--rate",
+        "30",
+        "--frames",
+        "900",
+        "--no-shadows",
+        "--record",
+        &s(&path),
+    ];
+    let hold = std::time::Duration::from_millis(1000);
+    let o = run_with_keys(&x.display, &args, &[(x11_dl::keysym::XK_w, hold)]);
     check_ok("relief view (keys)", &o);
     let rows = read_csv(&path);
     assert!(
@@ -790,35 +788,23 @@ fn the_e_key_turns_anti_aliasing_off_and_on() {
     };
     let dir = temp_dir("aa-key");
     let csv = dir.join("stats.csv");
-    let child = Command::new(env!("CARGO_BIN_EXE_relief"))
-        .args([
-            "view",
-            "terrains/alps.toml",
-            "--size",
-            "96x72",
-            "--antialias",
-            "edges",
-            "--rate",
-            "30",
-            "--frames",
-            "900",
-            "--no-shadows",
-            "--stats-csv",
-            &s(&csv),
-        ])
-        .env("NODEVICE_SELECT", "1")
-        .env("DISPLAY", &x.display)
-        .env_remove("WAYLAND_DISPLAY")
-        .current_dir(project_dir())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let ms = std::time::Duration::from_millis;
-    let e = x11_dl::keysym::XK_e;
-    let keys = keys_then_escape(&x.display, &[(e, ms(50)), (e, ms(50))]);
-    let o = child.wait_with_output().unwrap();
-    keys.unwrap();
+    let args = [
+        "view",
+        "terrains/alps.toml",
+        "--size",
+        "96x72",
+        "--antialias",
+        "edges",
+        "--rate",
+        "30",
+        "--frames",
+        "900",
+        "--no-shadows",
+        "--stats-csv",
+        &s(&csv),
+    ];
+    let (e, press) = (x11_dl::keysym::XK_e, std::time::Duration::from_millis(50));
+    let o = run_with_keys(&x.display, &args, &[(e, press), (e, press)]);
     check_ok("relief view (E)", &o);
     let rows = read_csv(&csv);
     assert!(rows.len() < 900, "Escape did not end the run");

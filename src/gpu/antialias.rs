@@ -82,6 +82,17 @@ impl Antialias {
         self.samples > 0
     }
 
+    /// The choice in words: `off`, `edges`, `edges N` (N in every edge pixel) or `every pixel
+    /// N` (the reference); the bench's configurations and the window's overlay.
+    pub fn name(self) -> String {
+        match (self.samples, self.every_pixel, self.adaptive) {
+            (0, _, _) => "off".into(),
+            (_, false, true) => "edges".into(),
+            (n, false, false) => format!("edges {n}"),
+            (n, true, _) => format!("every pixel {n}"),
+        }
+    }
+
     /// Sub-pixel rays each anti-aliased pixel gets, the most when adaptive (0 when off; see
     /// [`samples`]).
     pub fn rays_per_pixel(self) -> u32 {

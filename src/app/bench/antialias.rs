@@ -45,15 +45,6 @@ pub struct AntialiasBench {
     pub quality_frames: u32,
 }
 
-fn name(a: Antialias) -> String {
-    match (a.samples, a.every_pixel, a.adaptive) {
-        (0, _, _) => "off".into(),
-        (_, false, true) => "edges".into(),
-        (n, false, false) => format!("edges {n}"),
-        (n, true, _) => format!("every pixel {n}"),
-    }
-}
-
 /// Times `scene_path` at `size` with each of [`CHOICES`] (`frames` timed frames each), then
 /// the quality figures on `frames` frames at [`QUALITY_SIZE`].
 ///
@@ -133,7 +124,7 @@ impl AntialiasBench {
                     .with("te_sky", q.temporal_excess_parts.sky)
                     .with("te_smooth", q.temporal_excess_parts.smooth)
                     .with("te_detail", q.temporal_excess_parts.detail);
-                Row::new(name(t.antialias), figures)
+                Row::new(t.antialias.name(), figures)
             })
             .collect();
         let summary = Figures::default().with("reference_change", self.quality.reference_change);

@@ -349,26 +349,13 @@ impl App {
         lines.push(match last.filter(|_| aa.is_on()) {
             Some(s) => format!(
                 "AA {}  {} PX  {} RAYS",
-                antialias_name(aa),
+                aa.name(),
                 s.aa_pixels,
                 s.aa_extra_rays
             ),
-            None => format!("AA {}", antialias_name(aa)),
+            None => format!("AA {}", aa.name()),
         });
         lines
-    }
-}
-
-/// The overlay's name of an anti-aliasing choice (`[render] antialias`'s words).
-fn antialias_name(a: crate::gpu::Antialias) -> String {
-    if !a.is_on() {
-        "OFF".into()
-    } else if a.every_pixel {
-        "REFERENCE".into()
-    } else if a.adaptive {
-        "EDGES".into()
-    } else {
-        a.samples.to_string()
     }
 }
 
