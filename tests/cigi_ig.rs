@@ -788,7 +788,7 @@ fn the_hosts_date_time_and_visibility_set_sun_and_fog() {
         ],
         host_socket(),
     );
-    let celestial = sun_at(6_21_2024, 7, 40);
+    let celestial = sun_at(6212024, 7, 40);
     let atmosphere = AtmosphereControl {
         model_enable: true,
         humidity: 60,
@@ -909,7 +909,7 @@ fn an_entity_from_a_scene_template_appears_moves_hides_and_vanishes() {
     let _serial = one_ig_test_at_a_time();
     let dir = temp_dir("cigi-entities");
     let cam = [47.45, 9.50, 1300.0];
-    let (heading, pitch) = (30.0, -3.0);
+    let (heading, pitch) = (30.0f64, -3.0);
     // A red ellipsoid (80 x 25 x 25 m half-axes) used as the template of entity type 7.
     let extra = "[[objects]]\nname = \"ball\"\nshape = \"ellipsoid\"\nradii = [80.0, 25.0, 25.0]\n\
                  geodetic = [47.2, 9.2, 3000.0]\n\
@@ -934,7 +934,7 @@ fn an_entity_from_a_scene_template_appears_moves_hides_and_vanishes() {
     // 1.5 km ahead, and 150 m to the right of that 200 m further on.
     let ahead = |dist: f64, right: f64, alt: f64| {
         let (m, n) = radii(cam[0]);
-        let h = (heading as f64).to_radians();
+        let h = heading.to_radians();
         let (north, east) = (
             dist * h.cos() - right * h.sin(),
             dist * h.sin() + right * h.cos(),

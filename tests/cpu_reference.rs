@@ -29,7 +29,8 @@ fn pinhole_dirs(heading: f64, pitch: f64, n: usize) -> Vec<DVec3> {
 #[test]
 fn flat_and_ramp_terrains_give_exact_distances() {
     // Planes are reproduced exactly by bilinear patches.
-    let cases: [(&str, Box<dyn Fn(f64, f64) -> f64 + Sync>); 2] = [
+    type Surface = Box<dyn Fn(f64, f64) -> f64 + Sync>;
+    let cases: [(&str, Surface); 2] = [
         ("flat", Box::new(|_, _| 100.0)),
         ("ramp", Box::new(|x, y| 50.0 + 0.12 * x - 0.07 * y)),
     ];

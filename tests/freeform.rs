@@ -673,10 +673,10 @@ position = [330.0, 260.0, 0.0]
     };
     let (mut covered, mut worst, mut edge_only) = (0, 0.0f64, true);
     let mut bad = Vec::new();
-    for k in 0..(w * h) as usize {
+    for (k, &tk) in truth.iter().enumerate() {
         let gpu_id = out.objects[k].checked_sub(1).map(|i| i as usize);
         let (x, y) = ((k as u32 % w) as i64, (k as u32 / w) as i64);
-        match (truth[k], gpu_id) {
+        match (tk, gpu_id) {
             (Some((i, tt)), Some(g)) if i == g => {
                 covered += 1;
                 let e = ((out.depth[k] as f64 - tt) / tt).abs();
@@ -1102,8 +1102,7 @@ position = [360.0, 120.0, 0.0]
             .then(|| classes[(y * w as i64 + x) as usize].0)
     };
     let mut stats = std::collections::BTreeMap::new();
-    for k in 0..(w * h) as usize {
-        let (class, hit) = classes[k];
+    for (k, &(class, hit)) in classes.iter().enumerate() {
         let (x, y) = ((k as u32 % w) as i64, (k as u32 / w) as i64);
         // Interior pixels only: the 3x3 neighbourhood has the same class.
         if class == Class::Other

@@ -140,7 +140,8 @@ fn gpu_depth_matches_cpu_oracle_on_real_dem_from_three_viewpoints() {
 #[test]
 fn gpu_gives_exact_distances_on_flat_and_ramp_terrains() {
     let _l = gpu_lock();
-    let cases: [(&str, fn(f64, f64) -> f64); 2] = [
+    type Surface = fn(f64, f64) -> f64;
+    let cases: [(&str, Surface); 2] = [
         ("flat", |_, _| 100.0),
         ("ramp", |x, y| 50.0 + 0.12 * x - 0.07 * y),
     ];

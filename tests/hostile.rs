@@ -202,11 +202,11 @@ fn mutate(rng: &mut Rng, s: &Sample) -> Vec<u8> {
             3 => {
                 if len >= 4 {
                     let mut i = below(rng, len - 3);
-                    if rng.next_u64() % 2 == 0 {
+                    if rng.next_u64().is_multiple_of(2) {
                         i &= !3;
                     }
                     let x = pick(rng, &LIES_U32);
-                    let b = if rng.next_u64() % 2 == 0 {
+                    let b = if rng.next_u64().is_multiple_of(2) {
                         x.to_le_bytes()
                     } else {
                         x.to_be_bytes()
@@ -218,7 +218,7 @@ fn mutate(rng: &mut Rng, s: &Sample) -> Vec<u8> {
                 if len >= 2 {
                     let i = below(rng, len - 1);
                     let x = pick(rng, &LIES_U32) as u16;
-                    let b = if rng.next_u64() % 2 == 0 {
+                    let b = if rng.next_u64().is_multiple_of(2) {
                         x.to_le_bytes()
                     } else {
                         x.to_be_bytes()
@@ -228,7 +228,7 @@ fn mutate(rng: &mut Rng, s: &Sample) -> Vec<u8> {
             }
             5 => {
                 // Duplicate a chunk (or a random range) after itself or anywhere.
-                let (a, b) = if !s.chunks.is_empty() && rng.next_u64() % 3 != 0 {
+                let (a, b) = if !s.chunks.is_empty() && !rng.next_u64().is_multiple_of(3) {
                     pick(rng, &s.chunks)
                 } else {
                     let a = below(rng, len + 1);
@@ -236,7 +236,7 @@ fn mutate(rng: &mut Rng, s: &Sample) -> Vec<u8> {
                 };
                 if a < b && b <= len {
                     let piece = v[a..b].to_vec();
-                    let at = if rng.next_u64() % 2 == 0 {
+                    let at = if rng.next_u64().is_multiple_of(2) {
                         b
                     } else {
                         below(rng, len + 1)
@@ -444,7 +444,6 @@ where
     .unwrap();
     e.write_tag(Tag::GdalNodata, "-9999").unwrap();
     img.write_data(data).unwrap();
-    drop(enc);
     out.into_inner()
 }
 

@@ -151,14 +151,14 @@ fn a_lens_that_folds_over_inside_the_image_is_refused() {
     // g(r) = r (1 + k1 r²) has g'(r) = 1 + 3 k1 r², zero at r = 1/sqrt(-3 k1). The f-theta
     // lens's field is the unit circle (normalised by the fisheye radius): the model folds over
     // inside the field when that radius is below 1, i.e. for k1 < -1/3.
-    let threshold = -1.0 / 3.0;
+    let threshold: f64 = -1.0 / 3.0;
     for (k1, folds) in [
         (-5.0, true),
         (threshold * 1.1, true),
         (threshold * 0.9, false),
         (-0.04, false),
     ] {
-        let fold_radius = 1.0 / (-3.0 * k1 as f64).sqrt();
+        let fold_radius = 1.0 / (-3.0 * k1).sqrt();
         assert_eq!(fold_radius < 1.0, folds, "k1 = {k1}: the truth is wrong");
         let r = DisplayConfig::load(&fisheye_config(&dir, k1));
         if folds {

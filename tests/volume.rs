@@ -740,8 +740,8 @@ fn terrain_cuts_a_uniform_slab_at_the_analytic_depth_whatever_the_step() {
         let want =
             [c.x, c.y, c.z].map(|v| (relief::cpu::volume::srgb_encode(v) * 255.0).round() as u8);
         for o in &out {
-            for ch in 0..3 {
-                worst = worst.max(o.rgba[4 * k + ch].abs_diff(want[ch]));
+            for (ch, &w) in want.iter().enumerate() {
+                worst = worst.max(o.rgba[4 * k + ch].abs_diff(w));
             }
         }
     }
@@ -1142,7 +1142,7 @@ fn function4d_slices_mark_the_zero_crossings_of_each_w() {
             for x in 0..nx {
                 let bits = g.voxel(x, y, z);
                 assert_eq!(bits >> 5, 0, "bits beyond the slices at ({x},{y},{z})");
-                for s in 0..5 {
+                for (s, count) in set.iter_mut().enumerate() {
                     let w = 2.0 * s as f64 / 4.0;
                     let at = |i: i64, j: i64, k: i64| {
                         let d = |v: i64, n: u32| -5.0 + (v as f64 + 0.5) / n as f64 * 10.0;
@@ -1178,7 +1178,7 @@ fn function4d_slices_mark_the_zero_crossings_of_each_w() {
                         want,
                         "slice {s} at ({x},{y},{z}), g = {v}"
                     );
-                    set[s] += want as usize;
+                    *count += want as usize;
                 }
             }
         }
@@ -1258,7 +1258,10 @@ fn volumes_over_the_device_limit_are_refused_with_the_limit() {
         None,
     );
     let mut r = TerrainRenderer::new(g, &terrain).unwrap();
-    let e = r.set_volumes(g, &[v.clone()]).unwrap_err().to_string();
+    let e = r
+        .set_volumes(g, std::slice::from_ref(&v))
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("long") && e.contains(&max.to_string()), "{e}");
     // Too many volumes: each is a full-screen pass per frame.
     let small = uniform_volume(4, 1.0, DVec3::ZERO, 100, 0.1, 0.5);
@@ -1740,8 +1743,8 @@ fn volumes_are_ordered_per_pixel_by_where_their_media_lie() {
         // Farthest box entry first.
         parts.sort_by(|a, b| b.0.total_cmp(&a.0));
         let want = encode(parts.iter().fold(bg, |c, (_, r)| r.over(c)));
-        for ch in 0..3 {
-            let d = out.rgba[4 * k + ch].abs_diff(want[ch]);
+        for (ch, &w) in want.iter().enumerate() {
+            let d = out.rgba[4 * k + ch].abs_diff(w);
             sum += d as u64;
             max = max.max(d);
         }

@@ -165,8 +165,9 @@ impl Heightfield {
 /// Pull-push hole filling: valid samples are averaged down a pyramid, holes take the
 /// interpolated coarser value. Large voids get smooth fills; valid samples are untouched.
 fn fill_voids(width: usize, height: usize, samples: &[Option<f32>]) -> Vec<f32> {
-    // Level 0: (value*weight, weight).
-    let mut levels: Vec<(usize, usize, Vec<(f64, f64)>)> = vec![(
+    // A level: width, height and (value*weight, weight) per sample; level 0 first.
+    type Level = (usize, usize, Vec<(f64, f64)>);
+    let mut levels: Vec<Level> = vec![(
         width,
         height,
         samples
