@@ -788,7 +788,7 @@ fn the_hosts_date_time_and_visibility_set_sun_and_fog() {
         ],
         host_socket(),
     );
-    let celestial = sun_at(6212024, 7, 40);
+    let celestial = sun_at(6212024, 7, 40); // 21 June 2024 (MMDDYYYY), 07:40 UTC
     let atmosphere = AtmosphereControl {
         model_enable: true,
         humidity: 60,

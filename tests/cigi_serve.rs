@@ -765,7 +765,7 @@ fn view_with_cigi_follows_a_synchronous_host() {
         );
         let mut ball = ownship([47.33, 9.31, 2300.0], 0.0, 0.0, 0.0);
         (ball.entity_id, ball.entity_type) = (5, 7);
-        let celestial = sun_at(6212024, 7, 40);
+        let celestial = sun_at(6212024, 7, 40); // 21 June 2024 (MMDDYYYY), 07:40 UTC
         let mut atmosphere = AtmosphereControl::default();
         (atmosphere.model_enable, atmosphere.visibility) = (true, 15000.0);
         let packets = [own.into(), ball.into(), celestial.into(), atmosphere.into()];

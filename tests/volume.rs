@@ -740,8 +740,8 @@ fn terrain_cuts_a_uniform_slab_at_the_analytic_depth_whatever_the_step() {
         let want =
             [c.x, c.y, c.z].map(|v| (relief::cpu::volume::srgb_encode(v) * 255.0).round() as u8);
         for o in &out {
-            for (ch, &w) in want.iter().enumerate() {
-                worst = worst.max(o.rgba[4 * k + ch].abs_diff(w));
+            for (ch, &want_ch) in want.iter().enumerate() {
+                worst = worst.max(o.rgba[4 * k + ch].abs_diff(want_ch));
             }
         }
     }
@@ -1743,8 +1743,8 @@ fn volumes_are_ordered_per_pixel_by_where_their_media_lie() {
         // Farthest box entry first.
         parts.sort_by(|a, b| b.0.total_cmp(&a.0));
         let want = encode(parts.iter().fold(bg, |c, (_, r)| r.over(c)));
-        for (ch, &w) in want.iter().enumerate() {
-            let d = out.rgba[4 * k + ch].abs_diff(w);
+        for (ch, &want_ch) in want.iter().enumerate() {
+            let d = out.rgba[4 * k + ch].abs_diff(want_ch);
             sum += d as u64;
             max = max.max(d);
         }
