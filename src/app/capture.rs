@@ -576,13 +576,14 @@ impl<'a> Frames<'a> {
         edit(&mut m);
         write_frame_files(&png, &tif, &meta, out, &m)?;
         log::info!(
-            "frame {frame}: raygen {:.1} ms, tile {:.1} ms, cast {:.1} ms, free forms {:.1} ms, voxels {:.1} ms, voxel shadows {:.1} ms, shade {:.1} ms, volume shadows {:.1} ms, volume {:.1} ms -> {}",
+            "frame {frame}: raygen {:.1} ms, tile {:.1} ms, cast {:.1} ms, free forms {:.1} ms, voxels {:.1} ms, voxel shadows {:.1} ms, free-form shadows {:.1} ms, shade {:.1} ms, volume shadows {:.1} ms, volume {:.1} ms -> {}",
             out.times.raygen_ms,
             out.times.tile_ms,
             out.times.cast_ms,
             out.times.objects_ms,
             out.times.voxels_ms,
             out.times.voxel_shadow_ms,
+            out.times.object_shadow_ms,
             out.times.shade_ms,
             out.times.volume_shadow_ms,
             out.times.volume_ms,

@@ -234,6 +234,7 @@ pub fn render_two_pass(
         times.objects_ms += t.objects_ms;
         times.voxels_ms += t.voxels_ms;
         times.voxel_shadow_ms += t.voxel_shadow_ms;
+        times.object_shadow_ms += t.object_shadow_ms;
         times.shade_ms += t.shade_ms;
         times.volume_shadow_ms += t.volume_shadow_ms;
         times.volume_ms += t.volume_ms;

@@ -218,6 +218,8 @@ pub(crate) struct AntialiasTargets {
     means_view: wgpu::TextureView,
     edges_bg: wgpu::BindGroup,
     scatter_bg: wgpu::BindGroup,
+    /// The screen's tiles in the order the list takes them ([`tile_order`]).
+    tiles: Vec<u32>,
 }
 
 /// The sample atlas of one size: its own frame targets (every pass of the samples runs on
@@ -413,6 +415,7 @@ impl AntialiasPasses {
             means_view,
             edges_bg,
             scatter_bg,
+            tiles: tile_order(size[0], size[1]),
         }
     }
 
@@ -531,7 +534,7 @@ impl AntialiasTargets {
     pub fn marked_pixels(&self, gpu: &Gpu) -> crate::Result<Marked> {
         let [w, h] = self.size;
         let bytes = super::util::read_buffer(gpu, &self.mask_rb, w, h)?;
-        Ok(Marked::from_mask(&bytes, w, h))
+        Ok(Marked::from_mask_in(&bytes, w, h, &self.tiles))
     }
 
     /// Uploads the list of marked pixels (row by row in the screen's width).
@@ -568,9 +571,10 @@ impl AntialiasTargets {
 }
 
 /// The marked pixels of a frame, packed x | y << 16: those with 16 samples first, then those
-/// with 8, then those with 4, each part tile by tile (8x8), so that pixels close in the list
-/// are close on the screen (the atlas's tiles and free-form bins then hold neighbouring rays,
-/// with narrow cones).
+/// with 8, then those with 4, each part tile by tile (8x8 tiles along a Hilbert curve,
+/// [`tile_order`]; row by row inside a tile), so that pixels close in the list are close on
+/// the screen (the atlas's tiles and free-form bins then hold neighbouring rays, with narrow
+/// cones).
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub(crate) struct Marked {
     pub pixels: Vec<u32>,
@@ -588,18 +592,59 @@ pub(crate) fn sample_rays(counts: [u64; 3]) -> u64 {
         .sum()
 }
 
+/// The 8x8 tiles of a `w` x `h` screen (packed x | y << 16) along a Hilbert curve: the order
+/// [`Marked`] lists each part's pixels in, tile by tile, so that any run of consecutive
+/// pixels (an atlas tile's 4 groups, a free-form bin's 16) lies in few neighbouring tiles.
+pub(crate) fn tile_order(w: u32, h: u32) -> Vec<u32> {
+    let tiles = [w.div_ceil(8), h.div_ceil(8)];
+    let side = tiles[0].max(tiles[1]).next_power_of_two();
+    (0..side * side)
+        .map(|d| hilbert_point(side, d))
+        .filter(|&(tx, ty)| tx < tiles[0] && ty < tiles[1])
+        .map(|(tx, ty)| tx | (ty << 16))
+        .collect()
+}
+
+/// Point `d` along the Hilbert curve through a `side` x `side` grid (`side` a power of two):
+/// consecutive points are neighbours, and every aligned square of 4^k points is visited in
+/// one run.
+fn hilbert_point(side: u32, d: u32) -> (u32, u32) {
+    let (mut x, mut y, mut t) = (0, 0, d);
+    let mut s = 1;
+    while s < side {
+        let rx = 1 & (t / 2);
+        let ry = 1 & (t ^ rx);
+        if ry == 0 {
+            if rx == 1 {
+                (x, y) = (s - 1 - x, s - 1 - y);
+            }
+            (x, y) = (y, x);
+        }
+        (x, y) = (x + s * rx, y + s * ry);
+        t /= 4;
+        s *= 2;
+    }
+    (x, y)
+}
+
 impl Marked {
     /// From the edge pass's mask (`w` x `h`, each byte the pixel's sample count or 0).
+    #[cfg(test)]
     pub fn from_mask(mask: &[u8], w: u32, h: u32) -> Marked {
+        Marked::from_mask_in(mask, w, h, &tile_order(w, h))
+    }
+
+    /// The list from the edge pass's mask (`w` x `h`, each byte the pixel's sample count or
+    /// 0), the screen's tiles taken in the order `tiles` ([`tile_order`], made once per size).
+    pub fn from_mask_in(mask: &[u8], w: u32, h: u32, tiles: &[u32]) -> Marked {
         let mut parts: [Vec<u32>; 3] = Default::default();
-        for ty in (0..h).step_by(8) {
-            for tx in (0..w).step_by(8) {
-                for y in ty..(ty + 8).min(h) {
-                    for x in tx..(tx + 8).min(w) {
-                        let n = u32::from(mask[(y * w + x) as usize]);
-                        if let Some(p) = PARTS.iter().position(|&k| k == n) {
-                            parts[p].push(x | (y << 16));
-                        }
+        for &t in tiles {
+            let (tx, ty) = (t & 0xffff, t >> 16);
+            for y in ty * 8..(ty * 8 + 8).min(h) {
+                for x in tx * 8..(tx * 8 + 8).min(w) {
+                    let n = u32::from(mask[(y * w + x) as usize]);
+                    if let Some(p) = PARTS.iter().position(|&k| k == n) {
+                        parts[p].push(x | (y << 16));
                     }
                 }
             }
@@ -728,6 +773,43 @@ mod tests {
         );
         // Other bytes are no count.
         assert_eq!(Marked::from_mask(&mask(|_, _| 3), 16, 8), Marked::default());
+    }
+
+    #[test]
+    fn the_tiles_follow_a_hilbert_curve_over_the_screen() {
+        // A square power-of-two screen of tiles: every tile once, each a neighbour of the last.
+        let order = super::tile_order(64, 64);
+        let xy = |t: u32| ((t & 0xffff) as i64, (t >> 16) as i64);
+        let mut seen = std::collections::HashSet::new();
+        assert!(order.iter().all(|&t| seen.insert(t)));
+        assert_eq!(seen.len(), 64);
+        for w in order.windows(2) {
+            let ((ax, ay), (bx, by)) = (xy(w[0]), xy(w[1]));
+            assert_eq!(
+                (ax - bx).abs() + (ay - by).abs(),
+                1,
+                "{:?} then {:?}",
+                xy(w[0]),
+                xy(w[1])
+            );
+        }
+        // Every aligned 2x2 block of tiles is one run of four.
+        for run in order.chunks(4) {
+            let first = xy(run[0]);
+            assert!(run
+                .iter()
+                .all(|&t| xy(t).0 / 2 == first.0 / 2 && xy(t).1 / 2 == first.1 / 2));
+        }
+        // Any screen: every tile once, partial tiles at the edges included (1280x720: 160x90).
+        for (w, h) in [(1280, 720), (100, 37), (8, 8), (1, 1)] {
+            let order = super::tile_order(w, h);
+            let tiles = (w.div_ceil(8) * h.div_ceil(8)) as usize;
+            let unique: std::collections::HashSet<_> = order.iter().collect();
+            assert_eq!((order.len(), unique.len()), (tiles, tiles), "{w}x{h}");
+            assert!(order
+                .iter()
+                .all(|&t| (t & 0xffff) < w.div_ceil(8) && (t >> 16) < h.div_ceil(8)));
+        }
     }
 
     #[test]

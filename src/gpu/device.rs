@@ -332,19 +332,24 @@ impl Gpu {
     }
 
     /// Profiling aid: with [`GpuOptions::trace_passes`] on, submits what `enc` holds, waits for
-    /// it and logs the time as sub-pass `what` (info level). It serialises the frame, so frame
-    /// times taken with it on are not comparable with those taken without.
-    pub(crate) fn trace_lap(&self, enc: &mut wgpu::CommandEncoder, what: &str) {
+    /// it and logs the time as sub-pass `what` (info level); returns that time (ms, 0 when
+    /// off), which the caller adds to its pass's (the work is done before the pass's own lap
+    /// waits). It serialises the frame, so frame times taken with it on are not comparable
+    /// with those taken without.
+    pub(crate) fn trace_lap(&self, enc: &mut wgpu::CommandEncoder, what: &str) -> f64 {
         if !self.options.trace_passes {
-            return;
+            return 0.0;
         }
         let start = std::time::Instant::now();
         let done = std::mem::replace(enc, self.device.create_command_encoder(&Default::default()));
         self.queue.submit([done.finish()]);
-        match self.wait() {
-            Ok(()) => log::info!("  {what}: {:.1} ms", start.elapsed().as_secs_f64() * 1e3),
+        let waited = self.wait();
+        let ms = start.elapsed().as_secs_f64() * 1e3;
+        match waited {
+            Ok(()) => log::info!("  {what}: {ms:.1} ms"),
             Err(e) => log::warn!("  {what}: {e}"),
         }
+        ms
     }
 
     /// Waits for all submitted work. The GL backend gives up an indefinite wait after a few

@@ -51,6 +51,8 @@ pub struct PassTimes {
     pub voxels_ms: f64,
     /// Voxel-model shadow rays (0 without voxel models or shadows).
     pub voxel_shadow_ms: f64,
+    /// Free-form shadow binning and sun rays (0 without free forms or shadows).
+    pub object_shadow_ms: f64,
     pub shade_ms: f64,
     /// The sun's transmittance through the volumes at the surfaces (0 without a volume that
     /// casts a shadow).

@@ -691,6 +691,7 @@ impl ObjectPasses {
     /// (`ObjectTargets::final_view`; elsewhere it is the terrain's hit, as it should be).
     ///
     /// `near`: anti-aliasing's centre rays, whose perturbed pass also flags near misses.
+    /// Returns the time of the sub-passes `Gpu::trace_lap` waited for (0 without tracing).
     pub fn encode_cast(
         &self,
         gpu: &Gpu,
@@ -698,11 +699,11 @@ impl ObjectPasses {
         t: &ObjectTargets,
         terrain: (&wgpu::Texture, &wgpu::TextureView),
         near: bool,
-    ) {
+    ) -> f64 {
         let (terrain_gbuffer, terrain_view) = terrain;
         let general = &self.cast[if near { 2 } else { 1 }];
         self.bin(enc, t, false);
-        gpu.trace_lap(enc, "bin primary");
+        let mut traced = gpu.trace_lap(enc, "bin primary");
         let load = wgpu::LoadOp::Load;
         if t.final_in_terrain {
             let plain = [
@@ -710,45 +711,43 @@ impl ObjectPasses {
                 (&self.copy_through[0], &t.cast_bg),
             ];
             self.binned(enc, t, &plain, &t.gbuffer_view, load);
-            gpu.trace_lap(enc, "cast plain");
+            traced += gpu.trace_lap(enc, "cast plain");
             let general = [
                 (general, &t.cast_plain_bg),
                 (&self.copy_through[1], &t.cast_plain_bg),
             ];
             self.binned(enc, t, &general, terrain_view, load);
-            gpu.trace_lap(enc, "cast general");
-            return;
+            return traced + gpu.trace_lap(enc, "cast general");
         }
         enc.copy_texture_to_texture(
             terrain_gbuffer.as_image_copy(),
             t.gbuffer.as_image_copy(),
             terrain_gbuffer.size(),
         );
-        gpu.trace_lap(enc, "copy");
+        traced += gpu.trace_lap(enc, "copy");
         let kind = if self.kinds[0] > 0 { 0 } else { 1 };
         let pass = if kind == 0 { &self.cast[0] } else { general };
         self.binned(enc, t, &[(pass, &t.cast_bg)], &t.gbuffer_view, load);
-        gpu.trace_lap(
-            enc,
-            if kind == 0 {
-                "cast plain"
-            } else {
-                "cast general"
-            },
-        );
+        let name = if kind == 0 {
+            "cast plain"
+        } else {
+            "cast general"
+        };
+        traced + gpu.trace_lap(enc, name)
     }
 
     /// Records the shadow binning and the free-form shadow passes (after the free-form cast,
     /// before shading). `near`: anti-aliasing's centre rays, whose near-miss twins follow.
+    /// Returns the time of the sub-passes `Gpu::trace_lap` waited for (0 without tracing).
     pub fn encode_shadows(
         &self,
         gpu: &Gpu,
         enc: &mut wgpu::CommandEncoder,
         t: &ObjectTargets,
         near: bool,
-    ) {
+    ) -> f64 {
         self.bin(enc, t, true);
-        gpu.trace_lap(enc, "bin shadow");
+        let traced = gpu.trace_lap(enc, "bin shadow");
         // Both kinds in one render pass (they only mark blocked pixels, in any order, and the
         // near-miss twins write the other channel): one pass's fixed cost less on Mesa's CPU
         // adapters.
@@ -760,6 +759,6 @@ impl ObjectPasses {
         // No clear (on lavapipe a clear costs about what a pass does): blocked pixels carry
         // this frame's stamp, anything else in the target is from earlier frames.
         self.binned(enc, t, &draws, &t.shadow_view, wgpu::LoadOp::Load);
-        gpu.trace_lap(enc, "shadows");
+        traced + gpu.trace_lap(enc, "shadows")
     }
 }

@@ -627,8 +627,9 @@ impl TerrainRenderer {
         job.lap(enc, &mut times.cast_ms)?;
         if let Some((o, (ot, _))) = self.objects.as_ref().zip(t.objects.as_ref()) {
             let terrain = (&t.gbuffer, &t.gbuffer_view);
-            o.encode_cast(job.gpu, enc, ot, terrain, centre_rays);
+            let traced = o.encode_cast(job.gpu, enc, ot, terrain, centre_rays);
             job.lap(enc, &mut times.objects_ms)?;
+            times.objects_ms += traced;
         }
         let voxels = self.voxels.as_ref().zip(t.voxels.as_ref());
         if let (Some((v, vt)), Some((cast, shadows))) = (voxels, voxel_rects) {
@@ -664,7 +665,9 @@ impl TerrainRenderer {
         let (pipeline, bg) = match self.objects.as_ref().zip(t.objects.as_ref()) {
             Some((o, (ot, bg))) => {
                 if job.s.shadows {
-                    o.encode_shadows(gpu, enc, ot, centre_rays);
+                    let traced = o.encode_shadows(gpu, enc, ot, centre_rays);
+                    job.lap(enc, &mut times.object_shadow_ms)?;
+                    times.object_shadow_ms += traced;
                 }
                 (o.shade.get(index), bg)
             }

@@ -168,7 +168,7 @@ impl TerrainRenderer {
         self.encode_shading(&atlas_job, enc, &mut times, at, prepared, rects.as_ref())?;
         if job.timed {
             log::info!(
-                "anti-aliasing atlas {}x{} batch {batch}: sample rays and tile {:.1} ms, cast {:.1} ms, free forms {:.1} ms, voxels {:.1} ms, voxel shadows {:.1} ms, shade {:.1} ms, volumes {:.1} ms",
+                "anti-aliasing atlas {}x{} batch {batch}: sample rays and tile {:.1} ms, cast {:.1} ms, free forms {:.1} ms, voxels {:.1} ms, voxel shadows {:.1} ms, free-form shadows {:.1} ms, shade {:.1} ms, volumes {:.1} ms",
                 at.width,
                 at.height,
                 times.tile_ms,
@@ -176,6 +176,7 @@ impl TerrainRenderer {
                 times.objects_ms,
                 times.voxels_ms,
                 times.voxel_shadow_ms,
+                times.object_shadow_ms,
                 times.shade_ms,
                 times.volume_shadow_ms + times.volume_ms
             );
