@@ -86,7 +86,7 @@ struct FrameJob<'a> {
 }
 
 impl FrameJob<'_> {
-    /// With timing on, submits what `enc` holds, waits for it and stores its wall time in
+    /// With timing on, submits what `enc` holds, waits for it and adds its wall time to
     /// `slot`.
     fn lap(&self, enc: &mut wgpu::CommandEncoder, slot: &mut f64) -> Result<()> {
         if self.timed {
@@ -96,7 +96,7 @@ impl FrameJob<'_> {
                 std::mem::replace(enc, gpu.device.create_command_encoder(&Default::default()));
             gpu.queue.submit([done.finish()]);
             gpu.wait()?;
-            *slot = start.elapsed().as_secs_f64() * 1e3;
+            *slot += start.elapsed().as_secs_f64() * 1e3;
         }
         Ok(())
     }
@@ -627,9 +627,8 @@ impl TerrainRenderer {
         job.lap(enc, &mut times.cast_ms)?;
         if let Some((o, (ot, _))) = self.objects.as_ref().zip(t.objects.as_ref()) {
             let terrain = (&t.gbuffer, &t.gbuffer_view);
-            let traced = o.encode_cast(job.gpu, enc, ot, terrain, centre_rays);
+            times.objects_ms = o.encode_cast(job.gpu, enc, ot, terrain, centre_rays);
             job.lap(enc, &mut times.objects_ms)?;
-            times.objects_ms += traced;
         }
         let voxels = self.voxels.as_ref().zip(t.voxels.as_ref());
         if let (Some((v, vt)), Some((cast, shadows))) = (voxels, voxel_rects) {
@@ -665,9 +664,8 @@ impl TerrainRenderer {
         let (pipeline, bg) = match self.objects.as_ref().zip(t.objects.as_ref()) {
             Some((o, (ot, bg))) => {
                 if job.s.shadows {
-                    let traced = o.encode_shadows(gpu, enc, ot, centre_rays);
+                    times.object_shadow_ms = o.encode_shadows(gpu, enc, ot, centre_rays);
                     job.lap(enc, &mut times.object_shadow_ms)?;
-                    times.object_shadow_ms += traced;
                 }
                 (o.shade.get(index), bg)
             }
