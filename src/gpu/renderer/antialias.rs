@@ -157,7 +157,9 @@ impl TerrainRenderer {
             };
             (full, shadows)
         });
-        // Timed (`--trace-passes`): every sub-pass on the atlas is waited for and logged.
+        // Timed frames (captures): every pass on the atlas is waited for; its split is logged
+        // per batch, at `info` with `--trace-passes` (a profile) and at `debug` otherwise (a
+        // capture of thousands of frames logs one line a frame, not one a batch).
         let atlas_job = FrameJob {
             atlas: true,
             ..*job
@@ -167,7 +169,13 @@ impl TerrainRenderer {
         self.encode_primary(&atlas_job, enc, &mut times, at, rects.as_ref())?;
         self.encode_shading(&atlas_job, enc, &mut times, at, prepared, rects.as_ref())?;
         if job.timed {
-            log::info!(
+            let level = if job.gpu.options.trace_passes {
+                log::Level::Info
+            } else {
+                log::Level::Debug
+            };
+            log::log!(
+                level,
                 "anti-aliasing atlas {}x{} batch {batch}: sample rays and tile {:.1} ms, cast {:.1} ms, free forms {:.1} ms, voxels {:.1} ms, voxel shadows {:.1} ms, free-form shadows {:.1} ms, shade {:.1} ms, volumes {:.1} ms",
                 at.width,
                 at.height,
