@@ -50,6 +50,9 @@ const RAY_TABLE: &str = include_str!("shaders/ray_table.wgsl");
 /// A pixel's footprint for anti-aliasing's shadow searches (after RAY_TABLE and FRAME).
 const FOOTPRINT: &str = include_str!("shaders/footprint.wgsl");
 const FREEFORM: &str = include_str!("shaders/freeform.wgsl");
+/// A pixel's cone against a box (`cone_box_span`), for the near-miss searches of free forms
+/// and voxel models (after FRAME).
+const CONE_BOX: &str = include_str!("shaders/cone_box.wgsl");
 const FF_BINS: &str = include_str!("shaders/ff_bins.wgsl");
 /// Constants shared by the binning pass and the passes reading its lists (`FF_BIN`,
 /// `FF_OVERFLOW`).
@@ -262,7 +265,7 @@ pub fn freeform(small: bool, tables: FfTables) -> String {
                 .to_string()
         }
     };
-    format!("const FF_SMALL: bool = {small};\n{decl}{FREEFORM}")
+    format!("const FF_SMALL: bool = {small};\n{decl}{CONE_BOX}{FREEFORM}")
 }
 
 /// Most nodes (base quadric and perturbations) of a perturbed object for the `small` free-form
@@ -367,6 +370,7 @@ pub fn voxels(instances: u32) -> String {
         FRAME,
         FULLSCREEN,
         RAY_TABLE,
+        CONE_BOX,
         VOXEL_DDA,
         include_str!("shaders/voxels.wgsl"),
     ]

@@ -349,14 +349,14 @@ fn ff_entry_face(ob: FfObject, span: FfSpan, t_min: f32) -> vec3<f32> {
 // a ray that hits nothing: does it pass within r(t) = cone.x + cone.y t of the solid (a
 // pixel's cone from the eye: (0, its reach); the sun rays of a pixel's footprint: (the
 // beam's radius, 0))? A point that close has F' <= G r(t) (G = local_0.w, the gradient
-// bound), so the search runs over the box widened by r at the far side of the bounding
-// sphere, with every enclosure lowered by G r at the interval's far end: the intervals it skips
+// bound), so the search runs over the ray's span through the box widened by r(t) where the
+// ray is (`ff_cone_span`), with every enclosure lowered by G r at the interval's far end: the intervals it skips
 // hold no such point. G bounds the whole box and can be many times the gradient where the
 // ray passes (a hangar's roof against its thin perturbations), so a leaf (L / 2^FF_NEAR_LEVELS)
 // still admitted is then tested by the first-order distance estimate F' / |∇F'| at its
 // middle, as plain objects are (`ff_near_leaf`); F'(p0) <= 0 at the widened box's entry is
-// the solid beside the box. Beyond the margin the bound holds for (an object a few pixels
-// wide), every ray through the widened box is a near miss.
+// the solid beside the box. Where r at the span's end passes the margin the bound holds for
+// (an object a few pixels wide), every ray through the widened box is a near miss.
 fn ff_intersect(id: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32, t_max: f32, any: bool, cone: vec2<f32>) -> FfHit {
     var h: FfHit;
     h.hit = false;
@@ -367,20 +367,18 @@ fn ff_intersect(id: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32, t_max: f32, a
     // Every near-miss step hangs on `near`, a constant where the caller passes 0: the
     // shader compiler then drops them from the plain search.
     let near = cone.x != 0.0 || cone.y != 0.0;
-    var boxed = ob;
+    var span: FfSpan;
     var lower = vec2<f32>(0.0);
     if (near) {
-        let widen = cone.x + cone.y * (length(ob.sphere.xyz - ro) + ob.sphere.w);
-        boxed.box_min = vec4<f32>(ob.box_min.xyz - vec3<f32>(widen), ob.box_min.w);
-        boxed.box_max = vec4<f32>(ob.box_max.xyz + vec3<f32>(widen), ob.box_max.w);
+        span = ff_cone_span(ob, ro, rd, cone, t_min, t_max);
         lower = ob.local_0.w * cone;
-        if (widen > ob.local_1.w) {
-            let wide = ff_span(boxed, ro, rd, t_min, t_max);
-            h.hit = wide.t0 <= wide.t1;
+        if (cone.x + cone.y * span.t1 > ob.local_1.w) {
+            h.hit = span.t0 <= span.t1;
             return h;
         }
+    } else {
+        span = ff_span(ob, ro, rd, t_min, t_max);
     }
-    let span = ff_span(boxed, ro, rd, t_min, t_max);
     let o = span.o;
     let d = span.d;
     let t0 = span.t0;
@@ -540,20 +538,30 @@ fn ff_plain_hit(id: u32, ro: vec3<f32>, rd: vec3<f32>, t_min: f32, t_max: f32) -
     return h;
 }
 
+// The ray in an object's frame and its span through the object's box widened by the cone's
+// radius where the ray is, r(t) = cone.x + cone.y t (`cone_box_span`; the local frame is a
+// rotation, so t and r are metres in it too).
+fn ff_cone_span(ob: FfObject, ro: vec3<f32>, rd: vec3<f32>, cone: vec2<f32>, t_min: f32, t_max: f32) -> FfSpan {
+    var sp: FfSpan;
+    sp.o = ff_to_local(ob, ro - ob.position.xyz);
+    sp.d = ff_to_local(ob, rd);
+    let t = cone_box_span(sp.o, sp.d, ob.box_min.xyz, ob.box_max.xyz, cone.x, cone.y, t_min, t_max);
+    sp.tn = vec3<f32>(t.x);
+    sp.t0 = t.x;
+    sp.t1 = t.y;
+    return sp;
+}
+
 // Near miss of a plain object (anti-aliasing): does the ray, which misses the object, pass
-// within r(t) = cone.x + cone.y t of it before `t_max` (`cone`: see `ff_intersect`)? The box
-// is widened by r at the far side of the object's bounding sphere; over the ray's span
-// through the widened box the quadric's lowest value F (the vertex of F(s) = a s² + b s + c, or an end) and its gradient
+// within r(t) = cone.x + cone.y t of it before `t_max` (`cone`: see `ff_intersect`)? Over
+// the ray's span through the box widened by r(t) where the ray is (`ff_cone_span`) the
+// quadric's lowest value F (the vertex of F(s) = a s² + b s + c, or an end) and its gradient
 // there give the distance estimate F / |∇F|, never more than the distance for spheres and
 // cylinders ((ρ² - r²) / 2ρ <= ρ - r) and exact for planes; F <= 0 there is the solid beside
 // the box itself (a cap's or a slab's edge within reach).
 fn ff_plain_near_miss(id: u32, ro: vec3<f32>, rd: vec3<f32>, cone: vec2<f32>, t_max: f32) -> bool {
     let ob = ff_objects[id];
-    let widen = cone.x + cone.y * (length(ob.sphere.xyz - ro) + ob.sphere.w);
-    var wide = ob;
-    wide.box_min = vec4<f32>(ob.box_min.xyz - vec3<f32>(widen), ob.box_min.w);
-    wide.box_max = vec4<f32>(ob.box_max.xyz + vec3<f32>(widen), ob.box_max.w);
-    let span = ff_span(wide, ro, rd, 0.0, t_max);
+    let span = ff_cone_span(ob, ro, rd, cone, 0.0, t_max);
     if (span.t0 > span.t1) {
         return false;
     }

@@ -65,9 +65,9 @@ fn vox_reach(px: vec2<u32>) -> f32 {
 //   voxel) or an empty one whose gap in every direction is within the reach where the ray
 //   leaves it (`VoxTrace::touched`): a voxel at the border of a brick the ray passes beside
 //   counts.
-// * Beside the box: when it passes within reach of the bounding box of a slab's occupied
-//   voxels, widened by the reach at the far side of its bounding sphere (as for plain free
-//   forms). This finds a mast whose box is itself thinner than a pixel.
+// * Beside the box: when it passes within reach t of the bounding box of a slab's occupied
+//   voxels (`cone_box_span`, as for free forms). This finds a mast whose box is itself
+//   thinner than a pixel.
 // Rays that hit a voxel are left to the colour rules (their G-buffer word holds the step
 // count in bit 31).
 fn vox_near_miss(inst: VoxInstance, d: vec3<f32>, reach: f32, t_max: f32, touched: bool) -> bool {
@@ -79,12 +79,12 @@ fn vox_near_miss(inst: VoxInstance, d: vec3<f32>, reach: f32, t_max: f32, touche
     if (m.x <= m.y) {
         return touched && k * m.y >= 1.0;
     }
+    // Beside the box: the cone's radius where the ray is, reach t metres (reach t / voxel
+    // size in voxel units), around each slab's box.
     var near = false;
     for (var j = 0u; j < VOX_SLABS; j++) {
-        let c = 0.5 * (inst.slab_lo[j].xyz + inst.slab_hi[j].xyz);
-        let r = 0.5 * length(inst.slab_hi[j].xyz - inst.slab_lo[j].xyz);
-        let span = vox_slab_span(inst, j, o, iv, reach * (length(o - c) + r), t_max);
-        near = near || (span.x <= span.y && k * span.y >= 1.0);
+        let span = cone_box_span(o, d, inst.slab_lo[j].xyz, inst.slab_hi[j].xyz, 0.0, reach / inst.eye_local.w, 0.0, t_max);
+        near = near || (inst.slab_lo[j].w != 0.0 && span.x <= span.y && k * span.y >= 1.0);
     }
     return near;
 }
