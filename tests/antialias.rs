@@ -411,6 +411,21 @@ fn the_command_line_reports_extra_rays_and_leaves_the_pattern() {
     let n = |k: &str| by[k].as_u64().unwrap();
     assert_eq!(n("16") + n("8") + n("4"), pixels);
     assert_eq!(16 * n("16") + 8 * n("8") + 4 * n("4"), rays);
+    // The airfield's masts, aircraft and hangars give near misses, each with 16 samples.
+    let airfield = common::terrains().join("airfield.toml");
+    let out = dir.join("airfield");
+    let args = [
+        "render",
+        airfield.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    let o = relief(&[&args[..], &["--size", "160x90", "--antialias", "edges"]].concat());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let af = &frame_json(&out)["antialias"];
+    let near = af["near_misses"].as_u64().unwrap();
+    eprintln!("160x90 airfield: {near} near misses");
+    assert!(near > 0 && near <= af["pixels_by_samples"]["16"].as_u64().unwrap());
     let sixteen = frame_json(&run("sixteen", &["--size", "160x90", "--antialias", "16"]));
     let aa = &sixteen["antialias"];
     assert_eq!(aa["adaptive"].as_bool(), Some(false));
@@ -855,7 +870,10 @@ fn a_runways_near_misses_stay_within_the_pixel_cone() {
         near.len()
     );
     assert!(runway > 500, "the runway is in view");
-    assert!(!near.is_empty(), "the search flags the pixels its cone reaches");
+    assert!(
+        !near.is_empty(),
+        "the search flags the pixels its cone reaches"
+    );
     assert_eq!(far_off, 0, "near misses flagged beyond the pixel cone");
 }
 

@@ -62,6 +62,7 @@ pub fn frame_metadata(
             "every_pixel": settings.antialias.every_pixel,
             "pixels": aa_pixels,
             "extra_rays": out.antialias_rays(),
+            "near_misses": out.near_misses(),
             "pixels_by_samples": {
                 "16": out.times.antialias_counts[0],
                 "8": out.times.antialias_counts[1],

@@ -121,12 +121,25 @@ pub struct FrameOutput {
 /// Flag of the pixels that got anti-aliasing samples (`aa_resolve.wgsl`).
 pub const FLAG_ANTIALIASED: u32 = 128;
 
+/// Capture flag of an anti-aliased frame's pixel whose centre ray passed within its cone (or
+/// its sun ray within its footprint's beam) of something it missed ([`FrameOutput::flags`]).
+pub const FLAG_NEAR_MISS: u32 = 64;
+
 impl FrameOutput {
     /// Pixels that got anti-aliasing samples (flag 128).
     pub fn antialiased_pixels(&self) -> u64 {
         self.flags
             .iter()
             .filter(|f| *f & FLAG_ANTIALIASED != 0)
+            .count() as u64
+    }
+
+    /// Pixels whose centre ray found a near miss through its cone (flag 64; anti-aliased
+    /// frames only, each such pixel gets 16 samples).
+    pub fn near_misses(&self) -> u64 {
+        self.flags
+            .iter()
+            .filter(|f| *f & FLAG_NEAR_MISS != 0)
             .count() as u64
     }
 

@@ -69,7 +69,9 @@ pub mod voxels;
 pub use antialias::Antialias;
 pub(crate) use device::shader_module;
 pub use device::{Gpu, GpuOptions, KernelChoice, KernelPath, ParamSpace, PARAM_USAGE};
-pub use frame::{FrameOutput, PassTimes, RenderSettings, Stage, TraceMode, FLAG_ANTIALIASED};
+pub use frame::{
+    FrameOutput, PassTimes, RenderSettings, Stage, TraceMode, FLAG_ANTIALIASED, FLAG_NEAR_MISS,
+};
 pub use renderer::TerrainRenderer;
 pub use util::check_buffer_limit;
 pub use volume_set::MAX_VOLUMES;
