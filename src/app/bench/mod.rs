@@ -114,6 +114,10 @@ pub enum BenchCommand {
     Soak {
         #[command(flatten)]
         args: BenchArgs,
+        /// Edge anti-aliasing in every frame: off, edges, 4, 8, 16 or reference (overrides
+        /// the scene's `[render] antialias`).
+        #[arg(long, value_name = "off|edges|N|reference", value_parser = crate::scene::AntialiasOption::parse)]
+        antialias: Option<crate::scene::AntialiasOption>,
     },
     /// The CIGI IG (`relief serve`'s loop) under a host on another thread of the same process over
     /// loopback: HAT/HOT and LOS responses a second (100 and 1,000 queries per host frame), the CPU
@@ -152,7 +156,7 @@ impl BenchCommand {
             | BenchCommand::Volume { args }
             | BenchCommand::Voxels { args }
             | BenchCommand::Display { args, .. }
-            | BenchCommand::Soak { args }
+            | BenchCommand::Soak { args, .. }
             | BenchCommand::Cigi { args }
             | BenchCommand::Antialias { args }
             | BenchCommand::Db { args, .. } => args,
@@ -230,8 +234,8 @@ impl BenchCommand {
                 let (run, d) = display::run(scene, display, *channel, size, frames)?;
                 (run, Details::Display(d))
             }
-            BenchCommand::Soak { .. } => {
-                let (run, d) = soak::run(scene, size, frames)?;
+            BenchCommand::Soak { antialias, .. } => {
+                let (run, d) = soak::run(scene, size, frames, *antialias)?;
                 (run, Details::Soak(d))
             }
             BenchCommand::Cigi { .. } => {

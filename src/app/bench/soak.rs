@@ -12,7 +12,8 @@ use super::table::{Figures, RunInfo, Table};
 use super::timing::scene_at_size;
 use crate::app::figures::percentile;
 use crate::app::figures::{resident_kib, slope, window};
-use crate::gpu::{Gpu, RenderSettings};
+use crate::gpu::{Antialias, Gpu, RenderSettings};
+use crate::scene::AntialiasOption;
 use crate::world::World;
 use crate::Result;
 use serde::Serialize;
@@ -39,6 +40,8 @@ pub struct SoakBench {
     pub frame_ms_p50: f64,
     pub frame_ms_p99: f64,
     pub frame_ms_max: f64,
+    /// Anti-aliasing's sub-pixel rays over all frames (0 without anti-aliasing).
+    pub antialias_extra_rays: u64,
     /// A paged terrain (`[terrain] memory`): its pool and the last frame's paging.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub paging: Option<SoakPaging>,
@@ -62,8 +65,14 @@ fn counts(gpu: &Gpu) -> Vec<(String, usize)> {
         .collect()
 }
 
-/// Renders `frames` frames of `scene_path` at `size` and reports memory and frame times.
-pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo, SoakBench)> {
+/// Renders `frames` frames of `scene_path` at `size` (anti-aliased as `antialias` says, else
+/// as the scene does) and reports memory and frame times.
+pub fn run(
+    scene_path: &Path,
+    size: (u32, u32),
+    frames: u32,
+    antialias: Option<AntialiasOption>,
+) -> Result<(RunInfo, SoakBench)> {
     let scene = scene_at_size(scene_path, size)?;
     // `[terrain] memory = MB`: through the paged tile pool, the window held hollow, the pager
     // stepped every frame as `render --terrain-memory` does.
@@ -77,13 +86,17 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo,
         }
         None => (crate::app::upload::renderer(&gpu, &world)?, None),
     };
-    let settings = RenderSettings::from_scene(&scene.desc);
+    let mut settings = RenderSettings::from_scene(&scene.desc);
+    if let Some(a) = antialias {
+        settings.antialias = Antialias::from_option(a);
+    }
     let fps = scene.desc.path.as_ref().map_or(30.0, |p| p.fps);
     let [w0, w1] = window(frames);
     let mut rss = Vec::with_capacity(frames as usize);
     let mut times = Vec::with_capacity(frames as usize);
     let (mut start_counts, mut end_counts) = (Vec::new(), Vec::new());
     let mut missing_frames = 0;
+    let mut extra_rays = 0;
     for frame in 0..frames {
         if frame == w0 {
             start_counts = counts(&gpu);
@@ -100,6 +113,7 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo,
         }
         let out = renderer.capture(&gpu, &world.terrain, &scene.desc, &cam, &settings)?;
         std::hint::black_box(&out.rgba);
+        extra_rays += out.antialias_rays();
         times.push(start.elapsed().as_secs_f64() * 1e3);
         if let Some(kib) = resident_kib() {
             rss.push(kib);
@@ -131,6 +145,7 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo,
         frame_ms_p50: percentile(&times, 50.0).unwrap_or(0.0),
         frame_ms_p99: percentile(&times, 99.0).unwrap_or(0.0),
         frame_ms_max: times.iter().copied().fold(0.0, f64::max),
+        antialias_extra_rays: extra_rays,
         paging: paging.as_ref().map(|p| SoakPaging {
             pool_bytes: p.pool_bytes,
             last: p.json(),
@@ -168,6 +183,12 @@ impl SoakBench {
                 }
             ),
         ];
+        if self.antialias_extra_rays > 0 {
+            notes.push(format!(
+                "anti-aliased: {} sub-pixel rays over the run",
+                self.antialias_extra_rays
+            ));
+        }
         if let Some(p) = &self.paging {
             notes.push(format!(
                 "paged terrain, pool {} MiB: {} frame(s) rendered with a wanted tile missing; last frame {}",
