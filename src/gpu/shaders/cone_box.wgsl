@@ -8,8 +8,8 @@
 // on t: (d + b) t >= lo - a - o and (d - b) t <= hi + a - o, a bound from below where the
 // factor is positive, from above where it is negative, none (or no t at all) where it is 0.
 // A box widened by one w for the whole span (its far end's) would be wider than the cone
-// where the ray passes near: along a runway 900 m long seen from its threshold, grass pixels
-// up to ten pixels beside its edges were flagged.
+// where the ray passes near: along a runway 900 m long seen from before its threshold, grass
+// pixels up to eight pixels beside it were flagged (`tests/antialias.rs`).
 fn cone_box_span(o: vec3<f32>, d: vec3<f32>, lo: vec3<f32>, hi: vec3<f32>, a: f32, b: f32, t_min: f32, t_max: f32) -> vec2<f32> {
     let lo_k = d + b;
     let lo_v = lo - a - o;
