@@ -257,3 +257,47 @@ fn the_paged_terrain_include_validates_with_naga() {
         32
     );
 }
+
+/// `relief::gpu::STORAGE_BUFFERS_PER_STAGE`, what `Gpu::new` requires of an adapter (it
+/// refuses one that allows fewer, naming it), is the most storage buffers an entry point of a
+/// terrain scene's passes uses, with the parameter blocks in uniform buffers (every adapter but
+/// lavapipe, which allows far more). Paged terrain pools and free-form tables in storage
+/// buffers need more; they check their own need where they are built.
+#[test]
+fn the_storage_buffers_an_adapter_must_allow_are_what_the_passes_bind() {
+    use relief::gpu::ParamSpace;
+    let mut most = (0, String::new());
+    let own_check = |name: &str| name.contains("paged") || name.contains("storage tables");
+    for (name, src) in relief::gpu::shaders::all() {
+        if own_check(name) {
+            continue;
+        }
+        let src = ParamSpace::Uniform.wgsl(&src);
+        let module = naga::front::wgsl::parse_str(&src).unwrap();
+        let info = naga::valid::Validator::new(
+            naga::valid::ValidationFlags::all(),
+            naga::valid::Capabilities::default(),
+        )
+        .validate(&module)
+        .unwrap();
+        for (i, ep) in module.entry_points.iter().enumerate() {
+            let uses = info.get_entry_point(i);
+            let n = module
+                .global_variables
+                .iter()
+                .filter(|(h, v)| {
+                    matches!(v.space, naga::AddressSpace::Storage { .. }) && !uses[*h].is_empty()
+                })
+                .count();
+            if n > most.0 {
+                most = (n, format!("{name}: {}", ep.name));
+            }
+        }
+    }
+    assert_eq!(
+        most.0 as u32,
+        relief::gpu::STORAGE_BUFFERS_PER_STAGE,
+        "the most storage buffers an entry point binds ({})",
+        most.1
+    );
+}

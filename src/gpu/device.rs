@@ -161,6 +161,74 @@ pub(crate) fn shader_module(
     })
 }
 
+/// The most storage buffers one shader stage of a terrain scene's passes binds, with the
+/// parameter blocks in uniform buffers (`tests/shaders.rs` counts them in every pass). Paged
+/// terrain pools and free-form tables in storage buffers bind more and check their own need.
+pub const STORAGE_BUFFERS_PER_STAGE: u32 = 3;
+
+/// Refuses an adapter that cannot run relief's passes, naming what it lacks, before a device
+/// is opened on it (where wgpu would fail later, or panic at the first pipeline): storage
+/// buffers in every shader stage and compute shaders. NVIDIA's EGL gives wgpu's GL backend a
+/// GL 3.3 context, which has neither (seen on an H200; GL needs 4.3, GLES 3.1).
+pub fn check_capabilities(
+    info: &wgpu::AdapterInfo,
+    limits: &wgpu::Limits,
+    flags: wgpu::DownlevelFlags,
+) -> Result<()> {
+    let mut lacks = Vec::new();
+    if limits.max_storage_buffers_per_shader_stage < STORAGE_BUFFERS_PER_STAGE {
+        lacks.push(format!(
+            "{STORAGE_BUFFERS_PER_STAGE} storage buffers a shader stage (it has {})",
+            limits.max_storage_buffers_per_shader_stage
+        ));
+    }
+    if !flags.contains(wgpu::DownlevelFlags::COMPUTE_SHADERS) {
+        lacks.push("compute shaders".to_string());
+    }
+    // A GL context older than 4.3 (GLES 3.1) may report storage buffers that an extension
+    // gives, while wgpu's shader translation targets the context's own version and refuses
+    // them at the first pipeline (NVIDIA's 3.3 context did so).
+    if info.backend == wgpu::Backend::Gl {
+        if let Some((es, version)) = gl_version(&info.driver_info) {
+            let need = if es { (3, 1) } else { (4, 3) };
+            if version < need {
+                let api = if es { "GLES" } else { "GL" };
+                lacks.push(format!(
+                    "{api} {}.{} (it is {api} {}.{})",
+                    need.0, need.1, version.0, version.1
+                ));
+            }
+        }
+    }
+    if lacks.is_empty() {
+        return Ok(());
+    }
+    let hint = match info.backend {
+        wgpu::Backend::Gl => "; use the GPU's Vulkan driver (WGPU_BACKEND=vulkan)",
+        _ => "",
+    };
+    Err(Error::Gpu(format!(
+        "{} ({:?}, driver {}) lacks what relief's passes need: {}{hint}; WGPU_ADAPTER_NAME picks another adapter",
+        info.name,
+        info.backend,
+        info.driver_info,
+        lacks.join(" and ")
+    )))
+}
+
+/// Whether a GL adapter's version string (`AdapterInfo::driver_info`: "4.5 (Core Profile)
+/// Mesa 22.3.6", "3.3.0 NVIDIA 580.159.04", "OpenGL ES 3.2 Mesa ...") is GLES, and its
+/// version; `None` when it names none.
+fn gl_version(s: &str) -> Option<(bool, (u32, u32))> {
+    let es = s.contains("OpenGL ES");
+    s.split_whitespace().find_map(|w| {
+        let mut parts = w.split('.');
+        let major = parts.next()?.parse().ok()?;
+        let minor = parts.next()?.parse().ok()?;
+        Some((es, (major, minor)))
+    })
+}
+
 impl Gpu {
     /// Opens a device. Honors `WGPU_BACKEND` (vulkan, gl, ...) and `WGPU_ADAPTER_NAME`
     /// (substring of the adapter name); otherwise takes wgpu's default adapter, which on a
@@ -241,6 +309,7 @@ impl Gpu {
             info.device_type
         );
         let alimits = adapter.limits();
+        check_capabilities(&info, &alimits, adapter.get_downlevel_capabilities().flags)?;
         // Ask for what the adapter has where terrains need it: big storage buffers.
         let limits = wgpu::Limits {
             max_storage_buffer_binding_size: alimits.max_storage_buffer_binding_size,
@@ -368,5 +437,94 @@ impl Gpu {
         Err(Error::Gpu(
             "the GPU did not finish within 10 minutes".into(),
         ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn adapter(backend: wgpu::Backend) -> wgpu::AdapterInfo {
+        wgpu::AdapterInfo {
+            name: "NVIDIA H200/PCIe/SSE2".into(),
+            vendor: 0x10de,
+            device: 0,
+            device_type: wgpu::DeviceType::Other,
+            device_pci_bus_id: String::new(),
+            driver: String::new(),
+            driver_info: "3.3.0 NVIDIA 580.159.04".into(),
+            backend,
+            subgroup_min_size: 0,
+            subgroup_max_size: 0,
+            transient_saves_memory: None,
+            limit_bucket: None,
+        }
+    }
+
+    #[test]
+    fn an_adapter_without_storage_buffers_or_compute_is_refused_naming_both() {
+        // What NVIDIA's GL 3.3 context reports.
+        let gl33 = wgpu::Limits {
+            max_storage_buffers_per_shader_stage: 0,
+            ..wgpu::Limits::downlevel_webgl2_defaults()
+        };
+        let e = check_capabilities(
+            &adapter(wgpu::Backend::Gl),
+            &gl33,
+            wgpu::DownlevelFlags::empty(),
+        )
+        .unwrap_err()
+        .to_string();
+        for needle in [
+            "NVIDIA H200/PCIe/SSE2",
+            "3.3.0",
+            "3 storage buffers a shader stage (it has 0)",
+            "compute shaders",
+            "GL 4.3 (it is GL 3.3)",
+            "WGPU_BACKEND=vulkan",
+        ] {
+            assert!(e.contains(needle), "`{needle}` not in: {e}");
+        }
+        // One storage buffer short is refused too; what the passes need is enough.
+        let short = wgpu::Limits {
+            max_storage_buffers_per_shader_stage: STORAGE_BUFFERS_PER_STAGE - 1,
+            ..wgpu::Limits::downlevel_defaults()
+        };
+        let all = wgpu::DownlevelFlags::all();
+        let vk = adapter(wgpu::Backend::Vulkan);
+        let e = check_capabilities(&vk, &short, all)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("(it has 2)") && !e.contains("compute") && !e.contains("GL needs"));
+        let enough = wgpu::Limits {
+            max_storage_buffers_per_shader_stage: STORAGE_BUFFERS_PER_STAGE,
+            ..short
+        };
+        check_capabilities(&vk, &enough, all).unwrap();
+        // NVIDIA's GL 3.3 context reported storage buffers and compute shaders (an extension
+        // gives them) and failed at the first pipeline: its version is what refuses it.
+        let e = check_capabilities(&adapter(wgpu::Backend::Gl), &enough, all)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("lacks what relief's passes need: GL 4.3 (it is GL 3.3)"),
+            "{e}"
+        );
+        // llvmpipe's GL 4.5 and a GLES 3.2 pass.
+        for version in ["4.5 (Core Profile) Mesa 22.3.6", "OpenGL ES 3.2 Mesa 23.1"] {
+            let gl = wgpu::AdapterInfo {
+                driver_info: version.into(),
+                ..adapter(wgpu::Backend::Gl)
+            };
+            check_capabilities(&gl, &enough, all).unwrap();
+        }
+        let es30 = wgpu::AdapterInfo {
+            driver_info: "OpenGL ES 3.0 Mesa".into(),
+            ..adapter(wgpu::Backend::Gl)
+        };
+        let e = check_capabilities(&es30, &enough, all)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("GLES 3.1 (it is GLES 3.0)"), "{e}");
     }
 }

@@ -379,12 +379,18 @@ pub fn voxels(instances: u32) -> String {
 
 /// Warp test pattern (fragment): colour from the ray table only.
 pub fn pattern() -> String {
-    [FULLSCREEN, RAY_TABLE, include_str!("shaders/pattern.wgsl")].concat()
+    [
+        FULLSCREEN,
+        RAY_TABLE,
+        SRGB,
+        include_str!("shaders/pattern.wgsl"),
+    ]
+    .concat()
 }
 
 /// Edge-blend pass (fragment): the finished image times each pixel's blend factor.
 pub fn blend() -> String {
-    [FULLSCREEN, include_str!("shaders/blend.wgsl")].concat()
+    [FULLSCREEN, SRGB, include_str!("shaders/blend.wgsl")].concat()
 }
 
 /// Edge anti-aliasing (`gpu::antialias`), fragment passes sharing `aa_common.wgsl`: the edge

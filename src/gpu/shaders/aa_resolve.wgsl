@@ -25,7 +25,7 @@ fn fs_mean(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
     for (var k = 0u; k < n; k += 1u) {
         sum += aa_decode(textureLoad(sample_colour, aa_entry(e, k), 0).xyz);
     }
-    return vec4<f32>(srgb_encode(sum / f32(max(n, 1u))), 1.0);
+    return vec4<f32>(srgb_encode8(sum / f32(max(n, 1u))), 1.0);
 }
 
 struct Point {

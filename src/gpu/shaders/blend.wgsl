@@ -42,5 +42,5 @@ fn fs_blend(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
     if (blend.gamma.y > 0.0) {
         m = textureLoad(blend_mask, vec2<i32>(px), 0).x;
     }
-    return vec4<f32>(c.xyz * pow(w * m, blend.gamma.x), c.w);
+    return vec4<f32>(unorm8(c.xyz * pow(w * m, blend.gamma.x)), c.w);
 }

@@ -134,7 +134,7 @@ fn fs_pattern(@builtin(position) pos: vec4<f32>) -> PatternOut {
         out.data = vec4<u32>(PATTERN_INF_BITS, 0u, 0u, 8u);
         return out;
     }
-    out.colour = vec4<f32>(pattern_colour(e.xyz, e.w), 1.0);
+    out.colour = vec4<f32>(unorm8(pattern_colour(e.xyz, e.w)), 1.0);
     out.data = vec4<u32>(PATTERN_INF_BITS, 0u, 0u, 0u);
     return out;
 }

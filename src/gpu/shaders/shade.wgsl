@@ -189,7 +189,7 @@ fn fs_shade(@builtin(position) pos: vec4<f32>) -> Out {
         c = s.colour.xyz;
         out.data = s.data;
     }
-    out.colour = vec4<f32>(srgb_encode(c), 1.0);
+    out.colour = vec4<f32>(srgb_encode8(c), 1.0);
     return out;
 }
 

@@ -33,5 +33,5 @@ fn fs_composite(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
         let r = bitcast<vec4<f32>>(textureLoad(results, px, order[k], 0));
         c = r.xyz + r.w * c;
     }
-    return vec4<f32>(srgb_encode(c), 1.0);
+    return vec4<f32>(srgb_encode8(c), 1.0);
 }
