@@ -45,17 +45,16 @@ pub(crate) fn capture(
         None => Vec::new(),
     };
     times.readback_ms = start.elapsed().as_secs_f64() * 1e3;
-    let n = (w * h) as usize;
     let mut out = FrameOutput {
         width: w,
         height: h,
         rgba,
-        depth: Vec::with_capacity(n),
-        steps: Vec::with_capacity(n),
-        patch_tests: Vec::with_capacity(n),
-        shadow_steps: Vec::with_capacity(n),
-        flags: Vec::with_capacity(n),
-        objects: Vec::with_capacity(n),
+        depth: Vec::new(),
+        steps: Vec::new(),
+        patch_tests: Vec::new(),
+        shadow_steps: Vec::new(),
+        flags: Vec::new(),
+        objects: Vec::new(),
         volume_samples: Vec::new(),
         volume_segments: Vec::new(),
         volume_sun,
@@ -129,14 +128,17 @@ fn decode(out: &mut FrameOutput, words: &[u32], stats: &[[u32; 2]]) {
         out.volume_samples.push(*samples);
         out.volume_segments.push(*segments);
     }
-    for px in words.chunks_exact(4) {
-        out.depth.push(f32::from_bits(px[0]));
-        out.steps.push(px[1]);
-        out.patch_tests.push(px[2] & 0xffff);
-        out.shadow_steps.push(px[2] >> 16);
-        out.flags.push(px[3] & 0xff);
-        out.objects.push(px[3] >> 8);
-    }
+    // One pass per field, each a straight loop: 2.5–2.7 ms at 1280x720 on the CI kind of
+    // machine, against 4.7–4.9 ms pushing the six fields pixel by pixel and 10 ms writing them
+    // by index in one pass (medians of 12 frames, measured with temporary timers).
+    let texels: &[[u32; 4]] = bytemuck::cast_slice(words);
+    let field = |f: fn(&[u32; 4]) -> u32| texels.iter().map(f).collect::<Vec<u32>>();
+    out.depth = texels.iter().map(|px| f32::from_bits(px[0])).collect();
+    out.steps = field(|px| px[1]);
+    out.patch_tests = field(|px| px[2] & 0xffff);
+    out.shadow_steps = field(|px| px[2] >> 16);
+    out.flags = field(|px| px[3] & 0xff);
+    out.objects = field(|px| px[3] >> 8);
 }
 
 /// Reads back the ray table of `t`: per pixel (direction xyz, cone half-angle; negative where
