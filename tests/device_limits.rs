@@ -87,3 +87,29 @@ fn a_projector_channel_over_the_budget_is_refused_naming_the_channel() {
         &["8192x8192", "memory budget"],
     );
 }
+
+/// A wgpu error that no error scope catches (here an invalid buffer) is returned by the next
+/// `Gpu::wait`, and by every one after it, instead of wgpu's default panic. A device of its
+/// own: the shared one stays clean.
+#[test]
+fn a_wgpu_error_no_scope_catches_is_an_error_of_the_next_wait_not_a_panic() {
+    let _l = common::gpu_lock();
+    if common::gpu().is_none() {
+        return;
+    }
+    let g = relief::gpu::Gpu::new().unwrap();
+    g.wait().unwrap();
+    // MAP_READ with STORAGE needs a feature relief does not ask for: a validation error.
+    let _invalid = g.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("invalid on purpose"),
+        size: 16,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::STORAGE,
+        mapped_at_creation: false,
+    });
+    let e = g.wait().unwrap_err().to_string();
+    assert!(
+        e.contains("wgpu error") && e.contains("invalid on purpose"),
+        "{e}"
+    );
+    assert_eq!(g.wait().unwrap_err().to_string(), e);
+}

@@ -1252,6 +1252,7 @@ fn volumes_over_the_device_limit_are_refused_with_the_limit() {
             downlevel: g.downlevel,
             params: g.params,
             options: g.options,
+            uncaught: g.uncaught.clone(),
         };
         &capped
     };

@@ -18,6 +18,10 @@ pub struct Gpu {
     /// The caller's choices (default: [`GpuOptions::default`]); may be changed before the
     /// renderers are built.
     pub options: GpuOptions,
+    /// The first wgpu error no error scope caught (a validation or out-of-memory error, or
+    /// the device lost), which wgpu would otherwise turn into a panic: [`Gpu::wait`] returns
+    /// it from then on.
+    pub uncaught: std::sync::Arc<std::sync::Mutex<Option<String>>>,
 }
 
 /// What the caller chooses about how the passes run (the library reads no environment
@@ -216,6 +220,32 @@ pub fn check_capabilities(
     )))
 }
 
+/// Installs handlers that keep the first wgpu error no error scope catches (wgpu's default
+/// handler panics) and a device lost other than by being dropped; [`Gpu::wait`] reports it.
+fn catch_errors(device: &wgpu::Device) -> std::sync::Arc<std::sync::Mutex<Option<String>>> {
+    use std::sync::{Arc, Mutex};
+    let first: Arc<Mutex<Option<String>>> = Arc::default();
+    let keep = |sink: &Arc<Mutex<Option<String>>>, msg: String| {
+        log::error!("{msg}");
+        let mut slot = sink.lock().unwrap_or_else(|e| e.into_inner());
+        slot.get_or_insert(msg);
+    };
+    let sink = first.clone();
+    device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+        keep(&sink, format!("wgpu error: {e}"));
+    }));
+    let sink = first.clone();
+    device.set_device_lost_callback(move |reason, msg| {
+        if reason != wgpu::DeviceLostReason::Destroyed {
+            keep(
+                &sink,
+                format!("the GPU device was lost ({reason:?}): {msg}"),
+            );
+        }
+    });
+    first
+}
+
 /// Whether a GL adapter's version string (`AdapterInfo::driver_info`: "4.5 (Core Profile)
 /// Mesa 22.3.6", "3.3.0 NVIDIA 580.159.04", "OpenGL ES 3.2 Mesa ...") is GLES, and its
 /// version; `None` when it names none.
@@ -335,6 +365,7 @@ impl Gpu {
             .map_err(|e| Error::Gpu(format!("cannot open a device on {}: {e}", info.name)))?;
         let params = ParamSpace::for_adapter(&info);
         log::debug!("parameter blocks: {params:?}");
+        let uncaught = catch_errors(&device);
         Ok(Gpu {
             instance: instance.clone(),
             device,
@@ -344,6 +375,7 @@ impl Gpu {
             limits,
             options: GpuOptions::default(),
             downlevel: adapter.get_downlevel_capabilities().flags,
+            uncaught,
         })
     }
 
@@ -429,7 +461,7 @@ impl Gpu {
                 submission_index: None,
                 timeout: Some(std::time::Duration::from_secs(5)),
             }) {
-                Ok(_) => return Ok(()),
+                Ok(_) => return self.check(),
                 Err(wgpu::PollError::Timeout) => continue,
                 Err(e) => return Err(Error::Gpu(format!("waiting for the GPU: {e}"))),
             }
@@ -437,6 +469,14 @@ impl Gpu {
         Err(Error::Gpu(
             "the GPU did not finish within 10 minutes".into(),
         ))
+    }
+
+    /// The first wgpu error no error scope caught, if any ([`Gpu::uncaught`]).
+    pub fn check(&self) -> Result<()> {
+        match &*self.uncaught.lock().unwrap_or_else(|e| e.into_inner()) {
+            Some(e) => Err(Error::Gpu(e.clone())),
+            None => Ok(()),
+        }
     }
 }
 
