@@ -200,6 +200,10 @@ impl App {
             if let Some(done) = *wall_done.lock().unwrap() {
                 d.gpu_ms = (done - submit_start).as_secs_f64() * 1e3;
             }
+        } else {
+            // Frames timed with timestamp queries are not waited for: a wgpu error no scope
+            // caught (`Gpu::uncaught`) still ends the run at the frame its report came in.
+            gpu.check()?;
         }
         Ok(d)
     }
