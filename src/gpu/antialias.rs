@@ -22,17 +22,17 @@
 //!    frame's primary and shading passes run on it (without the tile pre-pass, and with
 //!    free-form bins bounding every ray of a bin: neighbouring entries are not neighbouring
 //!    rays).
-//! 3. **Resolve** (`aa_resolve.wgsl`): the mean of each marked pixel's samples into a compact
-//!    target (one texel per marked pixel), then one point per marked pixel, drawn over the
-//!    frame's targets, writes its mean and the centre ray's capture data with flag 128; the
-//!    other pixels are not touched (they keep the centre rays' colour and data), nor is the
-//!    frame's ray table.
+//! 3. **Resolve** (`aa_resolve.wgsl`): one fragment per marked pixel (a compact target, one
+//!    texel per marked pixel) takes the mean of its samples and stores it, and the centre
+//!    ray's capture data with flag 128, into the frame's colour and data at the pixel
+//!    (storage writes); the other pixels are not touched (they keep the centre rays' colour
+//!    and data), nor is the frame's ray table.
 //!
 //! With every pixel marked and n = 16 this is relief's own supersampled reference (4x4 rays
 //! inside each pixel, the pixel's own cone).
 
 use super::util::{
-    float_texture_entry, fullscreen_pipeline, point_pipeline, screen_texture, target_state,
+    float_texture_entry, fullscreen_pipeline, screen_texture, storage_texture_entry, target_state,
     uint_texture_entry, view,
 };
 use super::{shaders, Gpu};
@@ -181,9 +181,8 @@ pub(crate) struct AntialiasPasses {
     pub tile: wgpu::RenderPipeline,
     edges: wgpu::RenderPipeline,
     rays: wgpu::RenderPipeline,
-    mean: wgpu::RenderPipeline,
-    scatter: wgpu::RenderPipeline,
-    layouts: [wgpu::BindGroupLayout; 4],
+    resolve: wgpu::RenderPipeline,
+    layouts: [wgpu::BindGroupLayout; 3],
     params: wgpu::Buffer,
 }
 
@@ -208,8 +207,8 @@ pub fn samples(aa: Antialias) -> u32 {
 }
 
 /// The screen-sized textures: a copy of the centre frame's capture data, the mask and its
-/// readback, the list of marked pixels and their means, and the bind groups of the edge pass
-/// and of the resolve's scatter.
+/// readback, the list of marked pixels and their means, the bind group of the edge pass, and
+/// the views the resolve reads and writes.
 pub(crate) struct AntialiasTargets {
     pub size: [u32; 2],
     pub centre_data: wgpu::Texture,
@@ -220,18 +219,20 @@ pub(crate) struct AntialiasTargets {
     pixels: wgpu::Texture,
     pixels_view: wgpu::TextureView,
     means_view: wgpu::TextureView,
+    centre_data_view: wgpu::TextureView,
     edges_bg: wgpu::BindGroup,
-    scatter_bg: wgpu::BindGroup,
+    /// The frame's colour and data, which the resolve writes at the marked pixels.
+    frame: [wgpu::TextureView; 2],
     /// The screen's tiles in the order the list takes them ([`tile_order`]).
     tiles: Vec<u32>,
 }
 
 /// The sample atlas of one size: its own frame targets (every pass of the samples runs on
-/// them) and the bind groups of the sample rays and the resolve's means.
+/// them) and the bind groups of the sample rays and the resolve.
 pub(crate) struct Atlas {
     pub targets: super::targets::Targets,
     rays_bg: wgpu::BindGroup,
-    mean_bg: wgpu::BindGroup,
+    resolve_bg: wgpu::BindGroup,
 }
 
 /// Bytes per screen pixel of [`AntialiasTargets`]: data 16, mask 1 and its readback 1, list 4,
@@ -250,7 +251,6 @@ impl AntialiasPasses {
     pub fn new(gpu: &Gpu, base: &super::terrain_passes::TerrainPasses) -> AntialiasPasses {
         let dev = &gpu.device;
         let fs = wgpu::ShaderStages::FRAGMENT;
-        let vfs = wgpu::ShaderStages::VERTEX_FRAGMENT;
         let p = super::util::uniform_entry(gpu.params, 0, fs);
         let u = |b| uint_texture_entry(b, fs);
         let f = |b| float_texture_entry(b, fs, wgpu::TextureViewDimension::D2);
@@ -260,17 +260,19 @@ impl AntialiasPasses {
                 entries,
             })
         };
+        let store = |b, format| storage_texture_entry(b, fs, format);
         let layouts = [
             layout("aa edges", &[p, f(2), u(3)]),
             layout("aa rays", &[p, u(1), u(2)]),
-            layout("aa means", &[p, f(2)]),
             layout(
-                "aa scatter",
+                "aa resolve",
                 &[
-                    super::util::uniform_entry(gpu.params, 0, vfs),
-                    uint_texture_entry(1, vfs),
+                    p,
+                    u(1),
+                    f(2),
                     u(3),
-                    f(4),
+                    store(5, F::Rgba8Unorm),
+                    store(6, F::Rgba32Uint),
                 ],
             ),
         ];
@@ -292,29 +294,19 @@ impl AntialiasPasses {
             &layouts[1],
             &[state(F::Rgba32Uint)],
         );
-        let resolve = module("aa_resolve.wgsl", shaders::aa_resolve());
-        let mean = fullscreen_pipeline(
+        let resolve = fullscreen_pipeline(
             dev,
-            "aa means",
-            &resolve,
-            "fs_mean",
+            "aa resolve",
+            &module("aa_resolve.wgsl", shaders::aa_resolve()),
+            "fs_resolve",
             &layouts[2],
             &[state(F::Rgba8Unorm)],
-        );
-        let scatter = point_pipeline(
-            dev,
-            "aa scatter",
-            &resolve,
-            ["vs_scatter", "fs_scatter"],
-            &layouts[3],
-            &[state(F::Rgba8Unorm), state(F::Rgba32Uint)],
         );
         AntialiasPasses {
             tile: base.tile_pipeline(gpu, "tile (anti-aliasing atlas)", "fs_tile_table"),
             edges,
             rays,
-            mean,
-            scatter,
+            resolve,
             layouts,
             params: dev.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("aa parameters"),
@@ -366,14 +358,15 @@ impl AntialiasPasses {
         })
     }
 
-    /// The screen-sized targets of a `size` frame whose centre rays are `ray_table` (the
-    /// samples run on the atlas's own targets: the frame's ray table stays).
+    /// The screen-sized targets of a `size` frame whose centre rays are `ray_table` and whose
+    /// colour and data targets are `frame` (the samples run on the atlas's own targets: the
+    /// frame's ray table stays).
     pub fn targets(
         &self,
         gpu: &Gpu,
         size: [u32; 2],
         ray_table: &wgpu::TextureView,
-        colour: &wgpu::TextureView,
+        frame: [&wgpu::TextureView; 2],
     ) -> AntialiasTargets {
         let centre_data = texture(gpu, "aa centre data", size, F::Rgba32Uint);
         let means = texture(gpu, "aa means", size, F::Rgba8Unorm);
@@ -386,19 +379,8 @@ impl AntialiasPasses {
             0,
             &[
                 super::util::buf(0, &self.params),
-                view(2, colour),
+                view(2, frame[0]),
                 view(3, &data_v),
-            ],
-        );
-        let pixels_view = view_of(&pixels);
-        let scatter_bg = self.group(
-            gpu,
-            3,
-            &[
-                super::util::buf(0, &self.params),
-                view(1, &pixels_view),
-                view(3, &data_v),
-                view(4, &means_view),
             ],
         );
         let mask_rb = gpu.device.create_buffer(&wgpu::BufferDescriptor {
@@ -414,11 +396,12 @@ impl AntialiasPasses {
             mask_view: mask_v,
             mask,
             mask_rb,
-            pixels_view,
+            pixels_view: view_of(&pixels),
             pixels,
             means_view,
+            centre_data_view: data_v,
             edges_bg,
-            scatter_bg,
+            frame: frame.map(Clone::clone),
             tiles: tile_order(size[0], size[1]),
         }
     }
@@ -440,11 +423,22 @@ impl AntialiasPasses {
                 view(2, &t.pixels_view),
             ],
         );
-        let mean_bg = self.group(gpu, 2, &[params(), view(2, &targets.colour_view)]);
+        let resolve_bg = self.group(
+            gpu,
+            2,
+            &[
+                params(),
+                view(1, &t.pixels_view),
+                view(2, &targets.colour_view),
+                view(3, &t.centre_data_view),
+                view(5, &t.frame[0]),
+                view(6, &t.frame[1]),
+            ],
+        );
         Atlas {
             targets,
             rays_bg,
-            mean_bg,
+            resolve_bg,
         }
     }
 
@@ -472,63 +466,43 @@ impl AntialiasPasses {
     }
 
     /// Records the resolve of the batch's `count` marked pixels into the frame's colour and
-    /// data targets (their other pixels are kept): their means over the first rows of the
-    /// means target, then one point each.
+    /// data targets (their other pixels are kept): one fragment per marked pixel over the
+    /// first rows of the means target.
     pub fn encode_resolve(
         &self,
         enc: &mut wgpu::CommandEncoder,
         a: &Atlas,
         t: &AntialiasTargets,
-        [colour, data]: [&wgpu::TextureView; 2],
         count: u32,
     ) {
-        let attachment = |view, load| {
-            Some(wgpu::RenderPassColorAttachment {
-                view,
+        // Only the rows the batch fills are drawn; past its `count` pixels a fragment
+        // stores nothing.
+        let rows = count.div_ceil(t.size[0]).max(1);
+        // SAFETY: nothing reads the means target: it is only the attachment a render pass
+        // needs (the pass's results are its storage stores into the frame), and it is
+        // discarded; a clear of the whole target would cost Mesa's CPU adapters a pass of its
+        // own.
+        let any = wgpu::LoadOp::DontCare(unsafe { wgpu::LoadOpDontCare::enabled() });
+        let mut p = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("aa resolve"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &t.means_view,
                 depth_slice: None,
                 resolve_target: None,
                 ops: wgpu::Operations {
-                    load,
-                    store: wgpu::StoreOp::Store,
+                    load: any,
+                    store: wgpu::StoreOp::Discard,
                 },
-            })
-        };
-        fn pass<'e>(
-            enc: &'e mut wgpu::CommandEncoder,
-            label: &str,
-            attachments: &[Option<wgpu::RenderPassColorAttachment>],
-        ) -> wgpu::RenderPass<'e> {
-            enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some(label),
-                color_attachments: attachments,
-                depth_stencil_attachment: None,
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            })
-        }
-        {
-            // Only the rows the batch fills are drawn, and the scatter reads only the texels
-            // of the batch's pixels, which lie in them.
-            let rows = count.div_ceil(t.size[0]).max(1);
-            // SAFETY: every texel that is read is written by this pass first (above); a clear
-            // of the whole target would cost Mesa's CPU adapters a pass of its own.
-            let any = wgpu::LoadOp::DontCare(unsafe { wgpu::LoadOpDontCare::enabled() });
-            let mut p = pass(enc, "aa means", &[attachment(&t.means_view, any)]);
-            p.set_viewport(0.0, 0.0, t.size[0] as f32, rows as f32, 0.0, 1.0);
-            p.set_pipeline(&self.mean);
-            p.set_bind_group(0, &a.mean_bg, &[]);
-            p.draw(0..3, 0..1);
-        }
-        let load = wgpu::LoadOp::Load;
-        let mut p = pass(
-            enc,
-            "aa scatter",
-            &[attachment(colour, load), attachment(data, load)],
-        );
-        p.set_pipeline(&self.scatter);
-        p.set_bind_group(0, &t.scatter_bg, &[]);
-        p.draw(0..count, 0..1);
+            })],
+            depth_stencil_attachment: None,
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        p.set_viewport(0.0, 0.0, t.size[0] as f32, rows as f32, 0.0, 1.0);
+        p.set_pipeline(&self.resolve);
+        p.set_bind_group(0, &a.resolve_bg, &[]);
+        p.draw(0..3, 0..1);
     }
 }
 

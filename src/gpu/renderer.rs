@@ -468,12 +468,12 @@ impl TerrainRenderer {
             }
         }
         self.ensure_targets(job.gpu, cam.width, cam.height)?;
-        let prepared = self.prepare(job);
+        let prepared = self.prepare(job)?;
         self.record(job, &prepared)
     }
 
     /// Builds the pipelines the frame needs and uploads its parameter blocks.
-    fn prepare(&mut self, job: &FrameJob) -> Prepared {
+    fn prepare(&mut self, job: &FrameJob) -> Result<Prepared> {
         let (gpu, s) = (job.gpu, job.s);
         let features = ShadeFeatures {
             shadows: s.shadows,
@@ -539,9 +539,9 @@ impl TerrainRenderer {
             && self.volumes.composite.is_some()
             && !self.volumes.hidden;
         if antialias {
-            self.prepare_antialias(job);
+            self.prepare_antialias(job)?;
         }
-        Prepared {
+        Ok(Prepared {
             features,
             stamp,
             uniforms: fu,
@@ -551,7 +551,7 @@ impl TerrainRenderer {
             } else {
                 Vec::new()
             },
-        }
+        })
     }
 
     /// Records the frame's passes (submitting between them when timed) and submits.

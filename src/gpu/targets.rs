@@ -94,8 +94,13 @@ impl Screen {
         let ray_table_view = ray_table.create_view(&Default::default());
         let tex = |label, size, format| screen_texture(dev, label, size, format, TARGET_USAGE);
         let tile_tex = tex("tile start", tiles, wgpu::TextureFormat::Rg32Uint);
-        let colour = tex("colour", size, wgpu::TextureFormat::Rgba8Unorm);
-        let data = tex("data", size, wgpu::TextureFormat::Rgba32Uint);
+        // The anti-aliasing resolve stores its pixels' colour and data (`aa_resolve.wgsl`).
+        let frame_tex = |label, format| {
+            let usage = TARGET_USAGE | wgpu::TextureUsages::STORAGE_BINDING;
+            screen_texture(dev, label, size, format, usage)
+        };
+        let colour = frame_tex("colour", wgpu::TextureFormat::Rgba8Unorm);
+        let data = frame_tex("data", wgpu::TextureFormat::Rgba32Uint);
         let tile_view = tile_tex.create_view(&Default::default());
         let gbuffer = tex("g-buffer", size, wgpu::TextureFormat::Rgba32Uint);
         let gbuffer_view = gbuffer.create_view(&Default::default());

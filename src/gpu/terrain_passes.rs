@@ -9,8 +9,8 @@ use super::shade::{shade_pipelines, ShadePipelines};
 use super::types::{FrameUniforms, RayGenUniforms, MAX_LEVELS};
 use super::util::{
     check_buffer_limit, float_texture_entry, fullscreen_pipeline, pipeline_layout,
-    pipeline_layout_with, render_pipeline_in, storage_entry, target_state, uint_texture_entry,
-    uniform_entry,
+    pipeline_layout_with, render_pipeline_in, storage_entry, storage_texture_entry, target_state,
+    uint_texture_entry, uniform_entry,
 };
 use super::{shaders, Gpu, PARAM_USAGE};
 use crate::terrain::Terrain;
@@ -160,16 +160,7 @@ impl TerrainLayouts {
             &if raygen_compute {
                 vec![
                     uniform_entry(gpu.params, 0, cs),
-                    wgpu::BindGroupLayoutEntry {
-                        binding: 1,
-                        visibility: cs,
-                        ty: wgpu::BindingType::StorageTexture {
-                            access: wgpu::StorageTextureAccess::WriteOnly,
-                            format: wgpu::TextureFormat::Rgba32Uint,
-                            view_dimension: wgpu::TextureViewDimension::D2,
-                        },
-                        count: None,
-                    },
+                    storage_texture_entry(1, cs, wgpu::TextureFormat::Rgba32Uint),
                 ]
             } else {
                 vec![uniform_entry(gpu.params, 0, fs)]

@@ -21,6 +21,24 @@ pub(crate) fn storage_entry(
     }
 }
 
+/// A bind-group entry for a write-only 2-D storage texture of `format`.
+pub(crate) fn storage_texture_entry(
+    binding: u32,
+    vis: wgpu::ShaderStages,
+    format: wgpu::TextureFormat,
+) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: vis,
+        ty: wgpu::BindingType::StorageTexture {
+            access: wgpu::StorageTextureAccess::WriteOnly,
+            format,
+            view_dimension: wgpu::TextureViewDimension::D2,
+        },
+        count: None,
+    }
+}
+
 /// A bind-group entry for a parameter block (`var<uniform>` in WGSL) bound in `space`.
 pub(crate) fn uniform_entry(
     space: ParamSpace,
@@ -227,24 +245,6 @@ pub(crate) fn render_pipeline_in(
         targets,
         depth_stencil,
     )
-}
-
-/// A pipeline drawing points (one pixel each) whose vertex shader places them from the
-/// vertex index: entry points `entries` of module `m`, no vertex buffers, no depth.
-pub(crate) fn point_pipeline(
-    dev: &wgpu::Device,
-    label: &str,
-    m: &wgpu::ShaderModule,
-    entries: [&str; 2],
-    bgl: &wgpu::BindGroupLayout,
-    targets: &[Option<wgpu::ColorTargetState>],
-) -> wgpu::RenderPipeline {
-    let primitive = wgpu::PrimitiveState {
-        topology: wgpu::PrimitiveTopology::PointList,
-        ..Default::default()
-    };
-    let layout = pipeline_layout(dev, bgl);
-    pipeline_of(dev, label, (m, entries), &layout, primitive, targets, None)
 }
 
 fn pipeline_of(

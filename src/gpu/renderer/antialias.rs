@@ -26,9 +26,21 @@ pub(crate) struct AntialiasState {
 
 impl TerrainRenderer {
     /// Builds the passes on first use and the screen targets for the current frame size;
-    /// writes the parameters. Called from `prepare` when the frame is anti-aliased.
-    pub(super) fn prepare_antialias(&mut self, job: &FrameJob) {
+    /// writes the parameters. Called from `prepare` when the frame is anti-aliased; fails
+    /// on an adapter that cannot store from a fragment shader (the resolve does).
+    pub(super) fn prepare_antialias(&mut self, job: &FrameJob) -> Result<()> {
         let gpu = job.gpu;
+        if !(gpu.downlevel).contains(wgpu::DownlevelFlags::FRAGMENT_WRITABLE_STORAGE) {
+            return Err(crate::Error::Limit {
+                what: "storage textures in fragment shaders".into(),
+                msg: format!(
+                    "anti-aliasing stores its pixels into the frame from a fragment shader, \
+                     which {} does not allow; render with --antialias off or on another \
+                     adapter (WGPU_BACKEND=vulkan)",
+                    gpu.info.name
+                ),
+            });
+        }
         let t = self.targets.as_ref().expect("targets just ensured");
         let size = [t.width, t.height];
         let state = self.antialias.get_or_insert_with(|| AntialiasState {
@@ -38,12 +50,13 @@ impl TerrainRenderer {
         });
         if state.targets.is_none() {
             *state.atlas.borrow_mut() = None;
-            let colour = &t.colour_view;
-            state.targets = Some(state.passes.targets(gpu, size, &t.ray_table_view, colour));
+            let frame = [&t.colour_view, &t.data_view];
+            state.targets = Some(state.passes.targets(gpu, size, &t.ray_table_view, frame));
         }
         state
             .passes
             .write_params(gpu, size, job.s.antialias, &Batch::default());
+        Ok(())
     }
 
     /// The frame targets of a `size` atlas (no edge blend: it follows the resolve).
@@ -102,8 +115,7 @@ impl TerrainRenderer {
                 let mut enc = gpu.device.create_command_encoder(&Default::default());
                 self.encode_samples(job, prepared, atlas, b as u32, &mut enc)?;
                 laps.lap(gpu, "samples")?;
-                let targets = [&t.colour_view, &t.data_view];
-                aa.encode_resolve(&mut enc, atlas, at, targets, batch.count);
+                aa.encode_resolve(&mut enc, atlas, at, batch.count);
                 gpu.queue.submit([enc.finish()]);
                 laps.lap(gpu, "resolve")?;
             }
