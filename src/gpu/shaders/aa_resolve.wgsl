@@ -4,9 +4,9 @@
 // once, stored into the frame's colour at the pixel, and the centre ray's capture data
 // (distance, ids, counters; from the copy taken before the samples) with flag 128 into its
 // data. The other pixels keep the centre rays' colour and data untouched and cost nothing.
-// The fragment blocks of this pass are full; Mesa's CPU rasterisers shade a whole block (and
-// run their vertex stage on one thread) for a one-pixel point, so a point per marked pixel
-// over the frame's targets cost more than the means themselves. The mean is also the pass's
+// The fragment blocks of this pass are full; Mesa's CPU rasterisers shade a whole block for a
+// one-pixel point, so a point per marked pixel drawn over the frame's targets cost about twice
+// what the means themselves did. The mean is also the pass's
 // own output (`means`, the attachment a render pass needs).
 
 @group(0) @binding(1) var aa_pixels: texture_2d<u32>;
