@@ -6,8 +6,8 @@
 // data. The other pixels keep the centre rays' colour and data untouched and cost nothing.
 // The fragment blocks of this pass are full; Mesa's CPU rasterisers shade a whole block for a
 // one-pixel point, so a point per marked pixel drawn over the frame's targets cost about twice
-// what the means themselves did. The mean is also the pass's
-// own output (`means`, the attachment a render pass needs).
+// what the means themselves did. The mean is also the pass's own output (`means`, the
+// attachment a render pass needs; discarded).
 
 @group(0) @binding(1) var aa_pixels: texture_2d<u32>;
 @group(0) @binding(2) var sample_colour: texture_2d<f32>;
