@@ -16,9 +16,10 @@
 //!    pixel's 16 samples, two pixels' 8 or four pixels' 4), with its own frame targets. Mesa's CPU rasterisers run
 //!    every lane of a fragment block, so a full-screen pass with most pixels switched off would
 //!    cost nearly a full pass; on the atlas the samples cost what their rays cost, and every
-//!    pass runs once for all n samples. **Sample rays** (`aa_rays.wgsl`) write its ray table:
-//!    sub-pixel position k of a 4x4 grid, from the centre table and its derivatives (so every
-//!    ray generation, pinhole or distortion table, works the same), the pixel's cone; then the
+//!    pass runs once for all n samples. **Sample rays** (`aa_rays.wgsl`, one fragment per
+//!    marked pixel storing its samples' rays) write its ray table: sub-pixel position k of a
+//!    4x4 grid, from the centre table and its derivatives (so every ray generation, pinhole
+//!    or distortion table, works the same), the pixel's cone; then the
 //!    frame's primary and shading passes run on it (without the tile pre-pass, and with
 //!    free-form bins bounding every ray of a bin: neighbouring entries are not neighbouring
 //!    rays).
@@ -263,7 +264,7 @@ impl AntialiasPasses {
         let store = |b, format| storage_texture_entry(b, fs, format);
         let layouts = [
             layout("aa edges", &[p, f(2), u(3)]),
-            layout("aa rays", &[p, u(1), u(2)]),
+            layout("aa rays", &[p, u(1), u(2), store(3, F::Rgba32Uint)]),
             layout(
                 "aa resolve",
                 &[
@@ -292,7 +293,7 @@ impl AntialiasPasses {
             &module("aa_rays.wgsl", shaders::aa_rays()),
             "fs_sample_rays",
             &layouts[1],
-            &[state(F::Rgba32Uint)],
+            &[state(F::Rgba8Unorm)],
         );
         let resolve = fullscreen_pipeline(
             dev,
@@ -421,6 +422,7 @@ impl AntialiasPasses {
                 params(),
                 view(1, &t.centre_rays_view),
                 view(2, &t.pixels_view),
+                view(3, &targets.ray_table_view),
             ],
         );
         let resolve_bg = self.group(
@@ -459,10 +461,37 @@ impl AntialiasPasses {
         );
     }
 
-    /// Records the sample rays into the atlas's ray table.
-    pub fn encode_rays(&self, enc: &mut wgpu::CommandEncoder, a: &Atlas) {
-        let out = &a.targets.ray_table_view;
-        super::util::encode_fullscreen(enc, "aa rays", &self.rays, &a.rays_bg, &[out]);
+    /// Records the sample rays of the batch's `count` marked pixels into the atlas's ray
+    /// table: the table cleared to "no ray", then one fragment per marked pixel over the
+    /// first rows of the means target storing its samples' rays.
+    pub fn encode_rays(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        a: &Atlas,
+        t: &AntialiasTargets,
+        count: u32,
+    ) {
+        // Direction (0, 0, 1), cone -1: an entry that casts no ray.
+        let none = wgpu::Color {
+            r: 0.0,
+            g: 0.0,
+            b: f64::from(1.0f32.to_bits()),
+            a: f64::from((-1.0f32).to_bits()),
+        };
+        let clear = wgpu::Operations {
+            load: wgpu::LoadOp::Clear(none),
+            store: wgpu::StoreOp::Store,
+        };
+        drop(render_pass(
+            enc,
+            "aa rays clear",
+            &a.targets.ray_table_view,
+            clear,
+        ));
+        let mut p = compact_pass(enc, "aa sample rays", t, count);
+        p.set_pipeline(&self.rays);
+        p.set_bind_group(0, &a.rays_bg, &[]);
+        p.draw(0..3, 0..1);
     }
 
     /// Records the resolve of the batch's `count` marked pixels into the frame's colour and
@@ -475,35 +504,55 @@ impl AntialiasPasses {
         t: &AntialiasTargets,
         count: u32,
     ) {
-        // Only the rows the batch fills are drawn; past its `count` pixels a fragment
-        // stores nothing.
-        let rows = count.div_ceil(t.size[0]).max(1);
-        // SAFETY: nothing reads the means target: it is only the attachment a render pass
-        // needs (the pass's results are its storage stores into the frame), and it is
-        // discarded; a clear of the whole target would cost Mesa's CPU adapters a pass of its
-        // own.
-        let any = wgpu::LoadOp::DontCare(unsafe { wgpu::LoadOpDontCare::enabled() });
-        let mut p = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("aa resolve"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: &t.means_view,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: any,
-                    store: wgpu::StoreOp::Discard,
-                },
-            })],
-            depth_stencil_attachment: None,
-            timestamp_writes: None,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
-        p.set_viewport(0.0, 0.0, t.size[0] as f32, rows as f32, 0.0, 1.0);
+        let mut p = compact_pass(enc, "aa resolve", t, count);
         p.set_pipeline(&self.resolve);
         p.set_bind_group(0, &a.resolve_bg, &[]);
         p.draw(0..3, 0..1);
     }
+}
+
+/// A render pass with the one colour attachment `view`.
+fn render_pass<'e>(
+    enc: &'e mut wgpu::CommandEncoder,
+    label: &str,
+    view: &wgpu::TextureView,
+    ops: wgpu::Operations<wgpu::Color>,
+) -> wgpu::RenderPass<'e> {
+    enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some(label),
+        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+            view,
+            depth_slice: None,
+            resolve_target: None,
+            ops,
+        })],
+        depth_stencil_attachment: None,
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    })
+}
+
+/// A pass of one fragment per marked pixel of a batch of `count` (rows of the screen's width
+/// of the means target; past `count` a fragment does nothing). Its results are storage
+/// writes: the means target is only the attachment a render pass needs, and is discarded.
+fn compact_pass<'e>(
+    enc: &'e mut wgpu::CommandEncoder,
+    label: &str,
+    t: &AntialiasTargets,
+    count: u32,
+) -> wgpu::RenderPass<'e> {
+    // SAFETY: nothing reads the means target (discarded below); a clear of the whole target
+    // would cost Mesa's CPU adapters a pass of its own.
+    let load = wgpu::LoadOp::DontCare(unsafe { wgpu::LoadOpDontCare::enabled() });
+    let ops = wgpu::Operations {
+        load,
+        store: wgpu::StoreOp::Discard,
+    };
+    let mut p = render_pass(enc, label, &t.means_view, ops);
+    let rows = count.div_ceil(t.size[0]).max(1);
+    p.set_viewport(0.0, 0.0, t.size[0] as f32, rows as f32, 0.0, 1.0);
+    p
 }
 
 impl AntialiasTargets {

@@ -74,31 +74,18 @@ struct Screen {
 }
 
 impl Screen {
-    /// The textures of a `size` frame of `tiles` tiles; the ray table is a storage texture
-    /// where ray generation is a compute dispatch.
-    fn new(dev: &wgpu::Device, raygen_compute: bool, size: [u32; 2], tiles: [u32; 2]) -> Screen {
-        let mut usage = wgpu::TextureUsages::TEXTURE_BINDING
-            | wgpu::TextureUsages::RENDER_ATTACHMENT
-            | wgpu::TextureUsages::COPY_SRC
-            | wgpu::TextureUsages::COPY_DST;
-        if raygen_compute {
-            usage |= wgpu::TextureUsages::STORAGE_BINDING;
-        }
-        let ray_table = screen_texture(
-            dev,
-            "ray table",
-            size,
-            wgpu::TextureFormat::Rgba32Uint,
-            usage,
-        );
-        let ray_table_view = ray_table.create_view(&Default::default());
-        let tex = |label, size, format| screen_texture(dev, label, size, format, TARGET_USAGE);
-        let tile_tex = tex("tile start", tiles, wgpu::TextureFormat::Rg32Uint);
-        // The anti-aliasing resolve stores its pixels' colour and data (`aa_resolve.wgsl`).
+    /// The textures of a `size` frame of `tiles` tiles. The ray table is a storage texture
+    /// too (ray generation as a compute dispatch, an anti-aliasing atlas's sample rays), as
+    /// are colour and data (the anti-aliasing resolve stores its pixels: `aa_resolve.wgsl`).
+    fn new(dev: &wgpu::Device, size: [u32; 2], tiles: [u32; 2]) -> Screen {
         let frame_tex = |label, format| {
             let usage = TARGET_USAGE | wgpu::TextureUsages::STORAGE_BINDING;
             screen_texture(dev, label, size, format, usage)
         };
+        let ray_table = frame_tex("ray table", wgpu::TextureFormat::Rgba32Uint);
+        let ray_table_view = ray_table.create_view(&Default::default());
+        let tex = |label, size, format| screen_texture(dev, label, size, format, TARGET_USAGE);
+        let tile_tex = tex("tile start", tiles, wgpu::TextureFormat::Rg32Uint);
         let colour = frame_tex("colour", wgpu::TextureFormat::Rgba8Unorm);
         let data = frame_tex("data", wgpu::TextureFormat::Rgba32Uint);
         let tile_view = tile_tex.create_view(&Default::default());
@@ -199,7 +186,7 @@ impl Targets {
         let dev = &gpu.device;
         let size = [width, height];
         let tiles = [width.div_ceil(TILE), height.div_ceil(TILE)];
-        let s = Screen::new(dev, p.base.raygen_is_compute(), size, tiles);
+        let s = Screen::new(dev, size, tiles);
         let rb = |label, bpp: u32| {
             dev.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),

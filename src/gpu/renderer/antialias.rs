@@ -113,7 +113,7 @@ impl TerrainRenderer {
             for (b, batch) in batches.iter().enumerate() {
                 aa.write_params(gpu, at.size, aa_s, batch);
                 let mut enc = gpu.device.create_command_encoder(&Default::default());
-                self.encode_samples(job, prepared, atlas, b as u32, &mut enc)?;
+                self.encode_samples(job, prepared, atlas, (b as u32, batch), &mut enc)?;
                 laps.lap(gpu, "samples")?;
                 aa.encode_resolve(&mut enc, atlas, at, batch.count);
                 gpu.queue.submit([enc.finish()]);
@@ -128,7 +128,8 @@ impl TerrainRenderer {
         Ok(gpu.device.create_command_encoder(&Default::default()))
     }
 
-    /// Records every sample's passes of batch `batch` on `atlas`: its frame uniforms (its
+    /// Records every sample's passes of batch number `batch` (its share of the list:
+    /// `marked`) on `atlas`: its frame uniforms (its
     /// size, tiles and bins, a stamp of its own, bins over every ray; the tile pre-pass over
     /// every ray of a tile), the sample rays, the primary and shading passes.
     fn encode_samples(
@@ -136,11 +137,12 @@ impl TerrainRenderer {
         job: &FrameJob,
         prepared: &Prepared,
         atlas: &Atlas,
-        batch: u32,
+        (batch, marked): (u32, &Batch),
         enc: &mut wgpu::CommandEncoder,
     ) -> Result<()> {
         let gpu = job.gpu;
-        let aa = &self.antialias.as_ref().expect("prepared").passes;
+        let state = self.antialias.as_ref().expect("prepared");
+        let (aa, screen) = (&state.passes, state.targets.as_ref().expect("prepared"));
         let at = &atlas.targets;
         let mut fu = prepared.uniforms;
         fu.size = [at.width, at.height, at.tiles[0], at.tiles[1]];
@@ -177,7 +179,7 @@ impl TerrainRenderer {
             ..*job
         };
         let mut times = PassTimes::default();
-        aa.encode_rays(enc, atlas);
+        aa.encode_rays(enc, atlas, screen, marked.count);
         self.encode_primary(&atlas_job, enc, &mut times, at, rects.as_ref())?;
         self.encode_shading(&atlas_job, enc, &mut times, at, prepared, rects.as_ref())?;
         if job.timed {
