@@ -29,9 +29,6 @@ struct AaParams {
 
 @group(0) @binding(0) var<uniform> aa: AaParams;
 
-// Unmarked pixels and atlas entries past the list.
-const AA_NONE: u32 = 0xffffffffu;
-
 fn aa_inside(q: vec2<i32>) -> bool {
     return q.x >= 0 && q.y >= 0 && q.x < i32(aa.size.x) && q.y < i32(aa.size.y);
 }
@@ -60,13 +57,6 @@ fn aa_group_origin(g: u32) -> vec2<u32> {
     let b = g / 16u;
     let i = g % 16u;
     return vec2<u32>(((b % bins) * 4u + (i & 3u)) * 4u, ((b / bins) * 4u + (i >> 2u)) * 4u);
-}
-
-// The group of atlas entry `a` (the inverse of `aa_group_origin`).
-fn aa_atlas_group(a: vec2<u32>) -> u32 {
-    let bins = aa.atlas.x / 16u;
-    let b = (a.y / 16u) * bins + a.x / 16u;
-    return b * 16u + ((a.y / 4u) & 3u) * 4u + ((a.x / 4u) & 3u);
 }
 
 // The first group of the pixels with 4 samples (those with 8 share a group by two).
@@ -119,12 +109,7 @@ fn aa_entries(m: u32) -> AaEntries {
 // 4), whose rays stay close (the upper halves of two pixels in one half and their lower
 // halves in the other measured 1-3% slower).
 
-// The sample at place e (row by row) of a 16-sample group: nibble e of the two words.
-fn aa_grid_sample(e: u32) -> u32 {
-    return (select(0xf26d79b3u, 0x1ce5a408u, e < 8u) >> (4u * (e % 8u))) & 15u;
-}
-
-// The place of sample k in a 16-sample group (the inverse of `aa_grid_sample`).
+// The place of sample k in a 16-sample group (row by row): nibble k of the two words.
 fn aa_grid_place(k: u32) -> u32 {
     return (select(0xf5c693a0u, 0xbd428e71u, k < 8u) >> (4u * (k % 8u))) & 15u;
 }
@@ -133,30 +118,6 @@ fn aa_grid_place(k: u32) -> u32 {
 fn aa_entry(e: AaEntries, k: u32) -> vec2<i32> {
     let i = select(e.first + k, aa_grid_place(k), e.n == 16u);
     return e.group + vec2<i32>(i32(i & 3u), i32(i >> 2u));
-}
-
-// The marked pixel m (x, its place in the whole list) and sample k (y) of atlas entry `a`;
-// x = AA_NONE where the entry holds no sample (past the batch, or the unused half or
-// quarters of the last group of pixels with 8 or 4).
-fn aa_atlas_sample(a: vec2<u32>) -> vec2<u32> {
-    let c = aa.counts;
-    let g = aa_atlas_group(a) + c.w;
-    let e = (a.y % 4u) * 4u + a.x % 4u;
-    let g4 = aa_group4();
-    var m = g;
-    var k = aa_grid_sample(e);
-    var end = c.x;
-    if (g >= g4) {
-        m = c.x + c.y + (g - g4) * 4u + e / 4u;
-        k = e % 4u;
-        end = c.x + c.y + c.z;
-    } else if (g >= c.x) {
-        m = c.x + (g - c.x) * 2u + e / 8u;
-        k = e % 8u;
-        end = c.x + c.y;
-    }
-    let batch_end = aa.atlas.z + aa.size.z;
-    return vec2<u32>(select(AA_NONE, m, m < min(end, batch_end)), k);
 }
 
 // The linear colour of an 8-bit sRGB texel `c` (0..1, as loaded from an Rgba8Unorm target).

@@ -18,10 +18,10 @@ fn centre_ray(q: vec2<i32>) -> vec4<f32> {
     return bitcast<vec4<f32>>(textureLoad(centre_rays, q, 0));
 }
 
-// Change of the direction per pixel along `axis`, measured towards +axis (x) and towards
-// -axis (y, the vector again per pixel along +axis); each falls back on the other side's
-// difference where its neighbour is off the screen or shows no ray, and is 0 where both are.
-// (Off the screen a load is bounds-checked and its value unused.)
+// Change of the direction per pixel along `axis`, measured on the +axis side (`plus`) and on
+// the -axis side (`minus`), both per pixel towards +axis; each falls back on the other
+// side's difference where its neighbour is off the screen or shows no ray, and is 0 where
+// both are. (Off the screen a load is bounds-checked and its value unused.)
 struct Slopes {
     plus: vec3<f32>,
     minus: vec3<f32>,
