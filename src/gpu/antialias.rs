@@ -208,8 +208,8 @@ pub fn samples(aa: Antialias) -> u32 {
 }
 
 /// The screen-sized textures: a copy of the centre frame's capture data, the mask and its
-/// readback, the list of marked pixels and their means, the bind group of the edge pass, and
-/// the views the resolve reads and writes.
+/// readback, the list of marked pixels, the attachment of the passes run once a marked pixel,
+/// the bind group of the edge pass, and the views the resolve reads and writes.
 pub(crate) struct AntialiasTargets {
     pub size: [u32; 2],
     pub centre_data: wgpu::Texture,
@@ -219,7 +219,9 @@ pub(crate) struct AntialiasTargets {
     mask_rb: wgpu::Buffer,
     pixels: wgpu::Texture,
     pixels_view: wgpu::TextureView,
-    means_view: wgpu::TextureView,
+    /// The attachment a render pass needs, for the passes of one fragment per marked pixel
+    /// ([`compact_pass`]): their results are storage writes, it is discarded.
+    compact_view: wgpu::TextureView,
     centre_data_view: wgpu::TextureView,
     edges_bg: wgpu::BindGroup,
     /// The frame's colour and data, which the resolve writes at the marked pixels.
@@ -235,10 +237,6 @@ pub(crate) struct Atlas {
     rays_bg: wgpu::BindGroup,
     resolve_bg: wgpu::BindGroup,
 }
-
-/// Bytes per screen pixel of [`AntialiasTargets`]: data 16, mask 1 and its readback 1, list 4,
-/// means 4 (the atlas's frame targets come on top, sized by the samples).
-pub const TARGET_BYTES_PER_PIXEL: u64 = 26;
 
 fn texture(gpu: &Gpu, label: &str, size: [u32; 2], format: F) -> wgpu::Texture {
     screen_texture(&gpu.device, label, size, format, super::util::TARGET_USAGE)
@@ -293,7 +291,7 @@ impl AntialiasPasses {
             &module("aa_rays.wgsl", shaders::aa_rays()),
             "fs_sample_rays",
             &layouts[1],
-            &[state(F::Rgba8Unorm)],
+            &[state(F::R8Unorm)],
         );
         let resolve = fullscreen_pipeline(
             dev,
@@ -301,7 +299,7 @@ impl AntialiasPasses {
             &module("aa_resolve.wgsl", shaders::aa_resolve()),
             "fs_resolve",
             &layouts[2],
-            &[state(F::Rgba8Unorm)],
+            &[state(F::R8Unorm)],
         );
         AntialiasPasses {
             tile: base.tile_pipeline(gpu, "tile (anti-aliasing atlas)", "fs_tile_table"),
@@ -370,8 +368,7 @@ impl AntialiasPasses {
         frame: [&wgpu::TextureView; 2],
     ) -> AntialiasTargets {
         let centre_data = texture(gpu, "aa centre data", size, F::Rgba32Uint);
-        let means = texture(gpu, "aa means", size, F::Rgba8Unorm);
-        let means_view = view_of(&means);
+        let compact = texture(gpu, "aa compact passes", size, F::R8Unorm);
         let mask = texture(gpu, "aa mask", size, F::R8Uint);
         let pixels = texture(gpu, "aa marked pixels", size, F::R32Uint);
         let (data_v, mask_v) = (view_of(&centre_data), view_of(&mask));
@@ -399,7 +396,7 @@ impl AntialiasPasses {
             mask_rb,
             pixels_view: view_of(&pixels),
             pixels,
-            means_view,
+            compact_view: view_of(&compact),
             centre_data_view: data_v,
             edges_bg,
             frame: frame.map(Clone::clone),
@@ -463,7 +460,7 @@ impl AntialiasPasses {
 
     /// Records the sample rays of the batch's `count` marked pixels into the atlas's ray
     /// table: the table cleared to "no ray", then one fragment per marked pixel over the
-    /// first rows of the means target storing its samples' rays.
+    /// first rows of the compact target storing its samples' rays.
     pub fn encode_rays(
         &self,
         enc: &mut wgpu::CommandEncoder,
@@ -496,7 +493,7 @@ impl AntialiasPasses {
 
     /// Records the resolve of the batch's `count` marked pixels into the frame's colour and
     /// data targets (their other pixels are kept): one fragment per marked pixel over the
-    /// first rows of the means target.
+    /// first rows of the compact target.
     pub fn encode_resolve(
         &self,
         enc: &mut wgpu::CommandEncoder,
@@ -534,22 +531,22 @@ fn render_pass<'e>(
 }
 
 /// A pass of one fragment per marked pixel of a batch of `count` (rows of the screen's width
-/// of the means target; past `count` a fragment does nothing). Its results are storage
-/// writes: the means target is only the attachment a render pass needs, and is discarded.
+/// of the compact target; past `count` a fragment does nothing). Its results are storage
+/// writes: the compact target is only the attachment a render pass needs, and is discarded.
 fn compact_pass<'e>(
     enc: &'e mut wgpu::CommandEncoder,
     label: &str,
     t: &AntialiasTargets,
     count: u32,
 ) -> wgpu::RenderPass<'e> {
-    // SAFETY: nothing reads the means target (discarded below); a clear of the whole target
+    // SAFETY: nothing reads the compact target (discarded below); a clear of the whole target
     // would cost Mesa's CPU adapters a pass of its own.
     let load = wgpu::LoadOp::DontCare(unsafe { wgpu::LoadOpDontCare::enabled() });
     let ops = wgpu::Operations {
         load,
         store: wgpu::StoreOp::Discard,
     };
-    let mut p = render_pass(enc, label, &t.means_view, ops);
+    let mut p = render_pass(enc, label, &t.compact_view, ops);
     let rows = count.div_ceil(t.size[0]).max(1);
     p.set_viewport(0.0, 0.0, t.size[0] as f32, rows as f32, 0.0, 1.0);
     p

@@ -1,4 +1,4 @@
-// Anti-aliasing, resolve (`fs_resolve`, full screen over the rows of the `means` target the
+// Anti-aliasing, resolve (`fs_resolve`, full screen over the rows of the compact target the
 // batch fills: one fragment per marked pixel of the batch, row by row in the screen's width):
 // the mean of the pixel's 4, 8 or 16 samples (`aa_entries`) in linear light, sRGB-encoded
 // once, stored into the frame's colour at the pixel, and the centre ray's capture data
@@ -6,8 +6,8 @@
 // data. The other pixels keep the centre rays' colour and data untouched and cost nothing.
 // The fragment blocks of this pass are full; Mesa's CPU rasterisers shade a whole block for a
 // one-pixel point, so a point per marked pixel drawn over the frame's targets cost about twice
-// what the means themselves did. The mean is also the pass's own output (`means`, the
-// attachment a render pass needs; discarded).
+// what the means themselves did. The pass's own output goes to the attachment a render pass
+// needs, which is discarded.
 
 @group(0) @binding(1) var aa_pixels: texture_2d<u32>;
 @group(0) @binding(2) var sample_colour: texture_2d<f32>;
@@ -33,5 +33,5 @@ fn fs_resolve(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
         textureStore(frame_colour, px, mean);
         textureStore(frame_data, px, vec4<u32>(d.xyz, d.w | 128u));
     }
-    return mean;
+    return vec4<f32>(0.0);
 }
