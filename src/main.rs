@@ -31,6 +31,11 @@ struct Cli {
     /// with it on are not comparable with those taken without).
     #[arg(long, global = true)]
     trace_passes: bool,
+    /// Where an anti-aliased frame's list of marked pixels is built: `cpu` (from the edge mask
+    /// read back), `gpu` (compute; only the list's length is read back), or `auto` (cpu on CPU
+    /// adapters, whose compute runs on about one core; gpu elsewhere).
+    #[arg(long, global = true, value_name = "WHERE", default_value = "auto")]
+    aa_list: relief::gpu::ListChoice,
 }
 
 #[derive(Subcommand)]
@@ -165,6 +170,7 @@ fn main() {
     relief::app::gpu_options::set(relief::gpu::GpuOptions {
         kernels: cli.kernels,
         trace_passes: cli.trace_passes,
+        aa_list: cli.aa_list,
     });
     if let Err(e) = run(cli) {
         eprintln!("error: {e:#}");

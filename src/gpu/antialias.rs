@@ -10,8 +10,9 @@
 //!    pixel); or a near miss the centre ray's cone found (flag 64: the centre rays are cast
 //!    with the `NEAR` traversal). The mask holds each marked pixel's sample count: 4, 8 or 16
 //!    by its contrast with `"edges"` (at most about 2 levels of error against 16 samples:
-//!    [`ADAPT_4`], [`ADAPT_8`]), else the chosen count. Read back, it becomes the list of
-//!    marked pixels ([`Marked`]: the 16s, then the 8s, then the 4s).
+//!    [`ADAPT_4`], [`ADAPT_8`]), else the chosen count. It becomes the list of marked
+//!    pixels (the 16s, then the 8s, then the 4s): read back and made on the CPU ([`Marked`])
+//!    on CPU adapters, built by compute on GPUs (`gpu_list`, [`crate::gpu::ListChoice`]).
 //! 2. The **sample atlas**: a target of the list's samples only (4x4 groups, each holding one
 //!    pixel's 16 samples, two pixels' 8 or four pixels' 4), with its own frame targets. Mesa's CPU rasterisers run
 //!    every lane of a fragment block, so a full-screen pass with most pixels switched off would
@@ -39,9 +40,12 @@ use super::util::{
 use super::{shaders, Gpu};
 use wgpu::TextureFormat as F;
 
+mod gpu_list;
 mod list;
+#[doc(hidden)]
+pub use gpu_list::{list_on_cpu, list_on_gpu};
 use list::tile_order;
-pub(crate) use list::{sample_rays, Batch, Marked};
+pub(crate) use list::{batches, sample_rays, Batch, Marked};
 
 /// How a frame is anti-aliased (`[render] antialias`, `--antialias`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize)]
@@ -183,6 +187,8 @@ pub(crate) struct AntialiasPasses {
     edges: wgpu::RenderPipeline,
     rays: wgpu::RenderPipeline,
     resolve: wgpu::RenderPipeline,
+    /// The list built on the GPU ([`crate::gpu::ListChoice`]); `None`: on the CPU.
+    list: Option<gpu_list::ListPasses>,
     layouts: [wgpu::BindGroupLayout; 3],
     params: wgpu::Buffer,
 }
@@ -216,7 +222,7 @@ pub(crate) struct AntialiasTargets {
     centre_rays_view: wgpu::TextureView,
     mask: wgpu::Texture,
     mask_view: wgpu::TextureView,
-    mask_rb: wgpu::Buffer,
+    source: ListSource,
     pixels: wgpu::Texture,
     pixels_view: wgpu::TextureView,
     /// The attachment a render pass needs, for the passes of one fragment per marked pixel
@@ -228,6 +234,14 @@ pub(crate) struct AntialiasTargets {
     frame: [wgpu::TextureView; 2],
     /// The screen's tiles in the order the list takes them ([`tile_order`]).
     tiles: Vec<u32>,
+}
+
+/// Where the list of marked pixels comes from.
+enum ListSource {
+    /// The edge mask read back into this buffer, the list made on the CPU and uploaded.
+    Cpu(wgpu::Buffer),
+    /// Built on the GPU; only its parts' lengths are read back.
+    Gpu(gpu_list::ListTargets),
 }
 
 /// The sample atlas of one size: its own frame targets (every pass of the samples runs on
@@ -301,11 +315,13 @@ impl AntialiasPasses {
             &layouts[2],
             &[state(F::R8Unorm)],
         );
+        let on_gpu = gpu.options.aa_list.on_gpu(&gpu.info);
         AntialiasPasses {
             tile: base.tile_pipeline(gpu, "tile (anti-aliasing atlas)", "fs_tile_table"),
             edges,
             rays,
             resolve,
+            list: on_gpu.then(|| gpu_list::ListPasses::new(gpu)),
             layouts,
             params: dev.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("aa parameters"),
@@ -370,8 +386,16 @@ impl AntialiasPasses {
         let centre_data = texture(gpu, "aa centre data", size, F::Rgba32Uint);
         let compact = texture(gpu, "aa compact passes", size, F::R8Unorm);
         let mask = texture(gpu, "aa mask", size, F::R8Uint);
-        let pixels = texture(gpu, "aa marked pixels", size, F::R32Uint);
-        let (data_v, mask_v) = (view_of(&centre_data), view_of(&mask));
+        let list_usage = super::util::TARGET_USAGE | wgpu::TextureUsages::STORAGE_BINDING;
+        let pixels = screen_texture(
+            &gpu.device,
+            "aa marked pixels",
+            size,
+            F::R32Uint,
+            list_usage,
+        );
+        let (data_v, mask_v, pixels_v) = (view_of(&centre_data), view_of(&mask), view_of(&pixels));
+        let tiles = tile_order(size[0], size[1]);
         let edges_bg = self.group(
             gpu,
             0,
@@ -381,26 +405,29 @@ impl AntialiasPasses {
                 view(3, &data_v),
             ],
         );
-        let mask_rb = gpu.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("aa mask readback"),
-            size: u64::from(super::util::padded_row(size[0])) * u64::from(size[1]),
-            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-            mapped_at_creation: false,
-        });
+        let source = match &self.list {
+            Some(l) => ListSource::Gpu(l.targets(gpu, size, &tiles, &mask_v, &pixels_v)),
+            None => ListSource::Cpu(gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("aa mask readback"),
+                size: u64::from(super::util::padded_row(size[0])) * u64::from(size[1]),
+                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+                mapped_at_creation: false,
+            })),
+        };
         AntialiasTargets {
             size,
             centre_data,
             centre_rays_view: ray_table.clone(),
             mask_view: mask_v,
             mask,
-            mask_rb,
-            pixels_view: view_of(&pixels),
+            source,
+            pixels_view: pixels_v,
             pixels,
             compact_view: view_of(&compact),
             centre_data_view: data_v,
             edges_bg,
             frame: frame.map(Clone::clone),
-            tiles: tile_order(size[0], size[1]),
+            tiles,
         }
     }
 
@@ -441,13 +468,19 @@ impl AntialiasPasses {
         }
     }
 
-    /// Records the edge mask over the centre frame and its readback copy.
+    /// Records the edge mask over the centre frame, then its readback copy or the list's
+    /// passes on the GPU.
     pub fn encode_edges(&self, enc: &mut wgpu::CommandEncoder, t: &AntialiasTargets) {
         super::util::encode_fullscreen(enc, "aa edges", &self.edges, &t.edges_bg, &[&t.mask_view]);
+        let mask_rb = match (&t.source, &self.list) {
+            (ListSource::Gpu(lt), Some(l)) => return l.encode(enc, lt),
+            (ListSource::Gpu(_), None) => unreachable!("a GPU list's targets come from its passes"),
+            (ListSource::Cpu(rb), _) => rb,
+        };
         enc.copy_texture_to_buffer(
             t.mask.as_image_copy(),
             wgpu::TexelCopyBufferInfo {
-                buffer: &t.mask_rb,
+                buffer: mask_rb,
                 layout: wgpu::TexelCopyBufferLayout {
                     offset: 0,
                     bytes_per_row: Some(super::util::padded_row(t.size[0])),
@@ -553,16 +586,26 @@ fn compact_pass<'e>(
 }
 
 impl AntialiasTargets {
-    /// The mask read back (after [`AntialiasPasses::encode_edges`] was submitted): the
-    /// marked pixels by sample count.
-    pub fn marked_pixels(&self, gpu: &Gpu) -> crate::Result<Marked> {
+    /// The list of marked pixels in place for the sample passes (after
+    /// [`AntialiasPasses::encode_edges`] was submitted): the mask read back, the list made
+    /// and uploaded, or the list built on the GPU; returns its parts' lengths (pixels with 16,
+    /// 8 and 4 samples).
+    pub fn list(&self, gpu: &Gpu) -> crate::Result<[u32; 3]> {
+        let mask_rb = match &self.source {
+            ListSource::Gpu(lt) => return lt.lengths(gpu),
+            ListSource::Cpu(rb) => rb,
+        };
         let [w, h] = self.size;
-        let bytes = super::util::read_buffer(gpu, &self.mask_rb, w, h)?;
-        Ok(Marked::from_mask_in(&bytes, w, h, &self.tiles))
+        let bytes = super::util::read_buffer(gpu, mask_rb, w, h)?;
+        let list = Marked::from_mask_in(&bytes, w, h, &self.tiles);
+        if !list.pixels.is_empty() {
+            self.write_pixels(gpu, &list.pixels);
+        }
+        Ok(list.counts)
     }
 
     /// Uploads the list of marked pixels (row by row in the screen's width).
-    pub fn write_pixels(&self, gpu: &Gpu, list: &[u32]) {
+    fn write_pixels(&self, gpu: &Gpu, list: &[u32]) {
         let w = self.size[0];
         let rows = (list.len() as u32).div_ceil(w);
         let mut data = list.to_vec();

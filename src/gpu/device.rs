@@ -35,6 +35,49 @@ pub struct GpuOptions {
     /// `Gpu::trace_lap`. It serialises the frame, so frame times taken with it on are not
     /// comparable with those taken without.
     pub trace_passes: bool,
+    /// Where an anti-aliased frame's list of marked pixels is built; read when the
+    /// anti-aliasing passes are built.
+    pub aa_list: ListChoice,
+}
+
+/// Where the list of marked pixels of an anti-aliased frame is built (`--aa-list`): on the
+/// CPU from the edge mask read back, or on the GPU, which then reads back only the list's
+/// length (`gpu::antialias::gpu_list`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ListChoice {
+    /// The CPU on CPU adapters (whose compute runs on about one core), the GPU elsewhere.
+    #[default]
+    Auto,
+    Cpu,
+    Gpu,
+}
+
+impl ListChoice {
+    /// Whether the list is built on the GPU on the adapter `info`.
+    pub fn on_gpu(self, info: &wgpu::AdapterInfo) -> bool {
+        match self {
+            ListChoice::Auto => info.device_type != wgpu::DeviceType::Cpu,
+            ListChoice::Cpu => false,
+            ListChoice::Gpu => true,
+        }
+    }
+}
+
+impl std::str::FromStr for ListChoice {
+    type Err = Error;
+
+    /// `auto`, `cpu` or `gpu`.
+    fn from_str(s: &str) -> Result<ListChoice> {
+        match s {
+            "auto" => Ok(ListChoice::Auto),
+            "cpu" => Ok(ListChoice::Cpu),
+            "gpu" => Ok(ListChoice::Gpu),
+            other => Err(Error::invalid(
+                "aa-list",
+                format!("`{other}`: expected auto, cpu or gpu"),
+            )),
+        }
+    }
 }
 
 /// The caller's choice of kernel path ([`KernelPath`]).

@@ -69,7 +69,8 @@ pub mod voxels;
 pub use antialias::Antialias;
 pub(crate) use device::shader_module;
 pub use device::{
-    Gpu, GpuOptions, KernelChoice, KernelPath, ParamSpace, PARAM_USAGE, STORAGE_BUFFERS_PER_STAGE,
+    Gpu, GpuOptions, KernelChoice, KernelPath, ListChoice, ParamSpace, PARAM_USAGE,
+    STORAGE_BUFFERS_PER_STAGE,
 };
 pub use frame::{
     FrameOutput, PassTimes, RenderSettings, Stage, TraceMode, FLAG_ANTIALIASED, FLAG_NEAR_MISS,

@@ -405,6 +405,11 @@ pub fn aa_rays() -> String {
     [FULLSCREEN, AA_COMMON, include_str!("shaders/aa_rays.wgsl")].concat()
 }
 
+/// The list of marked pixels built on the GPU (compute, `gpu::antialias::gpu_list`).
+pub fn aa_list() -> String {
+    include_str!("shaders/aa_list.wgsl").to_string()
+}
+
 pub fn aa_resolve() -> String {
     [
         FULLSCREEN,
@@ -534,6 +539,7 @@ pub fn all() -> Vec<(&'static str, String)> {
         ("aa_edges", aa_edges()),
         ("aa_rays", aa_rays()),
         ("aa_resolve", aa_resolve()),
+        ("aa_list", aa_list()),
         ("voxels", voxels(2)),
         ("pattern", pattern()),
         ("present", present()),

@@ -100,46 +100,45 @@ impl Marked {
             counts,
         }
     }
+}
 
-    /// Atlas groups the list fills (a pixel with 8 samples shares one with another, one with
-    /// 4 with three others).
-    pub fn groups(&self) -> u32 {
-        let [a, b, c] = self.counts;
-        a + b.div_ceil(2) + c.div_ceil(4)
-    }
+/// Atlas groups a list of `counts` pixels with 16, 8 and 4 samples fills (a pixel with 8
+/// samples shares one with another, one with 4 with three others).
+fn groups([a, b, c]: [u32; 3]) -> u32 {
+    a + b.div_ceil(2) + c.div_ceil(4)
+}
 
-    /// The place in the list of group `g`'s first pixel (the list's length for
-    /// [`Marked::groups`]).
-    pub fn first_pixel(&self, g: u32) -> u32 {
-        let [a, b, c] = self.counts;
-        let g4 = a + b.div_ceil(2);
-        if g <= a {
-            g
-        } else if g <= g4 {
-            (a + (g - a) * 2).min(a + b)
-        } else {
-            (a + b + (g - g4) * 4).min(a + b + c)
-        }
+/// The place in a list of `counts` of group `g`'s first pixel (the list's length for
+/// [`groups`]).
+fn first_pixel([a, b, c]: [u32; 3], g: u32) -> u32 {
+    let g4 = a + b.div_ceil(2);
+    if g <= a {
+        g
+    } else if g <= g4 {
+        (a + (g - a) * 2).min(a + b)
+    } else {
+        (a + b + (g - g4) * 4).min(a + b + c)
     }
+}
 
-    /// The batches of an atlas of `per_batch` groups.
-    pub fn batches(&self, per_batch: u32) -> Vec<Batch> {
-        let groups = self.groups();
-        (0..groups)
-            .step_by(per_batch.max(1) as usize)
-            .map(|g| {
-                let end = (g + per_batch).min(groups);
-                let first = self.first_pixel(g);
-                Batch {
-                    counts: self.counts,
-                    group: g,
-                    groups: end - g,
-                    first,
-                    count: self.first_pixel(end) - first,
-                }
-            })
-            .collect()
-    }
+/// The batches of a list of `counts` pixels with 16, 8 and 4 samples in atlases of
+/// `per_batch` groups.
+pub(crate) fn batches(counts: [u32; 3], per_batch: u32) -> Vec<Batch> {
+    let all = groups(counts);
+    (0..all)
+        .step_by(per_batch.max(1) as usize)
+        .map(|g| {
+            let end = (g + per_batch).min(all);
+            let first = first_pixel(counts, g);
+            Batch {
+                counts,
+                group: g,
+                groups: end - g,
+                first,
+                count: first_pixel(counts, end) - first,
+            }
+        })
+        .collect()
 }
 
 /// One atlas's share of a [`Marked`] list: groups `group..group + groups`, pixels
@@ -235,18 +234,15 @@ mod tests {
 
     #[test]
     fn groups_and_batches_cover_every_pixel_once() {
-        let m = Marked {
-            pixels: (0..15).collect(),
-            counts: [3, 5, 7],
-        };
+        let counts = [3, 5, 7];
         // 3 groups of one 16, 3 of two 8s (the last half empty), 2 of four 4s.
-        assert_eq!(m.groups(), 8);
-        let firsts: Vec<u32> = (0..=8).map(|g| m.first_pixel(g)).collect();
+        assert_eq!(super::groups(counts), 8);
+        let firsts: Vec<u32> = (0..=8).map(|g| super::first_pixel(counts, g)).collect();
         assert_eq!(firsts, [0, 1, 2, 3, 5, 7, 8, 12, 15]);
         for per in 1..=9 {
-            let b = m.batches(per);
+            let b = super::batches(counts, per);
             assert_eq!(b.iter().map(|b| b.groups).sum::<u32>(), 8);
-            assert!(b.iter().all(|b| b.groups <= per && b.counts == m.counts));
+            assert!(b.iter().all(|b| b.groups <= per && b.counts == counts));
             let mut next = (0, 0);
             for Batch {
                 group,
@@ -261,7 +257,7 @@ mod tests {
             }
             assert_eq!(next, (8, 15));
         }
-        assert!(Marked::default().batches(4).is_empty());
+        assert!(super::batches([0; 3], 4).is_empty());
     }
 
     /// The list made with rows of zeros skipped eight pixels at a time is the one made pixel

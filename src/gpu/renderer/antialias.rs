@@ -4,7 +4,7 @@
 
 use super::{FrameJob, Prepared, TerrainRenderer, VoxelRects};
 use crate::cpu::voxel::{InstanceRect, PixelRect};
-use crate::gpu::antialias::{copy_whole, AntialiasPasses, AntialiasTargets, Atlas, Batch};
+use crate::gpu::antialias::{batches, copy_whole, AntialiasPasses, AntialiasTargets, Atlas, Batch};
 use crate::gpu::frame::PassTimes;
 use crate::gpu::objects::BIN_CAPACITY;
 use crate::gpu::targets::Targets;
@@ -91,18 +91,16 @@ impl TerrainRenderer {
         copy_whole(&mut enc, &t.data, &at.centre_data);
         aa.encode_edges(&mut enc, at);
         gpu.queue.submit([enc.finish()]);
-        let list = at.marked_pixels(gpu)?;
+        let counts = at.list(gpu)?;
         laps.lap(gpu, "edges and list")?;
-        let marked = list.pixels.len() as u32;
-        times.antialias_counts = list.counts.map(u64::from);
+        let marked: u32 = counts.iter().sum();
+        times.antialias_counts = counts.map(u64::from);
         if marked > 0 {
-            at.write_pixels(gpu, &list.pixels);
             let aa_s = job.s.antialias;
-            let batches = list.batches(at.batch_groups());
+            let batches = batches(counts, at.batch_groups());
             let size = at.atlas_size(batches[0].groups);
             log::debug!(
-                "anti-aliasing: {marked} pixels marked (16, 8, 4 samples: {:?}), atlas {size:?}",
-                list.counts
+                "anti-aliasing: {marked} pixels marked (16, 8, 4 samples: {counts:?}), atlas {size:?}"
             );
             let mut atlas = state.atlas.borrow_mut();
             if atlas.as_ref().map(|a| [a.targets.width, a.targets.height]) != Some(size) {
