@@ -60,6 +60,18 @@ say "adapter: $(head -n 3 "$out/adapter.txt" | tr '\n' ' ')"
 for scene in alps airfield tree; do
     run "antialias-$scene" 50 bench antialias "terrains/$scene.toml" --frames "$frames"
 done
+# The list of marked pixels built on the GPU (the default there) against the CPU's: the
+# frame ratio, and the "edges and list" lap of --trace-passes (docs/antialiasing.md#on-a-gpu).
+for scene in alps airfield; do
+    run "antialias-$scene-cpu-list" 50 bench antialias "terrains/$scene.toml" --frames "$frames" --aa-list cpu
+done
+for list in cpu gpu cpu gpu; do
+    [ "$(left)" -lt 20 ] && { say "skipped (deadline): the list laps"; break; }
+    laps=$(RUST_LOG=info timeout 30 "$bin" render terrains/alps.toml --size 1280x720 --antialias edges \
+        --trace-passes --frames 8 --aa-list "$list" --out "$out/laps-$list" 2>&1 |
+        grep -o 'edges and list [0-9.]* ms' | tail -n 6 | grep -o '[0-9.]*' | tr '\n' ' ')
+    say "alps 1280x720, --aa-list $list, edges and list (ms, frames 3-8): $laps"
+done
 run primary 30 bench primary
 run terrain 30 bench terrain --frames 6
 run freeforms 30 bench freeforms --frames 9

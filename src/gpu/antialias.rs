@@ -472,10 +472,9 @@ impl AntialiasPasses {
     /// passes on the GPU.
     pub fn encode_edges(&self, enc: &mut wgpu::CommandEncoder, t: &AntialiasTargets) {
         super::util::encode_fullscreen(enc, "aa edges", &self.edges, &t.edges_bg, &[&t.mask_view]);
-        let mask_rb = match (&t.source, &self.list) {
-            (ListSource::Gpu(lt), Some(l)) => return l.encode(enc, lt),
-            (ListSource::Gpu(_), None) => unreachable!("a GPU list's targets come from its passes"),
-            (ListSource::Cpu(rb), _) => rb,
+        let mask_rb = match &t.source {
+            ListSource::Gpu(lt) => return lt.encode(enc),
+            ListSource::Cpu(rb) => rb,
         };
         enc.copy_texture_to_buffer(
             t.mask.as_image_copy(),

@@ -19,7 +19,7 @@ struct ListUniforms {
     size: [u32; 4],
 }
 
-/// The three pipelines (count, scan, place) and their bind-group layout.
+/// The three pipelines (count, scan, place) and their bind-group layout, built once.
 pub(crate) struct ListPasses {
     count: wgpu::ComputePipeline,
     scan: wgpu::ComputePipeline,
@@ -30,6 +30,8 @@ pub(crate) struct ListPasses {
 /// The buffers of one screen size: the parameters, the tiles in list order, the per-tile
 /// counts (then places) with the parts' lengths after them, and the lengths' readback.
 pub(crate) struct ListTargets {
+    /// The passes' pipelines: count, scan, place.
+    pipelines: [wgpu::ComputePipeline; 3],
     tiles: u32,
     /// Workgroups of a dispatch over the tiles: as wide as the adapter allows, then rows.
     groups: [u32; 2],
@@ -139,6 +141,7 @@ impl ListPasses {
         let workgroups = n.div_ceil(64);
         let x = workgroups.clamp(1, wide);
         ListTargets {
+            pipelines: [&self.count, &self.scan, &self.place].map(Clone::clone),
             tiles: n,
             groups: [x, workgroups.div_ceil(x).max(1)],
             tile_counts,
@@ -147,38 +150,40 @@ impl ListPasses {
             _buffers: [params, tiles],
         }
     }
+}
 
+impl ListTargets {
     /// Records the list's three dispatches over the mask and the copy of its parts' lengths
     /// to their readback ([`ListTargets::lengths`] once submitted).
-    pub fn encode(&self, enc: &mut wgpu::CommandEncoder, t: &ListTargets) {
-        let [x, y] = t.groups;
+    pub fn encode(&self, enc: &mut wgpu::CommandEncoder) {
+        let [x, y] = self.groups;
         // A pass each: the scan reads every tile's count, the placing every tile's place.
-        for (label, pipeline, groups) in [
-            ("aa list count", &self.count, [x, y]),
-            ("aa list scan", &self.scan, [1, 1]),
-            ("aa list place", &self.place, [x, y]),
-        ] {
+        let labels = ["aa list count", "aa list scan", "aa list place"];
+        for ((label, pipeline), groups) in
+            labels
+                .iter()
+                .zip(&self.pipelines)
+                .zip([[x, y], [1, 1], [x, y]])
+        {
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some(label),
                 timestamp_writes: None,
             });
             pass.set_pipeline(pipeline);
-            pass.set_bind_group(0, &t.bind_group, &[]);
+            pass.set_bind_group(0, &self.bind_group, &[]);
             pass.dispatch_workgroups(groups[0], groups[1], 1);
         }
         enc.copy_buffer_to_buffer(
-            &t.tile_counts,
-            u64::from(t.tiles) * LENGTHS_BYTES,
-            &t.lengths_rb,
+            &self.tile_counts,
+            u64::from(self.tiles) * LENGTHS_BYTES,
+            &self.lengths_rb,
             0,
             LENGTHS_BYTES,
         );
     }
-}
 
-impl ListTargets {
     /// The list's parts' lengths (pixels with 16, 8 and 4 samples), after
-    /// [`ListPasses::encode`] was submitted.
+    /// [`ListTargets::encode`] was submitted.
     pub fn lengths(&self, gpu: &Gpu) -> Result<[u32; 3]> {
         let bytes = read_buffer(gpu, &self.lengths_rb, LENGTHS_BYTES as u32, 1)?;
         let v: [u32; 4] = bytemuck::pod_read_unaligned(&bytes);
@@ -231,7 +236,7 @@ pub fn list_on_gpu(gpu: &Gpu, mask: &[u8], w: u32, h: u32) -> Result<(Vec<u32>, 
         mapped_at_creation: false,
     });
     let mut enc = dev.create_command_encoder(&Default::default());
-    passes.encode(&mut enc, &targets);
+    targets.encode(&mut enc);
     enc.copy_texture_to_buffer(
         list_t.as_image_copy(),
         wgpu::TexelCopyBufferInfo {
