@@ -43,6 +43,9 @@ pub struct AntialiasBench {
     pub quality: Quality,
     pub quality_size: (u32, u32),
     pub quality_frames: u32,
+    /// Where the timed frames built their list of marked pixels: `"cpu"` or `"gpu"`
+    /// (`--aa-list`).
+    pub list: &'static str,
 }
 
 /// Times `scene_path` at `size` with each of [`CHOICES`] (`frames` timed frames each), then
@@ -91,6 +94,11 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo,
     }
     timings[0].frame_ms = median(plain);
     let run = RunInfo::new(&p.gpu, scene_path, size, frames);
+    let list = if gpu.options.aa_list.on_gpu(&gpu.info) {
+        "gpu"
+    } else {
+        "cpu"
+    };
     drop((p, renderer));
     let q_size = format!("{}x{}", QUALITY_SIZE.0, QUALITY_SIZE.1);
     let q_job = quality::render_job(&[&scene_arg, "--size", &q_size])?;
@@ -100,6 +108,7 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo,
         quality,
         quality_size: QUALITY_SIZE,
         quality_frames: frames.max(2),
+        list,
     };
     Ok((run, details))
 }
@@ -134,6 +143,10 @@ impl AntialiasBench {
                 self.quality_frames, self.quality_size.0, self.quality_size.1
             ),
             "reference_change: the reference's own mean change between consecutive frames".into(),
+            format!(
+                "the list of marked pixels built on the {} (--aa-list)",
+                self.list.to_uppercase()
+            ),
             format!(
                 "te_marked, te_sky, te_smooth, te_detail: the temporal excess from pixels anti-aliased in either frame of a pair, else sky, else surfaces at most {} levels from every neighbour, else the rest (they add up to temporal_excess)",
                 quality::SMOOTH_STEP
