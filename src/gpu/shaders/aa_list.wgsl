@@ -33,8 +33,9 @@ fn list_part(p: vec2<u32>) -> u32 {
 }
 
 // Tile of invocation `local` of a workgroup of a dispatch as wide as `groups.x`: one
-// invocation a tile (no workgroup memory, no barrier: Mesa's CPU adapters run a workgroup with
-// barriers as a coroutine per invocation).
+// invocation a tile, no workgroup memory, no barrier (a workgroup a tile with barriers made
+// lavapipe's edges and list 32-50 ms instead of 21 at 1280x720: llvmpipe runs a workgroup's
+// invocations as coroutines that suspend at each barrier).
 fn list_tile(wg: vec3<u32>, groups: vec3<u32>, local: u32) -> u32 {
     return (wg.y * groups.x + wg.x) * 64u + local;
 }
