@@ -36,7 +36,7 @@ fn the_gpu_builds_the_cpus_list_entry_for_entry() {
     ] {
         for &d in densities {
             let m = mask(w, h, d, &mut seed);
-            let cpu = relief::gpu::antialias::list_on_cpu(&m, w, h);
+            let cpu = relief::gpu::antialias::list_on_cpu(&m, w, h).expect("CPU list");
             let gpu = relief::gpu::antialias::list_on_gpu(g, &m, w, h).expect("GPU list");
             assert_eq!(gpu.1, cpu.1, "{w}x{h} at {d}%: the parts' lengths");
             let first_difference = gpu.0.iter().zip(&cpu.0).position(|(a, b)| a != b);
@@ -49,8 +49,12 @@ fn the_gpu_builds_the_cpus_list_entry_for_entry() {
             assert_eq!(cpu.0.is_empty(), d == 0, "{w}x{h} at {d}%");
         }
     }
-    // A mask of the wrong size is refused, not read past its end.
+    // A mask of the wrong size is refused, not read past its end, and one over the
+    // adapter's texture size too.
     assert!(relief::gpu::antialias::list_on_gpu(g, &[0; 5], 2, 3).is_err());
+    assert!(relief::gpu::antialias::list_on_cpu(&[0; 5], 2, 3).is_err());
+    let wide = g.device.limits().max_texture_dimension_2d + 1;
+    assert!(relief::gpu::antialias::list_on_gpu(g, &vec![0; wide as usize], wide, 1).is_err());
 }
 
 /// End to end from the command line: the same anti-aliased frames (PNG and depth TIFF) with

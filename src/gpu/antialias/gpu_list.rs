@@ -191,15 +191,28 @@ impl ListTargets {
     }
 }
 
-/// The list of a `w` x `h` edge mask (a byte a pixel: 16, 8, 4 or unmarked) built on the
-/// GPU, read back: its pixels (x | y << 16) and its parts' lengths. For tests, which compare
-/// it with [`cpu_list`]; frames never read the list back.
-#[doc(hidden)]
-pub fn list_on_gpu(gpu: &Gpu, mask: &[u8], w: u32, h: u32) -> Result<(Vec<u32>, [u32; 3])> {
-    if w == 0 || h == 0 || mask.len() != (w * h) as usize {
+/// Refuses a mask that is not `w` x `h` bytes.
+fn check_mask(mask: &[u8], w: u32, h: u32) -> Result<()> {
+    if w == 0 || h == 0 || mask.len() as u64 != u64::from(w) * u64::from(h) {
         return Err(crate::Error::invalid(
             "mask",
             format!("{} bytes for a {w}x{h} screen", mask.len()),
+        ));
+    }
+    Ok(())
+}
+
+/// The list of a `w` x `h` edge mask (a byte a pixel: 16, 8, 4 or unmarked) built on the
+/// GPU, read back: its pixels (x | y << 16) and its parts' lengths. For tests, which compare
+/// it with [`list_on_cpu`]; frames never read the list back.
+#[doc(hidden)]
+pub fn list_on_gpu(gpu: &Gpu, mask: &[u8], w: u32, h: u32) -> Result<(Vec<u32>, [u32; 3])> {
+    check_mask(mask, w, h)?;
+    let most = gpu.device.limits().max_texture_dimension_2d;
+    if w.max(h) > most {
+        return Err(crate::Error::invalid(
+            "mask",
+            format!("{w}x{h} is over the adapter's {most} texels a side"),
         ));
     }
     let dev = &gpu.device;
@@ -260,7 +273,8 @@ pub fn list_on_gpu(gpu: &Gpu, mask: &[u8], w: u32, h: u32) -> Result<(Vec<u32>, 
 /// The list of a `w` x `h` edge mask made on the CPU (what frames on CPU adapters use), as
 /// [`list_on_gpu`] returns it.
 #[doc(hidden)]
-pub fn list_on_cpu(mask: &[u8], w: u32, h: u32) -> (Vec<u32>, [u32; 3]) {
+pub fn list_on_cpu(mask: &[u8], w: u32, h: u32) -> Result<(Vec<u32>, [u32; 3])> {
+    check_mask(mask, w, h)?;
     let m = super::Marked::from_mask_in(mask, w, h, &super::tile_order(w, h));
-    (m.pixels, m.counts)
+    Ok((m.pixels, m.counts))
 }
