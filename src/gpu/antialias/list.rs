@@ -1,5 +1,6 @@
 //! The list of marked pixels (`gpu::antialias`): the edge mask read back, sorted by sample
-//! count and tile by tile along a Hilbert curve, and cut into batches of the atlas.
+//! count and tile by tile along a Hilbert curve (on CPU adapters; GPUs build the same list
+//! themselves, `gpu_list`), and cut into batches of the atlas from its parts' lengths.
 
 /// The marked pixels of a frame, packed x | y << 16: those with 16 samples first, then those
 /// with 8, then those with 4, each part tile by tile (8x8 tiles along a Hilbert curve,
