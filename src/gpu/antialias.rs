@@ -34,8 +34,8 @@
 //! inside each pixel, the pixel's own cone).
 
 use super::util::{
-    float_texture_entry, fullscreen_pipeline, screen_texture, storage_texture_entry, target_state,
-    uint_texture_entry, view,
+    copy_to_readback, float_texture_entry, fullscreen_pipeline, readback_buffer, screen_texture,
+    storage_texture_entry, target_state, uint_texture_entry, view,
 };
 use super::{shaders, Gpu};
 use wgpu::TextureFormat as F;
@@ -232,14 +232,16 @@ pub(crate) struct AntialiasTargets {
     edges_bg: wgpu::BindGroup,
     /// The frame's colour and data, which the resolve writes at the marked pixels.
     frame: [wgpu::TextureView; 2],
-    /// The screen's tiles in the order the list takes them ([`tile_order`]).
-    tiles: Vec<u32>,
 }
 
 /// Where the list of marked pixels comes from.
 enum ListSource {
-    /// The edge mask read back into this buffer, the list made on the CPU and uploaded.
-    Cpu(wgpu::Buffer),
+    /// The edge mask read back into `mask_rb`, the list made on the CPU (the screen's tiles
+    /// taken in the order `tiles`, [`tile_order`]) and uploaded.
+    Cpu {
+        mask_rb: wgpu::Buffer,
+        tiles: Vec<u32>,
+    },
     /// Built on the GPU; only its parts' lengths are read back.
     Gpu(gpu_list::ListTargets),
 }
@@ -407,12 +409,10 @@ impl AntialiasPasses {
         );
         let source = match &self.list {
             Some(l) => ListSource::Gpu(l.targets(gpu, size, &tiles, &mask_v, &pixels_v)),
-            None => ListSource::Cpu(gpu.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("aa mask readback"),
-                size: u64::from(super::util::padded_row(size[0])) * u64::from(size[1]),
-                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-                mapped_at_creation: false,
-            })),
+            None => ListSource::Cpu {
+                mask_rb: readback_buffer(&gpu.device, "aa mask readback", size[0], size[1]),
+                tiles,
+            },
         };
         AntialiasTargets {
             size,
@@ -427,7 +427,6 @@ impl AntialiasPasses {
             centre_data_view: data_v,
             edges_bg,
             frame: frame.map(Clone::clone),
-            tiles,
         }
     }
 
@@ -472,22 +471,10 @@ impl AntialiasPasses {
     /// passes on the GPU.
     pub fn encode_edges(&self, enc: &mut wgpu::CommandEncoder, t: &AntialiasTargets) {
         super::util::encode_fullscreen(enc, "aa edges", &self.edges, &t.edges_bg, &[&t.mask_view]);
-        let mask_rb = match &t.source {
-            ListSource::Gpu(lt) => return lt.encode(enc),
-            ListSource::Cpu(rb) => rb,
-        };
-        enc.copy_texture_to_buffer(
-            t.mask.as_image_copy(),
-            wgpu::TexelCopyBufferInfo {
-                buffer: mask_rb,
-                layout: wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(super::util::padded_row(t.size[0])),
-                    rows_per_image: Some(t.size[1]),
-                },
-            },
-            t.mask.size(),
-        );
+        match &t.source {
+            ListSource::Gpu(lt) => lt.encode(enc),
+            ListSource::Cpu { mask_rb, .. } => copy_to_readback(enc, &t.mask, mask_rb, t.size[0]),
+        }
     }
 
     /// Records the sample rays of the batch's `count` marked pixels into the atlas's ray
@@ -590,13 +577,13 @@ impl AntialiasTargets {
     /// and uploaded, or the list built on the GPU; returns its parts' lengths (pixels with 16,
     /// 8 and 4 samples).
     pub fn list(&self, gpu: &Gpu) -> crate::Result<[u32; 3]> {
-        let mask_rb = match &self.source {
+        let (mask_rb, tiles) = match &self.source {
             ListSource::Gpu(lt) => return lt.lengths(gpu),
-            ListSource::Cpu(rb) => rb,
+            ListSource::Cpu { mask_rb, tiles } => (mask_rb, tiles),
         };
         let [w, h] = self.size;
         let bytes = super::util::read_buffer(gpu, mask_rb, w, h)?;
-        let list = Marked::from_mask_in(&bytes, w, h, &self.tiles);
+        let list = Marked::from_mask_in(&bytes, w, h, tiles);
         if !list.pixels.is_empty() {
             self.write_pixels(gpu, &list.pixels);
         }

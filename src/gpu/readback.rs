@@ -3,7 +3,7 @@
 
 use super::frame::{FrameOutput, PassTimes};
 use super::targets::Targets;
-use super::util::{padded_row, read_buffer};
+use super::util::{copy_to_readback, padded_row, read_buffer, readback_buffer};
 use super::Gpu;
 use crate::Result;
 use std::time::Instant;
@@ -145,29 +145,9 @@ fn decode(out: &mut FrameOutput, words: &[u32], stats: &[[u32; 2]]) {
 /// the pixel shows no screen).
 pub(crate) fn ray_table(gpu: &Gpu, t: &Targets) -> Result<Vec<[f32; 4]>> {
     let (w, h) = (t.width, t.height);
-    let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("ray table readback"),
-        size: padded_row(w * 16) as u64 * h as u64,
-        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-        mapped_at_creation: false,
-    });
+    let buffer = readback_buffer(&gpu.device, "ray table readback", w * 16, h);
     let mut enc = gpu.device.create_command_encoder(&Default::default());
-    enc.copy_texture_to_buffer(
-        t.ray_table.as_image_copy(),
-        wgpu::TexelCopyBufferInfo {
-            buffer: &buffer,
-            layout: wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(padded_row(w * 16)),
-                rows_per_image: Some(h),
-            },
-        },
-        wgpu::Extent3d {
-            width: w,
-            height: h,
-            depth_or_array_layers: 1,
-        },
-    );
+    copy_to_readback(&mut enc, &t.ray_table, &buffer, w * 16);
     gpu.queue.submit([enc.finish()]);
     let bytes = read_buffer(gpu, &buffer, w * 16, h)?;
     Ok(bytemuck::cast_slice::<u8, [f32; 4]>(&bytes).to_vec())

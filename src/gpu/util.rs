@@ -351,6 +351,48 @@ pub(crate) fn padded_row(bytes: u32) -> u32 {
     bytes.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT
 }
 
+/// A mappable buffer for `rows` rows of `row_bytes` each, every row padded as a copy from a
+/// texture needs ([`copy_to_readback`], then [`read_buffer`]).
+pub(crate) fn readback_buffer(
+    dev: &wgpu::Device,
+    label: &str,
+    row_bytes: u32,
+    rows: u32,
+) -> wgpu::Buffer {
+    dev.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: u64::from(padded_row(row_bytes)) * u64::from(rows),
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+        mapped_at_creation: false,
+    })
+}
+
+/// Records a copy of all of the 2-D `texture` (`row_bytes` a row) into `buffer`
+/// ([`readback_buffer`]).
+pub(crate) fn copy_to_readback(
+    enc: &mut wgpu::CommandEncoder,
+    texture: &wgpu::Texture,
+    buffer: &wgpu::Buffer,
+    row_bytes: u32,
+) {
+    let size = texture.size();
+    enc.copy_texture_to_buffer(
+        texture.as_image_copy(),
+        wgpu::TexelCopyBufferInfo {
+            buffer,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(padded_row(row_bytes)),
+                rows_per_image: Some(size.height),
+            },
+        },
+        wgpu::Extent3d {
+            depth_or_array_layers: 1,
+            ..size
+        },
+    );
+}
+
 /// Maps a readback buffer and returns its rows without padding.
 pub(crate) fn read_buffer(
     gpu: &Gpu,

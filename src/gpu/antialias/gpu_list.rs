@@ -6,8 +6,8 @@
 //! run compute on about one core and keep the CPU list (figures in `docs/antialiasing.md`).
 
 use super::super::util::{
-    buf, padded_row, pipeline_layout, read_buffer, storage_entry, storage_texture_entry,
-    uint_texture_entry, uniform_entry, view,
+    buf, copy_to_readback, pipeline_layout, read_buffer, readback_buffer, storage_entry,
+    storage_texture_entry, uint_texture_entry, uniform_entry, view,
 };
 use super::super::{shaders, Gpu};
 use crate::Result;
@@ -242,26 +242,10 @@ pub fn list_on_gpu(gpu: &Gpu, mask: &[u8], w: u32, h: u32) -> Result<(Vec<u32>, 
     let order = super::tile_order(w, h);
     let view_of = |t: &wgpu::Texture| t.create_view(&Default::default());
     let targets = passes.targets(gpu, [w, h], &order, &view_of(&mask_t), &view_of(&list_t));
-    let rb = dev.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("aa list test readback"),
-        size: u64::from(padded_row(w * 4)) * u64::from(h),
-        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-        mapped_at_creation: false,
-    });
+    let rb = readback_buffer(dev, "aa list test readback", w * 4, h);
     let mut enc = dev.create_command_encoder(&Default::default());
     targets.encode(&mut enc);
-    enc.copy_texture_to_buffer(
-        list_t.as_image_copy(),
-        wgpu::TexelCopyBufferInfo {
-            buffer: &rb,
-            layout: wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(padded_row(w * 4)),
-                rows_per_image: Some(h),
-            },
-        },
-        extent,
-    );
+    copy_to_readback(&mut enc, &list_t, &rb, w * 4);
     gpu.queue.submit([enc.finish()]);
     let lengths = targets.lengths(gpu)?;
     let bytes = read_buffer(gpu, &rb, w * 4, h)?;
