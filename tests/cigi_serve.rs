@@ -61,19 +61,16 @@ fn scene_named(
     p
 }
 
-/// `relief render SCENE --out OUT`'s first frame.
-fn render_frame(scene: &Path, out: &Path) -> image::RgbaImage {
-    let r = relief_command(
-        &[
-            "render",
-            scene.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ],
-        &[],
-    )
-    .output()
-    .unwrap();
+/// `relief render SCENE --out OUT ARGS`'s first frame.
+fn render_frame(scene: &Path, out: &Path, args: &[&str]) -> image::RgbaImage {
+    let mut all = vec![
+        "render",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    all.extend_from_slice(args);
+    let r = relief_command(&all, &[]).output().unwrap();
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     image::open(out.join("frame_0000.png")).unwrap().to_rgba8()
 }
@@ -84,24 +81,43 @@ fn scene(dir: &Path, lla: [f64; 3], heading: f64, pitch: f64, roll: f64) -> Path
 
 #[test]
 fn the_ownship_view_equals_render_of_the_same_geodetic_camera() {
-    let dir = temp_dir("cigi-serve-view");
+    ownship_view_equals_render("cigi-serve-view", &[]);
+}
+
+/// The same with `--antialias edges` on both commands: the IG anti-aliases its frames as
+/// `render` does and reports it in the frame JSON.
+#[test]
+fn the_anti_aliased_ownship_view_equals_render_too() {
+    let j = ownship_view_equals_render("cigi-serve-view-aa", &["--antialias", "edges"]);
+    let aa = &j["antialias"];
+    assert_eq!(aa["adaptive"], true, "{aa}");
+    let (pixels, rays) = (
+        aa["pixels"].as_u64().unwrap(),
+        aa["extra_rays"].as_u64().unwrap(),
+    );
+    assert!(pixels > 100 && rays >= 4 * pixels, "{aa}");
+}
+
+/// Serves one frame of a scene whose camera is elsewhere, the host placing the ownship at a
+/// geodetic camera; compares it with `relief render` of a scene with that camera (both with
+/// `args`) and returns the served frame's JSON.
+fn ownship_view_equals_render(name: &str, args: &[&str]) -> serde_json::Value {
+    let dir = temp_dir(name);
     let lla = [47.37, 9.31, 2300.0];
     let (heading, pitch, roll) = (182.0f32, -6.0f32, 4.0f32);
     let scene = scene(&dir, lla, heading.into(), pitch.into(), roll.into());
     // The IG's scene has its camera elsewhere, looking elsewhere: only CIGI places it.
     let elsewhere = scene_named(&dir, "elsewhere", [47.6, 9.6, 900.0], 45.0, 10.0, 0.0);
     let served = dir.join("served");
-    let ig = start_ig(
-        &elsewhere,
-        &[
-            "--cigi-sync",
-            "--frames",
-            "1",
-            "--capture-frames",
-            served.to_str().unwrap(),
-        ],
-        host_socket(),
-    );
+    let mut ig_args = vec![
+        "--cigi-sync",
+        "--frames",
+        "1",
+        "--capture-frames",
+        served.to_str().unwrap(),
+    ];
+    ig_args.extend_from_slice(args);
+    let ig = start_ig(&elsewhere, &ig_args, host_socket());
     let own = ownship(lla, heading, pitch, roll);
     let (m, _) = ig.exchange_raw(&message(7, &[own.into()]), 7);
     assert_eq!(sof(&m).ig_frame, 0);
@@ -109,9 +125,9 @@ fn the_ownship_view_equals_render_of_the_same_geodetic_camera() {
     let a = image::open(served.join("frame_0000.png"))
         .unwrap()
         .to_rgba8();
-    let b = render_frame(&scene, &dir.join("rendered"));
+    let b = render_frame(&scene, &dir.join("rendered"), args);
     let d = mean_diff(&a, &b);
-    eprintln!("served vs rendered: mean difference {d:.4}/255");
+    eprintln!("served vs rendered {args:?}: mean difference {d:.4}/255");
     assert!(d <= 1.0, "mean difference {d}/255");
     let j = common::read_json(&served.join("frame_0000.json"));
     assert_eq!(j["cigi"]["host_frame"], 7);
@@ -120,6 +136,7 @@ fn the_ownship_view_equals_render_of_the_same_geodetic_camera() {
     for k in 0..3 {
         assert!((g[k].as_f64().unwrap() - lla[k]).abs() < 1e-9, "{g:?}");
     }
+    j
 }
 
 /// A paged database scene (`--terrain-memory 8`) whose window follows the ownship: the
@@ -165,7 +182,7 @@ fn follow_past_the_edge(command: &str, env: &[(&str, &str)]) {
     );
     let served = dir.join("served");
     let reference = scene_at("reference", [50.0, 16.0, 52.0, 18.0], there, "");
-    let b = render_frame(&reference, &dir.join("rendered"));
+    let b = render_frame(&reference, &dir.join("rendered"), &[]);
     let picture = |k: u32| {
         let png = served.join(format!("frame_{k:04}.png"));
         mean_diff(&image::open(png).unwrap().to_rgba8(), &b)
