@@ -8,8 +8,10 @@
 mod cigi_support;
 mod common;
 
-use cigi_support::{host_socket, ig_control, mean_diff, ownship, sof, sun_at, Dem, Ig};
-use common::{relief_cli, relief_command, temp_dir, terrains, Rng};
+use cigi_support::{
+    host_socket, ig_control, mean_diff, ownship, render_frame, sof, sun_at, Dem, Ig,
+};
+use common::{relief_cli, temp_dir, terrains, Rng};
 use relief::cigi::*;
 use std::io::{BufRead, BufReader};
 use std::net::UdpSocket;
@@ -59,20 +61,6 @@ fn scene_named(
     let p = dir.join(format!("{name}.toml"));
     std::fs::write(&p, text).unwrap();
     p
-}
-
-/// `relief render SCENE --out OUT ARGS`'s first frame.
-fn render_frame(scene: &Path, out: &Path, args: &[&str]) -> image::RgbaImage {
-    let mut all = vec![
-        "render",
-        scene.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ];
-    all.extend_from_slice(args);
-    let r = relief_command(&all, &[]).output().unwrap();
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    image::open(out.join("frame_0000.png")).unwrap().to_rgba8()
 }
 
 fn scene(dir: &Path, lla: [f64; 3], heading: f64, pitch: f64, roll: f64) -> PathBuf {
