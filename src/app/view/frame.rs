@@ -93,9 +93,7 @@ impl App {
         let _ = run.gpu.device.poll(wgpu::PollType::Poll);
         if let Some(timer) = &mut run.timer {
             for (f, ms) in timer.collect() {
-                if let Some(s) = self.stats.get_mut(f as usize) {
-                    s.gpu_ms = ms;
-                }
+                self.stats.set_gpu_ms(f, ms);
             }
         }
     }
@@ -266,26 +264,22 @@ impl App {
         if let Some(r) = &mut self.prep.recorder {
             r.record(step.t, &pose)?;
         }
-        self.flush_csv(false)?;
+        self.settle_stats(false)?;
         self.frame += 1;
         Ok(())
     }
 
-    /// Writes CSV rows whose GPU time is known (or can no longer arrive).
-    pub(super) fn flush_csv(&mut self, all: bool) -> Result<()> {
-        let Some(csv) = &mut self.prep.stats_csv else {
-            return Ok(());
-        };
+    /// Settles the frames whose GPU time is known (or can no longer arrive) into the run's
+    /// statistics and writes their CSV rows; `all`: every frame (the run ends).
+    pub(super) fn settle_stats(&mut self, all: bool) -> Result<()> {
         let timed = self.run.as_ref().is_some_and(|r| r.timer.is_some());
-        while self.csv_written < self.stats.len() {
-            let s = &self.stats[self.csv_written];
-            let settled =
-                all || !timed || !s.gpu_ms.is_nan() || s.frame + 2 * TIMER_SLOTS < self.frame;
-            if !settled {
-                break;
+        // Without timestamp queries a frame's GPU time is known when it is pushed.
+        let all = all || !timed;
+        let late = self.frame.saturating_sub(2 * TIMER_SLOTS);
+        for s in self.stats.settle(late, all) {
+            if let Some(csv) = &mut self.prep.stats_csv {
+                csv.write(&s)?;
             }
-            csv.write(s)?;
-            self.csv_written += 1;
         }
         Ok(())
     }
@@ -295,15 +289,7 @@ impl App {
     fn overlay_text(&self) -> Vec<String> {
         let m = &self.prep.motion;
         let p = m.pose;
-        let recent: Vec<f64> = self
-            .stats
-            .iter()
-            .rev()
-            .take(30)
-            .map(|s| s.frame_ms)
-            .filter(|v| *v > 0.0)
-            .collect();
-        let mean = recent.iter().sum::<f64>() / recent.len().max(1) as f64;
+        let mean = self.stats.recent_frame_ms();
         let last = self.stats.last();
         let agl = crate::cpu::query::height_above_terrain(&self.prep.world.terrain, p.position);
         let mut lines = vec![
@@ -313,11 +299,8 @@ impl App {
                 if mean > 0.0 { 1e3 / mean } else { 0.0 },
                 mean,
                 self.stats
-                    .iter()
-                    .rev()
-                    .take(2 * TIMER_SLOTS as usize)
-                    .find(|s| !s.gpu_ms.is_nan())
-                    .map_or("-".into(), |s| format!("{:.1} MS", s.gpu_ms))
+                    .last_gpu_ms()
+                    .map_or("-".into(), |ms| format!("{ms:.1} MS"))
             ),
             format!(
                 "POS {:.0} {:.0} {:.0} M  AGL {}",
@@ -347,7 +330,7 @@ impl App {
                 "OFF"
             },
             last.map_or("-".into(), |s| format!("{:.1} MS", s.latency_ms)),
-            self.stats.iter().map(|s| s.dropped as u64).sum::<u64>()
+            self.stats.dropped()
         ));
         let aa = self.prep.settings.antialias;
         lines.push(match last.filter(|_| aa.is_on()) {

@@ -250,6 +250,12 @@ impl std::fmt::Display for ViewReport {
             "memory: RSS slope {:.2} KiB/frame over frames {}..{}",
             s.rss_slope_kib_per_frame, s.rss_window[0], s.rss_window[1]
         )?;
+        // A run past the fit window: the whole run's slope too (hours in a window).
+        if let (Some(run), [a, b]) = (s.rss_run_slope_kib_per_frame, s.rss_run_frames) {
+            if b > s.rss_window[1] {
+                write!(f, ", {run:.2} over frames {a}..{b}")?;
+            }
+        }
         if let [(a, ca), (b, cb)] = &self.resources[..] {
             let total: usize = cb.iter().map(|(_, n)| n).sum();
             let changed: Vec<String> = (ca.iter().zip(cb))

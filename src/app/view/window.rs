@@ -10,7 +10,7 @@
 
 use super::prepare::{prepare, Prepared};
 use super::present::{font_words, PresentPass, ViewMode};
-use super::stats::{self, FrameStat, GpuTimeSource};
+use super::stats::{GpuTimeSource, RunStats};
 use super::timer::GpuTimer;
 use super::{ViewOptions, ViewReport};
 use crate::gpu::{Gpu, TerrainRenderer};
@@ -114,8 +114,8 @@ pub(super) struct App {
     pub(super) next_due: Instant,
     pub(super) last_start: Option<Instant>,
     pub(super) last_present: Option<Instant>,
-    pub(super) stats: Vec<FrameStat>,
-    pub(super) csv_written: usize,
+    /// The run's frame statistics (bounded: [`RunStats`]).
+    pub(super) stats: RunStats,
     pub(super) keys: HashSet<KeyCode>,
     pub(super) dragging: bool,
     pub(super) cursor: Option<(f64, f64)>,
@@ -153,8 +153,7 @@ impl App {
             next_due: Instant::now(),
             last_start: None,
             last_present: None,
-            stats: Vec::new(),
-            csv_written: 0,
+            stats: RunStats::default(),
             keys: HashSet::new(),
             dragging: false,
             cursor: None,
@@ -500,13 +499,11 @@ impl App {
             let _ = run.gpu.device.poll(wgpu::PollType::Poll);
             if let Some(timer) = &mut run.timer {
                 for (f, ms) in timer.collect() {
-                    if let Some(s) = self.stats.get_mut(f as usize) {
-                        s.gpu_ms = ms;
-                    }
+                    self.stats.set_gpu_ms(f, ms);
                 }
             }
         }
-        self.flush_csv(true)?;
+        self.settle_stats(true)?;
         if let Some(csv) = self.prep.stats_csv.take() {
             csv.finish()?;
         }
@@ -539,7 +536,7 @@ impl App {
                 }
                 .name()
                 .into(),
-                summary: stats::summarize(&self.stats),
+                summary: self.stats.summary(),
                 floor_contacts: self.prep.motion.floor_contacts,
                 resources: std::mem::take(&mut self.resources),
             });
