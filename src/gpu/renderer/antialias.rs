@@ -87,7 +87,7 @@ impl TerrainRenderer {
         let (aa, at) = (&state.passes, state.targets.as_ref().expect("prepared"));
         let start = Instant::now();
         // Timed frames (`--trace-passes`) log the split: edges and list, samples, resolve.
-        let mut laps = Laps::new(job.timed);
+        let mut laps = Laps::new(job.timed, gpu.options.trace_passes);
         copy_whole(&mut enc, &t.data, &at.centre_data);
         aa.encode_edges(&mut enc, at);
         gpu.queue.submit([enc.finish()]);
@@ -205,17 +205,25 @@ impl TerrainRenderer {
     }
 }
 
-/// Wall time of the anti-aliasing stages of a timed frame (`--trace-passes`), each waited for.
+/// Wall time of the anti-aliasing stages of a timed frame, each waited for; logged at `info`
+/// with `--trace-passes` (a profile), else at `debug` (`relief serve` times every frame: one
+/// line a frame at 60 Hz).
 struct Laps {
     on: bool,
+    level: log::Level,
     last: Instant,
     laps: Vec<(&'static str, f64)>,
 }
 
 impl Laps {
-    fn new(on: bool) -> Laps {
+    fn new(on: bool, trace_passes: bool) -> Laps {
         Laps {
             on,
+            level: if trace_passes {
+                log::Level::Info
+            } else {
+                log::Level::Debug
+            },
             last: Instant::now(),
             laps: Vec::new(),
         }
@@ -240,7 +248,11 @@ impl Laps {
             let laps: Vec<String> = (self.laps.iter())
                 .map(|(s, ms)| format!("{s} {ms:.1} ms"))
                 .collect();
-            log::info!("anti-aliasing, {marked} pixels: {}", laps.join(", "));
+            log::log!(
+                self.level,
+                "anti-aliasing, {marked} pixels: {}",
+                laps.join(", ")
+            );
         }
     }
 }
