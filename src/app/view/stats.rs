@@ -114,7 +114,7 @@ pub fn summarize(frames: &[FrameStat]) -> Summary {
     run.summary()
 }
 
-/// The frames of the start [`window`] of the RSS fit keeps at most: its end.
+/// Frames whose resident set is kept for the RSS fit's [`window`]: up to its end, frame 500.
 const RSS_EARLY: usize = 500;
 
 /// Frames the overlay's frame rate is the mean over.
