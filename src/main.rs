@@ -163,6 +163,7 @@ fn main() {
     .format_timestamp(None)
     .init();
     relief::fileio::install_signal_cleanup();
+    relief::app::heap::map_large_blocks();
     let cli = Cli::parse();
     if let Some(mb) = cli.memory_budget {
         relief::fileio::set_memory_budget(mb << 20);

@@ -8,6 +8,7 @@
 //! * [`db`]: `relief db build|info`: the terrain database compiler and its report;
 //! * [`figures`]: median, percentile, slope, memory window, resident set size;
 //! * [`gpu_options`]: `--kernels` and `--trace-passes`, and the adapter opened with them;
+//! * [`heap`]: the C heap over long runs: large blocks mapped, and given back when freed;
 //! * [`output`]: the file writers (PNG, depth TIFF, JSON, a frame's files all or nothing);
 //! * [`paged`]: `--terrain-memory`: a database scene through the paged tile pool;
 //! * [`pattern_rig`]: the warp test pattern rendered through ray tables;
@@ -29,6 +30,7 @@ pub mod cigi_ig;
 pub mod db;
 pub mod figures;
 pub mod gpu_options;
+pub mod heap;
 pub mod output;
 pub mod paged;
 pub mod pattern_rig;
