@@ -163,7 +163,6 @@ fn main() {
     .format_timestamp(None)
     .init();
     relief::fileio::install_signal_cleanup();
-    relief::app::heap::map_large_blocks();
     let cli = Cli::parse();
     if let Some(mb) = cli.memory_budget {
         relief::fileio::set_memory_budget(mb << 20);
@@ -195,6 +194,9 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Some(Command::View(opts)) => {
+            // The window runs for hours and reads no frames back: large blocks mapped, so
+            // freed ones go back to the system (`relief::app::heap`).
+            relief::app::heap::map_large_blocks();
             let report = relief::app::view::run(&opts)
                 .with_context(|| format!("viewing {}", opts.scene.display()))?;
             println!("{report}");

@@ -9,7 +9,12 @@
 //! next comes from the top: `relief view --antialias edges` on llvmpipe GL grew by 1 MiB at
 //! frames 1,737, 3,418 and 5,098 (160x90). With the threshold held at 1 MiB those buffers are
 //! mapped and unmapped; the same run stays flat after its first 1 MiB step (a buffer the driver
-//! keeps to the end). Measurements: `docs/robustness.md`.
+//! keeps to the end).
+//!
+//! Only `relief view` holds it: loops that read whole frames back every frame (`render`,
+//! `serve`, `bench soak`) would map and fault in their readbacks each time (`bench soak` at
+//! 1280x720 on lavapipe: frame p50 162–165 ms → 179–199 ms), and the window reads none back.
+//! Measurements: `docs/robustness.md`.
 
 /// Requests of at least this many bytes are mapped on their own (Mesa's upload buffers are
 /// 1 MiB and a few bytes).
