@@ -1113,6 +1113,46 @@ fn run_statistics_stay_bounded_and_agree_with_the_exact_figures() {
         (run_slope - 0.001).abs() < 1e-4,
         "the RSS's own slope: {run_slope}"
     );
+    // The later part: from frame 32,768 (the last power of two in the first half) on.
+    let late = rss[n as usize - 1] - rss[32_768];
+    assert_eq!(s.rss_late, Some(([32_768, n as u32], late as i64)));
+}
+
+/// A one-time step early in a run (llvmpipe GL keeps its first 1 MiB upload buffer to the end,
+/// made at frame 1,737 of an anti-aliased window at 160x90) gives the whole run a slope; the
+/// later part's change does not see it, and does see growth that goes on.
+#[test]
+fn the_later_part_of_a_run_ignores_an_early_step() {
+    let summary = |rss: &dyn Fn(u64) -> u64| {
+        let mut run = stats::RunStats::default();
+        for i in 0..5_200u64 {
+            run.push(stats::FrameStat {
+                frame: i,
+                start_s: i as f64 / 60.0,
+                rss_kib: rss(i),
+                ..Default::default()
+            });
+        }
+        run.settle(5_200, true);
+        run.summary()
+    };
+    let step = summary(&|i| 193_404 + if i >= 1_737 { 1_028 } else { 0 });
+    assert!(step.rss_run_slope_kib_per_frame.unwrap() > 0.2);
+    assert_eq!(step.rss_late, Some(([2_048, 5_200], 0)));
+    let leak = summary(&|i| 193_404 + i / 2);
+    assert_eq!(leak.rss_late, Some(([2_048, 5_200], 5_199 / 2 - 1_024)));
+    let mut run = stats::RunStats::default();
+    for i in 0..256u64 {
+        run.push(stats::FrameStat {
+            frame: i,
+            ..Default::default()
+        });
+    }
+    assert_eq!(
+        run.summary().rss_late,
+        None,
+        "256 frames have no later part from 128"
+    );
 }
 
 #[test]

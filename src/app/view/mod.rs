@@ -256,6 +256,10 @@ impl std::fmt::Display for ViewReport {
                 write!(f, ", {run:.2} over frames {a}..{b}")?;
             }
         }
+        // And the later part's change, which an early one-time step does not enter.
+        if let Some(([a, b], kib)) = s.rss_late.filter(|([_, b], _)| *b > s.rss_window[1]) {
+            write!(f, "; RSS {kib:+} KiB over frames {a}..{b}")?;
+        }
         if let [(a, ca), (b, cb)] = &self.resources[..] {
             let total: usize = cb.iter().map(|(_, n)| n).sum();
             let changed: Vec<String> = (ca.iter().zip(cb))

@@ -102,6 +102,11 @@ pub struct Summary {
     /// Least-squares slope of the resident set size over `rss_run_frames`; `None` for runs
     /// of fewer than 102 frames.
     pub rss_run_slope_kib_per_frame: Option<f64>,
+    /// The resident set's change (KiB) over the run's later part: from frame `[0]`, the last
+    /// power of two (at least 128) no later than half the run, to its last frame (`[1]`
+    /// frames in all); `None` for runs of fewer than 257 frames. Unlike a slope it ignores
+    /// one-time steps early in the run (a driver's buffer made once).
+    pub rss_late: Option<([u32; 2], i64)>,
 }
 
 /// The summary of `frames` (in frame order, their GPU times final): a [`RunStats`] fed them all.
@@ -148,7 +153,12 @@ pub struct RunStats {
     latency_ms: Percentiles,
     rss_early: Vec<f64>,
     rss_run: SlopeFit,
+    /// The resident set at frames 128, 256, 512, … (for [`Summary::rss_late`]).
+    rss_marks: Vec<(u32, u64)>,
 }
+
+/// The first frame [`Summary::rss_late`] may start from.
+const RSS_LATE_FROM: usize = 128;
 
 impl RunStats {
     /// Adds the next frame (its GPU time may come later: [`Self::set_gpu_ms`]).
@@ -167,6 +177,9 @@ impl RunStats {
         }
         if n >= 100 {
             self.rss_run.add(n as f64, s.rss_kib as f64);
+        }
+        if n >= RSS_LATE_FROM && n.is_power_of_two() {
+            self.rss_marks.push((n as u32, s.rss_kib));
         }
         self.last = Some(s);
         self.pending.push_back(s);
@@ -272,7 +285,20 @@ impl RunStats {
             rss_slope_kib_per_frame: slope(rss),
             rss_run_frames: [100, n as u32],
             rss_run_slope_kib_per_frame: (self.rss_run.points() >= 2).then(|| self.rss_run.slope()),
+            rss_late: self.rss_late(),
         }
+    }
+
+    /// [`Summary::rss_late`].
+    fn rss_late(&self) -> Option<([u32; 2], i64)> {
+        let last = self.last.as_ref()?;
+        let half = self.frames.saturating_sub(1) / 2;
+        let &(from, rss) = self
+            .rss_marks
+            .iter()
+            .rev()
+            .find(|(f, _)| *f as usize <= half)?;
+        Some(([from, self.frames as u32], last.rss_kib as i64 - rss as i64))
     }
 }
 
