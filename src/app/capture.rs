@@ -129,10 +129,10 @@ pub fn frame_metadata(
 pub struct RenderJob {
     /// Scene file (TOML).
     pub scene: PathBuf,
-    /// Output size WxH (overrides [output]).
+    /// Output size WxH (overrides `[output]`).
     #[arg(long, value_parser = parse_size)]
     pub size: Option<(u32, u32)>,
-    /// Number of frames (along the scene's [path] if it has one).
+    /// Number of frames (along the scene's `[path]` if it has one).
     #[arg(long, default_value_t = 1)]
     pub frames: u32,
     /// First frame number.

@@ -1,7 +1,7 @@
 //! Application layer: the commands of the `relief` binary over the library, one room a file.
 //!
 //! * [`args`]: command-line value parsers and the render toggles several commands share;
-//! * [`bench`]: `relief bench MODE`: the benchmark modes, one report and JSON schema for all;
+//! * [`bench`](mod@bench): `relief bench MODE`: the benchmark modes, one report and JSON schema for all;
 //! * [`capture`]: `relief render`: headless frames (pinhole, display channel, dome master);
 //! * [`channel`]: a display configuration's channel by index, with the error that says so;
 //! * [`cigi_ig`]: the CIGI IG of the frame loops: socket, session, ownship camera, answers;

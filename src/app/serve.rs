@@ -25,7 +25,7 @@ pub struct ServeOptions {
     pub scene: PathBuf,
     #[command(flatten)]
     pub cigi: CigiArgs,
-    /// Render size WxH (overrides [output]).
+    /// Render size WxH (overrides `[output]`).
     #[arg(long, value_parser = parse_size)]
     pub size: Option<(u32, u32)>,
     #[command(flatten)]

@@ -377,7 +377,7 @@ fn patch_quadratic(
     patch_quadratic_of(patch_corners(terrain, level, i, j), r, (level, i, j), t_a)
 }
 
-/// [`patch_quadratic`] of a patch with the corner heights `(h00, h10, h01, h11)` given (the
+/// `patch_quadratic` of a patch with the corner heights `(h00, h10, h01, h11)` given (the
 /// paged terrain's corners, `cpu::paged`).
 pub fn patch_quadratic_of(
     [h00, h10, h01, h11]: [f64; 4],

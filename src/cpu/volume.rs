@@ -7,7 +7,7 @@
 //! Segments: boundaries `b_k = t0 + (k + j)·Δ` (`t0` the box entry, `Δ` the step in metres, `j`
 //! the pixel's jitter or 0), clipped to the ray's interval; each segment is sampled at its
 //! middle and stands for its own length `ℓ`, so `Ω = 1 − exp(−σ·ℓ)` is exact for uniform
-//! media whatever the step. Samples are quadrilinear in the [`VolumeTexture`] at the level
+//! media whatever the step. Samples are quadrilinear in the [`VolumeTexture`](crate::volume::VolumeTexture) at the level
 //! `log2(pixel footprint / voxel)` (0 without mip-maps). Empty-space skipping jumps from a
 //! sample in an unoccupied brick to the segment holding the brick's exit; all skipped samples
 //! have `σ = 0` exactly, so skipping changes nothing. Early termination stops when `T < ε`.

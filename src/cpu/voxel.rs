@@ -552,7 +552,7 @@ fn instance_rects(
     merge_rects(own)
 }
 
-/// Most rectangles [`instance_rects`] partitions; more are merged.
+/// Most rectangles `instance_rects` partitions; more are merged.
 pub const PARTITION_LIMIT: usize = 64;
 
 /// Pixels the voxel models' primary rays can hit, for a pinhole camera: the covering

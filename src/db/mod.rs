@@ -15,7 +15,7 @@
 //! [`query`] answers heights at full resolution through the cache, or resident only
 //! ([`tiles`]: tiles not in memory are reported, not read), and [`prefetch`] warms the cache
 //! on a worker thread. [`pager`] keeps the tiles a view needs in a fixed pool of slots, read on
-//! worker threads; [`synth`] writes procedural mosaics. Not here yet: paged rendering (docs/database.md).
+//! worker threads; [`synth`](mod@synth) writes procedural mosaics. Not here yet: paged rendering (docs/database.md).
 //!
 //! [`Heightfield`]: crate::terrain::Heightfield
 

@@ -11,7 +11,7 @@
 //!    with the `NEAR` traversal). The mask holds each marked pixel's sample count: 4, 8 or 16
 //!    by its contrast with `"edges"` (at most about 2 levels of error against 16 samples:
 //!    [`ADAPT_4`], [`ADAPT_8`]), else the chosen count. It becomes the list of marked
-//!    pixels (the 16s, then the 8s, then the 4s): read back and made on the CPU ([`Marked`])
+//!    pixels (the 16s, then the 8s, then the 4s): read back and made on the CPU (`Marked`)
 //!    on CPU adapters, built by compute on GPUs (`gpu_list`, [`crate::gpu::ListChoice`]).
 //! 2. The **sample atlas**: a target of the list's samples only (4x4 groups, each holding one
 //!    pixel's 16 samples, two pixels' 8 or four pixels' 4), with its own frame targets. Mesa's CPU rasterisers run

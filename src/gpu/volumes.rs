@@ -1,10 +1,10 @@
 //! Density volumes on the GPU, three passes:
-//! * volume-sun ([`VolumeSunPass`], before shading): per pixel, the sun's transmittance through
+//! * volume-sun (`VolumeSunPass`, before shading): per pixel, the sun's transmittance through
 //!   the volumes at the opaque surface, which the shade pass scales the sun's terms by;
-//! * volume ([`VolumePass`], one per volume, after shading): one density volume uploaded once
+//! * volume (`VolumePass`, one per volume, after shading): one density volume uploaded once
 //!   (RGBA8 3-D texture with mip levels, transfer table, brick occupancy, shadow grids),
 //!   integrated per pixel in front of the opaque depth into its own result layer;
-//! * composite ([`CompositePass`]): the layers sorted per pixel by the medium's depth and
+//! * composite (`CompositePass`): the layers sorted per pixel by the medium's depth and
 //!   composited over the shaded image.
 
 use super::specialise::SpecialisedPipelines;

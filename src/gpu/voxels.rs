@@ -31,7 +31,7 @@ const VOXEL_FIX: &str = "use smaller voxel models or fewer animation frames";
 /// [`NEAR_GAP_SHIFT`] its gap in every direction.
 pub const EMPTY_BIT: u32 = 0x8000_0000;
 /// Shift of an empty brick's gap in every direction in its table entry (WGSL
-/// `VOX_NEAR_GAP_SHIFT`): the least of its eight octants' gaps, at most [`NEAR_GAP_MAX`]. The
+/// `VOX_NEAR_GAP_SHIFT`): the least of its eight octants' gaps, at most `NEAR_GAP_MAX`. The
 /// union of the boxes grown towards each octant by at least that much covers the box grown by
 /// it in every direction, so every voxel within `g - 1` of the brick's box is empty; the near
 /// search of anti-aliased centre rays (`VoxTrace::touched`) counts a brick the ray crosses

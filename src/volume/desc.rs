@@ -373,7 +373,7 @@ impl Volume {
     /// The sun's transmittance for a sample at `p` (volume frame, metres from the corner),
     /// read [`super::shadow::OFFSET_VOXELS`] voxels towards the sun so that a surface facing
     /// the sun does not shadow itself; 1 without self-shadowing. Includes the other volumes'
-    /// shadows once [`super::shadow::shadow_each_other`] has run.
+    /// shadows once [`shadow_each_other`] has run.
     pub fn sun_transmittance(&self, p: DVec3) -> f64 {
         match &self.sun_shadow {
             Some(sh) => {

@@ -9,13 +9,13 @@
 //! Computed by slice propagation (one pass over the grid, not one march to the box per voxel):
 //! layers of voxels are taken across the axis along which the sun ray crosses layers fastest,
 //! starting at the sun-facing side. A voxel's ray is followed towards the sun through the next
-//! [`STRIDE`] layer planes (one layer spacing `Δλ` apart), the extinction bilinear in each, the
+//! `STRIDE` layer planes (one layer spacing `Δλ` apart), the extinction bilinear in each, the
 //! optical depth summed by trapezoids; there it adds the depth already computed for that layer,
 //! bilinear at the point reached (falling to zero at a face the ray leaves by). A ray that
 //! leaves the box before then ends with its last extinction over the rest of the way.
 //!
 //! Two reads of the grid: the volume's own samples (self-shadowing, and the other volumes'
-//! shadows baked in by [`shadow_each_other`]) and opaque surfaces below it
+//! shadows baked in by [`shadow_each_other`](super::desc::shadow_each_other)) and opaque surfaces below it
 //! (`Volume::transmittance_to_sun`: this volume alone, multiplied over the volumes).
 
 /// How far towards the sun (in voxels of the smallest spacing) a sample reads its
@@ -48,7 +48,7 @@ pub struct SunShadow {
     pub dims: [u32; 3],
     /// Through this volume alone: what surfaces below it read (`Volume::transmittance_to_sun`).
     pub data: Vec<u8>,
-    /// Through this volume and the scene's other volumes (see [`shadow_each_other`]): what the
+    /// Through this volume and the scene's other volumes (see [`shadow_each_other`](super::desc::shadow_each_other)): what the
     /// volume's own samples read; `None` where no other volume shadows it (`data` serves).
     pub lit: Option<Vec<u8>>,
 }

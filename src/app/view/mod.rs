@@ -50,7 +50,7 @@ pub use present::present_shader;
 pub struct ViewOptions {
     /// Scene file (TOML).
     pub scene: PathBuf,
-    /// Window and render size WxH (overrides [output]).
+    /// Window and render size WxH (overrides `[output]`).
     #[arg(long, value_parser = parse_size)]
     pub size: Option<(u32, u32)>,
     /// Display config: one window per channel, each through its distortion table.
@@ -89,7 +89,7 @@ pub struct ViewOptions {
     /// Starting motion: path, free or aircraft (default: path if there is one, else free).
     #[arg(long, value_parser = motion::Mode::parse)]
     pub mode: Option<motion::Mode>,
-    /// Play back this path CSV (time,x,y,alt,heading,pitch,roll) instead of the scene's [path].
+    /// Play back this path CSV (time,x,y,alt,heading,pitch,roll) instead of the scene's `[path]`.
     #[arg(long)]
     pub path: Option<PathBuf>,
     /// Record the flown path to this CSV (same columns as --path).
