@@ -93,11 +93,6 @@ impl Percentiles {
         self.count += 1;
     }
 
-    /// The values added (NaNs not counted).
-    pub fn count(&self) -> u64 {
-        self.count
-    }
-
     /// Percentile `p` (nearest rank, as [`percentile`]); `None` when no value was added.
     pub fn get(&self, p: f64) -> Option<f64> {
         if self.count == 0 {

@@ -90,6 +90,12 @@ impl App {
             let counts = run.gpu.resource_counts().unwrap_or_default();
             self.resources.push((n, counts));
         }
+        self.collect_gpu_times();
+    }
+
+    /// Reads the timestamp queries that have arrived into the run's statistics.
+    pub(super) fn collect_gpu_times(&mut self) {
+        let Some(run) = &mut self.run else { return };
         let _ = run.gpu.device.poll(wgpu::PollType::Poll);
         if let Some(timer) = &mut run.timer {
             for (f, ms) in timer.collect() {

@@ -494,15 +494,10 @@ impl App {
 
     /// Final GPU times, CSV and recorder flush, the report; drops the GPU objects.
     fn shut_down(&mut self) -> Result<()> {
-        if let Some(run) = &mut self.run {
+        if let Some(run) = &self.run {
             let _ = run.gpu.wait();
-            let _ = run.gpu.device.poll(wgpu::PollType::Poll);
-            if let Some(timer) = &mut run.timer {
-                for (f, ms) in timer.collect() {
-                    self.stats.set_gpu_ms(f, ms);
-                }
-            }
         }
+        self.collect_gpu_times();
         self.settle_stats(true)?;
         if let Some(csv) = self.prep.stats_csv.take() {
             csv.finish()?;
