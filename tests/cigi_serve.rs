@@ -11,12 +11,10 @@ mod common;
 use cigi_support::{
     host_socket, ig_control, mean_diff, ownship, render_frame, sof, sun_at, Dem, Ig,
 };
-use common::{relief_cli, temp_dir, terrains, Rng};
+use common::{relief_cli, temp_dir, terrains, Rng, Xvfb};
 use relief::cigi::*;
-use std::io::{BufRead, BufReader};
 use std::net::UdpSocket;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Stdio};
 use std::time::{Duration, Instant};
 
 const SIZE: &str = "160x120";
@@ -145,7 +143,7 @@ fn a_paged_window_follows_the_ownship_past_its_edge() {
 #[test]
 fn a_paged_window_follows_the_ownship_past_its_edge_in_view() {
     let Some(x) = Xvfb::start() else { return };
-    follow_past_the_edge("view", &[("DISPLAY", x.1.as_str())]);
+    follow_past_the_edge("view", &[("DISPLAY", x.display.as_str())]);
 }
 
 fn follow_past_the_edge(command: &str, env: &[(&str, &str)]) {
@@ -694,47 +692,6 @@ fn twenty_thousand_hostile_datagrams_while_a_valid_host_flies() {
     assert!(refused >= (datagrams - others) / 3 + others, "{summary}");
 }
 
-/// A private X server (`Xvfb -displayfd`), killed on drop; `None` (said why) without Xvfb.
-struct Xvfb(Child, String);
-
-impl Xvfb {
-    fn start() -> Option<Xvfb> {
-        let child = std::process::Command::new("Xvfb")
-            .args([
-                "-displayfd",
-                "1",
-                "-screen",
-                "0",
-                "640x480x24",
-                "-nolisten",
-                "tcp",
-            ])
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn();
-        let mut child = match child {
-            Ok(c) => c,
-            Err(e) => {
-                eprintln!("Skipping the window test: cannot start Xvfb ({e}; .ci/run installs it)");
-                return None;
-            }
-        };
-        let mut line = String::new();
-        BufReader::new(child.stdout.take().unwrap())
-            .read_line(&mut line)
-            .unwrap();
-        let n: u32 = line.trim().parse().expect("Xvfb prints its display number");
-        Some(Xvfb(child, format!(":{n}")))
-    }
-}
-
-impl Drop for Xvfb {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
 #[test]
 fn view_with_cigi_follows_a_synchronous_host() {
     let Some(x) = Xvfb::start() else { return };
@@ -759,7 +716,7 @@ fn view_with_cigi_follows_a_synchronous_host() {
             frames.to_str().unwrap(),
         ]),
         host_socket(),
-        &[("DISPLAY", x.1.as_str())],
+        &[("DISPLAY", x.display.as_str())],
     );
     for k in 0..3u32 {
         let own = ownship(

@@ -5,69 +5,14 @@
 
 mod common;
 
-use common::{relief_command, temp_dir, terrains};
+use common::{relief_command, temp_dir, terrains, Xvfb};
 use relief::app::view::motion::{self, Controls, Mode, Motion};
 use relief::app::view::{present, stats};
-use std::io::BufRead;
 use std::path::Path;
-use std::process::{Child, Command, Output, Stdio};
+use std::process::{Output, Stdio};
 
 fn s(p: &Path) -> String {
     p.display().to_string()
-}
-
-/// A private X server (`Xvfb -displayfd`, which picks a free display number), killed on drop.
-struct Xvfb {
-    child: Child,
-    display: String,
-}
-
-impl Xvfb {
-    /// `None`, with the reason printed, when Xvfb is not installed.
-    fn start() -> Option<Xvfb> {
-        let child = Command::new("Xvfb")
-            .args([
-                "-displayfd",
-                "1",
-                "-screen",
-                "0",
-                "1024x768x24",
-                "-nolisten",
-                "tcp",
-            ])
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn();
-        let mut child = match child {
-            Ok(c) => c,
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-                eprintln!(
-                    "Skipping window test: Xvfb is not installed (Debian: xvfb; .ci/run installs it)"
-                );
-                return None;
-            }
-            Err(e) => panic!("cannot start Xvfb: {e}"),
-        };
-        let mut line = String::new();
-        std::io::BufReader::new(child.stdout.take().unwrap())
-            .read_line(&mut line)
-            .expect("Xvfb reports its display number");
-        let n: u32 = line
-            .trim()
-            .parse()
-            .unwrap_or_else(|_| panic!("Xvfb printed `{line}` instead of a display number"));
-        Some(Xvfb {
-            child,
-            display: format!(":{n}"),
-        })
-    }
-}
-
-impl Drop for Xvfb {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
 }
 
 /// Window tests need an adapter (or skip as the GPU tests do) and an X server.
@@ -919,6 +864,34 @@ fn aircraft_dive_stops_at_the_floor_and_free_flight_too() {
         );
         assert!(m.floor_contacts > 0);
     }
+}
+
+/// A paged window that moved with the eye: the motion stays in the scene's own frame, 9 km
+/// east of the terrain's grid here, and its floor is the terrain under the position mapped
+/// into the terrain's frame (`step_over`). Over the scene frame's own point there is no grid,
+/// hence no floor.
+#[test]
+fn the_floor_is_the_terrain_under_the_position_in_its_frame() {
+    let terrain = flat_terrain(100.0);
+    let shift = glam::DVec3::new(-9000.0, 0.0, 0.0);
+    let c = Controls {
+        forward: 1.0,
+        up: -1.0,
+        ..Controls::default()
+    };
+    let mut m = Motion::new(Mode::Free, level_pose(9300.0, 900.0, 400.0), None, 25.0);
+    for i in 0..300 {
+        m.step_over(i as f64 / 60.0, 1.0 / 60.0, &c, &terrain, |p| p + shift);
+        let at = m.pose.position + shift;
+        let agl = relief::cpu::query::height_above_terrain(&terrain, at).unwrap();
+        assert!(agl >= 25.0, "step {i}: {agl} m above ground");
+    }
+    assert!(m.floor_contacts > 0);
+    let mut m = Motion::new(Mode::Free, level_pose(9300.0, 900.0, 400.0), None, 25.0);
+    for i in 0..300 {
+        m.step(i as f64 / 60.0, 1.0 / 60.0, &c, &terrain);
+    }
+    assert_eq!(m.floor_contacts, 0);
 }
 
 #[test]

@@ -5,7 +5,7 @@
 
 use super::args::{parse_size, parse_vec, RenderToggles};
 use super::output::{frame_paths, write_frame_files};
-use super::paged::{ChannelRays, Paging};
+use super::paged::{ChannelRays, Follower, Paging};
 use super::two_pass::{render_two_pass, view_points, TwoPass};
 use crate::display::blend::ChannelBlend;
 use crate::gpu::{FrameOutput, Gpu, RenderSettings, TerrainRenderer};
@@ -85,6 +85,8 @@ pub fn frame_metadata(
             "pitch_deg": cam.pose.pitch,
             "roll_deg": cam.pose.roll,
             "hfov_deg": cam.pose.fov,
+            // [lat, lon, alt] through the terrain's georeference (none without one).
+            "geodetic": terrain.world_to_geodetic(cam.pose.position),
         },
         "depth": {
             "file": format!("depth_{frame:04}.tiff"),
@@ -219,7 +221,21 @@ impl Prepared {
             projection: &self.projection,
             fps: self.scene.desc.path.as_ref().map_or(30.0, |p| p.fps),
             paging: self.paging.as_ref(),
+            follower: None,
         }
+    }
+
+    /// A paged window moved to follow frame `frame`'s camera (`f`'s [`Follower::follow`]),
+    /// and the renderer's pool with it.
+    fn follow(&mut self, f: &mut Follower, r: &mut TerrainRenderer, frame: u32) -> Result<()> {
+        let eye = f.scene_camera(&self.scene, frame).pose.position;
+        if f.follow_scene_eye(&mut self.world, eye)? {
+            if let Some(p) = &self.paging {
+                p.borrow_mut()
+                    .sync_window(&self.gpu, r, &self.world, f.spec())?;
+            }
+        }
+        Ok(())
     }
 }
 
@@ -276,9 +292,13 @@ pub fn prepare(job: &RenderJob) -> Result<(Prepared, TerrainRenderer)> {
 /// Renders `job.frames` frames and writes them to `job.out_dir`; returns the file paths.
 pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
     let last_frame = last_frame(job)?;
-    let (p, mut renderer) = prepare(job)?;
+    let (mut p, mut renderer) = prepare(job)?;
     std::fs::create_dir_all(&job.out_dir).map_err(|e| Error::io(&job.out_dir, e))?;
-    let frames = p.frames(job);
+    // A paged window follows the camera (its `[path]` beyond the scene's window).
+    let mut follower = match &p.paging {
+        Some(_) => Some(Follower::new(&p.scene, &p.world.terrain)?),
+        None => None,
+    };
     let mut written = Vec::new();
     for frame in job.first_frame..=last_frame {
         // An error names the frame and what is kept: every earlier frame is complete.
@@ -295,6 +315,13 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
                     )
                 },
             )
+        };
+        if let Some(f) = &mut follower {
+            p.follow(f, &mut renderer, frame).map_err(at)?;
+        }
+        let frames = Frames {
+            follower: follower.as_ref(),
+            ..p.frames(job)
         };
         written.extend(frames.render(&mut renderer, frame).map_err(at)?);
     }
@@ -459,6 +486,8 @@ pub struct Frames<'a> {
     projection: &'a Projection,
     fps: f64,
     paging: Option<&'a RefCell<Paging>>,
+    /// A paged window following the camera: the frames' cameras go through it.
+    follower: Option<&'a Follower>,
 }
 
 impl<'a> Frames<'a> {
@@ -476,12 +505,16 @@ impl<'a> Frames<'a> {
             projection: self.projection,
             fps: self.fps,
             paging: self.paging,
+            follower: self.follower,
         }
     }
 
     /// Renders frame `frame` and writes its three files (none of them when one cannot be).
     fn render(&self, renderer: &mut TerrainRenderer, frame: u32) -> Result<[PathBuf; 3]> {
-        let cam = self.scene.camera(frame, self.terrain);
+        let cam = match self.follower {
+            Some(f) => f.camera(self.scene, frame, self.terrain),
+            None => self.scene.camera(frame, self.terrain),
+        };
         renderer.set_time(frame as f64 / self.fps);
         let wait = self.job.frames == 1 || self.job.wait_resident;
         let paging = self.page(renderer, &cam, wait)?;

@@ -34,8 +34,15 @@ pub struct Paging {
 /// Moves a paged scene's window with the eye ([`Follower::follow`]): the window now, and what
 /// it is rebuilt from when it moves. One per world; each paged renderer of the world then
 /// takes the new window ([`Paging::sync_window`]).
+///
+/// The scene's camera, `[path]` and a window's free flight stay in the scene's own frame (the
+/// metres of the window it was loaded with, on it or beyond it); [`Follower::to_window`] puts
+/// their positions into the frame of the window now.
 pub struct Follower {
     spec: db::WindowSpec,
+    /// The window the scene was loaded with, and its terrain (hollow: no samples held).
+    scene_spec: db::WindowSpec,
+    scene_terrain: Terrain,
     /// Cells a tile side.
     n: usize,
     /// Samples per degree of the window's level.
@@ -47,6 +54,11 @@ pub struct Follower {
     base_dir: std::path::PathBuf,
     /// The last window that could not be made (not tried again).
     refused: Option<db::WindowSpec>,
+    /// A draped terrain: its image covers the scene's window only, so the window stays
+    /// (said once, when the eye first wants it moved).
+    draped: bool,
+    /// The warning about a draped terrain was given.
+    draped_said: bool,
 }
 
 /// Refuses `--terrain-memory` of 0 or more than 1 TiB.
@@ -282,20 +294,17 @@ impl Paging {
 
 impl Follower {
     /// The follower of `scene`'s paged window (as [`renderer`] places it: the finest level,
-    /// on a tile corner); `None` (with a warning) for a draped terrain, whose image covers
-    /// the scene's window only.
-    pub fn new(scene: &Scene) -> Result<Option<Follower>> {
-        if scene.desc.terrain.drape.is_some() {
-            log::warn!(
-                "the paged window does not follow the eye: the terrain has a drape, which covers the scene's window only"
-            );
-            return Ok(None);
-        }
+    /// on a tile corner), `terrain` the world's terrain as loaded. A draped terrain's window
+    /// stays where it is (its image covers the scene's window only; a warning says so the
+    /// first time the eye would move it).
+    pub fn new(scene: &Scene, terrain: &Terrain) -> Result<Follower> {
         let (database, spec) = paged_window(scene)?;
         let n = database.tile_cells();
         let lv = &database.header().levels[spec.level as usize];
-        Ok(Some(Follower {
+        Ok(Follower {
             spec,
+            scene_spec: spec,
+            scene_terrain: terrain.clone(),
             n,
             per_degree: lv.per_degree,
             lo: [lv.x0 as i64 * n as i64, lv.y0 as i64 * n as i64],
@@ -303,12 +312,53 @@ impl Follower {
             desc: scene.desc.terrain.clone(),
             base_dir: scene.base_dir.clone(),
             refused: None,
-        }))
+            draped: scene.desc.terrain.drape.is_some(),
+            draped_said: false,
+        })
     }
 
     /// The window now.
     pub fn spec(&self) -> db::WindowSpec {
         self.spec
+    }
+
+    /// Position `p` of the scene's own frame in the frame of the window now (`terrain`, the
+    /// world's): the same point of the level, at the same height. `p` itself while the window
+    /// has not moved.
+    pub fn to_window(&self, terrain: &Terrain, p: DVec3) -> DVec3 {
+        if self.spec == self.scene_spec {
+            return p;
+        }
+        let shift = DVec3::new(
+            (self.scene_spec.i0 - self.spec.i0) as f64,
+            (self.scene_spec.j0 - self.spec.j0) as f64,
+            0.0,
+        );
+        let g = self.scene_terrain.frame.world_to_grid(p) + shift;
+        terrain.frame.grid_to_world(g)
+    }
+
+    /// Frame `frame`'s camera of `scene` (its `[path]` or its camera) in the scene's own frame.
+    pub fn scene_camera(&self, scene: &Scene, frame: u32) -> Camera {
+        scene.camera(frame, &self.scene_terrain)
+    }
+
+    /// Frame `frame`'s camera of `scene` (its `[path]` or its camera, in the scene's own
+    /// frame) in the frame of the window now (`terrain`, the world's).
+    pub fn camera(&self, scene: &Scene, frame: u32, terrain: &Terrain) -> Camera {
+        let mut cam = self.scene_camera(scene, frame);
+        cam.pose.position = self.to_window(terrain, cam.pose.position);
+        cam
+    }
+
+    /// [`Follower::follow`] for an eye at `eye` in the scene's own frame (a `[path]`, the
+    /// window's free flight). Returns whether the window moved.
+    pub fn follow_scene_eye(&mut self, world: &mut World, eye: DVec3) -> Result<bool> {
+        let at = self.to_window(&world.terrain, eye);
+        match world.terrain.world_to_geodetic(at) {
+            Some(lla) => self.follow(world, lla),
+            None => Ok(false),
+        }
     }
 
     /// Moves the window to follow the eye at geodetic `[lat, lon, alt]` (on the window or off
@@ -327,6 +377,14 @@ impl Follower {
             return Ok(false);
         };
         if self.refused == Some(spec) {
+            return Ok(false);
+        }
+        if self.draped {
+            if !std::mem::replace(&mut self.draped_said, true) {
+                log::warn!(
+                    "the paged window does not follow the eye: the terrain has a drape, which covers the scene's window only"
+                );
+            }
             return Ok(false);
         }
         let start = Instant::now();

@@ -88,7 +88,7 @@ pub fn run_with(
     }
     let base = p.scene.camera(0, &p.world.terrain);
     let mut follower = match &p.paging {
-        Some(_) => super::paged::Follower::new(&p.scene)?,
+        Some(_) => Some(super::paged::Follower::new(&p.scene, &p.world.terrain)?),
         None => None,
     };
     let mut log = match &opts.pose_log {

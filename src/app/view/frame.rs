@@ -25,7 +25,12 @@ struct Step {
     n: u64,
     /// Simulation time (s).
     t: f64,
+    /// The camera's pose in the world (the frame of the window now where a paged window
+    /// follows the eye).
     pose: Pose,
+    /// The pose in the scene's own frame (the motion's; the camera's with `--cigi`): what
+    /// `--record` and the statistics' position give.
+    scene_pose: Pose,
     eye: Option<DVec3>,
     screenshot: bool,
     grab: bool,
@@ -34,6 +39,16 @@ struct Step {
     cigi: Option<(serde_json::Value, Option<[f64; 3]>)>,
     /// `--cigi`: the entities drawn from the scene's templates.
     instances: Option<crate::world::Instances>,
+}
+
+/// Position `p` of the scene's own frame in `terrain`'s, the world's: through a paged window's
+/// follower (`Follower::to_window`), `p` itself without one.
+fn in_window(
+    follower: &Option<crate::app::paged::Follower>,
+    terrain: &crate::terrain::Terrain,
+    p: DVec3,
+) -> DVec3 {
+    follower.as_ref().map_or(p, |f| f.to_window(terrain, p))
 }
 
 /// What drawing the windows took.
@@ -110,12 +125,17 @@ impl App {
         let dt = 1.0 / self.prep.opts.rate;
         let t = n as f64 * dt;
         let c = self.controls(t);
-        let terrain = &self.prep.world.terrain;
-        (self.prep.motion).step(t, if n == 0 { 0.0 } else { dt }, &c, terrain);
-        let eye = self.eye_for(n)?;
-        let mut pose = self.prep.motion.pose;
-        let (mut cigi, mut instances) = (None, None);
         let p = &mut self.prep;
+        // The motion stays in the scene's own frame; a paged window that moved with the eye
+        // gets its positions through the follower.
+        let to_window = |x| in_window(&p.follower, &p.world.terrain, x);
+        let dt_step = if n == 0 { 0.0 } else { dt };
+        (p.motion).step_over(t, dt_step, &c, &p.world.terrain, to_window);
+        let eye = self.eye_for(n)?;
+        let p = &mut self.prep;
+        let scene_pose = p.motion.pose;
+        // A paged window follows the eye (also off the window): a CIGI host's ownship, else
+        // the motion's; each window's pool takes it before its frame (`render`).
         if let Some(ig) = &mut p.cigi {
             // The same per-frame session update as `relief serve`.
             if ig.sync {
@@ -123,11 +143,16 @@ impl App {
             } else {
                 ig.poll();
             }
-            // A paged window follows the ownship (also off the window); each window's pool
-            // takes it before its frame (`render`).
             if let (Some(lla), Some(f)) = (ig.ownship_geodetic(), &mut p.follower) {
                 f.follow(&mut p.world, lla)?;
             }
+        } else if let Some(f) = &mut p.follower {
+            f.follow_scene_eye(&mut p.world, scene_pose.position)?;
+        }
+        let mut pose = scene_pose;
+        pose.position = in_window(&p.follower, &p.world.terrain, pose.position);
+        let (mut cigi, mut instances) = (None, None);
+        if let Some(ig) = &mut p.cigi {
             let (cam, own) = ig.camera_pose(&p.world.terrain, pose);
             pose = cam;
             let at = own
@@ -141,6 +166,7 @@ impl App {
             n,
             t,
             pose,
+            scene_pose: if p.cigi.is_some() { pose } else { scene_pose },
             cigi,
             instances,
             eye,
@@ -252,7 +278,7 @@ impl App {
             },
             width: w,
             height: h,
-            position: pose.position.to_array(),
+            position: step.scene_pose.position.to_array(),
             agl: crate::cpu::query::height_above_terrain(&self.prep.world.terrain, pose.position)
                 .unwrap_or(f64::NAN),
             heading: pose.heading,
@@ -268,7 +294,7 @@ impl App {
         }
         self.last_start = Some(start);
         if let Some(r) = &mut self.prep.recorder {
-            r.record(step.t, &pose)?;
+            r.record(step.t, &step.scene_pose)?;
         }
         self.settle_stats(false)?;
         self.frame += 1;
@@ -297,7 +323,9 @@ impl App {
         let p = m.pose;
         let mean = self.stats.recent_frame_ms();
         let last = self.stats.last();
-        let agl = crate::cpu::query::height_above_terrain(&self.prep.world.terrain, p.position);
+        let terrain = &self.prep.world.terrain;
+        let at = in_window(&self.prep.follower, terrain, p.position);
+        let agl = crate::cpu::query::height_above_terrain(terrain, at);
         let mut lines = vec![
             format!(
                 "{} {:5.1} FPS {:6.1} MS  GPU {}",
@@ -429,7 +457,9 @@ impl Draw<'_> {
         meta["time_s"] = json!(t);
         if let Some((c, geodetic)) = &step.cigi {
             meta["cigi"] = c.clone();
-            meta["camera"]["geodetic"] = json!(geodetic);
+            if geodetic.is_some() {
+                meta["camera"]["geodetic"] = json!(geodetic);
+            }
         }
         meta["view"] = json!({
             "mode": prep.motion.mode.name(),

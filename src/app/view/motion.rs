@@ -191,6 +191,20 @@ impl Motion {
 
     /// Pose at simulation time `t` after advancing by `dt` seconds with `c`.
     pub fn step(&mut self, t: f64, dt: f64, c: &Controls, terrain: &Terrain) {
+        self.step_over(t, dt, c, terrain, |p| p);
+    }
+
+    /// [`Motion::step`] over a `terrain` whose frame is not the pose's: `to_terrain` maps a
+    /// position into it (a paged window that moved with the eye, `Follower::to_window`; the
+    /// pose stays in the scene's own frame).
+    pub fn step_over(
+        &mut self,
+        t: f64,
+        dt: f64,
+        c: &Controls,
+        terrain: &Terrain,
+        to_terrain: impl Fn(DVec3) -> DVec3,
+    ) {
         match self.mode {
             Mode::Path => {
                 if let Some(p) = &self.path {
@@ -201,7 +215,7 @@ impl Motion {
             Mode::Free => self.step_free(dt, c),
             Mode::Aircraft => self.step_aircraft(dt, c),
         }
-        self.apply_floor(terrain);
+        self.apply_floor(terrain, to_terrain(self.pose.position));
     }
 
     fn step_free(&mut self, dt: f64, c: &Controls) {
@@ -242,9 +256,10 @@ impl Motion {
         p.position += (fwd * a.speed + DVec3::Z * a.sink) * dt;
     }
 
-    /// Lifts the pose to `min_agl` above the terrain where it is lower (on the grid only).
-    fn apply_floor(&mut self, terrain: &Terrain) {
-        if let Some(agl) = height_above_terrain(terrain, self.pose.position) {
+    /// Lifts the pose to `min_agl` above the terrain where it is lower (on the grid only);
+    /// `at`: the pose's position in the terrain's frame (the two frames share their vertical).
+    fn apply_floor(&mut self, terrain: &Terrain, at: DVec3) {
+        if let Some(agl) = height_above_terrain(terrain, at) {
             if agl < self.min_agl {
                 self.pose.position += terrain.frame.normal * (self.min_agl + FLOOR_MARGIN - agl);
                 self.aircraft.sink = 0.0;

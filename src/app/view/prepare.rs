@@ -58,7 +58,8 @@ pub struct Prepared {
     pub stats_csv: Option<StatsCsv>,
     /// `--cigi`: the IG whose ownship drives the camera.
     pub cigi: Option<crate::app::cigi_ig::CigiIg>,
-    /// A paged window (`--terrain-memory`) driven by a CIGI host follows its ownship.
+    /// A paged window (`--terrain-memory`) follows the eye: a CIGI host's ownship, else the
+    /// motion's pose (which stays in the scene's own frame).
     pub follower: Option<crate::app::paged::Follower>,
 }
 
@@ -105,9 +106,10 @@ pub fn prepare(opts: &ViewOptions) -> Result<Prepared> {
         }
         None => None,
     };
-    let follower = match (&cigi, paged) {
-        (Some(_), true) => crate::app::paged::Follower::new(&scene)?,
-        _ => None,
+    let follower = if paged {
+        Some(crate::app::paged::Follower::new(&scene, &world.terrain)?)
+    } else {
+        None
     };
     Ok(Prepared {
         opts: opts.clone(),

@@ -1,0 +1,210 @@
+//! A paged window follows the camera in `relief render` and `relief view` (without a CIGI
+//! host, whose ownship `tests/cigi_serve.rs` follows). The scene's window is 2° x 2° (513²
+//! samples of the 16x16 × 257² mosaic, `--terrain-memory 8`) around 49N 15E; its `[path]`, in
+//! the scene window's metres as every path is, flies in one second to 51N 17.3E, a degree and
+//! more beyond the window's north-east corner, 6 km up and looking down. Checked:
+//!
+//! * the window moves (`paging.window` in the frame JSON) and the view's tiles are resident;
+//! * the camera is where the path puts it: its position in the frame JSON, taken through that
+//!   frame's own `world_from_grid` and georeference, is the keyframes' latitude and longitude
+//!   (computed from the scene window's, frame 0's) within 1e-9°, at the path's middle (after
+//!   the first move) and at its end (after the second);
+//! * the last frame is `relief render` (in memory) of a scene with that geodetic camera and a
+//!   window around it: mean difference ≤ 1/255. Without the move the eye would be off the
+//!   window, over no terrain.
+
+mod common;
+
+use common::{pager_mosaic, read_json, relief_cli, relief_command, temp_dir, Xvfb};
+use std::path::{Path, PathBuf};
+
+/// The scene window's south-west corner on the mosaic's finest level (14E, 48N at 256 samples a
+/// degree): where the paged window starts.
+const SCENE_WINDOW: [i64; 2] = [49664, 35328];
+const START: [f64; 2] = [49.0, 15.0];
+const END: [f64; 2] = [51.0, 17.3];
+const HEIGHT: f64 = 6000.0;
+
+fn camera_lines(at: &str) -> String {
+    format!("[camera]\n{at}\nheading = 20.0\npitch = -60.0\nfov = 60.0\n[output]\nwidth = 160\nheight = 120\n")
+}
+
+fn terrain_lines(window: [f64; 4], memory: &str) -> String {
+    let db = pager_mosaic();
+    format!("[terrain]\ndatabase = {db:?}\nwindow = {window:?}\ncurved = true\n{memory}\n")
+}
+
+fn render(scene: &Path, out: &Path, extra: &[&str]) {
+    let mut args = vec![
+        "render",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    let r = relief_cli(&args, &[]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+}
+
+/// A frame JSON's `world_from_grid` and `geo`: world position → [lat, lon].
+fn geodetic_of(meta: &serde_json::Value, p: [f64; 3]) -> [f64; 2] {
+    let m = &meta["terrain"]["world_from_grid"];
+    let g = &meta["terrain"]["geo"];
+    let f = |v: &serde_json::Value| v.as_f64().unwrap();
+    // A database window's frame: x east, y north, axis-aligned (checked).
+    assert_eq!(f(&m[0][1]), 0.0, "{m}");
+    assert_eq!(f(&m[1][0]), 0.0, "{m}");
+    let gx = (p[0] - f(&m[0][3])) / f(&m[0][0]);
+    let gy = (p[1] - f(&m[1][3])) / f(&m[1][1]);
+    [
+        f(&g["lat0"]) + gy * f(&g["dlat"]),
+        f(&g["lon0"]) + gx * f(&g["dlon"]),
+    ]
+}
+
+/// The inverse of [`geodetic_of`]: [lat, lon] → world position at `HEIGHT`.
+fn world_of(meta: &serde_json::Value, [lat, lon]: [f64; 2]) -> [f64; 3] {
+    let m = &meta["terrain"]["world_from_grid"];
+    let g = &meta["terrain"]["geo"];
+    let f = |v: &serde_json::Value| v.as_f64().unwrap();
+    let gx = (lon - f(&g["lon0"])) / f(&g["dlon"]);
+    let gy = (lat - f(&g["lat0"])) / f(&g["dlat"]);
+    [
+        f(&m[0][3]) + gx * f(&m[0][0]),
+        f(&m[1][3]) + gy * f(&m[1][1]),
+        HEIGHT,
+    ]
+}
+
+fn position(meta: &serde_json::Value) -> [f64; 3] {
+    let p = &meta["camera"]["position"];
+    [0, 1, 2].map(|k| p[k].as_f64().unwrap())
+}
+
+/// The flight's scene (its path in the scene window's metres, from a first frame's JSON) and
+/// the in-memory reference at the path's end; and the scene window's frame JSON.
+fn scenes(dir: &Path) -> (PathBuf, PathBuf, serde_json::Value) {
+    let window = [48.0, 14.0, 50.0, 16.0];
+    let start = dir.join("start.toml");
+    let at = format!("geodetic = [{}, {}, {HEIGHT}]", START[0], START[1]);
+    std::fs::write(
+        &start,
+        terrain_lines(window, "memory = 8") + &camera_lines(&at),
+    )
+    .unwrap();
+    render(&start, &dir.join("start"), &[]);
+    let meta = read_json(&dir.join("start").join("frame_0000.json"));
+    let (a, b) = (world_of(&meta, START), world_of(&meta, END));
+    let key = |t: f64, p: [f64; 3]| {
+        format!("  {{ time = {t}, position = {p:?}, heading = 20.0, pitch = -60.0, roll = 0.0, fov = 60.0 }},\n")
+    };
+    let flight = dir.join("flight.toml");
+    let path = format!(
+        "[path]\nfps = 4.0\nkeyframes = [\n{}{}]\n",
+        key(0.0, a),
+        key(1.0, b)
+    );
+    let text =
+        terrain_lines(window, "memory = 8") + &camera_lines(&format!("position = {a:?}")) + &path;
+    std::fs::write(&flight, text).unwrap();
+    let reference = dir.join("reference.toml");
+    let at = format!("geodetic = [{}, {}, {HEIGHT}]", END[0], END[1]);
+    std::fs::write(
+        &reference,
+        terrain_lines([50.0, 16.0, 52.0, 18.0], "") + &camera_lines(&at),
+    )
+    .unwrap();
+    (flight, reference, meta)
+}
+
+fn mean_diff(a: &Path, b: &Path) -> f64 {
+    let a = image::open(a).unwrap().to_rgba8();
+    let b = image::open(b).unwrap().to_rgba8();
+    assert_eq!(a.dimensions(), b.dimensions());
+    let s: u64 = (a.as_raw().iter().zip(b.as_raw()))
+        .map(|(x, y)| u64::from(x.abs_diff(*y)))
+        .sum();
+    s as f64 / a.as_raw().len() as f64
+}
+
+fn assert_at(meta: &serde_json::Value, want: [f64; 2], what: &str) {
+    let got = geodetic_of(meta, position(meta));
+    let err = (got[0] - want[0]).abs().max((got[1] - want[1]).abs());
+    assert!(
+        err < 1e-9,
+        "{what}: camera at {got:?}, the path puts it at {want:?}"
+    );
+}
+
+/// `relief render --frames 5 --wait-resident`: the path's frames 0, 2 and 4 (t = 0, 0.5, 1 s).
+#[test]
+fn render_moves_a_paged_window_along_the_path() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let _lock = common::gpu_lock();
+    let dir = temp_dir("paged-follow-render");
+    let (flight, reference, _) = scenes(&dir);
+    let out = dir.join("flight");
+    render(&flight, &out, &["--frames", "5", "--wait-resident"]);
+    render(&reference, &dir.join("reference"), &[]);
+    let meta = |k: u32| read_json(&out.join(format!("frame_{k:04}.json")));
+    let window = |m: &serde_json::Value| {
+        let w = &m["paging"]["window"];
+        [w[0].as_i64().unwrap(), w[1].as_i64().unwrap()]
+    };
+    assert_eq!(window(&meta(0)), SCENE_WINDOW);
+    let (mid, last) = (meta(2), meta(4));
+    assert_ne!(window(&mid), SCENE_WINDOW, "the window did not move");
+    assert_ne!(window(&last), window(&mid), "the window did not move again");
+    assert_eq!(last["paging"]["missing"], 0, "{}", last["paging"]);
+    assert_at(&meta(0), START, "frame 0");
+    let middle = [0.5 * (START[0] + END[0]), 0.5 * (START[1] + END[1])];
+    assert_at(&mid, middle, "frame 2 (the path's middle)");
+    assert_at(&last, END, "frame 4 (the path's end)");
+    let d = mean_diff(
+        &out.join("frame_0004.png"),
+        &dir.join("reference").join("frame_0000.png"),
+    );
+    eprintln!("render: the path's end vs the in-memory render there: mean difference {d:.4}/255");
+    assert!(d <= 1.0, "mean difference {d}/255");
+}
+
+/// `relief view` (Xvfb) plays the same path at 60 Hz and holds its end; the frames render
+/// what is resident, so the last of 240 is checked (the pager reads in the background).
+#[test]
+fn view_moves_a_paged_window_along_the_path() {
+    let lock = common::gpu_lock();
+    if common::gpu().is_none() {
+        return;
+    }
+    let Some(x) = Xvfb::start() else { return };
+    let dir = temp_dir("paged-follow-view");
+    let (flight, reference, _) = scenes(&dir);
+    render(&reference, &dir.join("reference"), &[]);
+    let out = dir.join("flight");
+    let args = [
+        "view",
+        flight.to_str().unwrap(),
+        "--frames",
+        "240",
+        "--capture-frames",
+        out.to_str().unwrap(),
+    ];
+    let o = relief_command(
+        &args,
+        &[("DISPLAY", x.display.as_str()), ("RUST_LOG", "warn")],
+    )
+    .output()
+    .expect("the relief binary runs");
+    drop(lock);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let last = read_json(&out.join("frame_0239.json"));
+    assert_at(&last, END, "frame 239 (the path's end)");
+    let d = mean_diff(
+        &out.join("frame_0239.png"),
+        &dir.join("reference").join("frame_0000.png"),
+    );
+    eprintln!("view: the path's end vs the in-memory render there: mean difference {d:.4}/255");
+    assert!(d <= 1.0, "mean difference {d}/255");
+}
