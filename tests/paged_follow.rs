@@ -15,7 +15,7 @@
 
 mod common;
 
-use common::{pager_mosaic, read_json, relief_cli, relief_command, temp_dir, Xvfb};
+use common::{mean_diff, pager_mosaic, read_json, relief_cli, relief_command, temp_dir, Xvfb};
 use std::path::{Path, PathBuf};
 
 /// The scene window's south-west corner on the mosaic's finest level (14E, 48N at 256 samples a
@@ -82,8 +82,8 @@ fn position(meta: &serde_json::Value) -> [f64; 3] {
 }
 
 /// The flight's scene (its path in the scene window's metres, from a first frame's JSON) and
-/// the in-memory reference at the path's end; and the scene window's frame JSON.
-fn scenes(dir: &Path) -> (PathBuf, PathBuf, serde_json::Value) {
+/// the in-memory reference at the path's end.
+fn scenes(dir: &Path) -> (PathBuf, PathBuf) {
     let window = [48.0, 14.0, 50.0, 16.0];
     let start = dir.join("start.toml");
     let at = format!("geodetic = [{}, {}, {HEIGHT}]", START[0], START[1]);
@@ -114,17 +114,18 @@ fn scenes(dir: &Path) -> (PathBuf, PathBuf, serde_json::Value) {
         terrain_lines([50.0, 16.0, 52.0, 18.0], "") + &camera_lines(&at),
     )
     .unwrap();
-    (flight, reference, meta)
+    (flight, reference)
 }
 
-fn mean_diff(a: &Path, b: &Path) -> f64 {
-    let a = image::open(a).unwrap().to_rgba8();
-    let b = image::open(b).unwrap().to_rgba8();
-    assert_eq!(a.dimensions(), b.dimensions());
-    let s: u64 = (a.as_raw().iter().zip(b.as_raw()))
-        .map(|(x, y)| u64::from(x.abs_diff(*y)))
-        .sum();
-    s as f64 / a.as_raw().len() as f64
+/// `command`'s frame `png` against the in-memory reference render in `dir`: mean ≤ 1/255.
+fn assert_shows_the_reference(command: &str, png: &Path, dir: &Path) {
+    let img = |p: &Path| image::open(p).unwrap().to_rgba8();
+    let reference = dir.join("reference").join("frame_0000.png");
+    let d = mean_diff(&img(png), &img(&reference));
+    eprintln!(
+        "{command}: the path's end vs the in-memory render there: mean difference {d:.4}/255"
+    );
+    assert!(d <= 1.0, "mean difference {d}/255");
 }
 
 fn assert_at(meta: &serde_json::Value, want: [f64; 2], what: &str) {
@@ -133,6 +134,14 @@ fn assert_at(meta: &serde_json::Value, want: [f64; 2], what: &str) {
     assert!(
         err < 1e-9,
         "{what}: camera at {got:?}, the path puts it at {want:?}"
+    );
+    // The frame JSON's own `camera.geodetic` says the same.
+    let g = &meta["camera"]["geodetic"];
+    let said = [g[0].as_f64().unwrap(), g[1].as_f64().unwrap()];
+    let err = (said[0] - want[0]).abs().max((said[1] - want[1]).abs());
+    assert!(
+        err < 1e-9,
+        "{what}: camera.geodetic {g}, the path puts it at {want:?}"
     );
 }
 
@@ -144,7 +153,7 @@ fn render_moves_a_paged_window_along_the_path() {
     }
     let _lock = common::gpu_lock();
     let dir = temp_dir("paged-follow-render");
-    let (flight, reference, _) = scenes(&dir);
+    let (flight, reference) = scenes(&dir);
     let out = dir.join("flight");
     render(&flight, &out, &["--frames", "5", "--wait-resident"]);
     render(&reference, &dir.join("reference"), &[]);
@@ -162,12 +171,7 @@ fn render_moves_a_paged_window_along_the_path() {
     let middle = [0.5 * (START[0] + END[0]), 0.5 * (START[1] + END[1])];
     assert_at(&mid, middle, "frame 2 (the path's middle)");
     assert_at(&last, END, "frame 4 (the path's end)");
-    let d = mean_diff(
-        &out.join("frame_0004.png"),
-        &dir.join("reference").join("frame_0000.png"),
-    );
-    eprintln!("render: the path's end vs the in-memory render there: mean difference {d:.4}/255");
-    assert!(d <= 1.0, "mean difference {d}/255");
+    assert_shows_the_reference("render", &out.join("frame_0004.png"), &dir);
 }
 
 /// `relief view` (Xvfb) plays the same path at 60 Hz and holds its end; the frames render
@@ -180,7 +184,7 @@ fn view_moves_a_paged_window_along_the_path() {
     }
     let Some(x) = Xvfb::start() else { return };
     let dir = temp_dir("paged-follow-view");
-    let (flight, reference, _) = scenes(&dir);
+    let (flight, reference) = scenes(&dir);
     render(&reference, &dir.join("reference"), &[]);
     let out = dir.join("flight");
     let args = [
@@ -201,10 +205,5 @@ fn view_moves_a_paged_window_along_the_path() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let last = read_json(&out.join("frame_0239.json"));
     assert_at(&last, END, "frame 239 (the path's end)");
-    let d = mean_diff(
-        &out.join("frame_0239.png"),
-        &dir.join("reference").join("frame_0000.png"),
-    );
-    eprintln!("view: the path's end vs the in-memory render there: mean difference {d:.4}/255");
-    assert!(d <= 1.0, "mean difference {d}/255");
+    assert_shows_the_reference("view", &out.join("frame_0239.png"), &dir);
 }

@@ -221,21 +221,21 @@ impl Prepared {
             projection: &self.projection,
             fps: self.scene.desc.path.as_ref().map_or(30.0, |p| p.fps),
             paging: self.paging.as_ref(),
-            follower: None,
         }
     }
 
     /// A paged window moved to follow frame `frame`'s camera (`f`'s [`Follower::follow`]),
-    /// and the renderer's pool with it.
-    fn follow(&mut self, f: &mut Follower, r: &mut TerrainRenderer, frame: u32) -> Result<()> {
-        let eye = f.scene_camera(&self.scene, frame).pose.position;
-        if f.follow_scene_eye(&mut self.world, eye)? {
+    /// and the renderer's pool with it; returns the camera in the frame of the window now.
+    fn follow(&mut self, f: &mut Follower, r: &mut TerrainRenderer, frame: u32) -> Result<Camera> {
+        let mut cam = f.scene_camera(&self.scene, frame);
+        if f.follow_scene_eye(&mut self.world, cam.pose.position)? {
             if let Some(p) = &self.paging {
                 p.borrow_mut()
                     .sync_window(&self.gpu, r, &self.world, f.spec())?;
             }
         }
-        Ok(())
+        cam.pose.position = f.to_window(&self.world.terrain, cam.pose.position);
+        Ok(cam)
     }
 }
 
@@ -316,14 +316,12 @@ pub fn run(job: &RenderJob) -> Result<Vec<PathBuf>> {
                 },
             )
         };
-        if let Some(f) = &mut follower {
-            p.follow(f, &mut renderer, frame).map_err(at)?;
-        }
-        let frames = Frames {
-            follower: follower.as_ref(),
-            ..p.frames(job)
+        let cam = match &mut follower {
+            Some(f) => p.follow(f, &mut renderer, frame).map_err(at)?,
+            None => p.scene.camera(frame, &p.world.terrain),
         };
-        written.extend(frames.render(&mut renderer, frame).map_err(at)?);
+        let frames = p.frames(job);
+        written.extend(frames.render(&mut renderer, frame, &cam).map_err(at)?);
     }
     Ok(written)
 }
@@ -486,8 +484,6 @@ pub struct Frames<'a> {
     projection: &'a Projection,
     fps: f64,
     paging: Option<&'a RefCell<Paging>>,
-    /// A paged window following the camera: the frames' cameras go through it.
-    follower: Option<&'a Follower>,
 }
 
 impl<'a> Frames<'a> {
@@ -505,21 +501,22 @@ impl<'a> Frames<'a> {
             projection: self.projection,
             fps: self.fps,
             paging: self.paging,
-            follower: self.follower,
         }
     }
 
-    /// Renders frame `frame` and writes its three files (none of them when one cannot be).
-    fn render(&self, renderer: &mut TerrainRenderer, frame: u32) -> Result<[PathBuf; 3]> {
-        let cam = match self.follower {
-            Some(f) => f.camera(self.scene, frame, self.terrain),
-            None => self.scene.camera(frame, self.terrain),
-        };
+    /// Renders frame `frame` through `cam` and writes its three files (none of them when one
+    /// cannot be).
+    fn render(
+        &self,
+        renderer: &mut TerrainRenderer,
+        frame: u32,
+        cam: &Camera,
+    ) -> Result<[PathBuf; 3]> {
         renderer.set_time(frame as f64 / self.fps);
         let wait = self.job.frames == 1 || self.job.wait_resident;
-        let paging = self.page(renderer, &cam, wait)?;
-        let out = self.render_camera(renderer, &cam)?;
-        self.write(&out, &cam, frame, |m| {
+        let paging = self.page(renderer, cam, wait)?;
+        let out = self.render_camera(renderer, cam)?;
+        self.write(&out, cam, frame, |m| {
             if let Some(p) = paging {
                 m["paging"] = p;
             }

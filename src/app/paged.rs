@@ -343,14 +343,6 @@ impl Follower {
         scene.camera(frame, &self.scene_terrain)
     }
 
-    /// Frame `frame`'s camera of `scene` (its `[path]` or its camera, in the scene's own
-    /// frame) in the frame of the window now (`terrain`, the world's).
-    pub fn camera(&self, scene: &Scene, frame: u32, terrain: &Terrain) -> Camera {
-        let mut cam = self.scene_camera(scene, frame);
-        cam.pose.position = self.to_window(terrain, cam.pose.position);
-        cam
-    }
-
     /// [`Follower::follow`] for an eye at `eye` in the scene's own frame (a `[path]`, the
     /// window's free flight). Returns whether the window moved.
     pub fn follow_scene_eye(&mut self, world: &mut World, eye: DVec3) -> Result<bool> {

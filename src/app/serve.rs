@@ -140,13 +140,10 @@ pub fn run_with(
             writeln!(w, "{line}").map_err(|e| Error::io(path, e))?;
         }
         if opts.capture_frames.is_some() {
-            let geodetic = own
-                .map(|o| o.geodetic)
-                .or_else(|| terrain.world_to_geodetic(cam.pose.position));
             let cigi = ig.frame_json(ig_frame);
             frames.write(&out, &cam, ig_frame, |m| {
                 m["cigi"] = cigi;
-                m["camera"]["geodetic"] = json!(geodetic);
+                m["camera"]["geodetic"] = json!(at);
                 m["camera"]["host_time_s"] = json!(own.map(|o| o.host_time));
                 if let Some(p) = paging {
                     m["paging"] = p;

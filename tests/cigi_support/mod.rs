@@ -3,6 +3,7 @@
 //! N47E009 and WGS84 radii computed here (independently of `relief::geodesy`).
 #![allow(dead_code)]
 
+pub use crate::common::mean_diff;
 use crate::common::{relief_command, terrains};
 use relief::cigi::*;
 use std::io::{BufRead, BufReader, Read};
@@ -206,18 +207,6 @@ pub fn scene(dir: &Path, name: &str, lla: [f64; 3], hpr: [f64; 3], extra: &str) 
     let p = dir.join(format!("{name}.toml"));
     std::fs::write(&p, text).unwrap();
     p
-}
-
-/// Mean absolute difference of two RGBA8 images, in units of 1/255.
-pub fn mean_diff(a: &image::RgbaImage, b: &image::RgbaImage) -> f64 {
-    assert_eq!(a.dimensions(), b.dimensions());
-    let s: u64 = a
-        .as_raw()
-        .iter()
-        .zip(b.as_raw())
-        .map(|(x, y)| u64::from(x.abs_diff(*y)))
-        .sum();
-    s as f64 / a.as_raw().len() as f64
 }
 
 /// WGS84 radii of curvature (m) at latitude `lat` (degrees): meridional and prime vertical.
