@@ -1,36 +1,67 @@
 //! A paged window follows the camera in `relief render` and `relief view` (without a CIGI
-//! host, whose ownship `tests/cigi_serve.rs` follows). The scene's window is 2° x 2° (513²
-//! samples of the 16x16 × 257² mosaic, `--terrain-memory 8`) around 49N 15E; its `[path]`, in
-//! the scene window's metres as every path is, flies in one second to 51N 17.3E, a degree and
-//! more beyond the window's north-east corner, 6 km up and looking down. Checked:
+//! host, whose ownship `tests/cigi_serve.rs` follows). A scene's `[path]`, in the scene
+//! window's metres as every path is, flies in one second from the middle of its window to a
+//! point beyond the window's north-east corner, 6 km up and looking down:
+//!
+//! * the 16x16 × 257² mosaic (`--terrain-memory 8`): a 2° x 2° window (513² samples) around
+//!   49N 15E, the path to 51N 17.3E (`render` and `view`);
+//! * real data: a database compiled from `terrains/N47E009.hgt` (SRTM, the Alpstein), a
+//!   0.3° x 0.4° window around 47.25N 9.3E, the path to 47.6N 9.65E (`render`).
+//!
+//! Checked:
 //!
 //! * the window moves (`paging.window` in the frame JSON) and the view's tiles are resident;
 //! * the camera is where the path puts it: its position in the frame JSON, taken through that
-//!   frame's own `world_from_grid` and georeference, is the keyframes' latitude and longitude
-//!   (computed from the scene window's, frame 0's) within 1e-9°, at the path's middle (after
-//!   the first move) and at its end (after the second);
+//!   frame's own `world_from_grid` and georeference, and its `camera.geodetic`, are the
+//!   keyframes' latitude and longitude (the path computed from the scene window's frame)
+//!   within 1e-9°, at the path's middle and at its end;
 //! * the last frame is `relief render` (in memory) of a scene with that geodetic camera and a
 //!   window around it: mean difference ≤ 1/255. Without the move the eye would be off the
 //!   window, over no terrain.
 
 mod common;
 
-use common::{mean_diff, pager_mosaic, read_json, relief_cli, relief_command, temp_dir, Xvfb};
+use common::{
+    mean_diff, pager_mosaic, project_dir, read_json, relief_cli, relief_command, temp_dir, Xvfb,
+};
 use std::path::{Path, PathBuf};
 
-/// The scene window's south-west corner on the mosaic's finest level (14E, 48N at 256 samples a
-/// degree): where the paged window starts.
-const SCENE_WINDOW: [i64; 2] = [49664, 35328];
-const START: [f64; 2] = [49.0, 15.0];
-const END: [f64; 2] = [51.0, 17.3];
 const HEIGHT: f64 = 6000.0;
+
+/// A flight over a database past its scene window's edge.
+struct Flight {
+    database: PathBuf,
+    /// The scene's window and the in-memory reference's (around `end`): [lat, lon, lat, lon].
+    window: [f64; 4],
+    reference_window: [f64; 4],
+    /// The path's first and last point: [lat, lon].
+    start: [f64; 2],
+    end: [f64; 2],
+    /// The tile pool (MB).
+    memory: u32,
+}
+
+/// The mosaic's flight.
+fn mosaic_flight() -> Flight {
+    Flight {
+        database: pager_mosaic(),
+        window: [48.0, 14.0, 50.0, 16.0],
+        reference_window: [50.0, 16.0, 52.0, 18.0],
+        start: [49.0, 15.0],
+        end: [51.0, 17.3],
+        memory: 8,
+    }
+}
+
+/// The mosaic scene window's south-west corner on its finest level (14E, 48N at 256 samples a
+/// degree): where the paged window starts.
+const MOSAIC_WINDOW: [i64; 2] = [49664, 35328];
 
 fn camera_lines(at: &str) -> String {
     format!("[camera]\n{at}\nheading = 20.0\npitch = -60.0\nfov = 60.0\n[output]\nwidth = 160\nheight = 120\n")
 }
 
-fn terrain_lines(window: [f64; 4], memory: &str) -> String {
-    let db = pager_mosaic();
+fn terrain_lines(db: &Path, window: [f64; 4], memory: &str) -> String {
     format!("[terrain]\ndatabase = {db:?}\nwindow = {window:?}\ncurved = true\n{memory}\n")
 }
 
@@ -82,19 +113,16 @@ fn position(meta: &serde_json::Value) -> [f64; 3] {
 }
 
 /// The flight's scene (its path in the scene window's metres, from a first frame's JSON) and
-/// the in-memory reference at the path's end.
-fn scenes(dir: &Path) -> (PathBuf, PathBuf) {
-    let window = [48.0, 14.0, 50.0, 16.0];
+/// the in-memory reference at the path's end, rendered to `dir/reference`.
+fn scenes(dir: &Path, f: &Flight) -> PathBuf {
+    let memory = format!("memory = {}", f.memory);
     let start = dir.join("start.toml");
-    let at = format!("geodetic = [{}, {}, {HEIGHT}]", START[0], START[1]);
-    std::fs::write(
-        &start,
-        terrain_lines(window, "memory = 8") + &camera_lines(&at),
-    )
-    .unwrap();
+    let at = format!("geodetic = [{}, {}, {HEIGHT}]", f.start[0], f.start[1]);
+    let text = terrain_lines(&f.database, f.window, &memory) + &camera_lines(&at);
+    std::fs::write(&start, text).unwrap();
     render(&start, &dir.join("start"), &[]);
     let meta = read_json(&dir.join("start").join("frame_0000.json"));
-    let (a, b) = (world_of(&meta, START), world_of(&meta, END));
+    let (a, b) = (world_of(&meta, f.start), world_of(&meta, f.end));
     let key = |t: f64, p: [f64; 3]| {
         format!("  {{ time = {t}, position = {p:?}, heading = 20.0, pitch = -60.0, roll = 0.0, fov = 60.0 }},\n")
     };
@@ -104,28 +132,25 @@ fn scenes(dir: &Path) -> (PathBuf, PathBuf) {
         key(0.0, a),
         key(1.0, b)
     );
-    let text =
-        terrain_lines(window, "memory = 8") + &camera_lines(&format!("position = {a:?}")) + &path;
+    let text = terrain_lines(&f.database, f.window, &memory)
+        + &camera_lines(&format!("position = {a:?}"))
+        + &path;
     std::fs::write(&flight, text).unwrap();
     let reference = dir.join("reference.toml");
-    let at = format!("geodetic = [{}, {}, {HEIGHT}]", END[0], END[1]);
-    std::fs::write(
-        &reference,
-        terrain_lines([50.0, 16.0, 52.0, 18.0], "") + &camera_lines(&at),
-    )
-    .unwrap();
-    (flight, reference)
+    let at = format!("geodetic = [{}, {}, {HEIGHT}]", f.end[0], f.end[1]);
+    let text = terrain_lines(&f.database, f.reference_window, "") + &camera_lines(&at);
+    std::fs::write(&reference, text).unwrap();
+    render(&reference, &dir.join("reference"), &[]);
+    flight
 }
 
-/// `command`'s frame `png` against the in-memory reference render in `dir`: mean ≤ 1/255.
-fn assert_shows_the_reference(command: &str, png: &Path, dir: &Path) {
+/// `what`'s frame `png` against the in-memory reference render in `dir`: mean ≤ 1/255.
+fn assert_shows_the_reference(what: &str, png: &Path, dir: &Path) {
     let img = |p: &Path| image::open(p).unwrap().to_rgba8();
     let reference = dir.join("reference").join("frame_0000.png");
     let d = mean_diff(&img(png), &img(&reference));
-    eprintln!(
-        "{command}: the path's end vs the in-memory render there: mean difference {d:.4}/255"
-    );
-    assert!(d <= 1.0, "mean difference {d}/255");
+    eprintln!("{what}: the path's end vs the in-memory render there: mean difference {d:.4}/255");
+    assert!(d <= 1.0, "{what}: mean difference {d}/255");
 }
 
 fn assert_at(meta: &serde_json::Value, want: [f64; 2], what: &str) {
@@ -145,7 +170,32 @@ fn assert_at(meta: &serde_json::Value, want: [f64; 2], what: &str) {
     );
 }
 
-/// `relief render --frames 5 --wait-resident`: the path's frames 0, 2 and 4 (t = 0, 0.5, 1 s).
+/// `relief render --frames 5 --wait-resident` of `f` in `dir`: the windows of frames 0, 2 and
+/// 4 (t = 0, 0.5, 1 s), after checking the camera there, the view's tiles resident at the end
+/// and the last frame against the reference.
+fn render_flight(name: &str, dir: &Path, f: &Flight) -> [[i64; 2]; 3] {
+    let flight = scenes(dir, f);
+    let out = dir.join("flight");
+    render(&flight, &out, &["--frames", "5", "--wait-resident"]);
+    let meta = |k: u32| read_json(&out.join(format!("frame_{k:04}.json")));
+    let (first, mid, last) = (meta(0), meta(2), meta(4));
+    assert_eq!(last["paging"]["missing"], 0, "{name}: {}", last["paging"]);
+    assert_at(&first, f.start, &format!("{name}: frame 0"));
+    let middle = [0.5 * (f.start[0] + f.end[0]), 0.5 * (f.start[1] + f.end[1])];
+    assert_at(
+        &mid,
+        middle,
+        &format!("{name}: frame 2 (the path's middle)"),
+    );
+    assert_at(&last, f.end, &format!("{name}: frame 4 (the path's end)"));
+    assert_shows_the_reference(name, &out.join("frame_0004.png"), dir);
+    [first, mid, last].map(|m| {
+        let w = &m["paging"]["window"];
+        [w[0].as_i64().unwrap(), w[1].as_i64().unwrap()]
+    })
+}
+
+/// The mosaic's flight: the window moves at frame 2 and again at frame 4.
 #[test]
 fn render_moves_a_paged_window_along_the_path() {
     if common::gpu().is_none() {
@@ -153,28 +203,43 @@ fn render_moves_a_paged_window_along_the_path() {
     }
     let _lock = common::gpu_lock();
     let dir = temp_dir("paged-follow-render");
-    let (flight, reference) = scenes(&dir);
-    let out = dir.join("flight");
-    render(&flight, &out, &["--frames", "5", "--wait-resident"]);
-    render(&reference, &dir.join("reference"), &[]);
-    let meta = |k: u32| read_json(&out.join(format!("frame_{k:04}.json")));
-    let window = |m: &serde_json::Value| {
-        let w = &m["paging"]["window"];
-        [w[0].as_i64().unwrap(), w[1].as_i64().unwrap()]
-    };
-    assert_eq!(window(&meta(0)), SCENE_WINDOW);
-    let (mid, last) = (meta(2), meta(4));
-    assert_ne!(window(&mid), SCENE_WINDOW, "the window did not move");
-    assert_ne!(window(&last), window(&mid), "the window did not move again");
-    assert_eq!(last["paging"]["missing"], 0, "{}", last["paging"]);
-    assert_at(&meta(0), START, "frame 0");
-    let middle = [0.5 * (START[0] + END[0]), 0.5 * (START[1] + END[1])];
-    assert_at(&mid, middle, "frame 2 (the path's middle)");
-    assert_at(&last, END, "frame 4 (the path's end)");
-    assert_shows_the_reference("render", &out.join("frame_0004.png"), &dir);
+    let [first, mid, last] = render_flight("render", &dir, &mosaic_flight());
+    assert_eq!(first, MOSAIC_WINDOW);
+    assert_ne!(mid, first, "the window did not move");
+    assert_ne!(last, mid, "the window did not move again");
 }
 
-/// `relief view` (Xvfb) plays the same path at 60 Hz and holds its end; the frames render
+/// Real data: the SRTM tile compiled by `relief db build`, flown past its window's corner.
+#[test]
+fn render_moves_a_paged_window_over_the_alps_database() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let _lock = common::gpu_lock();
+    let dir = temp_dir("paged-follow-alps");
+    let database = dir.join("alps.reliefdb");
+    let hgt = project_dir().join("terrains").join("N47E009.hgt");
+    let args = [
+        "db",
+        "build",
+        database.to_str().unwrap(),
+        hgt.to_str().unwrap(),
+    ];
+    let r = relief_cli(&args, &[]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let f = Flight {
+        database,
+        window: [47.1, 9.1, 47.4, 9.5],
+        reference_window: [47.45, 9.45, 47.75, 9.85],
+        start: [47.25, 9.3],
+        end: [47.6, 9.65],
+        memory: 64,
+    };
+    let [first, _, last] = render_flight("alps", &dir, &f);
+    assert_ne!(last, first, "the window did not move");
+}
+
+/// `relief view` (Xvfb) plays the mosaic's path at 60 Hz and holds its end; the frames render
 /// what is resident, so the last of 240 is checked (the pager reads in the background).
 #[test]
 fn view_moves_a_paged_window_along_the_path() {
@@ -184,8 +249,8 @@ fn view_moves_a_paged_window_along_the_path() {
     }
     let Some(x) = Xvfb::start() else { return };
     let dir = temp_dir("paged-follow-view");
-    let (flight, reference) = scenes(&dir);
-    render(&reference, &dir.join("reference"), &[]);
+    let f = mosaic_flight();
+    let flight = scenes(&dir, &f);
     let out = dir.join("flight");
     let args = [
         "view",
@@ -204,6 +269,6 @@ fn view_moves_a_paged_window_along_the_path() {
     drop(lock);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let last = read_json(&out.join("frame_0239.json"));
-    assert_at(&last, END, "frame 239 (the path's end)");
+    assert_at(&last, f.end, "view: frame 239 (the path's end)");
     assert_shows_the_reference("view", &out.join("frame_0239.png"), &dir);
 }
