@@ -229,6 +229,35 @@ fn a_scripted_flight_stays_in_budget_without_holes_or_waits_and_converges() {
     );
 }
 
+/// An eye at absurd coordinates (a camera path flown far off the earth: a latitude of -5e9°,
+/// a latitude past a pole, NaN, infinities) is paged for without a panic.
+#[test]
+fn an_eye_off_the_earth_is_paged_for_without_a_panic() {
+    let d = Arc::new(Database::open(&mosaic()).unwrap());
+    let (mut pager, _) = Pager::new(d, PagerOptions::default()).unwrap();
+    for (lat, lon, height) in [
+        (-5.0e9, 2.7e9, 6000.0),
+        (95.0, 15.0, 6000.0),
+        (90.0, 15.0, 6000.0),
+        (f64::NAN, 15.0, 6000.0),
+        (49.0, f64::INFINITY, 6000.0),
+        (49.0, 15.0, f64::NEG_INFINITY),
+    ] {
+        let view = View {
+            lon,
+            lat,
+            height,
+            heading: 20.0,
+            pitch: -60.0,
+            fov: 60.0,
+            width: 160,
+            height_px: 120,
+            cone: None,
+        };
+        pager.update(&view).unwrap();
+    }
+}
+
 #[test]
 fn a_pool_too_small_for_the_coarsest_level_is_a_named_error() {
     let d = Arc::new(Database::open(&mosaic()).unwrap());

@@ -80,7 +80,8 @@ impl<'a> Viewer<'a> {
         Viewer {
             header,
             view,
-            m: metres_per_degree(view.lat),
+            // Past a pole the scale would turn negative: the pole's.
+            m: metres_per_degree(view.lat.clamp(-90.0, 90.0)),
             dir: view.direction(),
             half_cone: view.half_cone(),
             pixel: view.pixel_angle(),
@@ -109,12 +110,21 @@ impl<'a> Viewer<'a> {
         }
     }
 
-    /// Distance from the eye to the tile's box, metres (at least 1).
+    /// Distance from the eye to the tile's box, metres (at least 1). An eye off the earth (a
+    /// latitude past a pole, a camera flown to absurd coordinates) gets some distance, never a
+    /// panic: the box's sides are taken in either order, and a NaN side counts as none.
     pub fn distance(&self, e: &IndexEntry) -> f64 {
         let b = self.tile_box(e);
         let mut d2 = 0.0;
         for k in 0..3 {
-            let c = 0f64.clamp(b.lo[k], b.hi[k]);
+            let (lo, hi) = (b.lo[k].min(b.hi[k]), b.lo[k].max(b.hi[k]));
+            let c = if lo > 0.0 {
+                lo
+            } else if hi < 0.0 {
+                hi
+            } else {
+                0.0
+            };
             d2 += c * c;
         }
         d2.sqrt().max(1.0)
