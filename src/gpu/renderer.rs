@@ -489,12 +489,12 @@ impl TerrainRenderer {
         if features.lod {
             self.base.prepare_cast_lod(gpu);
         }
-        if self.antialiased(job) && self.paged.is_none() {
+        if self.antialiased(job) {
             self.base.prepare_cast_near(gpu);
         }
-        // Anti-aliasing's centre rays search their sun rays' footprint beams (the paged
-        // traversal has no NEAR build); its samples need not.
-        let near = self.antialiased(job) && s.shadows && self.paged.is_none();
+        // Anti-aliasing's centre rays search their sun rays' footprint beams; its samples
+        // need not.
+        let near = self.antialiased(job) && s.shadows;
         let shade_index = [near, false].map(|near| {
             let f = ShadeFeatures { near, ..features };
             match &mut self.objects {
@@ -617,8 +617,7 @@ impl TerrainRenderer {
         // Anti-aliasing's centre rays flag near misses (the atlas's samples need not).
         let centre_rays = self.antialiased(job) && !job.atlas;
         let cast = if tile_on || s.mode == TraceMode::Pyramid {
-            let near = centre_rays && self.paged.is_none();
-            self.base.cast_pipeline(s.lod.is_some(), near)
+            self.base.cast_pipeline(s.lod.is_some(), centre_rays)
         } else {
             &self.base.march
         };

@@ -98,7 +98,7 @@ pub fn tile(curved: bool) -> String {
 /// (group 3), the neighbourhood maxima cell by cell.
 pub fn tile_paged(curved: bool, pools: u32) -> String {
     [
-        &paged_prelude(curved, pools),
+        &paged_prelude(curved, pools, false),
         include_str!("shaders/tile_paged.wgsl"),
         TRAVERSE,
         include_str!("shaders/tile.wgsl"),
@@ -106,15 +106,15 @@ pub fn tile_paged(curved: bool, pools: u32) -> String {
     .concat()
 }
 
-/// What the paged passes (tile pre-pass, cast) start with: their switches (no footprint LOD,
-/// no near misses), the frame, the full-screen triangle, the ray table and the terrain read
-/// from a pool of `pools` bindings through the window-relative interface.
-fn paged_prelude(curved: bool, pools: u32) -> String {
+/// What the paged passes (tile pre-pass, cast) start with: their switches (no footprint LOD;
+/// `near` as in [`cast`]), the frame, the full-screen triangle, the ray table and the terrain
+/// read from a pool of `pools` bindings through the window-relative interface.
+fn paged_prelude(curved: bool, pools: u32, near: bool) -> String {
     let consts = super::variants::wgsl_bools(&[
         ("CURVED", curved),
         ("LOD", false),
         ("PAGED", true),
-        ("NEAR", false),
+        ("NEAR", near),
     ]);
     [
         &consts,
@@ -148,10 +148,10 @@ pub fn cast(curved: bool, lod: bool, near: bool) -> String {
 
 /// The paged cast pass (`PAGED`): as [`cast`] with the terrain read from the tile pool
 /// (group 3, `terrain_paged.wgsl`) and the paged stop rule; built by the renderer in paged
-/// mode (`TerrainRenderer::new_paged`).
-pub fn cast_paged(curved: bool, pools: u32) -> String {
+/// mode (`TerrainRenderer::new_paged`); `near` as in [`cast`].
+pub fn cast_paged(curved: bool, pools: u32, near: bool) -> String {
     [
-        &paged_prelude(curved, pools),
+        &paged_prelude(curved, pools, near),
         TRAVERSE,
         GBUFFER,
         include_str!("shaders/cast.wgsl"),
@@ -202,9 +202,14 @@ fn sample_height(i: u32, j: u32) -> f32 {
     let a = min(vec2<u32>(p), vec2<u32>(paged.tile_n - 1u));
     let uv = p - vec2<f32>(a);
     let slot = paged_hint_slot;
-    let s = mix(paged_height(slot, a.x, a.y), paged_height(slot, a.x + 1u, a.y), uv.x);
-    let m = mix(paged_height(slot, a.x, a.y + 1u), paged_height(slot, a.x + 1u, a.y + 1u), uv.x);
-    return mix(s, m, uv.y);
+    // A sample of the level itself (uv 0: always on the finest level) is taken alone: a void
+    // beside it (NaN, no source data: past the edge of the data) would make the weighted sum
+    // NaN at weight 0.
+    let h00 = paged_height(slot, a.x, a.y);
+    let h01 = paged_height(slot, a.x, a.y + 1u);
+    let s = select(mix(h00, paged_height(slot, a.x + 1u, a.y), uv.x), h00, uv.x == 0.0);
+    let m = select(mix(h01, paged_height(slot, a.x + 1u, a.y + 1u), uv.x), h01, uv.x == 0.0);
+    return select(mix(s, m, uv.y), s, uv.y == 0.0);
 }
 ";
 
@@ -486,8 +491,16 @@ pub fn all() -> Vec<(&'static str, String)> {
         ("cast (curved, lod)", cast(true, true, false)),
         ("cast (near)", cast(false, false, true)),
         ("cast (curved, near)", cast(true, false, true)),
-        ("cast (paged)", cast_paged(false, 1)),
-        ("cast (curved, paged, 4 pool bindings)", cast_paged(true, 4)),
+        ("cast (paged)", cast_paged(false, 1, false)),
+        (
+            "cast (curved, paged, 4 pool bindings)",
+            cast_paged(true, 4, false),
+        ),
+        ("cast (paged, near)", cast_paged(false, 1, true)),
+        (
+            "cast (curved, paged, near, 2 pool bindings)",
+            cast_paged(true, 2, true),
+        ),
         ("tile (paged)", tile_paged(false, 1)),
         ("tile (curved, paged, 2 pool bindings)", tile_paged(true, 2)),
         ("shade", shade(ShadeFeatures::ALL)),
@@ -501,6 +514,14 @@ pub fn all() -> Vec<(&'static str, String)> {
             }),
         ),
         (
+            "shade (paged, near)",
+            shade(ShadeFeatures {
+                paged: 2,
+                lod: false,
+                ..ShadeFeatures::ALL
+            }),
+        ),
+        (
             "shade_objects (paged, 3 pool bindings)",
             shade_objects(
                 ShadeFeatures {
@@ -509,6 +530,17 @@ pub fn all() -> Vec<(&'static str, String)> {
                     ..ShadeFeatures::ALL
                 },
                 FfTables::Storage,
+            ),
+        ),
+        (
+            "shade_objects (paged, near)",
+            shade_objects(
+                ShadeFeatures {
+                    paged: 1,
+                    lod: false,
+                    ..ShadeFeatures::ALL
+                },
+                UNIFORM,
             ),
         ),
         ("shade_objects", shade_objects(ShadeFeatures::ALL, UNIFORM)),

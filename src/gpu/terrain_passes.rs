@@ -212,6 +212,10 @@ pub(crate) struct TerrainPasses {
     pub cast_near: Option<wgpu::RenderPipeline>,
     /// The terrain's curved earth (the switch the cast pipelines are built with).
     pub curved: bool,
+    /// The cast pipelines' layout (group 3 the tile pool when paged).
+    cast_layout: wgpu::PipelineLayout,
+    /// Paged: the tile pool's storage bindings (the cast variants read the terrain from it).
+    pool_bindings: Option<u32>,
     pub march: wgpu::RenderPipeline,
     /// Terrain-only shade pipelines (with free forms, `ObjectPasses` has its own).
     pub shade: ShadePipelines,
@@ -271,7 +275,7 @@ impl TerrainPasses {
         let cast_mod = match paged {
             Some(_) => module(
                 "cast.wgsl (paged)",
-                shaders::cast_paged(terrain.curved, bindings),
+                shaders::cast_paged(terrain.curved, bindings, false),
             ),
             None => module("cast.wgsl", shaders::cast(terrain.curved, false, false)),
         };
@@ -324,6 +328,8 @@ impl TerrainPasses {
             cast_lod: None,
             cast_near: None,
             curved: terrain.curved,
+            cast_layout,
+            pool_bindings: pool.map(|(_, n)| n),
             march,
             shade,
             raygen_mod,
@@ -346,7 +352,8 @@ impl TerrainPasses {
         }
     }
 
-    /// Builds the near-miss cast pipeline unless it exists (anti-aliased frames only).
+    /// Builds the near-miss cast pipeline unless it exists (anti-aliased frames only; on the
+    /// paged terrain too).
     pub fn prepare_cast_near(&mut self, gpu: &Gpu) {
         if self.cast_near.is_none() {
             self.cast_near = Some(self.cast_variant(gpu, false, true, "cast (near)"));
@@ -354,10 +361,22 @@ impl TerrainPasses {
     }
 
     fn cast_variant(&self, gpu: &Gpu, lod: bool, near: bool, label: &str) -> wgpu::RenderPipeline {
-        let src = shaders::cast(self.curved, lod, near);
+        let src = match self.pool_bindings {
+            Some(n) => shaders::cast_paged(self.curved, n, near),
+            None => shaders::cast(self.curved, lod, near),
+        };
         let m = super::shader_module(&gpu.device, gpu.params, label, &src);
         let target = [Some(target_state(wgpu::TextureFormat::Rgba32Uint))];
-        fullscreen_pipeline(&gpu.device, label, &m, "fs_cast", &self.bgl.cast, &target)
+        let entries = ["vs_fullscreen", "fs_cast"];
+        render_pipeline_in(
+            &gpu.device,
+            label,
+            &m,
+            entries,
+            &self.cast_layout,
+            &target,
+            None,
+        )
     }
 
     /// The cast pipeline for a frame with (`lod`) or without footprint level of detail, and

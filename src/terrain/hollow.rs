@@ -72,12 +72,11 @@ pub(super) fn window(
 ) -> Result<Terrain> {
     let mut database = Database::open(path)?;
     database.set_cache_bytes(CACHE_BYTES);
-    // A paged window starts on a tile's corner.
-    let spec = db::window::on_tile_corners(
-        db::window::resolve(&database, window, level)?,
-        database.tile_cells(),
-    );
-    window_spec(desc, base_dir, Arc::new(database), &spec)
+    // A paged window starts on a tile's corner; the scene's metres stay those of its own
+    // window (the in-memory one).
+    let scene_window = db::window::resolve(&database, window, level)?;
+    let spec = db::window::on_tile_corners(scene_window, database.tile_cells());
+    anchored(desc, base_dir, Arc::new(database), &spec, &scene_window)
 }
 
 /// The terrain of `desc` over window `spec` of `database` (opened from `desc`'s path, its
@@ -88,6 +87,20 @@ pub fn window_spec(
     base_dir: &Path,
     database: Arc<Database>,
     spec: &db::WindowSpec,
+) -> Result<Terrain> {
+    anchored(desc, base_dir, database, spec, spec)
+}
+
+/// [`window_spec`] placed in the metres of window `anchor` of the same level (the scene's own
+/// window, which `spec` extends out to a tile corner): the metric spacing at `anchor`'s centre
+/// latitude, and the world origin at `anchor`'s south-west sample, so that a position in metres
+/// lands on the sample it lands on in the in-memory window of `anchor`.
+fn anchored(
+    desc: &TerrainDesc,
+    base_dir: &Path,
+    database: Arc<Database>,
+    spec: &db::WindowSpec,
+    anchor: &db::WindowSpec,
 ) -> Result<Terrain> {
     let spec = *spec;
     let path = database.path().to_path_buf();
@@ -117,7 +130,7 @@ pub fn window_spec(
         heights: Vec::new(),
         spacing: desc
             .cell_size
-            .unwrap_or_else(|| geo.metric_spacing(spec.height)),
+            .unwrap_or_else(|| db::window::georef(&database, anchor).metric_spacing(anchor.height)),
         geo: Some(geo),
         voids_filled: 0,
     };
@@ -130,7 +143,9 @@ pub fn window_spec(
         range.0,
         range.1
     );
-    let frame = super::desc_frame(desc, field.spacing)?;
+    let mut frame = super::desc_frame(desc, field.spacing)?;
+    let (di, dj) = ((anchor.i0 - spec.i0) as f64, (anchor.j0 - spec.j0) as f64);
+    frame.origin -= frame.axis_x * (di * field.spacing[0]) + frame.axis_y * (dj * field.spacing[1]);
     let pyramid = MaxPyramid::shape(field.width, field.height);
     let mut terrain = Terrain::assemble(field, frame, pyramid, range);
     terrain.hollow = Some(Hollow {

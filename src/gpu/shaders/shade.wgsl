@@ -66,10 +66,19 @@ fn cell_shape(i: i32, j: i32, u: f32, v: f32) -> CellShape {
     let y1 = u32(min(j + 1, wy));
     let y2 = u32(min(j + 2, wy));
     // Rows j and j + 1 across columns i - 1 ..= i + 2; columns i and i + 1 at rows j - 1, j + 2.
-    let a = vec4<f32>(sample_height(xm, y0), sample_height(x0, y0), sample_height(x1, y0), sample_height(x2, y0));
-    let b = vec4<f32>(sample_height(xm, y1), sample_height(x0, y1), sample_height(x1, y1), sample_height(x2, y1));
-    let below = vec2<f32>(sample_height(x0, ym), sample_height(x1, ym));
-    let above = vec2<f32>(sample_height(x0, y2), sample_height(x1, y2));
+    var a = vec4<f32>(sample_height(xm, y0), sample_height(x0, y0), sample_height(x1, y0), sample_height(x2, y0));
+    var b = vec4<f32>(sample_height(xm, y1), sample_height(x0, y1), sample_height(x1, y1), sample_height(x2, y1));
+    var below = vec2<f32>(sample_height(x0, ym), sample_height(x1, ym));
+    var above = vec2<f32>(sample_height(x0, y2), sample_height(x1, y2));
+    if (PAGED) {
+        // A paged tile keeps its voids (NaN: no source data, past the edge of the data): a
+        // void beside the cell is extrapolated linearly from the cell's side, which makes the
+        // difference across it one-sided.
+        a = vec4<f32>(finite_or(a.x, 2.0 * a.y - a.z), a.y, a.z, finite_or(a.w, 2.0 * a.z - a.y));
+        b = vec4<f32>(finite_or(b.x, 2.0 * b.y - b.z), b.y, b.z, finite_or(b.w, 2.0 * b.z - b.y));
+        below = vec2<f32>(finite_or(below.x, 2.0 * a.y - b.y), finite_or(below.y, 2.0 * a.z - b.z));
+        above = vec2<f32>(finite_or(above.x, 2.0 * b.y - a.y), finite_or(above.y, 2.0 * b.z - a.z));
+    }
     let dx0 = f32(x1 - xm);
     let dx1 = f32(x2 - x0);
     let dy0 = f32(y1 - ym);
@@ -82,6 +91,11 @@ fn cell_shape(i: i32, j: i32, u: f32, v: f32) -> CellShape {
     c.h = vec4<f32>(a.y, a.z, b.y, b.z);
     c.gradient = mix(mix(g00, g10, u), mix(g01, g11, u), v);
     return c;
+}
+
+// `v`, or `f` where v is NaN or infinite (a test on its bits: WGSL may assume floats finite).
+fn finite_or(v: f32, f: f32) -> f32 {
+    return select(v, f, (bitcast<u32>(v) & 0x7f800000u) == 0x7f800000u);
 }
 
 fn local_normal(g: vec2<f32>) -> vec3<f32> {

@@ -431,7 +431,15 @@ fn traverse_lod(r: Ray, t_min: f32, t_max: f32, max_steps: u32, start_level: u32
         under = ph.y != 0.0;
         let th = ph.x;
         if (NEAR && th < 0.0 && !res.near && w.t >= near.z) {
-            res.near = misses_by_less(near.x + near.y * t_exit, cand_max - cand_low);
+            // PAGED: the cell may be a coarser level's (its finer ones not resident), whose
+            // maximum bounds finer samples the patch does not show: the rise the samples
+            // would meet is the patch's own, up to its highest corner.
+            var rise = cand_max;
+            if (PAGED) {
+                let pc = patch_corners(w.level, w.cell);
+                rise = max(max(pc.x, pc.y), max(pc.z, pc.w)) + frame.heights_range.w;
+            }
+            res.near = misses_by_less(near.x + near.y * t_exit, rise - cand_low, select(0u, w.level, PAGED));
         }
         if (th >= 0.0) {
             res.hit = true;
@@ -453,13 +461,14 @@ fn traverse_lod(r: Ray, t_min: f32, t_max: f32, max_steps: u32, start_level: u32
     return res;
 }
 
-// NEAR: whether the ray's segment through a level-0 cell's box, missing its patch, may pass
-// within `reach` (at the segment's far end) of a feature thinner than the pixel: the cell is
-// no wider than twice the reach and the ray passes more than the reach below the cell's
-// highest corner (`depth`), so a steep rise stands beside it. (A ray grazing a surface from
-// above is left to the edge rules: flagging it would mark every far slope.)
-fn misses_by_less(reach: f32, depth: f32) -> bool {
-    return max(frame.spacing.x, frame.spacing.y) <= 2.0 * reach && depth > reach;
+// NEAR: whether the ray's segment through a cell's box of `level` (0 but where a paged
+// traversal stops at a coarser level), missing its patch, may pass within `reach` (at the
+// segment's far end) of a feature thinner than the pixel: the cell is no wider than twice the
+// reach and the ray passes more than the reach below the cell's highest corner (`depth`), so
+// a steep rise stands beside it. (A ray grazing a surface from above is left to the edge
+// rules: flagging it would mark every far slope.)
+fn misses_by_less(reach: f32, depth: f32, level: u32) -> bool {
+    return max(frame.spacing.x, frame.spacing.y) * f32(1u << level) <= 2.0 * reach && depth > reach;
 }
 
 // Baseline for the benchmark: fixed steps of `frame.march.x` cells plus bisection.

@@ -66,7 +66,12 @@ fn cone_start(r: Ray, theta: f32, max_steps: u32) -> ConeStart {
             w.cell = w.cell >> vec2<u32>(1u);
             continue;
         }
+        // At the top level: the highest sample (in memory the top level is one cell; a paged
+        // traversal's top level has many, and the box clip bounds every hit by the range).
         var m = cell_max(top, vec2<i32>(0, 0));
+        if (PAGED) {
+            m = frame.heights_range.y + frame.heights_range.w;
+        }
         if (w.level < top) {
             m = dilated_max(w.level, w.cell);
         }
