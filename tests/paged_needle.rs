@@ -140,7 +140,12 @@ fn the_paged_tile_prepass_skips_no_terrain() {
             true,
             &["--antialias", aa, "--no-tile-prepass"],
         );
-        assert_within(&format!("paged-tile-prepass-{aa}"), &with.rgb, &without.rgb, 0);
+        assert_within(
+            &format!("paged-tile-prepass-{aa}"),
+            &with.rgb,
+            &without.rgb,
+            0,
+        );
     }
 }
 

@@ -139,6 +139,10 @@ fn clip_box(r: Ray, t_min: f32, t_max: f32) -> vec2<f32> {
     return vec2<f32>(max(max(tn.x, tn.y), max(tn.z, t_min)), min(min(tf.x, tf.y), min(tf.z, t_max)));
 }
 
+// NEAR && PAGED: the highest corner of the patch `patch_hit` tested last (the near-miss test
+// after a paged patch miss reads it instead of loading the corners again).
+var<private> patch_top: f32 = 0.0;
+
 // Exact intersection with the bilinear patch of cell (i, j) of `level` over [ta, tb] (above
 // level 0 only with LOD: the patch spans 2^level samples, the same quadratic in the grid scaled
 // by 2^-level, the drop terms in the finest grid's units): the quadratic
@@ -148,6 +152,9 @@ fn clip_box(r: Ray, t_min: f32, t_max: f32) -> vec2<f32> {
 // Returns (hit t or -1, 1 if the ray is still below the surface after the cell else 0).
 fn patch_hit(r: Ray, level: u32, i: i32, j: i32, ta: f32, tb: f32, under: bool) -> vec2<f32> {
     let h = patch_corners(level, vec2<i32>(i, j));
+    if (NEAR && PAGED) {
+        patch_top = max(max(h.x, h.y), max(h.z, h.w));
+    }
     let h00 = h.x;
     let h10 = h.y;
     let h01 = h.z;
@@ -436,8 +443,7 @@ fn traverse_lod(r: Ray, t_min: f32, t_max: f32, max_steps: u32, start_level: u32
             // would meet is the patch's own, up to its highest corner.
             var rise = cand_max;
             if (PAGED) {
-                let pc = patch_corners(w.level, w.cell);
-                rise = max(max(pc.x, pc.y), max(pc.z, pc.w)) + frame.heights_range.w;
+                rise = patch_top + frame.heights_range.w;
             }
             res.near = misses_by_less(near.x + near.y * t_exit, rise - cand_low, select(0u, w.level, PAGED));
         }
