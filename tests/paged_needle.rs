@@ -51,20 +51,22 @@ impl Needle {
     fn new(name: &str, camera: &str, size: [u32; 2]) -> Needle {
         let dir = common::temp_dir(name);
         let db = needle_database(&dir);
-        let scene = dir.join("needle.toml");
-        std::fs::write(
-            &scene,
-            format!(
-                "[terrain]\ndatabase = {:?}\nwindow = [47.0, 9.0, 48.0, 10.0]\ncurved = true\n\
-                 [render]\nshadows = false\n[camera]\n{camera}fov = 40.0\n\
-                 [output]\nwidth = {}\nheight = {}\n",
-                db.display().to_string(),
-                size[0],
-                size[1]
-            ),
-        )
-        .unwrap();
-        Needle { dir, scene }
+        let scene = format!(
+            "[terrain]\ndatabase = {:?}\nwindow = [47.0, 9.0, 48.0, 10.0]\ncurved = true\n\
+             [render]\nshadows = false\n[camera]\n{camera}fov = 40.0\n\
+             [output]\nwidth = {}\nheight = {}\n",
+            db.display().to_string(),
+            size[0],
+            size[1]
+        );
+        Needle::with_scene(dir, &scene)
+    }
+
+    /// A scene of TOML `scene` in `dir` (its database already there).
+    fn with_scene(dir: PathBuf, scene: &str) -> Needle {
+        let path = dir.join("scene.toml");
+        std::fs::write(&path, scene).unwrap();
+        Needle { dir, scene: path }
     }
 
     /// Renders the scene into `name` with `args`; `paged`: through an 16 MB pool, once the
@@ -229,4 +231,58 @@ fn a_needle_no_centre_ray_hits_is_found_through_the_pixel_cone_on_a_paged_databa
     assert!(near(&edges) > 0, "near misses found");
     assert_eq!(near(&edges), near(&memory), "as many as in memory");
     assert!(edges_err * 4 <= off_err, "found through the pixel cone");
+}
+
+/// `[terrain]`'s sea level and vertical scale shape the paged terrain as they shape a loaded
+/// window (the tiles go through them on their way to the pool; they once reached it raw):
+/// * the needle database with `vertical_scale = 1.5` and `sea_level = 600` (the field at 500 m
+///   raised to it), sun shadows on, a cylinder and a sphere placed in metres over the terrain,
+///   `"edges"`: within a level of the in-memory frame (once the paged ground lay at 750 m
+///   instead of 900 and the depth of every ground pixel differed by about a quarter);
+/// * ETOPO20 over the Pacific with `sea_level = 0` (the curvature tests' sea): the paged sea
+///   is the sea, not the sea floor 5 km below it (once 23.7 km away where it is 8.4 km).
+#[test]
+fn sea_level_and_vertical_scale_shape_the_paged_terrain() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let _lock = common::gpu_lock();
+    let dir = common::temp_dir("paged-needle-mapping");
+    let db = needle_database(&dir);
+    let needle = Needle::with_scene(
+        dir,
+        &format!(
+            "[terrain]\ndatabase = {:?}\nwindow = [47.0, 9.0, 48.0, 10.0]\ncurved = true\n\
+             vertical_scale = 1.5\nsea_level = 600.0\n[sun]\nazimuth = 200.0\nelevation = 25.0\n\
+             [camera]\nposition = [37600.0, 52000.0, 2600.0]\nheading = 0.0\npitch = -22.0\nfov = 50.0\n\
+             [output]\nwidth = 320\nheight = 180\n\
+             [[objects]]\nshape = \"cylinder\"\nradius = 40\nheight = 600\n\
+             position = [37900.0, 54000.0, 0.0]\nabove_terrain = 0.0\n\
+             [[objects]]\nshape = \"sphere\"\nradius = 120\nposition = [37000.0, 54500.0, 0.0]\n\
+             above_terrain = 200.0\n",
+            db.display().to_string()
+        ),
+    );
+    let paged = needle.render("paged", true, &["--antialias", "edges"]);
+    let memory = needle.render("memory", false, &["--antialias", "edges"]);
+    assert_within("paged-mapping-needle", &paged.rgb, &memory.rgb, 1);
+
+    let dir = common::temp_dir("paged-mapping-pacific");
+    let db = dir.join("etopo.reliefdb");
+    let etopo = common::project_dir().join("tests/data/etopo20.tif");
+    let args = ["db", "build", db.to_str().unwrap(), etopo.to_str().unwrap()];
+    let r = common::relief_cli(&args, &[]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let pacific = Needle::with_scene(
+        dir,
+        &format!(
+            "[terrain]\ndatabase = {:?}\nwindow = [20.0, -160.0, 40.0, -140.0]\ncurved = true\n\
+             sea_level = 0.0\n[camera]\ngeodetic = [30.0, -150.0, 3000.0]\nheading = 45.0\n\
+             pitch = -3.0\nfov = 60.0\n[output]\nwidth = 320\nheight = 180\n",
+            db.display().to_string()
+        ),
+    );
+    let paged = pacific.render("paged", true, &[]);
+    let memory = pacific.render("memory", false, &[]);
+    assert_within("paged-mapping-pacific", &paged.rgb, &memory.rgb, 1);
 }

@@ -10,7 +10,7 @@ use crate::gpu::terrain_pool::TerrainPool;
 use crate::gpu::{Gpu, TerrainRenderer};
 use crate::scene::{Camera, Scene};
 use crate::terrain::desc::HeightSource;
-use crate::terrain::{GeoRef, Terrain};
+use crate::terrain::{GeoRef, HeightMapping, Terrain};
 use crate::world::World;
 use crate::{Error, Result};
 use glam::DVec3;
@@ -137,7 +137,8 @@ pub fn renderer(
     };
     let (pager, first) = Pager::new(store, opts)?;
     let (slots, _) = pager.slots();
-    let pool = TerrainPool::new(gpu, pager.page_table(), n, slots)?;
+    let mut pool = TerrainPool::new(gpu, pager.page_table(), n, slots)?;
+    pool.set_height_mapping(HeightMapping::of(&scene.desc.terrain)?);
     let mut r = TerrainRenderer::new_paged(gpu, terrain, pool, [spec.i0, spec.j0])?;
     r.apply_pages(gpu, &first, pager.page_table());
     super::upload::objects(gpu, &mut r, world)?;

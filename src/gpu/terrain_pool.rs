@@ -8,6 +8,7 @@
 
 use super::Gpu;
 use crate::db::pager::{PageTable, ResidencyMap, Upload};
+use crate::terrain::HeightMapping;
 use crate::Result;
 
 /// `PagedParams` in `terrain_paged.wgsl`.
@@ -68,6 +69,8 @@ pub struct TerrainPool {
     /// The traversal's top level over the window (`cpu::paged::traversal_top`; 0 until
     /// [`TerrainPool::set_window`]).
     traversal_top: u32,
+    /// The scene's sea level and vertical scale, applied to each tile as it is copied in.
+    heights: HeightMapping,
 }
 
 /// The binding of pool buffer `k` (`gpu::shaders::paged_pools`).
@@ -239,6 +242,7 @@ impl TerrainPool {
             pool_slots,
             n,
             traversal_top: 0,
+            heights: HeightMapping::IDENTITY,
         })
     }
 
@@ -298,8 +302,14 @@ impl TerrainPool {
         (self.slots, self.slots as u64 * self.slot_floats * 4)
     }
 
-    /// Copies this frame's uploads into their slots, the page table as it now stands and the
-    /// window's residency map of it.
+    /// Sets the sea level and vertical scale the tiles copied in from now on get (the
+    /// scene's `[terrain]`, as its window would have on load; the identity until set).
+    pub fn set_height_mapping(&mut self, heights: HeightMapping) {
+        self.heights = heights;
+    }
+
+    /// Copies this frame's uploads into their slots (heights and cell maxima through the
+    /// height mapping), the page table as it now stands and the window's residency map of it.
     pub fn apply(&mut self, gpu: &Gpu, uploads: &[Upload], table: &PageTable) {
         for u in uploads {
             debug_assert_eq!(u.tile.n, self.n);
@@ -309,11 +319,21 @@ impl TerrainPool {
             );
             let pool = &self.pools[b];
             let at = s as u64 * self.slot_floats * 4;
-            gpu.queue
-                .write_buffer(pool, at, bytemuck::cast_slice(&u.tile.heights));
             let h = u.tile.heights.len() as u64 * 4;
-            gpu.queue
-                .write_buffer(pool, at + h, bytemuck::cast_slice(&u.tile.maxima));
+            if self.heights.is_identity() {
+                gpu.queue
+                    .write_buffer(pool, at, bytemuck::cast_slice(&u.tile.heights));
+                gpu.queue
+                    .write_buffer(pool, at + h, bytemuck::cast_slice(&u.tile.maxima));
+            } else {
+                let m = self.heights;
+                let heights: Vec<f32> = u.tile.heights.iter().map(|&v| m.sample(v)).collect();
+                let maxima: Vec<f32> = u.tile.maxima.iter().map(|&v| m.maximum(v)).collect();
+                gpu.queue
+                    .write_buffer(pool, at, bytemuck::cast_slice(&heights));
+                gpu.queue
+                    .write_buffer(pool, at + h, bytemuck::cast_slice(&maxima));
+            }
         }
         if !uploads.is_empty() {
             gpu.queue

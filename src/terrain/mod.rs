@@ -422,6 +422,55 @@ impl crate::geom::Ground for Terrain {
     }
 }
 
+/// What `[terrain]`'s `sea_level` and `vertical_scale` do to a height the file gives: raised
+/// to the sea level, then times the vertical scale, as a loaded terrain's samples are. A paged
+/// database's tiles go through it on their way to the GPU (`gpu::TerrainPool`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HeightMapping {
+    pub sea_level: Option<f32>,
+    pub vertical_scale: f64,
+}
+
+impl HeightMapping {
+    /// Heights as the file gives them.
+    pub const IDENTITY: HeightMapping = HeightMapping {
+        sea_level: None,
+        vertical_scale: 1.0,
+    };
+
+    /// The mapping of `desc`, its keys checked (errors naming them).
+    pub fn of(desc: &TerrainDesc) -> Result<HeightMapping> {
+        check_vertical_scale(desc.vertical_scale)?;
+        Ok(HeightMapping {
+            sea_level: sea_level(desc)?,
+            vertical_scale: desc.vertical_scale,
+        })
+    }
+
+    /// Whether heights pass unchanged.
+    pub fn is_identity(&self) -> bool {
+        self.sea_level.is_none() && self.vertical_scale == 1.0
+    }
+
+    /// A sample's height (a void, NaN, stays NaN).
+    pub fn sample(&self, h: f32) -> f32 {
+        if h.is_nan() {
+            return h;
+        }
+        let h = self.sea_level.map_or(h, |sea| h.max(sea));
+        scaled(h, self.vertical_scale)
+    }
+
+    /// A cell's maximum: mapped as a sample (the mapping keeps order, so it still bounds the
+    /// mapped samples under it); [`pyramid::PAD`] (no sample under it) stays PAD.
+    pub fn maximum(&self, m: f32) -> f32 {
+        if m <= pyramid::PAD {
+            return m;
+        }
+        self.sample(m)
+    }
+}
+
 /// `terrain.sea_level`, checked (a height within ±10 km).
 fn sea_level(desc: &TerrainDesc) -> Result<Option<f32>> {
     match desc.sea_level {
