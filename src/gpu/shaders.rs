@@ -176,32 +176,55 @@ fn shade_terrain(paged: u32) -> String {
 }
 
 /// The shade pass's samples in the paged build: `shape_hint` takes the finest resident level
-/// over the shaded cell from the G-buffer (`gbuffer_hint` in the cast pass) and its tile;
-/// `sample_height(i, j)` reads sample (i, j) of the window on that level's bilinear surface,
-/// clamped to that tile (loop-free: a neighbour across the tile's edge gives a one-sided
-/// difference there).
+/// over the shaded cell from the G-buffer (`gbuffer_hint` in the cast pass), its tile and the
+/// four tiles beside it on that level; `sample_height(i, j)` reads sample (i, j) of the window
+/// on that level's bilinear surface, from the tile beside where the sample lies across the
+/// edge (the normals' 4x4 neighbourhood reaches at most one tile over, along x or along y),
+/// clamped to the shaded cell's tile where that one is not resident (a one-sided difference).
+/// Loop-free.
 const PAGED_SAMPLES: &str = "
 var<private> paged_k: u32 = 0u;
 var<private> paged_hint_slot: u32 = 0u;
 var<private> paged_tile0: vec2<u32> = vec2<u32>(0u);
+// The slots of the tiles west, east, south and north of the hint's (PAGED_NONE: not resident).
+var<private> paged_side_slots: vec4<u32> = vec4<u32>(0u);
 
 fn shape_hint(g: vec4<u32>, i: i32, j: i32) {
     let k = min(g.z >> 24u, paged.levels - 1u);
     let c = vec2<u32>(paged.origin_x + u32(i), paged.origin_y + u32(j)) >> vec2<u32>(k);
     let t = c >> vec2<u32>(paged.log2_n);
-    let slot = paged_slot(paged.levels - 1u - k, t.x, t.y);
+    let dl = paged.levels - 1u - k;
+    let slot = paged_slot(dl, t.x, t.y);
     paged_k = k;
     paged_hint_slot = select(slot, 0u, slot == PAGED_NONE);
     paged_tile0 = t << vec2<u32>(paged.log2_n);
+    // (t - 1 wraps past 0 to a tile no level has: PAGED_NONE.)
+    paged_side_slots = vec4<u32>(
+        paged_slot(dl, t.x - 1u, t.y),
+        paged_slot(dl, t.x + 1u, t.y),
+        paged_slot(dl, t.x, t.y - 1u),
+        paged_slot(dl, t.x, t.y + 1u),
+    );
 }
 
 fn sample_height(i: u32, j: u32) -> f32 {
     let n = f32(paged.tile_n);
     let g = vec2<f32>(vec2<u32>(paged.origin_x + i, paged.origin_y + j));
-    let p = clamp(g / f32(1u << paged_k) - vec2<f32>(paged_tile0), vec2<f32>(0.0), vec2<f32>(n));
+    let q = g / f32(1u << paged_k) - vec2<f32>(paged_tile0);
+    let west = q.x < 0.0;
+    let east = q.x > n;
+    let south = q.y < 0.0;
+    let north = q.y > n;
+    var side = select(PAGED_NONE, paged_side_slots.x, west);
+    side = select(side, paged_side_slots.y, east);
+    side = select(side, paged_side_slots.z, south);
+    side = select(side, paged_side_slots.w, north);
+    let across = side != PAGED_NONE;
+    let shift = vec2<f32>(select(select(0.0, -n, east), n, west), select(select(0.0, -n, north), n, south));
+    let p = clamp(select(q, q + shift, across), vec2<f32>(0.0), vec2<f32>(n));
     let a = min(vec2<u32>(p), vec2<u32>(paged.tile_n - 1u));
     let uv = p - vec2<f32>(a);
-    let slot = paged_hint_slot;
+    let slot = select(paged_hint_slot, side, across);
     // A sample of the level itself (uv 0: always on the finest level) is taken alone: a void
     // beside it (NaN, no source data: past the edge of the data) would make the weighted sum
     // NaN at weight 0.
