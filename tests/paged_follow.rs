@@ -217,16 +217,8 @@ fn render_moves_a_paged_window_over_the_alps_database() {
     }
     let _lock = common::gpu_lock();
     let dir = temp_dir("paged-follow-alps");
-    let database = dir.join("alps.reliefdb");
     let hgt = project_dir().join("terrains").join("N47E009.hgt");
-    let args = [
-        "db",
-        "build",
-        database.to_str().unwrap(),
-        hgt.to_str().unwrap(),
-    ];
-    let r = relief_cli(&args, &[]);
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let database = common::db_build(dir.join("alps.reliefdb"), &hgt);
     let f = Flight {
         database,
         window: [47.1, 9.1, 47.4, 9.5],

@@ -29,11 +29,7 @@ fn needle_database(dir: &Path) -> PathBuf {
     }
     let hgt = dir.join("N47E009.hgt");
     std::fs::write(&hgt, bytes).unwrap();
-    let db = dir.join("needle.reliefdb");
-    let args = ["db", "build", db.to_str().unwrap(), hgt.to_str().unwrap()];
-    let r = common::relief_cli(&args, &[]);
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    db
+    common::db_build(dir.join("needle.reliefdb"), &hgt)
 }
 
 /// A frame as `render` wrote it: colour and frame JSON.
@@ -269,11 +265,8 @@ fn sea_level_and_vertical_scale_shape_the_paged_terrain() {
     assert_within("paged-mapping-needle", &paged.rgb, &memory.rgb, 1);
 
     let dir = common::temp_dir("paged-mapping-pacific");
-    let db = dir.join("etopo.reliefdb");
     let etopo = common::project_dir().join("tests/data/etopo20.tif");
-    let args = ["db", "build", db.to_str().unwrap(), etopo.to_str().unwrap()];
-    let r = common::relief_cli(&args, &[]);
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let db = common::db_build(dir.join("etopo.reliefdb"), &etopo);
     let pacific = Needle::with_scene(
         dir,
         &format!(
@@ -301,11 +294,8 @@ fn a_paged_frame_has_no_seams_at_tile_edges() {
     }
     let _lock = common::gpu_lock();
     let dir = common::temp_dir("paged-seams");
-    let db = dir.join("rmnp.reliefdb");
     let dem = common::terrains().join("rmnp-dem.tif");
-    let args = ["db", "build", db.to_str().unwrap(), dem.to_str().unwrap()];
-    let r = common::relief_cli(&args, &[]);
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let db = common::db_build(dir.join("rmnp.reliefdb"), &dem);
     let drape = common::terrains().join("rmnp-rgb.tif");
     let rmnp = Needle::with_scene(
         dir,

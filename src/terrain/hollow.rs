@@ -8,7 +8,7 @@
 //! object placement, height above ground) come from the database at full resolution
 //! (`db::height_at`) through its tile cache, bounded by [`CACHE_BYTES`].
 
-use super::{Heightfield, MaxPyramid, Terrain, TerrainDesc};
+use super::{HeightMapping, Heightfield, MaxPyramid, Terrain, TerrainDesc};
 use crate::db::{self, Database};
 use crate::{Error, Result};
 use std::path::Path;
@@ -21,9 +21,8 @@ pub const CACHE_BYTES: u64 = 16 << 20;
 #[derive(Clone, Debug)]
 pub struct Hollow {
     db: Arc<Database>,
-    /// `terrain.sea_level`: heights below it read as it.
-    sea_level: Option<f32>,
-    vertical_scale: f64,
+    /// `terrain.sea_level` and `vertical_scale`.
+    heights: HeightMapping,
 }
 
 impl Hollow {
@@ -53,11 +52,7 @@ impl Hollow {
                 return None;
             }
         };
-        let h = match self.sea_level {
-            Some(sea) => h.max(sea as f64),
-            None => h,
-        };
-        Some(h * self.vertical_scale)
+        Some(self.heights.height(h))
     }
 }
 
@@ -115,14 +110,13 @@ fn anchored(
             ),
         )
     })?;
-    let sea = super::sea_level(desc)?;
-    let (lo, hi) = match sea {
+    let heights = HeightMapping::of(desc)?;
+    let (lo, hi) = match heights.sea_level {
         Some(s) => (lo.max(s), hi.max(s)),
         None => (lo, hi),
     };
     super::check_height_range(desc, base_dir, (lo, hi))?;
-    super::check_vertical_scale(desc.vertical_scale)?;
-    let vs = desc.vertical_scale;
+    let vs = heights.vertical_scale;
     let range = super::checked_range((super::scaled(lo, vs), super::scaled(hi, vs)), vs)?;
     let field = Heightfield {
         width: spec.width,
@@ -150,8 +144,7 @@ fn anchored(
     let mut terrain = Terrain::assemble(field, frame, pyramid, range);
     terrain.hollow = Some(Hollow {
         db: database,
-        sea_level: sea,
-        vertical_scale: vs,
+        heights,
     });
     Terrain::finish(desc, base_dir, terrain)
 }

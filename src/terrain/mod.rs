@@ -461,6 +461,13 @@ impl HeightMapping {
         scaled(h, self.vertical_scale)
     }
 
+    /// A height asked of the terrain (a query's, in f64: the sea level clamps the interpolated
+    /// height).
+    pub fn height(&self, h: f64) -> f64 {
+        let h = self.sea_level.map_or(h, |sea| h.max(sea as f64));
+        h * self.vertical_scale
+    }
+
     /// A cell's maximum: mapped as a sample (the mapping keeps order, so it still bounds the
     /// mapped samples under it); [`pyramid::PAD`] (no sample under it) stays PAD.
     pub fn maximum(&self, m: f32) -> f32 {

@@ -213,6 +213,20 @@ pub fn relief_cli(args: &[&str], envs: &[(&str, &str)]) -> std::process::Output 
         .expect("the relief binary runs")
 }
 
+/// Compiles `source` (a `.hgt` or GeoTIFF) into the database `db` with `relief db build`,
+/// asserting it succeeds; returns `db`.
+pub fn db_build(db: PathBuf, source: &Path) -> PathBuf {
+    let args = [
+        "db",
+        "build",
+        db.to_str().unwrap(),
+        source.to_str().unwrap(),
+    ];
+    let r = relief_cli(&args, &[]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    db
+}
+
 /// The adapters of a software machine a test can ask for by `WGPU_BACKEND`: `vulkan`
 /// (lavapipe) where an adapter answers, and `gl` (llvmpipe). A missing Vulkan adapter is
 /// printed, not failed: the README's machines may have GL only.

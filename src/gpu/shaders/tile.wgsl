@@ -68,9 +68,9 @@ fn cone_start(r: Ray, theta: f32, max_steps: u32) -> ConeStart {
         }
         // At the top level: the highest sample (in memory the top level is one cell; a paged
         // traversal's top level has many, and the box clip bounds every hit by the range).
-        var m = cell_max(top, vec2<i32>(0, 0));
-        if (PAGED) {
-            m = frame.heights_range.y + frame.heights_range.w;
+        var m = frame.heights_range.y + frame.heights_range.w;
+        if (!PAGED) {
+            m = cell_max(top, vec2<i32>(0, 0));
         }
         if (w.level < top) {
             m = dilated_max(w.level, w.cell);
