@@ -1069,3 +1069,78 @@ fn cut_databases_render_the_same_pictures_as_the_whole_tile() {
         }
     }
 }
+
+/// Voids inside the data (no source has data there: SRTM v2's holes) are compiled filled, as
+/// the loaders fill the same file (pull-push over the source), so the database holds what
+/// rendering the file itself shows: a window of part of the tile gets the whole file's fill
+/// (its own pull-push would differ), a query at full resolution answers inside the void, and
+/// no tile keeps a void (a paged frame once showed the void as a pit: `tests/paged_needle.rs`).
+#[test]
+fn voids_inside_the_data_are_compiled_filled_as_the_loaders_fill_them() {
+    let dir = temp_dir("db-voids");
+    let hgt = common::void_hgt(&dir);
+    let out = dir.join("voids.reliefdb");
+    build(&out, std::slice::from_ref(&hgt));
+    let d = Database::open(&out).unwrap();
+    // Its tiles hold as many voids as those of the same file without its void: only where
+    // no source reaches (past the tile's edges).
+    let whole_dir = dir.join("whole");
+    std::fs::create_dir_all(&whole_dir).unwrap();
+    let mut bytes = std::fs::read(&hgt).unwrap();
+    for h in bytes.chunks_exact_mut(2) {
+        if i16::from_be_bytes([h[0], h[1]]) == hgt::VOID {
+            h.copy_from_slice(&1000i16.to_be_bytes());
+        }
+    }
+    let whole_hgt = whole_dir.join("N47E009.hgt");
+    std::fs::write(&whole_hgt, bytes).unwrap();
+    let whole = whole_dir.join("whole.reliefdb");
+    build(&whole, &[whole_hgt]);
+    let w = Database::open(&whole).unwrap();
+    assert_eq!(d.entries().len(), w.entries().len());
+    let differ: Vec<_> = d
+        .entries()
+        .iter()
+        .zip(w.entries())
+        .filter(|(a, b)| (a.id, a.voids) != (b.id, b.voids))
+        .map(|(a, b)| (a.id, a.voids, b.voids))
+        .collect();
+    assert!(
+        differ.is_empty(),
+        "tiles, voids, voids without the void: {differ:?}"
+    );
+    let direct = hgt::load(&hgt).unwrap();
+    assert_eq!(direct.voids_filled, common::VOID_SIDE * common::VOID_SIDE);
+    // The window [47.4, 9.4, 47.6, 9.6] holds the void: samples 480..=720 of the file's
+    // columns and of its rows counted from the south.
+    let text = "[terrain]\ndatabase = \"voids.reliefdb\"\nwindow = [47.4, 9.4, 47.6, 9.6]\n\
+                [camera]\nposition = [1000.0, 1000.0, 3000.0]\n";
+    let part = relief::scene::Scene::parse(text, &dir.join("scene.toml"))
+        .unwrap()
+        .load_terrain()
+        .unwrap();
+    let f = &part.field;
+    assert_eq!((f.width, f.height), (241, 241));
+    assert_eq!(f.voids_filled, 0, "the window had voids to fill");
+    let mut differ = 0;
+    for j in 0..241 {
+        for i in 0..241 {
+            differ += usize::from(f.at(i, j).to_bits() != direct.at(480 + i, 480 + j).to_bits());
+        }
+    }
+    assert_eq!(differ, 0, "window samples differing from the loaded file");
+    // The void's centre, 47.5N 9.5E: row 600 of the file, 600 from the south.
+    let q = db::height_at(&d, 47.5, 9.5)
+        .unwrap()
+        .expect("the void answers");
+    let want = f64::from(direct.at(600, 600));
+    assert!(
+        (q.height - want).abs() < 1e-3
+            && q.level == d.entries().iter().map(|e| e.id.level).max().unwrap(),
+        "{q:?} against {want}"
+    );
+    assert!(
+        want > 1000.0,
+        "the fill rises towards the hill's top: {want}"
+    );
+}

@@ -312,3 +312,28 @@ fn a_paged_frame_has_no_seams_at_tile_edges() {
     let memory = rmnp.render("memory", false, &[]);
     assert_within("paged-seams-rmnp", &paged.rgb, &memory.rgb, 1);
 }
+
+/// A void inside the data (SRTM v2's holes: no source has data there) on a hill's top, seen
+/// from 9 km: the paged frame equals the in-memory one, since the database holds the void
+/// filled as the loaders fill the file. Before, the pool got the void (NaN) and a cell with a
+/// void corner had no surface: the paged frame showed a pit where the hill's top is.
+#[test]
+fn a_void_inside_the_data_renders_paged_as_in_memory() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let _lock = common::gpu_lock();
+    let dir = common::temp_dir("paged-void");
+    let hgt = common::void_hgt(&dir);
+    let db = common::db_build(dir.join("void.reliefdb"), &hgt);
+    let scene = format!(
+        "[terrain]\ndatabase = {:?}\nwindow = [47.0, 9.0, 48.0, 10.0]\ncurved = true\n\
+         [camera]\ngeodetic = [47.42, 9.5, 2500.0]\nheading = 0.0\npitch = -10.0\nfov = 40.0\n\
+         [output]\nwidth = 320\nheight = 180\n",
+        db.display().to_string()
+    );
+    let t = Needle::with_scene(dir, &scene);
+    let paged = t.render("paged", true, &[]);
+    let memory = t.render("memory", false, &[]);
+    assert_within("paged-void", &paged.rgb, &memory.rgb, 1);
+}

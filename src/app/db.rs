@@ -11,7 +11,8 @@ use std::path::{Path, PathBuf};
 #[derive(Clone, Debug, clap::Subcommand)]
 pub enum DbAction {
     /// Compile DEMs (SRTM .hgt tiles, GeoTIFFs in degrees; mixed resolutions, the finer wins
-    /// where they overlap) into one tiled multi-resolution database file, written atomically.
+    /// where they overlap; voids where no source has data filled as the loaders fill them)
+    /// into one tiled multi-resolution database file, written atomically.
     Build {
         /// The database file to write (e.g. alps.reliefdb).
         out: PathBuf,

@@ -285,9 +285,13 @@ fn build_tile(
             .collect();
         for a in 0..np {
             let lon = level.lon(i0 + a as i64);
+            // Where every source covering the position is void there, the finest of them
+            // answers with its voids filled: a function of the position alone, as every
+            // sample is (tiles sharing an edge hold the same samples).
             heights[b * np + a] = row
                 .iter()
                 .find_map(|s| s.sample(lon, lat))
+                .or_else(|| row.iter().find_map(|s| s.sample_filled(lon, lat)))
                 .unwrap_or(f32::NAN);
         }
     }
@@ -594,9 +598,17 @@ mod tests {
     use super::*;
     use crate::db::source::{SourceData, Synth};
 
-    /// A coarse grid with voids (30″ over 1° x 1°) and a fine procedural inset (3″) placed off
-    /// the tile grid, so that levels are sparse and slots miss their finer tile.
+    /// A coarse grid with voids (30″ over 1° x 1°; filled where the inset has no data) and a
+    /// fine procedural inset (3″) placed off the tile grid, so that levels are sparse and
+    /// slots miss their finer tile.
     fn mixed_sources() -> Vec<Source> {
+        let grid: Vec<f32> = (0..121 * 121)
+            .map(|k| match k % 97 {
+                0 => f32::NAN,
+                r => 200.0 + 10.0 * r as f32 + (k / 121) as f32,
+            })
+            .collect();
+        let voids: Vec<Option<f32>> = grid.iter().map(|h| (!h.is_nan()).then_some(*h)).collect();
         let coarse = Source {
             path: PathBuf::from("coarse"),
             name: "coarse".into(),
@@ -607,14 +619,9 @@ mod tests {
             dlat: 1.0 / 120.0,
             width: 121,
             height: 121,
-            data: SourceData::Grid(
-                (0..121 * 121)
-                    .map(|k| match k % 97 {
-                        0 => f32::NAN,
-                        r => 200.0 + 10.0 * r as f32 + (k / 121) as f32,
-                    })
-                    .collect(),
-            ),
+            data: SourceData::Grid(grid),
+            // Its voids filled where the inset does not cover them.
+            filled: Some(crate::terrain::heightfield::fill_voids(121, 121, &voids)),
             file_len: 0,
         };
         let fine = Source {
@@ -633,6 +640,7 @@ mod tests {
                 octaves: 5,
                 height: 2500.0,
             }),
+            filled: None,
             file_len: 0,
         };
         let mut srcs = vec![coarse, fine];

@@ -1,6 +1,7 @@
-//! The compiler's source DEMs: loaded through the terrain loaders (voids kept as such),
-//! checked, ordered finest first, and sampled bilinearly at a geographic position; or a
-//! procedural mosaic ([`Synth`]) whose samples are computed on demand, never held.
+//! The compiler's source DEMs: loaded through the terrain loaders (voids kept as such, and a
+//! copy with them filled as the loaders fill them), checked, ordered finest first, and sampled
+//! bilinearly at a geographic position; or a procedural mosaic ([`Synth`]) whose samples are
+//! computed on demand, never held.
 
 use crate::terrain::procedural::ridged_fbm;
 use crate::terrain::{geotiff, hgt, SampleGrid};
@@ -28,6 +29,10 @@ pub struct Source {
     pub height: usize,
     /// The samples: row 0 south, NaN marks a void.
     pub data: SourceData,
+    /// Where the source has voids: its samples with the voids filled by pull-push, as the
+    /// terrain loaders fill them (`Heightfield::from_samples_with_voids`). A position inside
+    /// the source where no source has data takes its height from these ([`Source::sample_filled`]).
+    pub filled: Option<Vec<f32>>,
     /// Bytes of the file.
     pub file_len: u64,
 }
@@ -124,6 +129,26 @@ impl Source {
             ));
         }
         let file_len = fileio::file_len(path)?;
+        let voids = grid.samples.iter().filter(|s| s.is_none()).count();
+        let filled = if voids > 0 && voids < grid.samples.len() {
+            // Pull-push holds (sum, weight) pairs of f64 over a pyramid: 16 bytes a sample
+            // and a third more, and the filled copy.
+            fileio::check_alloc(
+                format!(
+                    "{} ({w}x{h} samples, {voids} voids to fill)",
+                    path.display()
+                ),
+                (w * h) as u64 * 26,
+            )?;
+            log::warn!(
+                "{}: filled {voids} void/no-data samples of {} (pull-push) where no other source has data",
+                path.display(),
+                w * h
+            );
+            Some(crate::terrain::heightfield::fill_voids(w, h, &grid.samples))
+        } else {
+            None
+        };
         let data = SourceData::Grid(
             grid.samples
                 .into_iter()
@@ -144,6 +169,7 @@ impl Source {
             width: w,
             height: h,
             data,
+            filled,
             file_len,
         })
     }
@@ -170,6 +196,17 @@ impl Source {
     /// The bilinear height at (lon, lat), exact at the source's own sample positions; `None`
     /// outside its samples or where a sample with weight in the result is void.
     pub fn sample(&self, lon: f64, lat: f64) -> Option<f32> {
+        self.sample_with(lon, lat, |i, j| self.data.at(self.width, i, j))
+    }
+
+    /// [`Source::sample`] with the source's voids filled: `None` outside its samples, or
+    /// where it has no voids (there [`Source::sample`] has answered).
+    pub fn sample_filled(&self, lon: f64, lat: f64) -> Option<f32> {
+        let filled = self.filled.as_ref()?;
+        self.sample_with(lon, lat, |i, j| filled[j * self.width + i])
+    }
+
+    fn sample_with(&self, lon: f64, lat: f64, at: impl Fn(usize, usize) -> f32) -> Option<f32> {
         let fx = snap((lon - self.lon0) / self.dlon);
         let fy = snap((lat - self.lat0) / self.dlat);
         let (wx, wy) = ((self.width - 1) as f64, (self.height - 1) as f64);
@@ -189,7 +226,7 @@ impl Source {
             if wgt == 0.0 {
                 continue;
             }
-            let h = self.data.at(self.width, i + di, j + dj);
+            let h = at(i + di, j + dj);
             if h.is_nan() {
                 return None;
             }

@@ -149,6 +149,7 @@ impl SynthOptions {
                 octaves,
                 height: self.height,
             }),
+            filled: None,
             file_len: 0,
         })
     }

@@ -164,7 +164,9 @@ impl Heightfield {
 
 /// Pull-push hole filling: valid samples are averaged down a pyramid, holes take the
 /// interpolated coarser value. Large voids get smooth fills; valid samples are untouched.
-fn fill_voids(width: usize, height: usize, samples: &[Option<f32>]) -> Vec<f32> {
+/// The database compiler fills its sources' voids with it too (`db::source`), so a database
+/// holds the heights the loaders give the same file.
+pub(crate) fn fill_voids(width: usize, height: usize, samples: &[Option<f32>]) -> Vec<f32> {
     // A level: width, height and (value*weight, weight) per sample; level 0 first.
     type Level = (usize, usize, Vec<(f64, f64)>);
     let mut levels: Vec<Level> = vec![(

@@ -227,6 +227,34 @@ pub fn db_build(db: PathBuf, source: &Path) -> PathBuf {
     db
 }
 
+/// A 3″ SRTM tile `N47E009.hgt` written into `dir`: a field at 500 m with a hill (800 m high,
+/// a Gaussian of 60 samples, centred on 47.5N 9.5E) whose top is a void (SRTM's −32768) of
+/// `VOID_SIDE`² samples, rows and columns from `VOID_FIRST` (file order: row 0 north).
+pub fn void_hgt(dir: &Path) -> PathBuf {
+    const N: usize = 1201;
+    let mut bytes = Vec::with_capacity(N * N * 2);
+    for row in 0..N {
+        for col in 0..N {
+            let void = (VOID_FIRST..VOID_FIRST + VOID_SIDE).contains(&row)
+                && (VOID_FIRST..VOID_FIRST + VOID_SIDE).contains(&col);
+            let r2 = ((row as f64 - 600.0).powi(2) + (col as f64 - 600.0).powi(2)) / (60.0 * 60.0);
+            let h = if void {
+                relief::terrain::hgt::VOID
+            } else {
+                (500.0 + 800.0 * (-0.5 * r2).exp()).round() as i16
+            };
+            bytes.extend_from_slice(&h.to_be_bytes());
+        }
+    }
+    let hgt = dir.join("N47E009.hgt");
+    std::fs::write(&hgt, bytes).unwrap();
+    hgt
+}
+
+/// The first row and column of [`void_hgt`]'s void, and its side in samples.
+pub const VOID_FIRST: usize = 570;
+pub const VOID_SIDE: usize = 60;
+
 /// The adapters of a software machine a test can ask for by `WGPU_BACKEND`: `vulkan`
 /// (lavapipe) where an adapter answers, and `gl` (llvmpipe). A missing Vulkan adapter is
 /// printed, not failed: the README's machines may have GL only.
