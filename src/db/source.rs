@@ -131,14 +131,14 @@ impl Source {
         let file_len = fileio::file_len(path)?;
         let voids = grid.samples.iter().filter(|s| s.is_none()).count();
         let filled = if voids > 0 && voids < grid.samples.len() {
-            // Pull-push holds (sum, weight) pairs of f64 over a pyramid: 16 bytes a sample
-            // and a third more, and the filled copy.
+            // Pull-push holds (sum, weight) pairs of f64 over the levels above the samples
+            // (16 bytes for a third of them), and the filled copy (4 bytes a sample).
             fileio::check_alloc(
                 format!(
                     "{} ({w}x{h} samples, {voids} voids to fill)",
                     path.display()
                 ),
-                (w * h) as u64 * 26,
+                (w * h) as u64 * 10,
             )?;
             log::warn!(
                 "{}: filled {voids} void/no-data samples of {} (pull-push) where no other source has data",

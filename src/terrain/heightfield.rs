@@ -167,54 +167,58 @@ impl Heightfield {
 /// The database compiler fills its sources' voids with it too (`db::source`), so a database
 /// holds the heights the loaders give the same file.
 pub(crate) fn fill_voids(width: usize, height: usize, samples: &[Option<f32>]) -> Vec<f32> {
-    // A level: width, height and (value*weight, weight) per sample; level 0 first.
+    // Level 0 is the samples themselves; levels 1.. hold (value*weight, weight) per cell, a
+    // third of the samples' count in all (the database compiler fills whole sources).
     type Level = (usize, usize, Vec<(f64, f64)>);
-    let mut levels: Vec<Level> = vec![(
-        width,
-        height,
-        samples
-            .iter()
-            .map(|s| s.map_or((0.0, 0.0), |v| (v as f64, 1.0)))
-            .collect(),
-    )];
-    while {
-        let (w, h, _) = levels.last().unwrap();
-        *w > 1 || *h > 1
-    } {
-        let (w, h, data) = levels.last().unwrap();
+    let at0 = |k: usize| samples[k].map_or((0.0, 0.0), |v| (v as f64, 1.0));
+    let mut levels: Vec<Level> = Vec::new();
+    let (mut w, mut h) = (width, height);
+    while w > 1 || h > 1 {
         let (nw, nh) = (w.div_ceil(2), h.div_ceil(2));
         let mut next = vec![(0.0, 0.0); nw * nh];
-        for j in 0..*h {
-            for i in 0..*w {
-                let (s, wt) = data[j * w + i];
+        for j in 0..h {
+            for i in 0..w {
+                let (s, wt) = match levels.last() {
+                    None => at0(j * w + i),
+                    Some((_, _, data)) => data[j * w + i],
+                };
                 let c = &mut next[(j / 2) * nw + i / 2];
                 c.0 += s;
                 c.1 += wt;
             }
         }
         levels.push((nw, nh, next));
+        (w, h) = (nw, nh);
     }
     // Push: fill every empty cell from its parent (bilinear would be smoother; nearest parent
     // with repeated smoothing at each level is enough for voids, which are rare and flagged).
-    for l in (0..levels.len() - 1).rev() {
-        let (pw, _, parent) = {
-            let (w, h, d) = &levels[l + 1];
-            (*w, *h, d.clone())
-        };
-        let (w, h, data) = &mut levels[l];
+    let push = |c: (f64, f64), p: (f64, f64)| {
+        if c.1 == 0.0 {
+            (p.0 / p.1.max(1e-300), 1.0)
+        } else {
+            (c.0 / c.1, 1.0)
+        }
+    };
+    for l in (0..levels.len().saturating_sub(1)).rev() {
+        let (finer, coarser) = levels.split_at_mut(l + 1);
+        let (pw, parent) = (coarser[0].0, &coarser[0].2);
+        let (w, h, data) = &mut finer[l];
         for j in 0..*h {
             for i in 0..*w {
                 let c = &mut data[j * *w + i];
-                if c.1 == 0.0 {
-                    let p = parent[(j / 2) * pw + i / 2];
-                    *c = (p.0 / p.1.max(1e-300), 1.0);
-                } else {
-                    *c = (c.0 / c.1, 1.0);
-                }
+                *c = push(*c, parent[(j / 2) * pw + i / 2]);
             }
         }
     }
-    levels[0].2.iter().map(|c| c.0 as f32).collect()
+    let Some((pw, _, parent)) = levels.first() else {
+        return (0..samples.len()).map(|k| at0(k).0 as f32).collect();
+    };
+    (0..samples.len())
+        .map(|k| {
+            let (i, j) = (k % width, k / width);
+            push(at0(k), parent[(j / 2) * pw + i / 2]).0 as f32
+        })
+        .collect()
 }
 
 /// Metres per degree of longitude and latitude at latitude `lat_deg` (WGS84 series).
