@@ -4,11 +4,13 @@
 
 use crate::cigi::{EntityState, Session};
 use crate::freeform::FreeForm;
+use crate::geom::attitude_matrix;
 use crate::scene::Scene;
 use crate::terrain::Terrain;
 use crate::volume::Volume;
 use crate::voxel::VoxelInstance;
 use crate::Result;
+use glam::{DMat3, DVec3};
 
 /// Everything a scene places in the world, loaded and checked.
 pub struct World {
@@ -125,18 +127,115 @@ pub struct Instances {
     pub drawn: Vec<(usize, FreeForm)>,
     /// `(voxel template index, the template's model at the entity's pose)`, by entity ID.
     pub voxels: Vec<(usize, VoxelInstance)>,
-    /// Entities (the ownship left aside) not drawn: no template for their type, attached to
-    /// a parent, off the terrain, or beyond their template's `max`.
+    /// Entities (the ownship left aside) not drawn: no template for their type, off the
+    /// terrain (or attached below one that is), or beyond their template's `max`.
     pub not_drawn: usize,
-    /// Inactive entities (hidden).
+    /// Inactive entities and those attached below one (hidden).
     pub hidden: usize,
 }
 
-/// Every active top-level entity but the ownship (0) whose type has a template, as a copy of
-/// the template at the entity's pose at host time `t` (`Session::pose_at`): origin (a voxel
-/// model's bottom centre) at its geodetic position (`Terrain::geodetic_to_world`), rotated by
-/// its yaw (from true north), pitch and roll after the template's own rotation. The CPU
-/// reference draws these objects as the GPU does.
+/// Where an entity is in the world at host time `t` ([`entity_placement`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Placement {
+    /// World position of the entity's origin.
+    pub position: DVec3,
+    /// Its attitude: columns the body's right, forward and up in the world
+    /// (`geom::attitude_matrix`).
+    pub attitude: DMat3,
+}
+
+/// How deep attachments are followed (the session refuses cycles; this bounds the work).
+const MAX_ATTACH_DEPTH: usize = 32;
+
+/// Entity `id`'s placement at host time `t` (`Session::pose_at`), `None` where it is off the
+/// terrain, inactive as an ancestor, or unknown:
+/// * **top level**: its geodetic position (`Terrain::geodetic_to_world`) and yaw (from true
+///   north), pitch and roll. **Ground clamp** (Entity Control's Ground/Ocean Clamp; the sea
+///   is the terrain at `sea_level`): non-conformal (1) puts it at the terrain's height under
+///   it plus its altitude, now an offset; conformal (2) also stands it on the terrain's slope
+///   (its up the surface normal across half a sample each way, its heading kept), its pitch
+///   and roll offsets from that.
+/// * **attached** to a parent (clamping ignored, as CIGI says): the parent's placement moved
+///   by the offsets x forward, y right, z down (metres, the parent's body frame) and turned
+///   by yaw, pitch and roll relative to the parent's body.
+pub fn entity_placement(
+    session: &Session,
+    terrain: &Terrain,
+    id: u16,
+    t: f64,
+) -> Option<Placement> {
+    placement_at(session, terrain, id, t, 0)
+}
+
+fn placement_at(
+    session: &Session,
+    terrain: &Terrain,
+    id: u16,
+    t: f64,
+    depth: usize,
+) -> Option<Placement> {
+    let e = session.entity(id)?;
+    let p = session.pose_at(id, t)?;
+    if let Some(parent) = e.parent {
+        if depth >= MAX_ATTACH_DEPTH || session.entity(parent)?.state == EntityState::Inactive {
+            return None;
+        }
+        let up = placement_at(session, terrain, parent, t, depth + 1)?;
+        let (right, fwd, upward) = (up.attitude.x_axis, up.attitude.y_axis, up.attitude.z_axis);
+        return Some(Placement {
+            position: up.position + fwd * p.lat + right * p.lon - upward * p.alt,
+            attitude: up.attitude * attitude_matrix(p.yaw, p.pitch, p.roll),
+        });
+    }
+    let field = "CIGI entity";
+    match e.ground_clamp {
+        1 | 2 => {
+            let ground = terrain.ground_msl(p.lat, p.lon)?;
+            let position = terrain
+                .geodetic_to_world(field, [p.lat, p.lon, ground + p.alt])
+                .ok()?;
+            let attitude = if e.ground_clamp == 2 {
+                conformal(terrain, p.lat, p.lon, p.yaw)? * attitude_matrix(0.0, p.pitch, p.roll)
+            } else {
+                attitude_matrix(p.yaw, p.pitch, p.roll)
+            };
+            Some(Placement { position, attitude })
+        }
+        _ => Some(Placement {
+            position: terrain
+                .geodetic_to_world(field, [p.lat, p.lon, p.alt])
+                .ok()?,
+            attitude: attitude_matrix(p.yaw, p.pitch, p.roll),
+        }),
+    }
+}
+
+/// The attitude of a body standing on the terrain at (lat, lon) with heading `yaw`: up the
+/// surface normal (from the surface half a sample east, west, north and south), forward the
+/// heading's direction in the surface.
+fn conformal(terrain: &Terrain, lat: f64, lon: f64, yaw: f64) -> Option<DMat3> {
+    let geo = terrain.field.geo?;
+    let (dlat, dlon) = (0.5 * geo.dlat.abs(), 0.5 * geo.dlon.abs());
+    let at = |lat: f64, lon: f64| -> Option<DVec3> {
+        let h = terrain.ground_msl(lat, lon)?;
+        terrain.geodetic_to_world("CIGI entity", [lat, lon, h]).ok()
+    };
+    let east = at(lat, lon + dlon)? - at(lat, lon - dlon)?;
+    let north = at(lat + dlat, lon)? - at(lat - dlat, lon)?;
+    let up = east.cross(north).try_normalize()?;
+    // The heading's direction on the level (world axes as the attitude's), laid into the
+    // surface.
+    let level = attitude_matrix(yaw, 0.0, 0.0);
+    let fwd = (level.y_axis - up * level.y_axis.dot(up)).try_normalize()?;
+    Some(DMat3::from_cols(fwd.cross(up), fwd, up))
+}
+
+/// Every active entity but the ownship (0) whose type has a template, as a copy of the
+/// template at the entity's placement at host time `t` ([`entity_placement`]: top level or
+/// attached, clamped to the ground or not): origin (a voxel model's bottom centre) there,
+/// rotated by the entity's attitude after the template's own rotation. An entity attached
+/// below an inactive one is hidden with it. The CPU reference draws these objects as the GPU
+/// does.
 pub fn entity_instances(
     session: &Session,
     terrain: &Terrain,
@@ -147,23 +246,18 @@ pub fn entity_instances(
     let mut used = vec![0usize; templates.objects.len()];
     let mut used_voxels = vec![0usize; templates.voxels.len()];
     for e in session.entities().filter(|e| e.id != 0) {
-        if e.state == EntityState::Inactive {
+        if e.state == EntityState::Inactive || hidden_above(session, e.parent) {
             out.hidden += 1;
             continue;
         }
         let pose = || {
-            let p = session.pose_at(e.id, t)?;
-            let at = terrain.geodetic_to_world("CIGI entity", [p.lat, p.lon, p.alt]);
-            Some((
-                at.ok()?,
-                crate::geom::attitude_matrix(p.yaw, p.pitch, p.roll),
-            ))
+            let p = entity_placement(session, terrain, e.id, t)?;
+            Some((p.position, p.attitude))
         };
         let of_type = |ty: u16| ty == e.entity_type;
-        let top = e.parent.is_none();
         let object = (templates.objects.iter()).position(|tp| of_type(tp.entity_type));
         let model = (templates.voxels.iter()).position(|tp| of_type(tp.entity_type));
-        if let Some(k) = object.filter(|&k| top && used[k] < templates.objects[k].max) {
+        if let Some(k) = object.filter(|&k| used[k] < templates.objects[k].max) {
             if let Some((position, attitude)) = pose() {
                 let object = &templates.objects[k].object;
                 used[k] += 1;
@@ -177,7 +271,7 @@ pub fn entity_instances(
                 ));
                 continue;
             }
-        } else if let Some(k) = model.filter(|&k| top && used_voxels[k] < templates.voxels[k].max) {
+        } else if let Some(k) = model.filter(|&k| used_voxels[k] < templates.voxels[k].max) {
             if let Some((position, attitude)) = pose() {
                 let model = &templates.voxels[k].model;
                 used_voxels[k] += 1;
@@ -195,4 +289,18 @@ pub fn entity_instances(
         out.not_drawn += 1;
     }
     out
+}
+
+/// Whether an ancestor from `parent` up is inactive (its attached entities hide with it).
+fn hidden_above(session: &Session, mut parent: Option<u16>) -> bool {
+    for _ in 0..MAX_ATTACH_DEPTH {
+        let Some(e) = parent.and_then(|id| session.entity(id)) else {
+            return false;
+        };
+        if e.state == EntityState::Inactive {
+            return true;
+        }
+        parent = e.parent;
+    }
+    false
 }

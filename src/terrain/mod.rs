@@ -344,8 +344,7 @@ impl Terrain {
                 format!("[{lat}, {lon}, {alt}] is not a position: give [latitude (-90..90), longitude (degrees), altitude (m, within ±1e7)]"),
             ));
         }
-        let lon = lon - 360.0 * ((lon - geo.lon0 + 180.0) / 360.0).floor();
-        let (gx, gy) = ((lon - geo.lon0) / geo.dlon, (lat - geo.lat0) / geo.dlat);
+        let (gx, gy) = grid_of(&geo, lat, lon);
         let [cw, ch] = self.cells();
         if !(gx >= 0.0 && gy >= 0.0 && gx <= cw as f64 && gy <= ch as f64) {
             let (lat_a, lat_b) = (geo.lat0, geo.lat0 + ch as f64 * geo.dlat);
@@ -360,6 +359,18 @@ impl Terrain {
             ));
         }
         Ok(self.frame.grid_to_world(DVec3::new(gx, gy, alt)))
+    }
+
+    /// The height above mean sea level of the terrain's surface under latitude `lat`,
+    /// longitude `lon` (degrees; as rendered: sea level and vertical scale applied), `None`
+    /// off the terrain or without a geographic reference (CIGI's ground clamping).
+    pub fn ground_msl(&self, lat: f64, lon: f64) -> Option<f64> {
+        let geo = self.field.geo?;
+        if !(lat.is_finite() && lon.is_finite()) {
+            return None;
+        }
+        let (gx, gy) = grid_of(&geo, lat, lon);
+        self.height_at_grid(gx, gy)
     }
 
     /// Geodetic `[lat, lon, alt]` of a world position (the inverse of
@@ -411,6 +422,13 @@ impl Terrain {
         );
         Some(h00 * (1.0 - u) * (1.0 - v) + h10 * u * (1.0 - v) + h01 * (1.0 - u) * v + h11 * u * v)
     }
+}
+
+/// Grid position (x along longitude, y along latitude) of latitude `lat`, longitude `lon`
+/// under `geo`, the longitude taken within 180° of the grid's first column.
+fn grid_of(geo: &GeoRef, lat: f64, lon: f64) -> (f64, f64) {
+    let lon = lon - 360.0 * ((lon - geo.lon0 + 180.0) / 360.0).floor();
+    ((lon - geo.lon0) / geo.dlon, (lat - geo.lat0) / geo.dlat)
 }
 
 impl crate::geom::Ground for Terrain {

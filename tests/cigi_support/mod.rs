@@ -322,3 +322,35 @@ pub fn sun_at(date: u32, hour: u8, minute: u8) -> CelestialSphereControl {
         ..CelestialSphereControl::default()
     }
 }
+
+/// Body → north-east-down rotation of yaw, pitch, roll (degrees; z-y-x, the aerospace
+/// convention CIGI uses: body x forward, y right, z down).
+pub fn dcm([yaw, pitch, roll]: [f64; 3]) -> [[f64; 3]; 3] {
+    let (sy, cy) = yaw.to_radians().sin_cos();
+    let (sp, cp) = pitch.to_radians().sin_cos();
+    let (sr, cr) = roll.to_radians().sin_cos();
+    [
+        [cp * cy, sr * sp * cy - cr * sy, cr * sp * cy + sr * sy],
+        [cp * sy, sr * sp * sy + cr * cy, cr * sp * sy - sr * cy],
+        [-sp, sr * cp, cr * cp],
+    ]
+}
+
+pub fn mat_mul(a: [[f64; 3]; 3], b: [[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let mut m = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            m[i][j] = (0..3).map(|k| a[i][k] * b[k][j]).sum();
+        }
+    }
+    m
+}
+
+/// Yaw, pitch, roll (degrees) of a body → NED rotation.
+pub fn euler(m: [[f64; 3]; 3]) -> [f64; 3] {
+    [
+        m[1][0].atan2(m[0][0]).to_degrees(),
+        (-m[2][0]).asin().to_degrees(),
+        m[2][1].atan2(m[2][2]).to_degrees(),
+    ]
+}

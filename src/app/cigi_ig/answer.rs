@@ -11,9 +11,10 @@
 //! * **LOS vector**: [`cast_ray`] from the source along azimuth/elevation between the minimum
 //!   and maximum range; no hit is answered `valid = false` (basic) or `range_valid = false`
 //!   (extended).
-//! * **Position**: the entity's pose at the frame's host time, geodetic for a top-level entity,
-//!   parent-relative for an attached one. Other object classes (parts, views, groups, trackers)
-//!   and unknown entities get no response (counted).
+//! * **Position**: the entity's pose at the frame's host time: geodetic where the IG put it
+//!   (clamped to the ground, or carried by its parents when attached), or, for an attached
+//!   entity asked for in its parent's frame, its offsets. Other object classes (parts, views,
+//!   groups, trackers) and unknown entities get no response (counted).
 //!
 //! On a **database scene** (`[terrain] database`) every answer comes from the database at full
 //! resolution (`cpu::database::FullResolution`), whatever level the scene renders: HOT from the
@@ -34,8 +35,8 @@
 
 use crate::cigi::{
     HatHotExtendedResponse, HatHotRequest, HatHotResponse, LosExtendedResponse, LosResponse,
-    LosSegmentRequest, LosVectorRequest, MessageBuilder, PositionRequest, PositionResponse, Query,
-    Session,
+    LosSegmentRequest, LosVectorRequest, MessageBuilder, Pose, PositionRequest, PositionResponse,
+    Query, Session,
 };
 use crate::cpu::database::FullResolution;
 use crate::cpu::query::{cast_ray, line_of_sight};
@@ -210,7 +211,7 @@ fn answer_one(
             c.los += 1;
             c.invalid += u64::from(!los_vector(t, r, frame, msg));
         }
-        Query::Position(r, _) => match position(session, r, now_host) {
+        Query::Position(r, _) => match position(t, session, r, now_host) {
             Some(p) => {
                 c.position += 1;
                 msg.push(&p);
@@ -518,23 +519,52 @@ fn los_vector(g: &Ground, r: &LosVectorRequest, frame: u32, msg: &mut MessageBui
     src.is_some() && ranges_ok && dir_ok
 }
 
-/// The position of an entity (object class 0) at host time `now_host`.
-fn position(s: &Session, r: &PositionRequest, now_host: f64) -> Option<PositionResponse> {
+/// The position of an entity (object class 0) at host time `now_host`: an attached entity
+/// asked for in its parent's frame (or a submodel's), its offsets as sent; otherwise
+/// geodetic, where the IG put it — clamped to the ground, or attached and carried by its
+/// parents (`world::entity_placement`); an entity the IG cannot place, as the host sent it.
+fn position(
+    t: &Ground,
+    s: &Session,
+    r: &PositionRequest,
+    now_host: f64,
+) -> Option<PositionResponse> {
     if r.object_class != 0 {
         return None;
     }
     let e = s.entity(r.object_id)?;
-    let p = s.pose_at(r.object_id, now_host)?;
-    Some(PositionResponse {
+    let mut p = s.pose_at(r.object_id, now_host)?;
+    let relative = e.parent.is_some() && r.coordinate_system != 0;
+    if !relative && (e.parent.is_some() || e.ground_clamp != 0) {
+        let placed = crate::world::entity_placement(s, t.terrain, r.object_id, now_host)
+            .and_then(|pl| Some((t.terrain.world_to_geodetic(pl.position)?, pl.attitude)));
+        match placed {
+            Some(([lat, lon, alt], m)) => {
+                let (yaw, pitch, roll) = crate::geom::attitude_angles(m);
+                (p.lat, p.lon, p.alt) = (lat, lon, alt);
+                (p.yaw, p.pitch, p.roll) = (yaw, pitch, roll);
+            }
+            // Attached below an entity off the terrain: the offsets, in the parent's frame.
+            None if e.parent.is_some() => {
+                return Some(position_response(r, 1, &p));
+            }
+            None => {}
+        }
+    }
+    Some(position_response(r, u8::from(relative), &p))
+}
+
+fn position_response(r: &PositionRequest, coordinate_system: u8, p: &Pose) -> PositionResponse {
+    PositionResponse {
         object_id: r.object_id,
         part_id: 0,
         object_class: 0,
-        coordinate_system: u8::from(e.parent.is_some()),
+        coordinate_system,
         lat: p.lat,
         lon: p.lon,
         alt: p.alt,
         roll: p.roll as f32,
         pitch: p.pitch as f32,
         yaw: p.yaw as f32,
-    })
+    }
 }

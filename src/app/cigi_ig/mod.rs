@@ -106,7 +106,7 @@ pub struct CigiIg {
     pub send_errors: u64,
     /// Queries answered, by kind, since the start.
     pub answers: answer::AnswerCounts,
-    /// The most entities besides the ownship not drawn in one frame (no template, attached,
+    /// The most entities besides the ownship not drawn in one frame (no template,
     /// off the terrain, beyond the template's `max`).
     pub other_entities: usize,
     /// This frame's entity instances: drawn, not drawn, hidden (inactive).
@@ -311,7 +311,8 @@ impl CigiIg {
             return (pose, None);
         };
         let attached = self.session.ownship().is_some_and(|e| e.parent.is_some());
-        let lla = [p.lat, p.lon, p.alt];
+        let clamped = self.session.ownship().is_some_and(|e| e.ground_clamp != 0);
+        let mut lla = [p.lat, p.lon, p.alt];
         match terrain
             .geodetic_to_world("CIGI ownship", lla)
             .ok()
@@ -322,6 +323,17 @@ impl CigiIg {
                 pose.heading = p.yaw;
                 pose.pitch = p.pitch;
                 pose.roll = p.roll;
+                // A ground vehicle's or a ship's eye: clamped to the terrain (or the sea) as
+                // the entities are (`world::entity_placement`).
+                let placed = clamped
+                    .then(|| crate::world::entity_placement(&self.session, terrain, 0, t))
+                    .flatten();
+                if let (Some(pl), Some(ground)) = (placed, terrain.ground_msl(p.lat, p.lon)) {
+                    pose.position = pl.position;
+                    (pose.heading, pose.pitch, pose.roll) =
+                        crate::geom::attitude_angles(pl.attitude);
+                    lla[2] = ground + p.alt;
+                }
                 if let Some((xyz, ypr)) = self.view_offset() {
                     offset_view(&mut pose, xyz, ypr);
                 }
@@ -403,7 +415,7 @@ impl CigiIg {
         if i.not_drawn > self.other_entities {
             if self.other_entities == 0 {
                 log::warn!(
-                    "CIGI: {} entities not drawn (no [[cigi.entity]] template for their type, attached, off the terrain or beyond the template's max)",
+                    "CIGI: {} entities not drawn (no [[cigi.entity]] template for their type, off the terrain or beyond the template's max)",
                     i.not_drawn
                 );
             }
