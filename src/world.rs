@@ -4,6 +4,7 @@
 
 use crate::cigi::{EntityState, Session};
 use crate::freeform::FreeForm;
+use crate::geodesy;
 use crate::geom::attitude_matrix;
 use crate::scene::Scene;
 use crate::terrain::Terrain;
@@ -139,9 +140,40 @@ pub struct Instances {
 pub struct Placement {
     /// World position of the entity's origin.
     pub position: DVec3,
-    /// Its attitude: columns the body's right, forward and up in the world
-    /// (`geom::attitude_matrix`).
+    /// Its geodetic position: latitude, longitude (degrees), metres above mean sea level.
+    pub geodetic: [f64; 3],
+    /// Its attitude: columns the body's right, forward and up in the world, which is
+    /// east-north-up (`geom::attitude_matrix`).
     pub attitude: DMat3,
+}
+
+/// Geodetic position of the point at body offsets `[x forward, y right, z down]` (metres)
+/// from a body at geodetic `origin` with attitude `m` (columns right, forward, up in its
+/// east-north-up frame): a straight line in the body's frame, exact through ECEF (heights
+/// above mean sea level taken as above the ellipsoid: their difference is what counts).
+pub fn body_point(origin: [f64; 3], m: &DMat3, [x, y, z]: [f64; 3]) -> [f64; 3] {
+    let enu = m.y_axis * x + m.x_axis * y - m.z_axis * z;
+    let o = geodesy::Geodetic {
+        lat: origin[0],
+        lon: origin[1],
+        height: origin[2],
+    };
+    let g = geodesy::from_ecef(geodesy::to_ecef(o) + geodesy::enu_basis(o.lat, o.lon) * enu);
+    [g.lat, g.lon, g.height]
+}
+
+/// The body offsets `[x forward, y right, z down]` of geodetic `lla` from a body at `origin`
+/// with attitude `m` (the inverse of [`body_point`]).
+pub fn body_offsets(origin: [f64; 3], m: &DMat3, lla: [f64; 3]) -> [f64; 3] {
+    let ecef = |p: [f64; 3]| {
+        geodesy::to_ecef(geodesy::Geodetic {
+            lat: p[0],
+            lon: p[1],
+            height: p[2],
+        })
+    };
+    let d = geodesy::enu_basis(origin[0], origin[1]).transpose() * (ecef(lla) - ecef(origin));
+    [d.dot(m.y_axis), d.dot(m.x_axis), -d.dot(m.z_axis)]
 }
 
 /// How deep attachments are followed (the session refuses cycles; this bounds the work).
@@ -156,8 +188,8 @@ const MAX_ATTACH_DEPTH: usize = 32;
 ///   (its up the surface normal across half a sample each way, its heading kept), its pitch
 ///   and roll offsets from that.
 /// * **attached** to a parent (clamping ignored, as CIGI says): the parent's placement moved
-///   by the offsets x forward, y right, z down (metres, the parent's body frame) and turned
-///   by yaw, pitch and roll relative to the parent's body.
+///   by the offsets x forward, y right, z down (metres, a straight line in the parent's body
+///   frame: [`body_point`]) and turned by yaw, pitch and roll relative to the parent's body.
 pub fn entity_placement(
     session: &Session,
     terrain: &Terrain,
@@ -181,33 +213,33 @@ fn placement_at(
             return None;
         }
         let up = placement_at(session, terrain, parent, t, depth + 1)?;
-        let (right, fwd, upward) = (up.attitude.x_axis, up.attitude.y_axis, up.attitude.z_axis);
+        let geodetic = body_point(up.geodetic, &up.attitude, [p.lat, p.lon, p.alt]);
         return Some(Placement {
-            position: up.position + fwd * p.lat + right * p.lon - upward * p.alt,
+            position: terrain.geodetic_to_world("CIGI entity", geodetic).ok()?,
+            geodetic,
             attitude: up.attitude * attitude_matrix(p.yaw, p.pitch, p.roll),
         });
     }
-    let field = "CIGI entity";
-    match e.ground_clamp {
+    let (geodetic, attitude) = match e.ground_clamp {
         1 | 2 => {
             let ground = terrain.ground_msl(p.lat, p.lon)?;
-            let position = terrain
-                .geodetic_to_world(field, [p.lat, p.lon, ground + p.alt])
-                .ok()?;
             let attitude = if e.ground_clamp == 2 {
                 conformal(terrain, p.lat, p.lon, p.yaw)? * attitude_matrix(0.0, p.pitch, p.roll)
             } else {
                 attitude_matrix(p.yaw, p.pitch, p.roll)
             };
-            Some(Placement { position, attitude })
+            ([p.lat, p.lon, ground + p.alt], attitude)
         }
-        _ => Some(Placement {
-            position: terrain
-                .geodetic_to_world(field, [p.lat, p.lon, p.alt])
-                .ok()?,
-            attitude: attitude_matrix(p.yaw, p.pitch, p.roll),
-        }),
-    }
+        _ => (
+            [p.lat, p.lon, p.alt],
+            attitude_matrix(p.yaw, p.pitch, p.roll),
+        ),
+    };
+    Some(Placement {
+        position: terrain.geodetic_to_world("CIGI entity", geodetic).ok()?,
+        geodetic,
+        attitude,
+    })
 }
 
 /// The attitude of a body standing on the terrain at (lat, lon) with heading `yaw`: up the

@@ -847,19 +847,6 @@ fn the_hosts_date_time_and_visibility_set_sun_and_fog() {
     assert!(scene_sun > 1.0 && scene_fog > 1.0, "sun and fog matter");
 }
 
-/// WGS84 geodetic → ECEF (m).
-fn ecef(lla: [f64; 3]) -> [f64; 3] {
-    let (a, f) = (6_378_137.0, 1.0 / 298.257_223_563);
-    let e2 = f * (2.0 - f);
-    let (la, lo) = (lla[0].to_radians(), lla[1].to_radians());
-    let n = a / (1.0 - e2 * la.sin().powi(2)).sqrt();
-    [
-        (n + lla[2]) * la.cos() * lo.cos(),
-        (n + lla[2]) * la.cos() * lo.sin(),
-        (n * (1.0 - e2) + lla[2]) * la.sin(),
-    ]
-}
-
 /// Pixel position (x right, y down, pixel centres at i + 0.5) of geodetic `p` seen by a
 /// pinhole camera at `cam` with heading (from true north), pitch, zero roll, horizontal fov
 /// `fov` degrees, `w`x`h` pixels: the camera's local east-north-up frame, computed here.

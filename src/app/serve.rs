@@ -180,7 +180,7 @@ fn follow_ownship(
     p: &mut super::capture::Prepared,
     renderer: &mut crate::gpu::TerrainRenderer,
 ) -> Result<()> {
-    if let (Some(lla), Some(f), Some(paging)) = (ig.ownship_geodetic(), follower, &p.paging) {
+    if let (Some(lla), Some(f), Some(paging)) = (ig.eye_geodetic(), follower, &p.paging) {
         if f.follow(&mut p.world, lla)? {
             paging
                 .borrow_mut()

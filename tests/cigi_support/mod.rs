@@ -354,3 +354,16 @@ pub fn euler(m: [[f64; 3]; 3]) -> [f64; 3] {
         m[2][1].atan2(m[2][2]).to_degrees(),
     ]
 }
+
+/// WGS84 geodetic → ECEF (m).
+pub fn ecef(lla: [f64; 3]) -> [f64; 3] {
+    let (a, f) = (6_378_137.0, 1.0 / 298.257_223_563);
+    let e2 = f * (2.0 - f);
+    let (la, lo) = (lla[0].to_radians(), lla[1].to_radians());
+    let n = a / (1.0 - e2 * la.sin().powi(2)).sqrt();
+    [
+        (n + lla[2]) * la.cos() * lo.cos(),
+        (n + lla[2]) * la.cos() * lo.sin(),
+        (n * (1.0 - e2) + lla[2]) * la.sin(),
+    ]
+}

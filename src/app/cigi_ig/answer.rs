@@ -29,9 +29,14 @@
 //! than one frame late; position requests are never kept. Queries kept when the run ends are
 //! answered in one more datagram (`CigiIg::finish`).
 //!
-//! Requests in an entity's frame (HAT/HOT `entity_frame`, LOS `source_entity_frame`, …) are
-//! answered `valid = false`: relative queries are not modelled yet. So is a point off the
-//! terrain's georeferenced window.
+//! **Requests in an entity's frame** (HAT/HOT `entity_frame`, LOS `source_entity_frame`,
+//! `destination_entity_frame`, `response_entity_frame`) are taken through the entity's
+//! placement at the frame's host time ([`crate::world::entity_placement`]: where the IG draws
+//! it, clamped or carried by its parents): offsets x forward, y right, z down in its body
+//! frame, a vector's azimuth from its x axis towards y and its elevation from its xy plane; an
+//! extended response's intersection is given back as such offsets when asked. An entity the IG
+//! cannot place (unknown, off the terrain) answers `valid = false`, as a point off the
+//! terrain's georeferenced window does.
 
 use crate::cigi::{
     HatHotExtendedResponse, HatHotRequest, HatHotResponse, LosExtendedResponse, LosResponse,
@@ -112,6 +117,53 @@ pub fn direction(t: &Terrain, az: f64, el: f64) -> DVec3 {
     let (a, e) = (az.to_radians(), el.to_radians());
     let f = &t.frame;
     f.axis_x * (a.sin() * e.cos()) + f.axis_y * (a.cos() * e.cos()) + f.normal * e.sin()
+}
+
+/// An entity's body frame at the frame's host time, for requests given in it.
+struct EntityFrame {
+    /// Geodetic position of its origin.
+    origin: [f64; 3],
+    /// Columns right, forward, up in east-north-up (`geom::attitude_matrix`).
+    attitude: glam::DMat3,
+}
+
+impl EntityFrame {
+    fn of(g: &Ground, s: &Session, id: u16, now_host: f64) -> Option<EntityFrame> {
+        let p = crate::world::entity_placement(s, g.terrain, id, now_host)?;
+        Some(EntityFrame {
+            origin: p.geodetic,
+            attitude: p.attitude,
+        })
+    }
+
+    /// Geodetic position of the body offsets `[x forward, y right, z down]` (metres).
+    fn point(&self, xyz: [f64; 3]) -> [f64; 3] {
+        crate::world::body_point(self.origin, &self.attitude, xyz)
+    }
+
+    /// Azimuth from true north and elevation (degrees) of the body direction at azimuth `az`
+    /// from the x axis towards y and elevation `el` above the xy plane.
+    fn az_el(&self, g: &Ground, az: f64, el: f64) -> (f64, f64) {
+        let (a, e) = (az.to_radians(), el.to_radians());
+        let m = &self.attitude;
+        let d =
+            m.y_axis * (a.cos() * e.cos()) + m.x_axis * (a.sin() * e.cos()) + m.z_axis * e.sin();
+        azimuth_elevation(g.terrain, d)
+    }
+
+    /// The body offsets `[x forward, y right, z down]` of geodetic `lla`.
+    fn offsets(&self, lla: [f64; 3]) -> [f64; 3] {
+        crate::world::body_offsets(self.origin, &self.attitude, lla)
+    }
+}
+
+/// A request's point: geodetic as given, or body offsets of `entity` (`in_entity`).
+fn request_point(entity: Option<&EntityFrame>, in_entity: bool, p: [f64; 3]) -> Option<[f64; 3]> {
+    if in_entity {
+        Some(entity?.point(p))
+    } else {
+        Some(p)
+    }
 }
 
 /// The surface normal below `lat`, `lon`: a vertical ray from above the highest sample.
@@ -201,15 +253,29 @@ fn answer_one(
     match q {
         Query::HatHot(r, _) => {
             c.hat_hot += 1;
-            c.invalid += u64::from(!hat_hot(t, r, frame, msg));
+            let entity = r
+                .entity_frame
+                .then(|| EntityFrame::of(t, session, r.entity_id, now_host))
+                .flatten();
+            let at = request_point(entity.as_ref(), r.entity_frame, [r.lat, r.lon, r.alt]);
+            c.invalid += u64::from(!hat_hot(t, r, at, frame, msg));
         }
         Query::LosSegment(r, _) => {
             c.los += 1;
-            c.invalid += u64::from(!los_segment(t, r, frame, msg));
+            let relative =
+                r.source_entity_frame || r.destination_entity_frame || r.response_entity_frame;
+            let entity = relative
+                .then(|| EntityFrame::of(t, session, r.entity_id, now_host))
+                .flatten();
+            c.invalid += u64::from(!los_segment(t, r, entity.as_ref(), frame, msg));
         }
         Query::LosVector(r, _) => {
             c.los += 1;
-            c.invalid += u64::from(!los_vector(t, r, frame, msg));
+            let relative = r.source_entity_frame || r.response_entity_frame;
+            let entity = relative
+                .then(|| EntityFrame::of(t, session, r.entity_id, now_host))
+                .flatten();
+            c.invalid += u64::from(!los_vector(t, r, entity.as_ref(), frame, msg));
         }
         Query::Position(r, _) => match position(t, session, r, now_host) {
             Some(p) => {
@@ -340,14 +406,22 @@ fn resident(
     }
 }
 
-/// One HAT/HOT response; `false` when it is answered invalid.
-fn hat_hot(g: &Ground, r: &HatHotRequest, frame: u32, msg: &mut MessageBuilder) -> bool {
-    let hot = (!r.entity_frame).then(|| g.hot(r.lat, r.lon)).flatten();
+/// One HAT/HOT response for the request's point `at` (geodetic; `None`: it cannot be
+/// placed); `false` when it is answered invalid.
+fn hat_hot(
+    g: &Ground,
+    r: &HatHotRequest,
+    at: Option<[f64; 3]>,
+    frame: u32,
+    msg: &mut MessageBuilder,
+) -> bool {
+    let hot = at.and_then(|[lat, lon, _]| g.hot(lat, lon));
     let valid = hot.is_some();
     let hot = hot.unwrap_or(0.0);
-    let hat = if valid { r.alt - hot } else { 0.0 };
+    let [lat, lon, alt] = at.unwrap_or([0.0; 3]);
+    let hat = if valid { alt - hot } else { 0.0 };
     if r.request_type & 3 == 2 {
-        let at = [r.lat, r.lon, r.alt];
+        let at = [lat, lon, alt];
         let window = g.window(at, at);
         let t = match &window {
             Some(Ok(w)) => Some(w),
@@ -356,7 +430,7 @@ fn hat_hot(g: &Ground, r: &HatHotRequest, frame: u32, msg: &mut MessageBuilder) 
         };
         let (az, el) = t
             .filter(|_| valid)
-            .and_then(|t| Some((t, normal_below(t, r.lat, r.lon)?)))
+            .and_then(|t| Some((t, normal_below(t, lat, lon)?)))
             .map_or((0.0, 90.0), |(t, n)| azimuth_elevation(t, n));
         msg.push(&HatHotExtendedResponse {
             request_id: r.request_id,
@@ -397,14 +471,26 @@ impl Los {
     };
 }
 
-/// One LOS response (basic or extended) from what the test found.
-fn push_los(t: &Terrain, id: u16, extended: bool, frame: u32, los: &Los, msg: &mut MessageBuilder) {
+/// How a LOS response is given: the request's ID, extended or basic, and the entity frame
+/// its intersection is given in (`response_entity_frame`).
+struct LosAnswer<'a> {
+    id: u16,
+    extended: bool,
+    in_entity: Option<&'a EntityFrame>,
+}
+
+/// One LOS response (basic or extended) from what the test found on `t`.
+fn push_los(t: &Terrain, a: &LosAnswer, frame: u32, los: &Los, msg: &mut MessageBuilder) {
+    let (id, extended) = (a.id, a.extended);
     let range = los.hit.as_ref().map_or(0.0, |h| h.t);
     if extended {
         let (mut lla, mut az, mut el) = ([0.0; 3], 0.0, 90.0);
         if let Some(h) = &los.hit {
             lla = t.world_to_geodetic(h.point).unwrap_or([0.0; 3]);
             (az, el) = azimuth_elevation(t, h.normal);
+            if let Some(e) = a.in_entity {
+                lla = e.offsets(lla);
+            }
         }
         msg.push(&LosExtendedResponse {
             request_id: id,
@@ -441,21 +527,34 @@ fn push_los(t: &Terrain, id: u16, extended: bool, frame: u32, los: &Los, msg: &m
     }
 }
 
-fn los_segment(g: &Ground, r: &LosSegmentRequest, frame: u32, msg: &mut MessageBuilder) -> bool {
-    let (ga, gb) = (
+/// One LOS segment response; `entity`: the request's entity frame where it uses one.
+fn los_segment(
+    g: &Ground,
+    r: &LosSegmentRequest,
+    entity: Option<&EntityFrame>,
+    frame: u32,
+    msg: &mut MessageBuilder,
+) -> bool {
+    let ga = request_point(
+        entity,
+        r.source_entity_frame,
         [r.source_lat, r.source_lon, r.source_alt],
+    );
+    let gb = request_point(
+        entity,
+        r.destination_entity_frame,
         [r.destination_lat, r.destination_lon, r.destination_alt],
     );
-    let window = (!r.source_entity_frame && !r.destination_entity_frame)
-        .then(|| g.window(ga, gb))
-        .flatten();
+    let placed = ga
+        .zip(gb)
+        .filter(|_| entity.is_some() || !r.response_entity_frame);
+    let window = placed.and_then(|(ga, gb)| g.window(ga, gb));
     let t = match &window {
         Some(Ok(w)) => w,
         _ => g.terrain,
     };
-    let ends = (!r.source_entity_frame && !r.destination_entity_frame)
-        .then(|| Some((world(t, ga)?, world(t, gb)?)))
-        .flatten()
+    let ends = placed
+        .and_then(|(ga, gb)| Some((world(t, ga)?, world(t, gb)?)))
         .filter(|_| !matches!(window, Some(Err(()))));
     let los = match ends {
         Some((a, b)) => {
@@ -471,40 +570,60 @@ fn los_segment(g: &Ground, r: &LosSegmentRequest, frame: u32, msg: &mut MessageB
         }
         None => Los::INVALID,
     };
-    push_los(t, r.request_id, r.extended, frame, &los, msg);
+    let answer = LosAnswer {
+        id: r.request_id,
+        extended: r.extended,
+        in_entity: entity.filter(|_| r.response_entity_frame),
+    };
+    push_los(t, &answer, frame, &los, msg);
     los.valid
 }
 
-fn los_vector(g: &Ground, r: &LosVectorRequest, frame: u32, msg: &mut MessageBuilder) -> bool {
+/// One LOS vector response; `entity`: the request's entity frame where it uses one.
+fn los_vector(
+    g: &Ground,
+    r: &LosVectorRequest,
+    entity: Option<&EntityFrame>,
+    frame: u32,
+    msg: &mut MessageBuilder,
+) -> bool {
     let ranges_ok = r.min_range.is_finite()
         && r.max_range.is_finite()
         && r.min_range >= 0.0
         && r.max_range >= r.min_range;
     let dir_ok = r.azimuth.is_finite() && r.elevation.is_finite();
-    let gs = [r.source_lat, r.source_lon, r.source_alt];
+    let source = request_point(
+        entity,
+        r.source_entity_frame,
+        [r.source_lat, r.source_lon, r.source_alt],
+    )
+    .filter(|_| entity.is_some() || !r.response_entity_frame);
+    // From true north and the horizontal, or from the entity's x axis and xy plane.
+    let (az, el) = (f64::from(r.azimuth), f64::from(r.elevation));
+    let (az, el) = match entity.filter(|_| r.source_entity_frame && dir_ok) {
+        Some(e) => e.az_el(g, az, el),
+        None => (az, el),
+    };
     // On a database: the window around the source and the far end (placed on the scene's
     // terrain); the ray is cast in the window's frame.
-    let window = (!r.source_entity_frame && ranges_ok && dir_ok)
-        .then(|| {
-            let s = world(g.terrain, gs)?;
-            let d = direction(g.terrain, f64::from(r.azimuth), f64::from(r.elevation));
-            let end = g
-                .terrain
-                .world_to_geodetic(s + d * f64::from(r.max_range))?;
-            g.window(gs, end)
-        })
-        .flatten();
+    let window = source.filter(|_| ranges_ok && dir_ok).and_then(|gs| {
+        let s = world(g.terrain, gs)?;
+        let d = direction(g.terrain, az, el);
+        let end = g
+            .terrain
+            .world_to_geodetic(s + d * f64::from(r.max_range))?;
+        g.window(gs, end)
+    });
     let t = match &window {
         Some(Ok(w)) => w,
         _ => g.terrain,
     };
-    let src = (!r.source_entity_frame)
-        .then(|| world(t, gs))
-        .flatten()
+    let src = source
+        .and_then(|gs| world(t, gs))
         .filter(|_| !matches!(window, Some(Err(()))));
     let los = match src.filter(|_| ranges_ok && dir_ok) {
         Some(a) => {
-            let d = direction(t, f64::from(r.azimuth), f64::from(r.elevation));
+            let d = direction(t, az, el);
             let hit = cast_ray(t, a, d, f64::from(r.min_range), f64::from(r.max_range));
             // A basic response has no range-valid flag: a vector that meets nothing is invalid.
             Los {
@@ -515,7 +634,12 @@ fn los_vector(g: &Ground, r: &LosVectorRequest, frame: u32, msg: &mut MessageBui
         }
         None => Los::INVALID,
     };
-    push_los(t, r.request_id, r.extended, frame, &los, msg);
+    let answer = LosAnswer {
+        id: r.request_id,
+        extended: r.extended,
+        in_entity: entity.filter(|_| r.response_entity_frame),
+    };
+    push_los(t, &answer, frame, &los, msg);
     src.is_some() && ranges_ok && dir_ok
 }
 

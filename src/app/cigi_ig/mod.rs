@@ -86,6 +86,10 @@ pub fn offset_view(pose: &mut CameraPose, xyz: [f64; 3], ypr: [f64; 3]) {
     (pose.heading, pose.pitch, pose.roll) = attitude_angles(m);
 }
 
+/// A view's offsets from the entity it rides: `[x, y, z]` metres along its body axes
+/// (forward, right, down) and `[yaw, pitch, roll]` degrees relative to its attitude.
+pub type ViewOffsets = ([f64; 3], [f64; 3]);
+
 /// A CIGI IG: socket, session, frame counter.
 pub struct CigiIg {
     socket: UdpSocket,
@@ -285,17 +289,28 @@ impl CigiIg {
         }
     }
 
-    /// The camera for this frame: `base` (the scene's camera) with the ownship's position and
-    /// attitude at the frame's host time (interpolated by [`Session::pose_at`]) and the fov of
-    /// a View Definition with both left and right given. `None` for the position part while
-    /// the host has not placed the ownship (or placed it off the terrain: `base` kept).
-    /// The host's ownship now (latitude, longitude, altitude), placed on the terrain or not
-    /// (a paged window follows it there); `None` before the host has placed it.
-    pub fn ownship_geodetic(&self) -> Option<[f64; 3]> {
+    /// Where the view's entity ([`CigiIg::view_control`]: the ownship unless the lowest view
+    /// rides another) is now, as the host placed it (latitude, longitude, altitude; an
+    /// attached entity's top-level ancestor's), on the terrain or not: a paged window follows
+    /// it there. `None` before the host has placed it.
+    pub fn eye_geodetic(&self) -> Option<[f64; 3]> {
         let t = self.session.host_time_at(self.now());
-        self.session.pose_at(0, t).map(|p| [p.lat, p.lon, p.alt])
+        let mut id = self.view_control().0;
+        for _ in 0..32 {
+            match self.session.entity(id)?.parent {
+                Some(parent) => id = parent,
+                None => break,
+            }
+        }
+        self.session.pose_at(id, t).map(|p| [p.lat, p.lon, p.alt])
     }
 
+    /// The camera for this frame: `base` (the scene's camera) with the position and attitude
+    /// at the frame's host time (interpolated by [`Session::pose_at`]) of the entity the view
+    /// rides ([`CigiIg::view_control`]: the ownship unless the lowest view's View Control
+    /// names another), moved by the view's offsets, and the fov of a View Definition with both
+    /// left and right given. `None` for the position part while the host has not placed that
+    /// entity (or placed it off the terrain: `base` kept).
     pub fn camera_pose(
         &mut self,
         terrain: &Terrain,
@@ -307,34 +322,34 @@ impl CigiIg {
         }
         self.frame_time = self.now();
         let t = self.session.host_time_at(self.frame_time);
-        let Some(p) = self.session.pose_at(0, t) else {
+        let (id, offsets) = self.view_control();
+        let Some(e) = self.session.entity(id) else {
             return (pose, None);
         };
-        let attached = self.session.ownship().is_some_and(|e| e.parent.is_some());
-        let clamped = self.session.ownship().is_some_and(|e| e.ground_clamp != 0);
+        let Some(p) = self.session.pose_at(id, t) else {
+            return (pose, None);
+        };
         let mut lla = [p.lat, p.lon, p.alt];
-        match terrain
-            .geodetic_to_world("CIGI ownship", lla)
-            .ok()
-            .filter(|_| !attached)
-        {
-            Some(w) => {
+        // A top-level ownship that is not clamped: its pose as sent. Otherwise where the IG
+        // puts the entity (`world::entity_placement`): clamped to the ground or the sea (a
+        // ground vehicle's or a ship's eye), carried by its parents when attached, or the
+        // entity another than the ownship that the view rides.
+        let placed = if id == 0 && e.parent.is_none() && e.ground_clamp == 0 {
+            terrain
+                .geodetic_to_world("CIGI ownship", lla)
+                .ok()
+                .map(|w| (w, (p.yaw, p.pitch, p.roll)))
+        } else {
+            crate::world::entity_placement(&self.session, terrain, id, t).and_then(|pl| {
+                lla = terrain.world_to_geodetic(pl.position)?;
+                Some((pl.position, crate::geom::attitude_angles(pl.attitude)))
+            })
+        };
+        match placed {
+            Some((w, (heading, pitch, roll))) => {
                 pose.position = w;
-                pose.heading = p.yaw;
-                pose.pitch = p.pitch;
-                pose.roll = p.roll;
-                // A ground vehicle's or a ship's eye: clamped to the terrain (or the sea) as
-                // the entities are (`world::entity_placement`).
-                let placed = clamped
-                    .then(|| crate::world::entity_placement(&self.session, terrain, 0, t))
-                    .flatten();
-                if let (Some(pl), Some(ground)) = (placed, terrain.ground_msl(p.lat, p.lon)) {
-                    pose.position = pl.position;
-                    (pose.heading, pose.pitch, pose.roll) =
-                        crate::geom::attitude_angles(pl.attitude);
-                    lla[2] = ground + p.alt;
-                }
-                if let Some((xyz, ypr)) = self.view_offset() {
+                (pose.heading, pose.pitch, pose.roll) = (heading, pitch, roll);
+                if let Some((xyz, ypr)) = offsets {
                     offset_view(&mut pose, xyz, ypr);
                 }
                 (
@@ -349,7 +364,7 @@ impl CigiIg {
                 self.off_terrain += 1;
                 if self.off_terrain == 1 {
                     log::warn!(
-                        "CIGI ownship at {lla:?} is off the terrain (or attached): camera kept"
+                        "CIGI entity {id}, which the view rides, at {lla:?} is off the terrain: camera kept"
                     );
                 }
                 (pose, None)
@@ -424,14 +439,16 @@ impl CigiIg {
         i
     }
 
-    /// The eye's offset from the ownship of the lowest view ID whose View Control names entity
-    /// 0: `[x, y, z]` metres in the ownship's body frame (forward, right, down) and `[yaw,
-    /// pitch, roll]` degrees relative to it; offsets never enabled are 0.
-    pub fn view_offset(&self) -> Option<([f64; 3], [f64; 3])> {
-        self.session.views.values().find_map(|v| {
-            let c = v.control.filter(|c| c.entity_id == 0)?;
+    /// The entity the view rides and the eye's offset from it: the lowest view ID's View
+    /// Control names the entity (the ownship, 0, when no view has one), with `[x, y, z]`
+    /// metres in its body frame (forward, right, down) and `[yaw, pitch, roll]` degrees
+    /// relative to it; offsets never enabled are 0.
+    pub fn view_control(&self) -> (u16, Option<ViewOffsets>) {
+        let found = self.session.views.values().find_map(|v| {
+            let c = v.control?;
             let on = |e: bool, x: f32| if e { f64::from(x) } else { 0.0 };
             Some((
+                c.entity_id,
                 [
                     on(c.x_enable, c.x),
                     on(c.y_enable, c.y),
@@ -443,7 +460,11 @@ impl CigiIg {
                     on(c.roll_enable, c.roll),
                 ],
             ))
-        })
+        });
+        match found {
+            Some((id, xyz, ypr)) => (id, Some((xyz, ypr))),
+            None => (0, None),
+        }
     }
 
     /// Horizontal fov (degrees) of the lowest view ID whose View Definition gives both the

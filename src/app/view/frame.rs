@@ -143,7 +143,7 @@ impl App {
             } else {
                 ig.poll();
             }
-            if let (Some(lla), Some(f)) = (ig.ownship_geodetic(), &mut p.follower) {
+            if let (Some(lla), Some(f)) = (ig.eye_geodetic(), &mut p.follower) {
                 f.follow(&mut p.world, lla)?;
             }
         } else if let Some(f) = &mut p.follower {
