@@ -216,6 +216,29 @@ fn ellipsoid(name: &str, lla: [f64; 3], ypr: [f64; 3]) -> String {
     )
 }
 
+/// The scene's template of entity type 7: a red ellipsoid, placed out of the way.
+fn ball_template() -> String {
+    ellipsoid("ball", [47.2, 9.2, 3000.0], [0.0; 3])
+        + "[[cigi.entity]]\ntype = 7\nfreeform = \"ball\"\nmax = 8\n"
+}
+
+/// `relief serve SCENE` at 160x120, synchronous, for `frames` frames captured into `dir`,
+/// with `args` besides.
+fn serve(scene: &std::path::Path, dir: &std::path::Path, frames: u32, args: &[&str]) -> Ig {
+    let n = frames.to_string();
+    let mut all = vec![
+        "--size",
+        "160x120",
+        "--cigi-sync",
+        "--frames",
+        &n,
+        "--capture-frames",
+        dir.to_str().unwrap(),
+    ];
+    all.extend_from_slice(args);
+    Ig::start(scene, &all, host_socket())
+}
+
 /// The library's placements against the truth: positions within 0.01 m, axes within 0.002
 /// rad (the conformal slope: the truth measures it in metres at the entity, the library in the
 /// terrain's world).
@@ -223,8 +246,7 @@ fn ellipsoid(name: &str, lla: [f64; 3], ypr: [f64; 3]) -> String {
 fn attached_and_clamped_entities_are_placed_where_the_host_puts_them() {
     let dir = temp_dir("cigi-entity-placement");
     let t = truth(&Dem::load());
-    let template = ellipsoid("ball", [47.2, 9.2, 3000.0], [0.0; 3])
-        + "[[cigi.entity]]\ntype = 7\nfreeform = \"ball\"\nmax = 8\n";
+    let template = ball_template();
     let sc = relief::scene::Scene::load(&entity_scene(&dir, "scene", &template)).unwrap();
     let world = relief::world::World::load(&sc).unwrap();
     let mut session = Session::new();
@@ -278,24 +300,10 @@ fn attached_and_clamped_entities_are_drawn_where_the_host_puts_them() {
     let _serial = one_ig_test_at_a_time();
     let dir = temp_dir("cigi-entity-drawn");
     let t = truth(&Dem::load());
-    let template = ellipsoid("ball", [47.2, 9.2, 3000.0], [0.0; 3])
-        + "[[cigi.entity]]\ntype = 7\nfreeform = \"ball\"\nmax = 8\n";
+    let template = ball_template();
     let served_scene = entity_scene(&dir, "served", &template);
     let frames = dir.join("frames");
-    let ig = Ig::start(
-        &served_scene,
-        &[
-            "--size",
-            "160x120",
-            "--no-shadows",
-            "--cigi-sync",
-            "--frames",
-            "4",
-            "--capture-frames",
-            frames.to_str().unwrap(),
-        ],
-        host_socket(),
-    );
+    let ig = serve(&served_scene, &frames, 4, &["--no-shadows"]);
     let own = ownship(CAM, HEADING as f32, PITCH as f32, 0.0);
     ig.exchange(&message(ig_control(10, None, false), &[own.into()]), 10);
     ig.exchange(&message(ig_control(11, None, false), &packets(&t)), 11);
@@ -414,19 +422,7 @@ fn a_conformally_clamped_ownship_rides_the_slope() {
     let (eye, eye_ypr) = on_slope(&dem, at, ypr);
     let served_scene = scene(&dir, "served", [47.6, 9.6, 900.0], [45.0, 0.0, 0.0], "");
     let frames = dir.join("frames");
-    let ig = Ig::start(
-        &served_scene,
-        &[
-            "--size",
-            "160x120",
-            "--cigi-sync",
-            "--frames",
-            "1",
-            "--capture-frames",
-            frames.to_str().unwrap(),
-        ],
-        host_socket(),
-    );
+    let ig = serve(&served_scene, &frames, 1, &[]);
     let own = EntityControl {
         ground_clamp: 2,
         ..ownship(at, ypr[0] as f32, 0.0, 0.0)
@@ -615,23 +611,10 @@ fn a_view_riding_another_entity_looks_from_it() {
     let r = dcm(PARENT_YPR);
     let eye = offset(t.parent, apply(r, xyz));
     let eye_ypr = euler(mat_mul(r, dcm(ypr)));
-    let template = ellipsoid("ball", [47.2, 9.2, 3000.0], [0.0; 3])
-        + "[[cigi.entity]]\ntype = 7\nfreeform = \"ball\"\nmax = 8\n";
+    let template = ball_template();
     let served_scene = entity_scene(&dir, "served", &template);
     let frames = dir.join("frames");
-    let ig = Ig::start(
-        &served_scene,
-        &[
-            "--size",
-            "160x120",
-            "--cigi-sync",
-            "--frames",
-            "1",
-            "--capture-frames",
-            frames.to_str().unwrap(),
-        ],
-        host_socket(),
-    );
+    let ig = serve(&served_scene, &frames, 1, &[]);
     let own = ownship(CAM, HEADING as f32, PITCH as f32, 0.0);
     let f = |v: [f64; 3]| v.map(|x| x as f32);
     let parent = EntityControl::placed(5, 7, t.parent, f(PARENT_YPR));
