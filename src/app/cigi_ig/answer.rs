@@ -661,7 +661,7 @@ fn position(
     let relative = e.parent.is_some() && r.coordinate_system != 0;
     if !relative && (e.parent.is_some() || e.ground_clamp != 0) {
         let placed = crate::world::entity_placement(s, t.terrain, r.object_id, now_host)
-            .and_then(|pl| Some((t.terrain.world_to_geodetic(pl.position)?, pl.attitude)));
+            .map(|pl| (pl.geodetic, pl.attitude));
         match placed {
             Some(([lat, lon, alt], m)) => {
                 let (yaw, pitch, roll) = crate::geom::attitude_angles(m);

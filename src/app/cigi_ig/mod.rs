@@ -340,9 +340,9 @@ impl CigiIg {
                 .ok()
                 .map(|w| (w, (p.yaw, p.pitch, p.roll)))
         } else {
-            crate::world::entity_placement(&self.session, terrain, id, t).and_then(|pl| {
-                lla = terrain.world_to_geodetic(pl.position)?;
-                Some((pl.position, crate::geom::attitude_angles(pl.attitude)))
+            crate::world::entity_placement(&self.session, terrain, id, t).map(|pl| {
+                lla = pl.geodetic;
+                (pl.position, crate::geom::attitude_angles(pl.attitude))
             })
         };
         match placed {
