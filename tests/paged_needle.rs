@@ -89,6 +89,14 @@ impl Needle {
         let rgb = image::open(out.join("frame_0000.png")).unwrap().to_rgb8();
         Frame { rgb, json }
     }
+
+    /// Renders the scene paged and in memory with `args` and asserts the two frames within a
+    /// level (`assert_within` under `name`).
+    fn assert_paged_as_in_memory(&self, name: &str, args: &[&str]) {
+        let paged = self.render("paged", true, args);
+        let memory = self.render("memory", false, args);
+        assert_within(name, &paged.rgb, &memory.rgb, 1);
+    }
 }
 
 /// The largest channel difference of pixel `k`.
@@ -185,9 +193,7 @@ fn a_paged_frame_at_the_edge_of_the_data_equals_the_in_memory_one() {
     ];
     for (name, camera, size) in views {
         let t = Needle::new(&format!("paged-needle-{name}"), camera, size);
-        let paged = t.render("paged", true, &[]);
-        let memory = t.render("memory", false, &[]);
-        assert_within(&format!("paged-edge-{name}"), &paged.rgb, &memory.rgb, 1);
+        t.assert_paged_as_in_memory(&format!("paged-edge-{name}"), &[]);
     }
 }
 
@@ -260,9 +266,7 @@ fn sea_level_and_vertical_scale_shape_the_paged_terrain() {
             db.display().to_string()
         ),
     );
-    let paged = needle.render("paged", true, &["--antialias", "edges"]);
-    let memory = needle.render("memory", false, &["--antialias", "edges"]);
-    assert_within("paged-mapping-needle", &paged.rgb, &memory.rgb, 1);
+    needle.assert_paged_as_in_memory("paged-mapping-needle", &["--antialias", "edges"]);
 
     let dir = common::temp_dir("paged-mapping-pacific");
     let etopo = common::project_dir().join("tests/data/etopo20.tif");
@@ -276,9 +280,7 @@ fn sea_level_and_vertical_scale_shape_the_paged_terrain() {
             db.display().to_string()
         ),
     );
-    let paged = pacific.render("paged", true, &[]);
-    let memory = pacific.render("memory", false, &[]);
-    assert_within("paged-mapping-pacific", &paged.rgb, &memory.rgb, 1);
+    pacific.assert_paged_as_in_memory("paged-mapping-pacific", &[]);
 }
 
 /// A paged frame has no seams along tile edges: the normals' neighbourhood reads the tile beside
@@ -308,9 +310,7 @@ fn a_paged_frame_has_no_seams_at_tile_edges() {
             drape.display().to_string()
         ),
     );
-    let paged = rmnp.render("paged", true, &[]);
-    let memory = rmnp.render("memory", false, &[]);
-    assert_within("paged-seams-rmnp", &paged.rgb, &memory.rgb, 1);
+    rmnp.assert_paged_as_in_memory("paged-seams-rmnp", &[]);
 }
 
 /// A void inside the data (SRTM v2's holes: no source has data there) on a hill's top, seen
@@ -333,7 +333,5 @@ fn a_void_inside_the_data_renders_paged_as_in_memory() {
         db.display().to_string()
     );
     let t = Needle::with_scene(dir, &scene);
-    let paged = t.render("paged", true, &[]);
-    let memory = t.render("memory", false, &[]);
-    assert_within("paged-void", &paged.rgb, &memory.rgb, 1);
+    t.assert_paged_as_in_memory("paged-void", &[]);
 }
