@@ -669,3 +669,66 @@ fn a_view_riding_another_entity_looks_from_it() {
     assert!(d <= 0.05, "{d}/255");
     assert!(d_own > 2.0, "the view moved: {d_own}/255");
 }
+
+/// On a paged database window (held hollow, `[terrain] memory`) ground clamping reads no tile
+/// on the frame's thread: the first placement over ground whose tiles are not in memory comes
+/// at once from a coarser level, the tiles are read in the background, and within a few
+/// frames' time the clamped and the conformal entity stand where the truth puts them.
+#[test]
+fn clamped_entities_stand_on_a_paged_window_without_waiting_for_the_disk() {
+    use std::time::{Duration, Instant};
+    let dir = temp_dir("cigi-entity-paged");
+    let db = dir.join("n47e009.reliefdb");
+    relief::db::build(
+        &db,
+        &[common::terrains().join("N47E009.hgt")],
+        &relief::db::BuildOptions::default(),
+        &|_, _| {},
+    )
+    .unwrap();
+    let text = format!(
+        "[terrain]\ndatabase = {db:?}\nmemory = 8\n[camera]\ngeodetic = {CAM:?}\nheading = {HEADING:?}\n{}",
+        ball_template()
+    );
+    let sc = relief::scene::Scene::parse(&text, &dir.join("scene.toml")).unwrap();
+    let world = relief::world::World::load_as(&sc, true).unwrap();
+    let terrain = &world.terrain;
+    assert!(terrain.is_hollow());
+    let t = truth(&Dem::load());
+    let mut session = Session::new();
+    session
+        .receive(&message(ig_control(1, None, false), &packets(&t)), 0.0)
+        .unwrap();
+    let off = |id: u16, lla: [f64; 3]| -> f64 {
+        let p = relief::world::entity_placement(&session, terrain, id, 0.0)
+            .expect("placed at once, from what is in memory");
+        (p.position - terrain.geodetic_to_world("truth", lla).unwrap()).length()
+    };
+    let first = [off(9, t.clamped.0), off(10, t.conformal.0)];
+    eprintln!(
+        "at once: {:.1} m and {:.1} m from the truth",
+        first[0], first[1]
+    );
+    assert!(
+        first.iter().all(|d| *d > 0.01),
+        "a tile not in memory was read on the frame's thread: {first:?}"
+    );
+    let start = Instant::now();
+    loop {
+        let now = [off(9, t.clamped.0), off(10, t.conformal.0)];
+        if now.iter().all(|d| *d <= 0.01) {
+            eprintln!(
+                "{:.1} ms later: {:.3} m and {:.3} m",
+                start.elapsed().as_secs_f64() * 1e3,
+                now[0],
+                now[1]
+            );
+            break;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(30),
+            "never exact: {now:?}"
+        );
+        std::thread::sleep(Duration::from_millis(2));
+    }
+}

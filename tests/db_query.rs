@@ -302,3 +302,112 @@ fn resident_only_queries_report_missing_tiles_and_then_match_the_reading_path() 
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A frame's heights on a paged (hollow) window — the window's height above ground, CIGI's
+/// ground clamping — never wait for the disk (`Terrain::height_now`): on a cold cache they
+/// come at once from the coarsest level (held since the window opened), marked inexact, while
+/// the finer tile is read in the background; then exactly what the reading path gives.
+#[test]
+fn a_frames_heights_on_a_paged_window_never_wait_for_the_disk() {
+    use relief::db::Database;
+    use relief::world::World;
+    use std::time::{Duration, Instant};
+
+    let dir = temp_dir("db-height-now");
+    let path = dir.join("world.reliefdb");
+    relief::db::build(
+        &path,
+        &[terrains().join("N47E009.hgt")],
+        &relief::db::BuildOptions::default(),
+        &|_, _| {},
+    )
+    .unwrap();
+    let finest = Database::open(&path).unwrap().header().levels.len() as u32 - 1;
+    let text = format!(
+        "[terrain]\ndatabase = \"world.reliefdb\"\nwindow = [47.1, 9.1, 47.9, 9.9]\nlevel = {finest}\ncurved = false\n[camera]\nposition = [1000.0, 1000.0, 9000.0]\n"
+    );
+    let s = Scene::parse(&text, &dir.join("scene.toml")).unwrap();
+    let hollow = World::load_as(&s, true).unwrap().terrain;
+    let h = hollow.hollow.as_ref().expect("a hollow window");
+    assert!(h.pinned_tiles() >= 1, "the coarsest level is held");
+    assert!(h.prefetcher().is_none(), "nothing missed yet");
+    let bytes = std::fs::read(terrains().join("N47E009.hgt")).unwrap();
+
+    let geo = hollow.field.geo.unwrap();
+    let points = [(47.24937, 9.34331), (47.40123, 9.61877), (47.8, 9.15)];
+    for (k, &(lat, lon)) in points.iter().enumerate() {
+        let (x, y) = ((lon - geo.lon0) / geo.dlon, (lat - geo.lat0) / geo.dlat);
+        let truth = srtm_height(&bytes, lat, lon);
+        // Each point lies on a finest tile not read yet: the answer is at once, and coarse.
+        let first = hollow.height_now(x, y).expect("the coarsest level answers");
+        assert!(
+            !first.exact,
+            "point {k}: a tile not in memory was read on the caller's thread"
+        );
+        assert!(
+            (first.height - truth).abs() > 0.01,
+            "point {k}: the coarse answer {} is the exact one",
+            first.height
+        );
+        assert!(
+            (hollow.min_height as f64..=hollow.max_height as f64).contains(&first.height),
+            "point {k}: {} outside the data's range",
+            first.height
+        );
+        let p = hollow
+            .geodetic_to_world("test", [lat, lon, 5000.0])
+            .unwrap();
+        assert_eq!(
+            hollow.height_above_now(p),
+            None,
+            "no height above ground until exact"
+        );
+        // The prefetcher reads the tile: exact within a few seconds, bit for bit the reading
+        // path's, and the SRTM file's surface.
+        let start = Instant::now();
+        let exact = loop {
+            let g = hollow.height_now(x, y).unwrap();
+            if g.exact {
+                break g.height;
+            }
+            assert!(
+                start.elapsed() < Duration::from_secs(30),
+                "point {k}: the tile never arrived"
+            );
+            std::thread::sleep(Duration::from_millis(2));
+        };
+        eprintln!(
+            "point {k}: at once {:.1} m (coarse), {:.1} ms later {exact:.3} m (SRTM {truth:.3} m)",
+            first.height,
+            start.elapsed().as_secs_f64() * 1e3
+        );
+        assert_eq!(
+            exact.to_bits(),
+            hollow.height_at_grid(x, y).unwrap().to_bits()
+        );
+        assert!(
+            (exact - truth).abs() < 1e-3,
+            "point {k}: {exact} against {truth}"
+        );
+        assert_eq!(hollow.ground_msl(lat, lon), Some(exact));
+        let agl = hollow.height_above_now(p).expect("exact now");
+        assert!((agl - (5000.0 - exact)).abs() < 1e-6, "{agl}");
+    }
+    let counts = h.prefetcher().expect("started on the first miss").counts();
+    assert!(counts.read >= points.len() as u64, "{counts:?}");
+
+    // A window moved to follow the eye shares the held level and the prefetcher.
+    let db = h.database();
+    let spec = relief::db::window::resolve(db, Some([47.0, 9.0, 47.5, 9.5]), Some(finest)).unwrap();
+    let moved =
+        relief::terrain::hollow::window_spec(&s.desc.terrain, &s.base_dir, h, &spec).unwrap();
+    let m = moved.hollow.as_ref().unwrap();
+    assert_eq!(m.pinned_tiles(), h.pinned_tiles());
+    assert!(std::ptr::eq(
+        m.prefetcher().unwrap(),
+        h.prefetcher().unwrap()
+    ));
+
+    // Off the grid: nothing.
+    assert_eq!(hollow.height_now(-1.0, 0.0), None);
+}

@@ -382,8 +382,8 @@ impl Follower {
         }
         let start = Instant::now();
         // The world's hollow window's database (its index read once, its tile cache warm).
-        let database = match &world.terrain.hollow {
-            Some(h) => h.shared_database(),
+        let from = match &world.terrain.hollow {
+            Some(h) => h,
             None => {
                 return Err(Error::invalid(
                     "--terrain-memory",
@@ -391,8 +391,7 @@ impl Follower {
                 ))
             }
         };
-        let built =
-            crate::terrain::hollow::window_spec(&self.desc, &self.base_dir, database, &spec);
+        let built = crate::terrain::hollow::window_spec(&self.desc, &self.base_dir, from, &spec);
         // A window that cannot be made (no data under it, a read failing) leaves the window
         // where it is: the IG keeps running.
         let terrain = match built {

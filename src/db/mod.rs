@@ -35,7 +35,7 @@ pub mod window;
 pub use build::{build, BuildOptions, BuildReport};
 pub use format::{Extent, Header, IndexEntry, LevelInfo, SourceInfo, TileId};
 pub use prefetch::Prefetcher;
-pub use query::{height_at, height_in, SurfaceSample};
+pub use query::{height_at, height_in, height_resident, SurfaceSample};
 pub use reader::Database;
 pub use synth::{synth, SynthOptions};
 pub use tile::Tile;

@@ -31,6 +31,25 @@ pub fn height_at(db: &Database, lat: f64, lon: f64) -> Result<Option<SurfaceSamp
 /// record it) ends the search: `Ok(None)`, to be told from "off the database" by the tiles'
 /// missing list.
 pub fn height_in(tiles: &dyn Tiles, lat: f64, lon: f64) -> Result<Option<SurfaceSample>> {
+    surface(tiles, lat, lon, false)
+}
+
+/// The height at (`lat`, `lon`) that `tiles` hold now: [`height_in`], but a tile that is not
+/// resident lets the next coarser level answer (its level in the sample says which did). What
+/// a caller that must not wait for the disk takes in the meantime; the tiles' missing list
+/// says whether a finer answer exists (an empty list: the answer is [`height_at`]'s).
+pub fn height_resident(tiles: &dyn Tiles, lat: f64, lon: f64) -> Result<Option<SurfaceSample>> {
+    surface(tiles, lat, lon, true)
+}
+
+/// [`height_in`]; `coarser_when_missing`: a tile not resident lets the next coarser level
+/// answer instead of ending the search.
+fn surface(
+    tiles: &dyn Tiles,
+    lat: f64,
+    lon: f64,
+    coarser_when_missing: bool,
+) -> Result<Option<SurfaceSample>> {
     if !(lat.is_finite() && lon.is_finite()) {
         return Ok(None);
     }
@@ -62,6 +81,7 @@ pub fn height_in(tiles: &dyn Tiles, lat: f64, lon: f64) -> Result<Option<Surface
                     }))
                 }
                 Cell::NoData => {}
+                Cell::NotResident if coarser_when_missing => {}
                 Cell::NotResident => return Ok(None),
             }
         }

@@ -17,6 +17,7 @@ pub mod pyramid;
 
 pub use geotiff::Drape;
 pub use heightfield::{GeoRef, Heightfield, SampleGrid, MAX_ABS_HEIGHT, MAX_SIDE};
+pub use hollow::GroundNow;
 pub use pyramid::MaxPyramid;
 
 use crate::{Error, Result};
@@ -363,14 +364,17 @@ impl Terrain {
 
     /// The height above mean sea level of the terrain's surface under latitude `lat`,
     /// longitude `lon` (degrees; as rendered: sea level and vertical scale applied), `None`
-    /// off the terrain or without a geographic reference (CIGI's ground clamping).
+    /// off the terrain or without a geographic reference (CIGI's ground clamping, on the
+    /// frame's thread: a hollow terrain answers from the tiles in memory, see
+    /// [`Terrain::height_now`], a coarser level's height standing in while a finer tile is
+    /// read).
     pub fn ground_msl(&self, lat: f64, lon: f64) -> Option<f64> {
         let geo = self.field.geo?;
         if !(lat.is_finite() && lon.is_finite()) {
             return None;
         }
         let (gx, gy) = grid_of(&geo, lat, lon);
-        self.height_at_grid(gx, gy)
+        self.height_now(gx, gy).map(|g| g.height)
     }
 
     /// Geodetic `[lat, lon, alt]` of a world position (the inverse of
@@ -401,15 +405,49 @@ impl Terrain {
             - self.frame.normal * curv.drop(g.x, g.y)
     }
 
-    /// Height of the bilinear surface at grid position `(x, y)`, or `None` outside the grid.
-    pub fn height_at_grid(&self, x: f64, y: f64) -> Option<f64> {
+    /// [`Terrain::height_at_grid`] for a frame's thread, which must not wait for the disk:
+    /// a loaded terrain's height, exact; a hollow terrain's from the tiles in memory
+    /// ([`hollow::Hollow::height_now`]: exact once its tile is read in the background, a
+    /// coarser level's meanwhile). `None` outside the grid, or where nothing is in memory
+    /// there yet.
+    pub fn height_now(&self, x: f64, y: f64) -> Option<GroundNow> {
+        if !self.on_grid(x, y) {
+            return None;
+        }
+        match &self.hollow {
+            Some(h) => h.height_now(self.field.geo?, x, y),
+            None => self.height_at_grid(x, y).map(|height| GroundNow {
+                height,
+                exact: true,
+            }),
+        }
+    }
+
+    /// [`Terrain::height_above`] for a frame's thread (the window's height above ground):
+    /// from [`Terrain::height_now`], `None` until it is exact.
+    pub fn height_above_now(&self, p: DVec3) -> Option<f64> {
+        let g = self.frame.world_to_grid(p);
+        let ground = self.height_now(g.x, g.y).filter(|h| h.exact)?;
+        Some(g.z - ground.height)
+    }
+
+    /// Whether grid position `(x, y)` lies on the grid (edges included).
+    fn on_grid(&self, x: f64, y: f64) -> bool {
         let [cw, ch] = self.cells();
-        if !(x >= 0.0 && y >= 0.0 && x <= cw as f64 && y <= ch as f64) {
+        x >= 0.0 && y >= 0.0 && x <= cw as f64 && y <= ch as f64
+    }
+
+    /// Height of the bilinear surface at grid position `(x, y)`, or `None` outside the grid.
+    /// A hollow terrain reads the tiles it needs that are not cached, waiting for the disk:
+    /// a frame's thread asks [`Terrain::height_now`].
+    pub fn height_at_grid(&self, x: f64, y: f64) -> Option<f64> {
+        if !self.on_grid(x, y) {
             return None;
         }
         if let Some(h) = &self.hollow {
             return h.height_at_grid(self.field.geo?, x, y);
         }
+        let [cw, ch] = self.cells();
         let i = (x.floor() as usize).min(cw - 1);
         let j = (y.floor() as usize).min(ch - 1);
         let (u, v) = (x - i as f64, y - j as f64);

@@ -279,7 +279,8 @@ impl App {
             width: w,
             height: h,
             position: step.scene_pose.position.to_array(),
-            agl: crate::cpu::query::height_above_terrain(&self.prep.world.terrain, pose.position)
+            agl: (self.prep.world.terrain)
+                .height_above_now(pose.position)
                 .unwrap_or(f64::NAN),
             heading: pose.heading,
             pitch: pose.pitch,
@@ -325,7 +326,7 @@ impl App {
         let last = self.stats.last();
         let terrain = &self.prep.world.terrain;
         let at = in_window(&self.prep.follower, terrain, p.position);
-        let agl = crate::cpu::query::height_above_terrain(terrain, at);
+        let agl = terrain.height_above_now(at);
         let mut lines = vec![
             format!(
                 "{} {:5.1} FPS {:6.1} MS  GPU {}",

@@ -11,7 +11,6 @@
 //! aircraft's controls are held at these values (throttle 0..=1, sticks -1..=1; pitch +1 pulls
 //! the nose up, roll +1 rolls right, yaw +1 turns right).
 
-use crate::cpu::query::height_above_terrain;
 use crate::scene::{CameraPath, Keyframe, Pose};
 use crate::terrain::Terrain;
 use crate::{Error, Result};
@@ -256,10 +255,11 @@ impl Motion {
         p.position += (fwd * a.speed + DVec3::Z * a.sink) * dt;
     }
 
-    /// Lifts the pose to `min_agl` above the terrain where it is lower (on the grid only);
+    /// Lifts the pose to `min_agl` above the terrain where it is lower (on the grid only; on
+    /// a paged window once the ground under it is in memory at full resolution);
     /// `at`: the pose's position in the terrain's frame (the two frames share their vertical).
     fn apply_floor(&mut self, terrain: &Terrain, at: DVec3) {
-        if let Some(agl) = height_above_terrain(terrain, at) {
+        if let Some(agl) = terrain.height_above_now(at) {
             if agl < self.min_agl {
                 self.pose.position += terrain.frame.normal * (self.min_agl + FLOOR_MARGIN - agl);
                 self.aircraft.sink = 0.0;
