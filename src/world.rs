@@ -133,6 +133,26 @@ pub struct Instances {
     pub not_drawn: usize,
     /// Inactive entities and those attached below one (hidden).
     pub hidden: usize,
+    /// Every drawn entity: its ID, where it stands and which of `drawn` or `voxels` it is
+    /// (lines of sight against entities, `cpu::bodies`).
+    pub bodies: Vec<Body>,
+}
+
+/// A drawn entity ([`Instances::bodies`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Body {
+    pub id: u16,
+    pub placement: Placement,
+    pub shape: BodyShape,
+}
+
+/// Which instance a [`Body`] is drawn as.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BodyShape {
+    /// Index into [`Instances::drawn`].
+    Object(usize),
+    /// Index into [`Instances::voxels`].
+    Voxels(usize),
 }
 
 /// Where an entity is in the world at host time `t` ([`entity_placement`]).
@@ -282,36 +302,43 @@ pub fn entity_instances(
             out.hidden += 1;
             continue;
         }
-        let pose = || {
-            let p = entity_placement(session, terrain, e.id, t)?;
-            Some((p.position, p.attitude))
-        };
+        let pose = || entity_placement(session, terrain, e.id, t);
         let of_type = |ty: u16| ty == e.entity_type;
         let object = (templates.objects.iter()).position(|tp| of_type(tp.entity_type));
         let model = (templates.voxels.iter()).position(|tp| of_type(tp.entity_type));
         if let Some(k) = object.filter(|&k| used[k] < templates.objects[k].max) {
-            if let Some((position, attitude)) = pose() {
+            if let Some(placement) = pose() {
                 let object = &templates.objects[k].object;
                 used[k] += 1;
+                out.bodies.push(Body {
+                    id: e.id,
+                    placement,
+                    shape: BodyShape::Object(out.drawn.len()),
+                });
                 out.drawn.push((
                     k,
                     FreeForm {
-                        position,
-                        rotation: attitude * object.rotation,
+                        position: placement.position,
+                        rotation: placement.attitude * object.rotation,
                         ..object.clone()
                     },
                 ));
                 continue;
             }
         } else if let Some(k) = model.filter(|&k| used_voxels[k] < templates.voxels[k].max) {
-            if let Some((position, attitude)) = pose() {
+            if let Some(placement) = pose() {
                 let model = &templates.voxels[k].model;
                 used_voxels[k] += 1;
+                out.bodies.push(Body {
+                    id: e.id,
+                    placement,
+                    shape: BodyShape::Voxels(out.voxels.len()),
+                });
                 out.voxels.push((
                     k,
                     VoxelInstance {
-                        position,
-                        rotation: attitude * model.rotation,
+                        position: placement.position,
+                        rotation: placement.attitude * model.rotation,
                         ..model.clone()
                     },
                 ));

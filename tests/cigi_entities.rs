@@ -678,14 +678,10 @@ fn a_view_riding_another_entity_looks_from_it() {
 fn clamped_entities_stand_on_a_paged_window_without_waiting_for_the_disk() {
     use std::time::{Duration, Instant};
     let dir = temp_dir("cigi-entity-paged");
-    let db = dir.join("n47e009.reliefdb");
-    relief::db::build(
-        &db,
-        &[common::terrains().join("N47E009.hgt")],
-        &relief::db::BuildOptions::default(),
-        &|_, _| {},
-    )
-    .unwrap();
+    let db = common::db_build(
+        dir.join("n47e009.reliefdb"),
+        &common::terrains().join("N47E009.hgt"),
+    );
     let text = format!(
         "[terrain]\ndatabase = {db:?}\nmemory = 8\n[camera]\ngeodetic = {CAM:?}\nheading = {HEADING:?}\n{}",
         ball_template()

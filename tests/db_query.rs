@@ -314,14 +314,7 @@ fn a_frames_heights_on_a_paged_window_never_wait_for_the_disk() {
     use std::time::{Duration, Instant};
 
     let dir = temp_dir("db-height-now");
-    let path = dir.join("world.reliefdb");
-    relief::db::build(
-        &path,
-        &[terrains().join("N47E009.hgt")],
-        &relief::db::BuildOptions::default(),
-        &|_, _| {},
-    )
-    .unwrap();
+    let path = common::db_build(dir.join("world.reliefdb"), &terrains().join("N47E009.hgt"));
     let finest = Database::open(&path).unwrap().header().levels.len() as u32 - 1;
     let text = format!(
         "[terrain]\ndatabase = \"world.reliefdb\"\nwindow = [47.1, 9.1, 47.9, 9.9]\nlevel = {finest}\ncurved = false\n[camera]\nposition = [1000.0, 1000.0, 9000.0]\n"

@@ -2,6 +2,7 @@
 //! are the oracle the GPU output is tested against. The traversal here is the same algorithm
 //! as `gpu/shaders/terrain_traverse.wgsl`, step for step.
 
+pub mod bodies;
 pub mod database;
 pub mod distortion;
 pub mod freeform;

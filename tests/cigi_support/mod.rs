@@ -1,8 +1,10 @@
-//! A CIGI host for the IG tests of `tests/cigi_ig.rs` and `tests/cigi_serve.rs`: `relief serve` processes started with
+//! A CIGI host for the IG tests (`tests/cigi_ig.rs`, `cigi_serve.rs`, `cigi_entities.rs`,
+//! `cigi_los.rs`): `relief serve` processes started with
 //! `--cigi 0`, the host's socket, datagrams written with relief's encoder, scenes over
 //! N47E009 and WGS84 radii computed here (independently of `relief::geodesy`).
 #![allow(dead_code)]
 
+#[allow(unused_imports)]
 pub use crate::common::mean_diff;
 use crate::common::{relief_command, terrains};
 use relief::cigi::*;

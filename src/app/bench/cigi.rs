@@ -313,9 +313,11 @@ fn flood_loop(socket: UdpSocket, to: SocketAddr, flood: &Flood) {
 /// The CPU oracle's answers a second for batches of `load` (no network, no rendering), and
 /// how many were answered `valid = false`.
 fn oracle_rate(terrain: &crate::terrain::Terrain, at: [f64; 3], load: Load) -> (f64, u64) {
+    let none = crate::cpu::bodies::Bodies::default();
     let ground = answer::Ground {
         terrain,
         full: None,
+        bodies: &none,
     };
     let (mut answered, mut invalid, mut spent) = (0u64, 0u64, 0.0);
     let mut frame = 0;

@@ -5,12 +5,19 @@
 //!   and longitude; **HAT** the query's altitude minus it. The extended response carries both
 //!   and the surface normal as the ICD defines it: azimuth from true north (−180..180°),
 //!   elevation above the local horizontal (−90..90°).
-//! * **LOS segment**: `visible` from [`line_of_sight`] (an end point underground is blocked);
+//! * **LOS segment**: `visible` from [`line_of_sight`](crate::cpu::query::line_of_sight) (an end point underground is blocked);
 //!   the range, intersection point and normal from the first hit of [`cast_ray`] along the
 //!   segment (on a curved terrain in the tangent frame of the source, as the CPU reference does).
 //! * **LOS vector**: [`cast_ray`] from the source along azimuth/elevation between the minimum
 //!   and maximum range; no hit is answered `valid = false` (basic) or `range_valid = false`
 //!   (extended).
+//! * Both meet the **entities drawn this frame** too ([`crate::cpu::bodies`]: each template's
+//!   free form or voxel model in the entity's own east-north-up frame, the line taken there
+//!   through ECEF): where one comes before the terrain the response names it (`entity_valid`,
+//!   `entity_id`), with its range, intersection, normal and colour, and the segment is not
+//!   visible. A line that starts inside an entity does not meet that entity; the alpha
+//!   threshold and the material mask are not applied (every surface is opaque, one material).
+//!   A segment's destination may be given in another entity's frame (`destination_entity_valid`).
 //! * **Position**: the entity's pose at the frame's host time: geodetic where the IG put it
 //!   (clamped to the ground, or carried by its parents when attached), or, for an attached
 //!   entity asked for in its parent's frame, its offsets. Other object classes (parts, views,
@@ -39,16 +46,18 @@
 //! terrain's georeferenced window does.
 
 use crate::cigi::{
-    HatHotExtendedResponse, HatHotRequest, HatHotResponse, LosExtendedResponse, LosResponse,
-    LosSegmentRequest, LosVectorRequest, MessageBuilder, Pose, PositionRequest, PositionResponse,
-    Query, Session,
+    HatHotExtendedResponse, HatHotRequest, HatHotResponse, MessageBuilder, Pose, PositionRequest,
+    PositionResponse, Query, Session,
 };
+use crate::cpu::bodies::Bodies;
 use crate::cpu::database::FullResolution;
-use crate::cpu::query::{cast_ray, line_of_sight};
-use crate::cpu::Hit;
+use crate::cpu::query::cast_ray;
 use crate::db::{Prefetcher, ResidentOnly, TileId, Tiles};
 use crate::terrain::Terrain;
 use glam::DVec3;
+use los::{los_segment, los_vector, SegmentFrames};
+
+mod los;
 
 /// What the answers of one frame did.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -181,6 +190,8 @@ fn normal_below(t: &Terrain, lat: f64, lon: f64) -> Option<DVec3> {
 pub struct Ground<'a> {
     pub terrain: &'a Terrain,
     pub full: Option<(&'a FullResolution, &'a dyn Tiles)>,
+    /// The entities drawn this frame: lines of sight meet them too.
+    pub bodies: &'a Bodies,
 }
 
 impl Ground<'_> {
@@ -267,7 +278,19 @@ fn answer_one(
             let entity = relative
                 .then(|| EntityFrame::of(t, session, r.entity_id, now_host))
                 .flatten();
-            c.invalid += u64::from(!los_segment(t, r, entity.as_ref(), frame, msg));
+            // The destination in another entity's frame where the request names one.
+            let other = (r.destination_entity_frame && r.destination_entity_valid)
+                .then(|| EntityFrame::of(t, session, r.destination_entity_id, now_host))
+                .flatten();
+            let frames = SegmentFrames {
+                entity: entity.as_ref(),
+                destination: if r.destination_entity_valid {
+                    other.as_ref()
+                } else {
+                    entity.as_ref()
+                },
+            };
+            c.invalid += u64::from(!los_segment(t, r, &frames, frame, msg));
         }
         Query::LosVector(r, _) => {
             c.los += 1;
@@ -334,6 +357,7 @@ impl Deferral {
                 let g = Ground {
                     terrain: on.terrain,
                     full: None,
+                    bodies: on.bodies,
                 };
                 answer_one(&g, on.session, q, frame_of(q), on.now_host, msg, &mut c);
                 continue;
@@ -363,6 +387,7 @@ impl Deferral {
                 let g = Ground {
                     terrain: on.terrain,
                     full: Some((on.full, on.full.database())),
+                    bodies: on.bodies,
                 };
                 answer_one(&g, on.session, &q, frame, on.now_host, msg, &mut c);
             }
@@ -378,6 +403,8 @@ pub struct OnDatabase<'a> {
     pub full: &'a FullResolution,
     pub session: &'a Session,
     pub now_host: f64,
+    /// The entities drawn this frame (lines of sight meet them).
+    pub bodies: &'a Bodies,
 }
 
 /// Answers `q` from resident tiles only onto `msg` (counted in `c`): `None`, or the tiles it
@@ -393,6 +420,7 @@ fn resident(
     let g = Ground {
         terrain: on.terrain,
         full: Some((on.full, &tiles)),
+        bodies: on.bodies,
     };
     let (mark, mut one) = (msg.len(), AnswerCounts::default());
     answer_one(&g, on.session, q, frame, on.now_host, msg, &mut one);
@@ -453,194 +481,6 @@ fn hat_hot(
         });
     }
     valid
-}
-
-/// What one line-of-sight test found.
-struct Los {
-    valid: bool,
-    visible: bool,
-    hit: Option<Hit>,
-}
-
-impl Los {
-    /// An answer to a request that cannot be answered (`valid = false`).
-    const INVALID: Los = Los {
-        valid: false,
-        visible: false,
-        hit: None,
-    };
-}
-
-/// How a LOS response is given: the request's ID, extended or basic, and the entity frame
-/// its intersection is given in (`response_entity_frame`).
-struct LosAnswer<'a> {
-    id: u16,
-    extended: bool,
-    in_entity: Option<&'a EntityFrame>,
-}
-
-/// One LOS response (basic or extended) from what the test found on `t`.
-fn push_los(t: &Terrain, a: &LosAnswer, frame: u32, los: &Los, msg: &mut MessageBuilder) {
-    let (id, extended) = (a.id, a.extended);
-    let range = los.hit.as_ref().map_or(0.0, |h| h.t);
-    if extended {
-        let (mut lla, mut az, mut el) = ([0.0; 3], 0.0, 90.0);
-        if let Some(h) = &los.hit {
-            lla = t.world_to_geodetic(h.point).unwrap_or([0.0; 3]);
-            (az, el) = azimuth_elevation(t, h.normal);
-            if let Some(e) = a.in_entity {
-                lla = e.offsets(lla);
-            }
-        }
-        msg.push(&LosExtendedResponse {
-            request_id: id,
-            valid: los.valid,
-            entity_valid: false,
-            range_valid: los.valid && los.hit.is_some(),
-            visible: los.visible,
-            host_frame_lsn: lsn(frame),
-            count: 1,
-            entity_id: 0,
-            range,
-            lat: lla[0],
-            lon: lla[1],
-            alt: lla[2],
-            red: 0,
-            green: 0,
-            blue: 0,
-            alpha: if los.hit.is_some() { 255 } else { 0 },
-            material: 0,
-            normal_azimuth: az as f32,
-            normal_elevation: el as f32,
-        });
-    } else {
-        msg.push(&LosResponse {
-            request_id: id,
-            valid: los.valid,
-            entity_valid: false,
-            visible: los.visible,
-            host_frame_lsn: lsn(frame),
-            count: 1,
-            entity_id: 0,
-            range,
-        });
-    }
-}
-
-/// One LOS segment response; `entity`: the request's entity frame where it uses one.
-fn los_segment(
-    g: &Ground,
-    r: &LosSegmentRequest,
-    entity: Option<&EntityFrame>,
-    frame: u32,
-    msg: &mut MessageBuilder,
-) -> bool {
-    let ga = request_point(
-        entity,
-        r.source_entity_frame,
-        [r.source_lat, r.source_lon, r.source_alt],
-    );
-    let gb = request_point(
-        entity,
-        r.destination_entity_frame,
-        [r.destination_lat, r.destination_lon, r.destination_alt],
-    );
-    let placed = ga
-        .zip(gb)
-        .filter(|_| entity.is_some() || !r.response_entity_frame);
-    let window = placed.and_then(|(ga, gb)| g.window(ga, gb));
-    let t = match &window {
-        Some(Ok(w)) => w,
-        _ => g.terrain,
-    };
-    let ends = placed
-        .and_then(|(ga, gb)| Some((world(t, ga)?, world(t, gb)?)))
-        .filter(|_| !matches!(window, Some(Err(()))));
-    let los = match ends {
-        Some((a, b)) => {
-            let len = (b - a).length();
-            let hit = (len > 0.0)
-                .then(|| cast_ray(t, a, (b - a) / len, 0.0, len))
-                .flatten();
-            Los {
-                valid: true,
-                visible: line_of_sight(t, a, b),
-                hit,
-            }
-        }
-        None => Los::INVALID,
-    };
-    let answer = LosAnswer {
-        id: r.request_id,
-        extended: r.extended,
-        in_entity: entity.filter(|_| r.response_entity_frame),
-    };
-    push_los(t, &answer, frame, &los, msg);
-    los.valid
-}
-
-/// One LOS vector response; `entity`: the request's entity frame where it uses one.
-fn los_vector(
-    g: &Ground,
-    r: &LosVectorRequest,
-    entity: Option<&EntityFrame>,
-    frame: u32,
-    msg: &mut MessageBuilder,
-) -> bool {
-    let ranges_ok = r.min_range.is_finite()
-        && r.max_range.is_finite()
-        && r.min_range >= 0.0
-        && r.max_range >= r.min_range;
-    let dir_ok = r.azimuth.is_finite() && r.elevation.is_finite();
-    let source = request_point(
-        entity,
-        r.source_entity_frame,
-        [r.source_lat, r.source_lon, r.source_alt],
-    )
-    .filter(|_| entity.is_some() || !r.response_entity_frame);
-    // From true north and the horizontal, or from the entity's x axis and xy plane.
-    let (az, el) = (f64::from(r.azimuth), f64::from(r.elevation));
-    let (az, el) = match entity.filter(|_| r.source_entity_frame && dir_ok) {
-        Some(e) => e.az_el(g, az, el),
-        None => (az, el),
-    };
-    // On a database: the window around the source and the far end (placed on the scene's
-    // terrain); the ray is cast in the window's frame.
-    let window = source.filter(|_| ranges_ok && dir_ok).and_then(|gs| {
-        let s = world(g.terrain, gs)?;
-        let d = direction(g.terrain, az, el);
-        let end = g
-            .terrain
-            .world_to_geodetic(s + d * f64::from(r.max_range))?;
-        g.window(gs, end)
-    });
-    let t = match &window {
-        Some(Ok(w)) => w,
-        _ => g.terrain,
-    };
-    let src = source
-        .and_then(|gs| world(t, gs))
-        .filter(|_| !matches!(window, Some(Err(()))));
-    let los = match src.filter(|_| ranges_ok && dir_ok) {
-        Some(a) => {
-            let d = direction(t, az, el);
-            let hit = cast_ray(t, a, d, f64::from(r.min_range), f64::from(r.max_range));
-            // A basic response has no range-valid flag: a vector that meets nothing is invalid.
-            Los {
-                valid: r.extended || hit.is_some(),
-                visible: hit.is_none(),
-                hit,
-            }
-        }
-        None => Los::INVALID,
-    };
-    let answer = LosAnswer {
-        id: r.request_id,
-        extended: r.extended,
-        in_entity: entity.filter(|_| r.response_entity_frame),
-    };
-    push_los(t, &answer, frame, &los, msg);
-    src.is_some() && ranges_ok && dir_ok
 }
 
 /// The position of an entity (object class 0) at host time `now_host`: an attached entity

@@ -115,6 +115,8 @@ pub struct CigiIg {
     pub other_entities: usize,
     /// This frame's entity instances: drawn, not drawn, hidden (inactive).
     pub entities_frame: (usize, usize, usize),
+    /// The entities drawn this frame, for lines of sight (`cpu::bodies`).
+    bodies: crate::cpu::bodies::Bodies,
     /// The ownship pose was off the terrain (the camera kept its last pose), frames.
     pub off_terrain: u64,
     /// Local time (s since the IG started) the current frame's camera is for.
@@ -184,6 +186,7 @@ impl CigiIg {
             answers: Default::default(),
             other_entities: 0,
             entities_frame: (0, 0, 0),
+            bodies: Default::default(),
             off_terrain: 0,
             frame_time: 0.0,
             full: None,
@@ -427,6 +430,7 @@ impl CigiIg {
         let t = self.session.host_time_at(self.frame_time);
         let i = crate::world::entity_instances(&self.session, terrain, templates, t);
         self.entities_frame = (i.drawn.len() + i.voxels.len(), i.not_drawn, i.hidden);
+        self.bodies = crate::cpu::bodies::Bodies::of(&i, t);
         if i.not_drawn > self.other_entities {
             if self.other_entities == 0 {
                 log::warn!(
@@ -520,6 +524,7 @@ impl CigiIg {
                     full,
                     session: &self.session,
                     now_host: host_t,
+                    bodies: &self.bodies,
                 };
                 d.answer_frame(&on, &queries, answering, &mut msg)
             }
@@ -527,6 +532,7 @@ impl CigiIg {
                 let ground = answer::Ground {
                     terrain,
                     full: None,
+                    bodies: &self.bodies,
                 };
                 answer::answer(&ground, &self.session, &queries, host_t, &mut msg)
             }

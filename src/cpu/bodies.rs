@@ -1,0 +1,190 @@
+//! Lines of sight against bodies placed on the earth: the CIGI entities drawn from templates
+//! (`world::Instances::bodies`). Each body's shape — its template's free form or voxel model
+//! — is held at the origin of the body's own east-north-up frame (metres), and a line is taken
+//! into that frame through ECEF: a straight line in space stays straight, and its distances
+//! are metres whatever frame the terrain's world uses.
+
+use super::freeform::{intersect, CPU_LEVELS};
+use super::voxel::dda;
+use crate::colour::linear_to_srgb8;
+use crate::freeform::FreeForm;
+use crate::geodesy::{self, Geodetic};
+use crate::voxel::{Bricks, VoxelInstance};
+use crate::world::{BodyShape, Instances};
+use glam::{DMat3, DVec3};
+use std::sync::OnceLock;
+
+/// ECEF position of geodetic `[lat, lon, height]` (degrees, metres).
+pub fn ecef([lat, lon, height]: [f64; 3]) -> DVec3 {
+    geodesy::to_ecef(Geodetic { lat, lon, height })
+}
+
+/// Geodetic `[lat, lon, height]` of ECEF `x`.
+pub fn geodetic(x: DVec3) -> [f64; 3] {
+    let g = geodesy::from_ecef(x);
+    [g.lat, g.lon, g.height]
+}
+
+/// The east-north-up basis at geodetic `p` (columns east, north, up in ECEF).
+pub fn enu_at(p: [f64; 3]) -> DMat3 {
+    geodesy::enu_basis(p[0], p[1])
+}
+
+/// A body's shape at the origin of its east-north-up frame.
+enum Shape {
+    Object(FreeForm),
+    /// The model, and the bricks of the frame shown (made on the first line that comes near).
+    Voxels {
+        model: VoxelInstance,
+        frame: usize,
+        bricks: OnceLock<Bricks>,
+    },
+}
+
+struct Body {
+    id: u16,
+    origin: DVec3,
+    /// Columns east, north, up at the origin, in ECEF.
+    enu: DMat3,
+    shape: Shape,
+    /// Radius about the origin that holds the shape (metres).
+    reach: f64,
+}
+
+/// Where a line meets a body first.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BodyHit {
+    /// The body's entity ID.
+    pub id: u16,
+    /// Metres along the line from its start.
+    pub t: f64,
+    /// ECEF position of the intersection.
+    pub point: DVec3,
+    /// Unit surface normal, in ECEF.
+    pub normal: DVec3,
+    /// The surface's sRGB colour and alpha.
+    pub colour: [u8; 4],
+}
+
+/// The bodies of one frame, ready for lines of sight.
+#[derive(Default)]
+pub struct Bodies {
+    bodies: Vec<Body>,
+}
+
+impl Bodies {
+    /// The bodies of `instances` (their placements and shapes), voxel models showing the
+    /// animation frame of time `time` (seconds).
+    pub fn of(instances: &Instances, time: f64) -> Bodies {
+        let bodies = (instances.bodies.iter())
+            .filter_map(|b| {
+                let p = &b.placement;
+                let origin = ecef(p.geodetic);
+                let enu = enu_at(p.geodetic);
+                let (shape, reach) = match b.shape {
+                    BodyShape::Object(k) => {
+                        let (_, ff) = instances.drawn.get(k)?;
+                        let ff = FreeForm {
+                            position: DVec3::ZERO,
+                            ..ff.clone()
+                        };
+                        let [lo, hi] = ff.bounds;
+                        let reach = lo.abs().max(hi.abs()).length();
+                        (Shape::Object(ff), reach)
+                    }
+                    BodyShape::Voxels(k) => {
+                        let (_, v) = instances.voxels.get(k)?;
+                        let model = VoxelInstance {
+                            position: DVec3::ZERO,
+                            ..v.clone()
+                        };
+                        let frame = model.frame_at(time);
+                        let d = model.frames[frame].dims.map(f64::from);
+                        let reach = DVec3::from(d).length() * model.voxel_size;
+                        let bricks = OnceLock::new();
+                        (
+                            Shape::Voxels {
+                                model,
+                                frame,
+                                bricks,
+                            },
+                            reach,
+                        )
+                    }
+                };
+                Some(Body {
+                    id: b.id,
+                    origin,
+                    enu,
+                    shape,
+                    reach,
+                })
+            })
+            .collect();
+        Bodies { bodies }
+    }
+
+    /// Whether there is no body.
+    pub fn is_empty(&self) -> bool {
+        self.bodies.is_empty()
+    }
+
+    /// The first body on the line from ECEF `from` along the ECEF unit direction `dir`, with
+    /// `t` metres from `from` in `[t_min, t_max]`; a body the line starts inside (at `t_min`)
+    /// is not met.
+    pub fn first_hit(&self, from: DVec3, dir: DVec3, t_min: f64, t_max: f64) -> Option<BodyHit> {
+        let mut best: Option<BodyHit> = None;
+        for b in &self.bodies {
+            let far = best.map_or(t_max, |h| h.t);
+            // The line in the body's east-north-up metres.
+            let to_enu = b.enu.transpose();
+            let o = to_enu * (from - b.origin);
+            let d = to_enu * dir;
+            // Lines that pass farther than the body's reach miss it.
+            let closest = (-o.dot(d)).clamp(t_min, far);
+            if (o + d * closest).length() > b.reach {
+                continue;
+            }
+            // A line that starts inside a body (a sensor in its own hull) does not meet it.
+            let hit = match &b.shape {
+                Shape::Object(ff) => {
+                    let start = ff.to_local(o + d * t_min);
+                    let [lo, hi] = ff.bounds;
+                    let inside = start.cmpge(lo).all() && start.cmple(hi).all();
+                    if inside && ff.value(start) <= 0.0 {
+                        continue;
+                    }
+                    intersect(ff, o, d, t_min, far, CPU_LEVELS).map(|h| {
+                        let c = ff.material.colour.map(|c| linear_to_srgb8(f64::from(c)));
+                        (h.t, h.normal, [c[0], c[1], c[2], 255])
+                    })
+                }
+                Shape::Voxels {
+                    model,
+                    frame,
+                    bricks,
+                } => {
+                    let m = &model.frames[*frame];
+                    let bricks = bricks.get_or_init(|| m.bricks());
+                    let ld = model.dir_to_local(d);
+                    let h = dda(bricks, model.to_local(o), ld, t_min, far);
+                    // Axis 3: the line started in an occupied voxel.
+                    h.filter(|h| h.axis < 3).map(|h| {
+                        let n = model.dir_to_world(h.normal(ld));
+                        (h.t, n, m.palette[h.index as usize])
+                    })
+                }
+            };
+            if let Some((t, normal, colour)) = hit.filter(|h| h.0 <= far) {
+                best = Some(BodyHit {
+                    id: b.id,
+                    t,
+                    point: from + dir * t,
+                    normal: (b.enu * normal).normalize_or_zero(),
+                    colour,
+                });
+            }
+        }
+        best
+    }
+}

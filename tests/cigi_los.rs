@@ -1,0 +1,328 @@
+//! CIGI lines of sight meet the entities the IG draws, not only the terrain: `relief serve`
+//! with a sphere (a free-form template) and a voxel model (a voxel template) placed by the
+//! host answers LOS segments and vectors with the entity's ID, range, intersection, normal and
+//! colour. Truths: the sphere's intersections solved here in ECEF (the test's own WGS84
+//! code), the voxel model's from the CPU reference's voxel cast of the same model placed as a
+//! scene object at the entity's pose.
+
+mod cigi_support;
+mod common;
+
+use cigi_support::*;
+use common::temp_dir;
+use relief::cigi::*;
+
+const CAM: [f64; 3] = [47.45, 9.50, 1300.0];
+const HEADING: f64 = 30.0;
+/// The sphere's radius (m) and linear colour.
+const RADIUS: f64 = 40.0;
+const COLOUR: [f32; 3] = [0.2, 0.6, 0.9];
+
+/// `dist` metres ahead of the camera along its heading and `east` metres east of that, at
+/// `alt`.
+fn ahead(dist: f64, east: f64, alt: f64) -> [f64; 3] {
+    let h = HEADING.to_radians();
+    moved([CAM[0], CAM[1], alt], dist * h.sin() + east, dist * h.cos())
+}
+
+/// `p` moved `east` and `north` metres (first order in the WGS84 radii; the truths below take
+/// the points as given).
+fn moved(p: [f64; 3], east: f64, north: f64) -> [f64; 3] {
+    let (m, n) = radii(p[0]);
+    [
+        p[0] + (north / m).to_degrees(),
+        p[1] + (east / (n * p[0].to_radians().cos())).to_degrees(),
+        p[2],
+    ]
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// Metres from ECEF `o` along unit `d` to the first intersection with the sphere about `c`.
+fn sphere_hit(o: [f64; 3], d: [f64; 3], c: [f64; 3]) -> Option<f64> {
+    let oc = sub(o, c);
+    let b = dot(oc, d);
+    let disc = b * b - (dot(oc, oc) - RADIUS * RADIUS);
+    (disc >= 0.0).then(|| -b - disc.sqrt())
+}
+
+/// The sphere's intersection along the segment from geodetic `a` to `b`: metres from `a`.
+fn segment_truth(a: [f64; 3], b: [f64; 3], centre: [f64; 3]) -> Option<f64> {
+    let (o, e) = (ecef(a), ecef(b));
+    let v = sub(e, o);
+    let len = dot(v, v).sqrt();
+    sphere_hit(o, v.map(|x| x / len), ecef(centre)).filter(|t| *t <= len)
+}
+
+/// sRGB 8-bit of a linear value.
+fn srgb8(c: f32) -> u8 {
+    let c = f64::from(c);
+    let s = if c <= 0.003_130_8 {
+        12.92 * c
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    };
+    (s * 255.0).round() as u8
+}
+
+fn segment(id: u16, extended: bool, a: [f64; 3], b: [f64; 3]) -> LosSegmentRequest {
+    LosSegmentRequest {
+        request_id: id,
+        extended,
+        source_lat: a[0],
+        source_lon: a[1],
+        source_alt: a[2],
+        destination_lat: b[0],
+        destination_lon: b[1],
+        destination_alt: b[2],
+        ..LosSegmentRequest::default()
+    }
+}
+
+#[test]
+fn lines_of_sight_meet_the_entities_the_ig_draws() {
+    let _serial = one_ig_test_at_a_time();
+    let dir = temp_dir("cigi-los-entities");
+    let dem = Dem::load();
+    let axes = common::terrains().join("voxels/axes.vox");
+    let voxels_at = |at: [f64; 3]| {
+        format!(
+            "[[voxels]]\nname = \"axes\"\nfile = {axes:?}\nvoxel_size = 3.0\n\
+             geodetic = [{:?}, {:?}, {:?}]\n",
+            at[0], at[1], at[2]
+        )
+    };
+    // The templates: type 9 a sphere, type 8 axes.vox at 3 m a voxel, both placed out of view.
+    let [r, g, b] = COLOUR;
+    let templates = format!(
+        "[[objects]]\nname = \"sphere\"\nshape = \"ellipsoid\"\nradii = [{RADIUS:?}, {RADIUS:?}, {RADIUS:?}]\n\
+         geodetic = [47.2, 9.2, 3000.0]\n\
+         material = {{ colour = [{r:?}, {g:?}, {b:?}], ambient = 0.6, diffuse = 0.4, specular = 0.0, shininess = 10.0 }}\n\
+         [[cigi.entity]]\ntype = 9\nfreeform = \"sphere\"\nmax = 2\n{}\
+         [[cigi.entity]]\ntype = 8\nvoxels = \"axes\"\nmax = 2\n",
+        voxels_at([47.2, 9.25, 3000.0])
+    );
+    let served = scene(&dir, "served", CAM, [HEADING, -3.0, 0.0], &templates);
+    // The sphere 1.5 km ahead, 200 m above the ground; the model 400 m east of it, 100 m up.
+    let s0 = ahead(1500.0, 0.0, 0.0);
+    let sphere = [s0[0], s0[1], dem.height(s0[0], s0[1]) + 200.0];
+    let v0 = ahead(1500.0, 400.0, 0.0);
+    let model = [v0[0], v0[1], dem.height(v0[0], v0[1]) + 100.0];
+
+    // The voxel truth: the model placed by a scene at the entity's pose, a vertical line down
+    // the column of its first voxel, cast by the CPU reference in that scene's world.
+    let truth_scene = scene(&dir, "truth", CAM, [HEADING, -3.0, 0.0], &voxels_at(model));
+    let sc = relief::scene::Scene::load(&truth_scene).unwrap();
+    let world = relief::world::World::load(&sc).unwrap();
+    let terrain = &world.terrain;
+    let inst = world.voxels[0].clone();
+    let m = &inst.frames[0];
+    let v = m.voxels[0].pos.map(f64::from);
+    let top = glam::DVec3::new(v[0] + 0.5, v[1] + 0.5, v[2] + 1.0);
+    let column = inst.position + inst.rotation * ((top - inst.anchor()) * inst.voxel_size);
+    let [clat, clon, _] = terrain.world_to_geodetic(column).unwrap();
+    let (g0, g1) = (
+        [clat, clon, model[2] + 500.0],
+        [clat, clon, model[2] - 50.0],
+    );
+    let (w0, w1) = (
+        terrain.geodetic_to_world("truth", g0).unwrap(),
+        terrain.geodetic_to_world("truth", g1).unwrap(),
+    );
+    let cast = relief::cpu::voxel::VoxelScene::new(vec![inst.clone()]);
+    let len = (w1 - w0).length();
+    let voxel_truth = cast
+        .cast(w0, (w1 - w0) / len, 0.0, len, 0.0)
+        .expect("the column of a voxel meets the model");
+
+    let frames = dir.join("frames");
+    let ig = Ig::start(
+        &served,
+        &[
+            "--size",
+            "160x120",
+            "--no-shadows",
+            "--cigi-sync",
+            "--frames",
+            "2",
+            "--capture-frames",
+            frames.to_str().unwrap(),
+        ],
+        host_socket(),
+    );
+    let own = ownship(CAM, HEADING as f32, -3.0, 0.0);
+    let entities: Vec<HostPacket> = vec![
+        own.into(),
+        EntityControl::placed(30, 9, sphere, [0.0; 3]).into(),
+        EntityControl::placed(31, 8, model, [0.0; 3]).into(),
+    ];
+    ig.exchange(&message(ig_control(10, None, false), &entities), 10);
+
+    let up = |p: [f64; 3], h: f64| [p[0], p[1], p[2] + h];
+    let east = |p: [f64; 3], e: f64| moved(p, e, 0.0);
+    let requests: Vec<(u16, LosSegmentRequest)> = vec![
+        // Down through the centre, 25 m east of it, 60 m east (past it).
+        (1, segment(1, true, up(sphere, 500.0), up(sphere, -500.0))),
+        (
+            2,
+            segment(
+                2,
+                true,
+                east(up(sphere, 500.0), 25.0),
+                east(up(sphere, -500.0), 25.0),
+            ),
+        ),
+        (
+            3,
+            segment(
+                3,
+                true,
+                east(up(sphere, 500.0), 60.0),
+                east(up(sphere, -500.0), 60.0),
+            ),
+        ),
+        // Basic.
+        (5, segment(5, false, up(sphere, 500.0), up(sphere, -500.0))),
+        // The destination in the sphere's frame (500 m below its origin).
+        (
+            6,
+            LosSegmentRequest {
+                destination_entity_frame: true,
+                destination_entity_valid: true,
+                destination_entity_id: 30,
+                ..segment(6, true, up(sphere, 500.0), [0.0, 0.0, 500.0])
+            },
+        ),
+        (7, segment(7, true, g0, g1)),
+        // From the sphere's centre up: a line leaving the body it starts in does not meet it.
+        (8, segment(8, true, sphere, up(sphere, 500.0))),
+    ];
+    let mut asked = entities.clone();
+    asked.extend(requests.iter().map(|(_, r)| HostPacket::from(*r)));
+    asked.push(
+        LosVectorRequest {
+            request_id: 4,
+            extended: true,
+            azimuth: 0.0,
+            elevation: -90.0,
+            min_range: 0.0,
+            max_range: 1000.0,
+            source_lat: sphere[0],
+            source_lon: sphere[1],
+            source_alt: sphere[2] + 500.0,
+            ..LosVectorRequest::default()
+        }
+        .into(),
+    );
+    let answer = ig.exchange(&message(ig_control(11, None, false), &asked), 11);
+    ig.finish();
+
+    let extended = |id: u16| -> LosExtendedResponse {
+        *answer
+            .packets
+            .iter()
+            .find_map(|p| match p {
+                IgPacket::LosExtendedResponse(r) if r.request_id == id => Some(r),
+                _ => None,
+            })
+            .unwrap_or_else(|| panic!("no extended response to {id}: {:?}", answer.packets))
+    };
+    let colour = [srgb8(r), srgb8(g), srgb8(b)];
+    // The segments and the vector that meet the sphere.
+    for (id, a, b) in [
+        (1, up(sphere, 500.0), up(sphere, -500.0)),
+        (
+            2,
+            east(up(sphere, 500.0), 25.0),
+            east(up(sphere, -500.0), 25.0),
+        ),
+        (4, up(sphere, 500.0), up(sphere, -500.0)),
+        (6, up(sphere, 500.0), up(sphere, -500.0)),
+    ] {
+        let r = extended(id);
+        let truth = segment_truth(a, b, sphere).unwrap();
+        let at = [r.lat, r.lon, r.alt];
+        let off = dot(sub(ecef(at), ecef(a)), sub(ecef(at), ecef(a))).sqrt();
+        eprintln!(
+            "request {id}: entity {} at {:.3} m (truth {truth:.3} m), the point {off:.3} m from the source, normal elevation {:.3}°, colour {:?}",
+            r.entity_id, r.range, r.normal_elevation, [r.red, r.green, r.blue, r.alpha]
+        );
+        assert!(
+            r.valid && r.range_valid && r.entity_valid && !r.visible,
+            "{r:?}"
+        );
+        assert_eq!(r.entity_id, 30);
+        assert!(
+            (r.range - truth).abs() < 0.01,
+            "request {id}: {} against {truth}",
+            r.range
+        );
+        assert!(
+            (off - truth).abs() < 0.01,
+            "request {id}: the point lies {off} m out"
+        );
+        assert_eq!(
+            [r.red, r.green, r.blue, r.alpha],
+            [colour[0], colour[1], colour[2], 255]
+        );
+    }
+    // Straight down through the centre: the normal points up.
+    assert!(extended(1).normal_elevation > 89.99, "{:?}", extended(1));
+    assert!((extended(1).range - (500.0 - RADIUS)).abs() < 0.01);
+    // Past the sphere: the terrain.
+    let past = extended(3);
+    eprintln!("request 3 (60 m east): {past:?}");
+    assert!(!past.entity_valid && past.valid, "{past:?}");
+    let ground = dem.height(past.lat, past.lon);
+    assert!(
+        (past.alt - ground).abs() < 0.5,
+        "met the terrain: {} against {ground}",
+        past.alt
+    );
+    // Basic.
+    let basic = answer
+        .packets
+        .iter()
+        .find_map(|p| match p {
+            IgPacket::LosResponse(r) if r.request_id == 5 => Some(*r),
+            _ => None,
+        })
+        .expect("a basic response");
+    assert!(
+        basic.valid && basic.entity_valid && !basic.visible,
+        "{basic:?}"
+    );
+    assert_eq!(basic.entity_id, 30);
+    assert!((basic.range - (500.0 - RADIUS)).abs() < 0.01, "{basic:?}");
+    let inside = extended(8);
+    assert!(
+        inside.valid && inside.visible && !inside.entity_valid,
+        "{inside:?}"
+    );
+    // The voxel model. It spans about 800 m: at the corner the column is taken from, its rigid
+    // body frame (a tangent plane, as the IG places it) lies D²/2R ≈ 2.4 cm above the scene's
+    // flat placement of the same model: the bound is 5 cm.
+    let vox = extended(7);
+    eprintln!(
+        "request 7: entity {} at {:.3} m (CPU voxel cast of the scene's model {:.3} m), colour {:?}",
+        vox.entity_id, vox.range, voxel_truth.t, [vox.red, vox.green, vox.blue]
+    );
+    assert!(vox.entity_valid && !vox.visible, "{vox:?}");
+    assert_eq!(vox.entity_id, 31);
+    assert!(
+        (vox.range - voxel_truth.t).abs() < 0.05,
+        "{} against {}",
+        vox.range,
+        voxel_truth.t
+    );
+    assert_eq!(
+        [vox.red, vox.green, vox.blue, vox.alpha],
+        voxel_truth.colour
+    );
+}
