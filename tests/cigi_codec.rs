@@ -55,6 +55,15 @@ fn entity_control(k: u32) -> EntityControl {
     }
 }
 
+fn conformal_clamped(k: u32) -> ConformalClampedEntityControl {
+    ConformalClampedEntityControl {
+        entity_id: 5 + k as u16,
+        yaw: 123.25 + k as f32,
+        lat: -33.125 + f64::from(k),
+        lon: 151.0625 + f64::from(k),
+    }
+}
+
 fn rate_control(k: u32) -> RateControl {
     RateControl {
         entity_id: 3 + k as u16,
@@ -325,6 +334,7 @@ fn position_response(k: u32) -> PositionResponse {
 fn host_body(k: u32) -> Vec<HostPacket> {
     vec![
         entity_control(k).into(),
+        conformal_clamped(k).into(),
         rate_control(k).into(),
         celestial(k).into(),
         atmosphere(k).into(),
@@ -423,6 +433,7 @@ fn every_packet_round_trips_in_both_byte_orders() {
         for order in ORDERS {
             round_trip(&ig_control(k), order);
             round_trip(&entity_control(k), order);
+            round_trip(&conformal_clamped(k), order);
             round_trip(&rate_control(k), order);
             round_trip(&celestial(k), order);
             round_trip(&atmosphere(k), order);
@@ -462,8 +473,8 @@ fn whole_messages_read_back_in_both_byte_orders() {
             assert_eq!(
                 m.walk,
                 Walk {
-                    packets: 12,
-                    decoded: 12,
+                    packets: 13,
+                    decoded: 13,
                     ..Walk::default()
                 }
             );
@@ -992,6 +1003,55 @@ fn host_time_follows_timestamps_through_their_wrap_or_the_arrival_clock() {
     assert_eq!(s.pose_at(0, 11.0).unwrap().alt, 10.0);
 }
 
+/// Conformal Clamped Entity Control moves an existing top-level entity: latitude, longitude
+/// and yaw from the packet, altitude, pitch and roll (the clamp's offsets) kept from its
+/// Entity Control; an unknown or attached entity, or a latitude past 90°, is counted and
+/// ignored.
+#[test]
+fn conformal_clamped_entity_control_moves_an_entity_and_keeps_its_offsets() {
+    let mut s = Session::new();
+    let clamped = EntityControl {
+        ground_clamp: 2,
+        ..at(7, 47.4, 9.4, 12.0, [-3.0, 4.0, 80.0])
+    };
+    let child = EntityControl {
+        attach: true,
+        parent_id: 7,
+        ..entity(8)
+    };
+    s.receive(&pose_msg(1, Some(100_000), &[clamped, child]), 0.0)
+        .unwrap();
+    let moved = |id: u16, lat: f64| ConformalClampedEntityControl {
+        entity_id: id,
+        yaw: 95.5,
+        lat,
+        lon: 9.45,
+    };
+    let mut m = MessageBuilder::host(&ig_control_at(2, Some(150_000)), ByteOrder::Big);
+    m.push(&moved(7, 47.42))
+        .push(&moved(9, 47.42))
+        .push(&moved(8, 47.42))
+        .push(&moved(7, 91.0));
+    s.receive(&m.finish(), 0.5).unwrap();
+    let p = s.pose_at(7, 1.5).unwrap();
+    let off = [p.lat - 47.42, p.lon - 9.45, p.yaw - 95.5];
+    assert!(off.iter().all(|d| d.abs() < 1e-9), "{p:?}");
+    assert!(
+        (p.alt - 12.0).abs() < 1e-9 && (p.pitch - 4.0).abs() < 1e-9,
+        "{p:?}"
+    );
+    assert!((p.roll + 3.0).abs() < 1e-9, "{p:?}");
+    let e = s.entity(7).unwrap();
+    assert_eq!((e.ground_clamp, e.entity_type), (2, clamped.entity_type));
+    // Between the samples it moves as from one Entity Control to the next.
+    let half = s.pose_at(7, 1.25).unwrap();
+    assert!((half.lat - 47.41).abs() < 1e-9, "{half:?}");
+    // Unknown (9), attached (8), latitude 91°: three counted, none applied.
+    assert_eq!(s.counters.invalid_values, 3);
+    assert_eq!(s.pose_at(8, 1.5).unwrap().lat, 47.0);
+    assert_counters_add_up(&s.counters);
+}
+
 #[test]
 fn rate_control_dead_reckons_from_the_latest_sample() {
     let mut s = Session::new();
@@ -1251,6 +1311,15 @@ fn expect_host(p: &HostPacket, order: ByteOrder) -> Expect {
                 ("lat_xoff", p.lat),
                 ("lon_yoff", p.lon),
                 ("alt_zoff", p.alt),
+            ],
+        ),
+        HostPacket::ConformalClampedEntityControl(p) => fields(
+            "cigi.conformal_clamped_entity_control",
+            &[
+                ("entity_id", f64::from(p.entity_id)),
+                ("yaw", f64::from(p.yaw)),
+                ("lat", p.lat),
+                ("lon", p.lon),
             ],
         ),
         HostPacket::RateControl(p) => fields(

@@ -291,6 +291,33 @@ fn attached_and_clamped_entities_are_placed_where_the_host_puts_them() {
         (4, 0, 2),
         "drawn, not drawn, hidden (the inactive entity and the one attached to it)"
     );
+
+    // Conformal Clamped Entity Control moves the conformal entity: a new position and heading,
+    // its altitude, pitch and roll offsets kept from its Entity Control.
+    let to = ahead(900.0, 150.0, 0.0);
+    let moved = ConformalClampedEntityControl {
+        entity_id: 10,
+        yaw: 200.0,
+        lat: to[0],
+        lon: to[1],
+    };
+    session
+        .receive(&message(ig_control(2, None, false), &[moved.into()]), 1.0)
+        .unwrap();
+    let at = session.host_time_at(1.0);
+    let p = relief::world::entity_placement(&session, terrain, 10, at).unwrap();
+    let (lla, ypr) = on_slope(
+        &Dem::load(),
+        [to[0], to[1], CONFORMAL_ALT],
+        [200.0, CONFORMAL_YPR[1], CONFORMAL_YPR[2]],
+    );
+    let off = (p.position - terrain.geodetic_to_world("truth", lla).unwrap()).length();
+    let got = relief::geom::attitude_angles(p.attitude);
+    eprintln!("moved by Conformal Clamped Entity Control: {off:.3} m from the truth, attitude {got:?} against {ypr:?}");
+    assert!(off <= 0.01, "{off} m");
+    let turn = [got.0 - ypr[0], got.1 - ypr[1], got.2 - ypr[2]]
+        .map(|d| (d + 180.0).rem_euclid(360.0) - 180.0);
+    assert!(turn.iter().all(|d| d.abs() < 0.01), "{turn:?}");
 }
 
 /// `relief serve` draws them there: its frame equals `relief render` of the template placed

@@ -58,6 +58,18 @@ cigi_packet! {
 }
 
 cigi_packet! {
+    /// Conformal Clamped Entity Control (ID 3, 24 bytes): a new heading and geodetic position
+    /// for an entity that exists; its altitude, pitch and roll (offsets when it is clamped
+    /// conformally) stay those of its last Entity Control.
+    ConformalClampedEntityControl = ConformalClampedEntityControl {
+        entity_id: u16 = 2,
+        yaw: f32 = 4,
+        lat: f64 = 8,
+        lon: f64 = 16,
+    }
+}
+
+cigi_packet! {
     /// Rate Control (ID 8, 32 bytes): linear (m/s) and angular (°/s) rates of an entity or
     /// of one of its articulated parts.
     RateControl = RateControl {

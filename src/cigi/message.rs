@@ -124,7 +124,8 @@ macro_rules! packet_set {
 packet_set! {
     /// A host-to-IG packet.
     HostPacket, HostToIg, IgControl, 4 {
-        IgControl, EntityControl, RateControl, CelestialSphereControl, AtmosphereControl,
+        IgControl, EntityControl, ConformalClampedEntityControl, RateControl,
+        CelestialSphereControl, AtmosphereControl,
         WeatherControl, ViewControl, ViewDefinition, HatHotRequest, LosSegmentRequest,
         LosVectorRequest, PositionRequest,
     }

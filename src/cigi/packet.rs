@@ -43,6 +43,7 @@ macro_rules! kinds {
 kinds! {
     IgControl = 1, 24, HostToIg, "IG Control";
     EntityControl = 2, 48, HostToIg, "Entity Control";
+    ConformalClampedEntityControl = 3, 24, HostToIg, "Conformal Clamped Entity Control";
     RateControl = 8, 32, HostToIg, "Rate Control";
     CelestialSphereControl = 9, 16, HostToIg, "Celestial Sphere Control";
     AtmosphereControl = 10, 32, HostToIg, "Atmosphere Control";

@@ -270,6 +270,7 @@ impl Session {
         match p {
             HostPacket::IgControl(p) => self.ig_control(p, now),
             HostPacket::EntityControl(p) => self.entity_control(p),
+            HostPacket::ConformalClampedEntityControl(p) => self.conformal_clamped(p),
             HostPacket::RateControl(p) => self.rate_control(p),
             HostPacket::CelestialSphereControl(p) => self.celestial = Some(*p),
             HostPacket::AtmosphereControl(p) => self.atmosphere = Some(*p),
@@ -462,6 +463,31 @@ impl Session {
             let children = self.entities.iter().filter(|(_, e)| e.parent == Some(at));
             gone.extend(children.map(|(&c, _)| c));
             k += 1;
+        }
+    }
+
+    /// Conformal Clamped Entity Control: a new sample of an existing top-level entity with
+    /// the packet's latitude, longitude and yaw, its altitude, pitch and roll kept from its
+    /// latest sample (offsets from the terrain when it is clamped conformally; as they are
+    /// otherwise, as the ICD says). An unknown or attached entity, or a value out of range,
+    /// is counted (`invalid_values`) and ignored.
+    fn conformal_clamped(&mut self, p: &ConformalClampedEntityControl) {
+        let (lat, lon, yaw) = (p.lat, p.lon, f64::from(p.yaw));
+        let ok = [lat, lon, yaw].iter().all(|v| v.is_finite())
+            && lat.abs() <= 90.0
+            && lon.abs() <= 360.0;
+        let time = self.host_time;
+        match self.entities.get_mut(&p.entity_id) {
+            Some(e) if ok && e.parent.is_none() => {
+                let pose = Pose {
+                    lat,
+                    lon,
+                    yaw,
+                    ..e.latest.pose
+                };
+                e.push_sample(Sample { time, pose });
+            }
+            _ => self.counters.invalid_values += 1,
         }
     }
 
