@@ -2,7 +2,7 @@
 //! and the entities drawn this frame ([`crate::cpu::bodies`]), whichever comes first; see the
 //! parent module for what each field says.
 
-use super::{azimuth_elevation, direction, lsn, request_point, world, EntityFrame, Ground};
+use super::ground::{azimuth_elevation, direction, lsn, request_point, world, EntityFrame, Ground};
 use crate::cigi::{
     LosExtendedResponse, LosResponse, LosSegmentRequest, LosVectorRequest, MessageBuilder,
 };
