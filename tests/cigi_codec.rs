@@ -315,6 +315,32 @@ fn los_extended_response(k: u32) -> LosExtendedResponse {
     }
 }
 
+fn segment_definition(k: u32) -> CollisionSegmentDefinition {
+    CollisionSegmentDefinition {
+        entity_id: 21 + k as u16,
+        segment_id: 4 + k as u8,
+        enabled: b(k, 0),
+        x1: 1.5 + k as f32,
+        y1: -2.25 + k as f32,
+        z1: 3.125 + k as f32,
+        x2: -14.5 + k as f32,
+        y2: 6.75 + k as f32,
+        z2: 8.0 + k as f32,
+        material_mask: 0x0102_0304 + k,
+    }
+}
+
+fn collision_notification(k: u32) -> CollisionSegmentNotification {
+    CollisionSegmentNotification {
+        entity_id: 31 + k as u16,
+        segment_id: 9 + k as u8,
+        entity_contact: b(k, 0),
+        contacted_entity_id: 4242 + k as u16,
+        material_code: 77 + k,
+        distance: 12.375 + k as f32,
+    }
+}
+
 fn position_response(k: u32) -> PositionResponse {
     PositionResponse {
         object_id: 15 + k as u16,
@@ -341,6 +367,7 @@ fn host_body(k: u32) -> Vec<HostPacket> {
         weather(k).into(),
         view_control(k).into(),
         view_definition(k).into(),
+        segment_definition(k).into(),
         hat_hot_request(k).into(),
         los_segment_request(k).into(),
         los_vector_request(k).into(),
@@ -356,6 +383,7 @@ fn ig_body(k: u32) -> Vec<IgPacket> {
         los_response(k).into(),
         los_extended_response(k).into(),
         position_response(k).into(),
+        collision_notification(k).into(),
     ]
 }
 
@@ -440,6 +468,8 @@ fn every_packet_round_trips_in_both_byte_orders() {
             round_trip(&weather(k), order);
             round_trip(&view_control(k), order);
             round_trip(&view_definition(k), order);
+            round_trip(&segment_definition(k), order);
+            round_trip(&collision_notification(k), order);
             round_trip(&hat_hot_request(k), order);
             round_trip(&los_segment_request(k), order);
             round_trip(&los_vector_request(k), order);
@@ -473,8 +503,8 @@ fn whole_messages_read_back_in_both_byte_orders() {
             assert_eq!(
                 m.walk,
                 Walk {
-                    packets: 13,
-                    decoded: 13,
+                    packets: 14,
+                    decoded: 14,
                     ..Walk::default()
                 }
             );
@@ -483,7 +513,7 @@ fn whole_messages_read_back_in_both_byte_orders() {
             let mut want: Vec<IgPacket> = vec![start_of_frame(k).into()];
             want.extend(ig_body(k));
             assert_eq!(m.packets, want);
-            assert_eq!(m.walk.decoded, 6);
+            assert_eq!(m.walk.decoded, 7);
         }
     }
 }
@@ -1052,6 +1082,55 @@ fn conformal_clamped_entity_control_moves_an_entity_and_keeps_its_offsets() {
     assert_counters_add_up(&s.counters);
 }
 
+/// Collision Detection Segment Definitions are kept per entity and segment; the frame tests
+/// those of active entities whose collision detection is on; a disabled definition drops its
+/// segment, non-finite offsets are counted, a destroyed entity's segments go with it.
+#[test]
+fn collision_segments_are_kept_per_entity_and_tested_only_where_detection_is_on() {
+    let mut s = Session::new();
+    let on = EntityControl {
+        collision_detection: true,
+        ..entity(7)
+    };
+    let seg = |entity_id: u16, segment_id: u8, enabled: bool| CollisionSegmentDefinition {
+        entity_id,
+        segment_id,
+        enabled,
+        z2: 10.0,
+        ..CollisionSegmentDefinition::default()
+    };
+    let mut m = MessageBuilder::host(&ig_control_at(1, None), ByteOrder::Big);
+    m.push(&on)
+        .push(&entity(8))
+        .push(&seg(7, 1, true))
+        .push(&seg(7, 2, true))
+        .push(&seg(7, 3, true))
+        .push(&seg(8, 1, true))
+        .push(&seg(7, 3, false))
+        .push(&CollisionSegmentDefinition {
+            x1: f32::NAN,
+            ..seg(7, 4, true)
+        });
+    s.receive(&m.finish(), 0.0).unwrap();
+    let ids: Vec<(u16, u8)> = s
+        .collision_segments()
+        .map(|d| (d.entity_id, d.segment_id))
+        .collect();
+    assert_eq!(
+        ids,
+        [(7, 1), (7, 2)],
+        "entity 8's detection is off; 3 was disabled"
+    );
+    assert_eq!(s.counters.invalid_values, 1, "the NaN offset");
+    let gone = EntityControl {
+        entity_state: 2,
+        ..on
+    };
+    s.receive(&pose_msg(2, None, &[gone, on]), 0.1).unwrap();
+    assert_eq!(s.collision_segments().count(), 0, "destroyed with entity 7");
+    assert_counters_add_up(&s.counters);
+}
+
 #[test]
 fn rate_control_dead_reckons_from_the_latest_sample() {
     let mut s = Session::new();
@@ -1411,6 +1490,21 @@ fn expect_host(p: &HostPacket, order: ByteOrder) -> Expect {
                 ("yaw", f64::from(p.yaw)),
             ],
         ),
+        HostPacket::CollisionSegmentDefinition(p) => fields(
+            "cigi.coll_det_seg_def",
+            &[
+                ("entity_id", f64::from(p.entity_id)),
+                ("segment_id", f64::from(p.segment_id)),
+                ("segment_enable", f(p.enabled)),
+                ("x1", f64::from(p.x1)),
+                ("y1", f64::from(p.y1)),
+                ("z1", f64::from(p.z1)),
+                ("x2", f64::from(p.x2)),
+                ("y2", f64::from(p.y2)),
+                ("z2", f64::from(p.z2)),
+                ("material_mask", f64::from(p.material_mask)),
+            ],
+        ),
         HostPacket::ViewDefinition(p) => fields(
             "cigi.view_def",
             &[
@@ -1596,6 +1690,17 @@ fn expect_ig(p: &IgPacket, order: ByteOrder) -> Expect {
                 ("material_code", f64::from(p.material)),
                 ("normal_vector_azimuth", f64::from(p.normal_azimuth)),
                 ("normal_vector_elevation", f64::from(p.normal_elevation)),
+            ],
+        ),
+        IgPacket::CollisionSegmentNotification(p) => fields(
+            "cigi.coll_det_seg_notification",
+            &[
+                ("entity_id", f64::from(p.entity_id)),
+                ("segment_id", f64::from(p.segment_id)),
+                ("type", f(p.entity_contact)),
+                ("contacted_entity_id", f64::from(p.contacted_entity_id)),
+                ("material_code", f64::from(p.material_code)),
+                ("intersection_distance", f64::from(p.distance)),
             ],
         ),
         IgPacket::PositionResponse(p) => fields(

@@ -85,20 +85,20 @@ fn segment(id: u16, extended: bool, a: [f64; 3], b: [f64; 3]) -> LosSegmentReque
     }
 }
 
-#[test]
-fn lines_of_sight_meet_the_entities_the_ig_draws() {
-    let _serial = one_ig_test_at_a_time();
-    let dir = temp_dir("cigi-los-entities");
-    let dem = Dem::load();
+/// A `[[voxels]]` entry of `axes.vox` at 3 m a voxel at geodetic `at`.
+fn voxels_at(at: [f64; 3]) -> String {
     let axes = common::terrains().join("voxels/axes.vox");
-    let voxels_at = |at: [f64; 3]| {
-        format!(
-            "[[voxels]]\nname = \"axes\"\nfile = {axes:?}\nvoxel_size = 3.0\n\
-             geodetic = [{:?}, {:?}, {:?}]\n",
-            at[0], at[1], at[2]
-        )
-    };
-    // The templates: type 9 a sphere, type 8 axes.vox at 3 m a voxel, both placed out of view.
+    format!(
+        "[[voxels]]\nname = \"axes\"\nfile = {axes:?}\nvoxel_size = 3.0\n\
+         geodetic = [{:?}, {:?}, {:?}]\n",
+        at[0], at[1], at[2]
+    )
+}
+
+/// The IG's scene over N47E009 with its templates (type 9 the sphere, type 8 `axes.vox` at
+/// 3 m a voxel, both placed out of view), written to `dir/served.toml`; where the sphere (1.5
+/// km ahead, 200 m above the ground) and the voxel model (400 m east of it, 100 m up) go.
+fn setup(dir: &std::path::Path, dem: &Dem) -> (std::path::PathBuf, [f64; 3], [f64; 3]) {
     let [r, g, b] = COLOUR;
     let templates = format!(
         "[[objects]]\nname = \"sphere\"\nshape = \"ellipsoid\"\nradii = [{RADIUS:?}, {RADIUS:?}, {RADIUS:?}]\n\
@@ -108,12 +108,40 @@ fn lines_of_sight_meet_the_entities_the_ig_draws() {
          [[cigi.entity]]\ntype = 8\nvoxels = \"axes\"\nmax = 2\n",
         voxels_at([47.2, 9.25, 3000.0])
     );
-    let served = scene(&dir, "served", CAM, [HEADING, -3.0, 0.0], &templates);
-    // The sphere 1.5 km ahead, 200 m above the ground; the model 400 m east of it, 100 m up.
+    let served = scene(dir, "served", CAM, [HEADING, -3.0, 0.0], &templates);
     let s0 = ahead(1500.0, 0.0, 0.0);
     let sphere = [s0[0], s0[1], dem.height(s0[0], s0[1]) + 200.0];
     let v0 = ahead(1500.0, 400.0, 0.0);
     let model = [v0[0], v0[1], dem.height(v0[0], v0[1]) + 100.0];
+    (served, sphere, model)
+}
+
+/// `relief serve` of `scene` at 160x120 for `frames` frames, synchronous.
+fn serve(scene: &std::path::Path, dir: &std::path::Path, frames: u32) -> Ig {
+    let n = frames.to_string();
+    let out = dir.join("frames");
+    Ig::start(
+        scene,
+        &[
+            "--size",
+            "160x120",
+            "--no-shadows",
+            "--cigi-sync",
+            "--frames",
+            &n,
+            "--capture-frames",
+            out.to_str().unwrap(),
+        ],
+        host_socket(),
+    )
+}
+
+#[test]
+fn lines_of_sight_meet_the_entities_the_ig_draws() {
+    let _serial = one_ig_test_at_a_time();
+    let dir = temp_dir("cigi-los-entities");
+    let dem = Dem::load();
+    let (served, sphere, model) = setup(&dir, &dem);
 
     // The voxel truth: the model placed by a scene at the entity's pose, a vertical line down
     // the column of its first voxel, cast by the CPU reference in that scene's world.
@@ -141,21 +169,7 @@ fn lines_of_sight_meet_the_entities_the_ig_draws() {
         .cast(w0, (w1 - w0) / len, 0.0, len, 0.0)
         .expect("the column of a voxel meets the model");
 
-    let frames = dir.join("frames");
-    let ig = Ig::start(
-        &served,
-        &[
-            "--size",
-            "160x120",
-            "--no-shadows",
-            "--cigi-sync",
-            "--frames",
-            "2",
-            "--capture-frames",
-            frames.to_str().unwrap(),
-        ],
-        host_socket(),
-    );
+    let ig = serve(&served, &dir, 2);
     let own = ownship(CAM, HEADING as f32, -3.0, 0.0);
     let entities: Vec<HostPacket> = vec![
         own.into(),
@@ -164,7 +178,6 @@ fn lines_of_sight_meet_the_entities_the_ig_draws() {
     ];
     ig.exchange(&message(ig_control(10, None, false), &entities), 10);
 
-    let up = |p: [f64; 3], h: f64| [p[0], p[1], p[2] + h];
     let east = |p: [f64; 3], e: f64| moved(p, e, 0.0);
     let requests: Vec<(u16, LosSegmentRequest)> = vec![
         // Down through the centre, 25 m east of it, 60 m east (past it).
@@ -233,7 +246,7 @@ fn lines_of_sight_meet_the_entities_the_ig_draws() {
             })
             .unwrap_or_else(|| panic!("no extended response to {id}: {:?}", answer.packets))
     };
-    let colour = [srgb8(r), srgb8(g), srgb8(b)];
+    let colour = COLOUR.map(srgb8);
     // The segments and the vector that meet the sphere.
     for (id, a, b) in [
         (1, up(sphere, 500.0), up(sphere, -500.0)),
@@ -325,4 +338,92 @@ fn lines_of_sight_meet_the_entities_the_ig_draws() {
         [vox.red, vox.green, vox.blue, vox.alpha],
         voxel_truth.colour
     );
+}
+
+/// Collision Detection Segments: each frame the IG tests the segments of entities whose
+/// collision detection is on against the terrain and the other entities drawn, and notifies
+/// the first contact with its distance from the segment's first point.
+#[test]
+fn collision_segments_report_the_terrain_and_the_entities_they_meet() {
+    let _serial = one_ig_test_at_a_time();
+    let dir = temp_dir("cigi-collisions");
+    let dem = Dem::load();
+    let (served, sphere, _) = setup(&dir, &dem);
+    let ig = serve(&served, &dir, 2);
+    // Entity 40 hovers 30 m above the ground (no template: not drawn); entity 41 300 m above
+    // the sphere's centre; entity 42 as 40 but with collision detection off.
+    let p = ahead(800.0, -300.0, 0.0);
+    let low = [p[0], p[1], dem.height(p[0], p[1]) + 30.0];
+    let on = |id: u16, lla: [f64; 3], detect: bool| -> HostPacket {
+        EntityControl {
+            collision_detection: detect,
+            ..EntityControl::placed(id, 99, lla, [0.0; 3])
+        }
+        .into()
+    };
+    let seg = |entity_id: u16, segment_id: u8, enabled: bool, z2: f32| -> HostPacket {
+        CollisionSegmentDefinition {
+            entity_id,
+            segment_id,
+            enabled,
+            z2,
+            ..CollisionSegmentDefinition::default()
+        }
+        .into()
+    };
+    let own = ownship(CAM, HEADING as f32, -3.0, 0.0);
+    let above = [sphere[0], sphere[1], sphere[2] + 300.0];
+    let mut packets = vec![
+        own.into(),
+        EntityControl::placed(30, 9, sphere, [0.0; 3]).into(),
+        on(40, low, true),
+        on(41, above, true),
+        on(42, low, false),
+    ];
+    // 40: 50 m down (the ground at 30 m), 20 m up (nothing), and one defined then disabled;
+    // 41: 400 m down (the sphere's top at 260 m); 42: 50 m down (detection off).
+    packets.extend([
+        seg(40, 1, true, 50.0),
+        seg(40, 2, true, -20.0),
+        seg(40, 3, true, 50.0),
+        seg(40, 3, false, 50.0),
+        seg(41, 1, true, 400.0),
+        seg(42, 1, true, 50.0),
+    ]);
+    ig.exchange(&message(ig_control(10, None, false), &packets), 10);
+    let answer = ig.exchange(&message(ig_control(11, None, false), &packets[..5]), 11);
+    ig.finish();
+    let mut got: Vec<CollisionSegmentNotification> = answer
+        .packets
+        .iter()
+        .filter_map(|p| match p {
+            IgPacket::CollisionSegmentNotification(n) => Some(*n),
+            _ => None,
+        })
+        .collect();
+    got.sort_by_key(|n| (n.entity_id, n.segment_id));
+    eprintln!("notifications: {got:?}");
+    let keys: Vec<(u16, u8)> = got.iter().map(|n| (n.entity_id, n.segment_id)).collect();
+    assert_eq!(keys, [(40, 1), (41, 1)]);
+    let (ground, body) = (got[0], got[1]);
+    assert!(!ground.entity_contact, "{ground:?}");
+    assert!(
+        (f64::from(ground.distance) - 30.0).abs() < 0.01,
+        "{ground:?}"
+    );
+    let truth = segment_truth(above, up(above, -400.0), sphere).unwrap();
+    assert!(
+        body.entity_contact && body.contacted_entity_id == 30,
+        "{body:?}"
+    );
+    assert!(
+        (f64::from(body.distance) - truth).abs() < 0.01,
+        "{body:?} against {truth}"
+    );
+    assert!((truth - 260.0).abs() < 1e-6);
+}
+
+/// `p` raised by `h` metres.
+fn up(p: [f64; 3], h: f64) -> [f64; 3] {
+    [p[0], p[1], p[2] + h]
 }

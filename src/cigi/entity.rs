@@ -72,6 +72,8 @@ pub struct Entity {
     pub alpha: u8,
     /// 0 none, 1 non-conformal, 2 conformal.
     pub ground_clamp: u8,
+    /// Entity Control's collision detection bit: its segments are tested.
+    pub collision_detection: bool,
     /// The entity's extrapolation/interpolation bit.
     pub extrapolation: bool,
     pub previous: Option<Sample>,

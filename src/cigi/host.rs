@@ -70,6 +70,25 @@ cigi_packet! {
 }
 
 cigi_packet! {
+    /// Collision Detection Segment Definition (ID 22, 40 bytes): a segment fixed to an entity,
+    /// between two points given as body offsets (x forward, y right, z down, metres), that the
+    /// IG tests against the terrain and the other entities each frame while the entity's
+    /// collision detection is on.
+    CollisionSegmentDefinition = CollisionSegmentDefinition {
+        entity_id: u16 = 2,
+        segment_id: u8 = 4,
+        enabled: bool = 5 [0; 1],
+        x1: f32 = 8,
+        y1: f32 = 12,
+        z1: f32 = 16,
+        x2: f32 = 20,
+        y2: f32 = 24,
+        z2: f32 = 28,
+        material_mask: u32 = 32,
+    }
+}
+
+cigi_packet! {
     /// Rate Control (ID 8, 32 bytes): linear (m/s) and angular (°/s) rates of an entity or
     /// of one of its articulated parts.
     RateControl = RateControl {

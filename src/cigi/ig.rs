@@ -108,3 +108,17 @@ cigi_packet! {
         yaw: f32 = 40,
     }
 }
+
+cigi_packet! {
+    /// Collision Detection Segment Notification (ID 113, 16 bytes): a segment of `entity_id`
+    /// met a surface this frame, `distance` metres from its first point.
+    CollisionSegmentNotification = CollisionSegmentNotification {
+        entity_id: u16 = 2,
+        segment_id: u8 = 4,
+        /// false: the terrain (or another non-entity surface); true: `contacted_entity_id`.
+        entity_contact: bool = 5 [0; 1],
+        contacted_entity_id: u16 = 6,
+        material_code: u32 = 8,
+        distance: f32 = 12,
+    }
+}

@@ -50,6 +50,7 @@ kinds! {
     WeatherControl = 12, 56, HostToIg, "Weather Control";
     ViewControl = 16, 32, HostToIg, "View Control";
     ViewDefinition = 21, 32, HostToIg, "View Definition";
+    CollisionSegmentDefinition = 22, 40, HostToIg, "Collision Detection Segment Definition";
     HatHotRequest = 24, 32, HostToIg, "HAT/HOT Request";
     LosSegmentRequest = 25, 64, HostToIg, "LOS Segment Request";
     LosVectorRequest = 26, 56, HostToIg, "LOS Vector Request";
@@ -60,6 +61,7 @@ kinds! {
     LosResponse = 104, 16, IgToHost, "LOS Response";
     LosExtendedResponse = 105, 56, IgToHost, "LOS Extended Response";
     PositionResponse = 108, 48, IgToHost, "Position Response";
+    CollisionSegmentNotification = 113, 16, IgToHost, "Collision Detection Segment Notification";
 }
 
 impl Kind {

@@ -28,6 +28,8 @@ pub const MAX_VIEWS: usize = 256;
 pub const MAX_WEATHER: usize = 256;
 /// Most queries waiting for the IG's answers.
 pub const MAX_QUERIES: usize = 1024;
+/// Collision detection segments kept (across every entity).
+pub const MAX_SEGMENTS: usize = 1024;
 /// Seconds per timestamp tick (CIGI 3: 10 µs).
 pub const TICK: f64 = 1e-5;
 
@@ -186,6 +188,8 @@ pub struct Session {
     pub atmosphere: Option<AtmosphereControl>,
     /// Weather layers by (scope, entity or region ID, layer ID).
     pub weather: BTreeMap<(u8, u16, u8), WeatherControl>,
+    /// Enabled collision detection segments by (entity ID, segment ID).
+    segments: BTreeMap<(u16, u8), CollisionSegmentDefinition>,
     queries: VecDeque<Query>,
 }
 
@@ -290,6 +294,7 @@ impl Session {
                     v.control = Some(merge_view_control(v.control, *p));
                 }
             }
+            HostPacket::CollisionSegmentDefinition(p) => self.segment_definition(p),
             HostPacket::ViewDefinition(p) => {
                 if let Some(v) = self.view_mut(p.view_id) {
                     v.definition = Some(*p);
@@ -359,6 +364,36 @@ impl Session {
         self.entities.retain(|&id, _| id == 0);
         self.counters.destroyed += (before - self.entities.len()) as u64;
         self.queries.clear();
+        self.segments.retain(|&(id, _), _| id == 0);
+    }
+
+    /// Collision Detection Segment Definition: an enabled segment is kept (replacing the
+    /// entity's segment of that ID; new ones refused at [`MAX_SEGMENTS`]), a disabled one
+    /// dropped; non-finite offsets are counted (`invalid_values`).
+    fn segment_definition(&mut self, p: &CollisionSegmentDefinition) {
+        let v = [p.x1, p.y1, p.z1, p.x2, p.y2, p.z2];
+        if !v.iter().all(|x| x.is_finite()) {
+            self.counters.invalid_values += 1;
+            return;
+        }
+        let key = (p.entity_id, p.segment_id);
+        if !p.enabled {
+            self.segments.remove(&key);
+        } else if self.segments.len() < MAX_SEGMENTS || self.segments.contains_key(&key) {
+            self.segments.insert(key, *p);
+        } else {
+            self.counters.refused_capacity += 1;
+        }
+    }
+
+    /// The collision detection segments to test this frame: enabled, of an active entity
+    /// whose collision detection is on (Entity Control's bit).
+    pub fn collision_segments(&self) -> impl Iterator<Item = &CollisionSegmentDefinition> {
+        self.segments.values().filter(|s| {
+            self.entities
+                .get(&s.entity_id)
+                .is_some_and(|e| e.state == EntityState::Active && e.collision_detection)
+        })
     }
 
     fn entity_control(&mut self, p: &EntityControl) {
@@ -409,6 +444,7 @@ impl Session {
             e.parent = parent;
             e.alpha = p.alpha;
             e.ground_clamp = p.ground_clamp;
+            e.collision_detection = p.collision_detection;
             e.extrapolation = p.extrapolation;
             e.push_sample(sample);
         } else if self.entities.len() >= MAX_ENTITIES {
@@ -423,6 +459,7 @@ impl Session {
                     parent,
                     alpha: p.alpha,
                     ground_clamp: p.ground_clamp,
+                    collision_detection: p.collision_detection,
                     extrapolation: p.extrapolation,
                     previous: None,
                     latest: sample,
@@ -464,6 +501,7 @@ impl Session {
             gone.extend(children.map(|(&c, _)| c));
             k += 1;
         }
+        self.segments.retain(|&(id, _), _| !gone.contains(&id));
     }
 
     /// Conformal Clamped Entity Control: a new sample of an existing top-level entity with

@@ -130,11 +130,17 @@ impl Bodies {
     }
 
     /// The first body on the line from ECEF `from` along the ECEF unit direction `dir`, with
-    /// `t` metres from `from` in `[t_min, t_max]`; a body the line starts inside (at `t_min`)
-    /// is not met.
-    pub fn first_hit(&self, from: DVec3, dir: DVec3, t_min: f64, t_max: f64) -> Option<BodyHit> {
+    /// `t` metres from `from` in `[t_min, t_max]`, body `except` left out; a body the line
+    /// starts inside (at `t_min`) is not met.
+    pub fn first_hit(
+        &self,
+        from: DVec3,
+        dir: DVec3,
+        [t_min, t_max]: [f64; 2],
+        except: Option<u16>,
+    ) -> Option<BodyHit> {
         let mut best: Option<BodyHit> = None;
-        for b in &self.bodies {
+        for b in self.bodies.iter().filter(|b| Some(b.id) != except) {
             let far = best.map_or(t_max, |h| h.t);
             // The line in the body's east-north-up metres.
             let to_enu = b.enu.transpose();

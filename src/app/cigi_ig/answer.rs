@@ -57,6 +57,7 @@ use crate::terrain::Terrain;
 use glam::DVec3;
 pub use ground::{azimuth_elevation, direction, height_of_terrain, Ground};
 use ground::{lsn, request_point, world, EntityFrame};
+pub use los::collisions;
 use los::{los_segment, los_vector, SegmentFrames};
 
 mod ground;
@@ -77,6 +78,8 @@ pub struct AnswerCounts {
     /// Database scenes: kept queries whose tiles the prefetcher had not read by the frame that
     /// answers them (or the run's end), read there synchronously.
     pub blocking_reads: u64,
+    /// Collision Detection Segment Notifications sent.
+    pub collisions: u64,
 }
 
 impl AnswerCounts {
@@ -89,6 +92,7 @@ impl AnswerCounts {
         self.unanswered += o.unanswered;
         self.deferred += o.deferred;
         self.blocking_reads += o.blocking_reads;
+        self.collisions += o.collisions;
     }
 }
 

@@ -6,7 +6,7 @@
 
 pub mod answer;
 
-use crate::cigi::Session;
+use crate::cigi::{MessageBuilder, Session};
 use crate::scene::solar::{self, UtcTime};
 use crate::scene::Pose as CameraPose;
 use crate::scene::SceneDesc;
@@ -502,6 +502,33 @@ impl CigiIg {
         true
     }
 
+    /// This frame's Collision Detection Segment Notifications onto `msg`
+    /// ([`answer::collisions`]); on a database scene from resident tiles only, the tiles a
+    /// segment misses handed to the prefetcher (that segment is tested again next frame).
+    fn collide(&self, terrain: &Terrain, host_t: f64, msg: &mut MessageBuilder) -> u64 {
+        match (&self.full, &self.deferral) {
+            (Some(full), Some(d)) => {
+                let tiles = crate::db::ResidentOnly::new(full.database());
+                let g = answer::Ground {
+                    terrain,
+                    full: Some((full, &tiles)),
+                    bodies: &self.bodies,
+                };
+                let n = answer::collisions(&g, &self.session, host_t, msg);
+                d.prefetcher().request(tiles.missing());
+                n
+            }
+            _ => {
+                let g = answer::Ground {
+                    terrain,
+                    full: None,
+                    bodies: &self.bodies,
+                };
+                answer::collisions(&g, &self.session, host_t, msg)
+            }
+        }
+    }
+
     /// Start of Frame for IG frame `self.ig_frame` and the answers (`kept_only`: only the
     /// queries kept from the last frame), sent; the frame counter advances.
     fn answer_and_send(&mut self, terrain: &Terrain, kept_only: bool) -> u32 {
@@ -537,6 +564,10 @@ impl CigiIg {
                 answer::answer(&ground, &self.session, &queries, host_t, &mut msg)
             }
         };
+        let mut c = c;
+        if !kept_only {
+            c.collisions = self.collide(terrain, host_t, &mut msg);
+        }
         self.answers.add(&c);
         let bytes = msg.finish();
         if let Some(to) = self.reply_to {
@@ -608,6 +639,7 @@ impl CigiIg {
             "send_errors": self.send_errors,
             "deferred": self.answers.deferred,
             "blocking_reads": self.answers.blocking_reads,
+            "collisions": self.answers.collisions,
         })
     }
 
@@ -615,7 +647,7 @@ impl CigiIg {
     pub fn summary(&self) -> String {
         let c = &self.session.counters;
         format!(
-            "cigi: {} IG frames, {} datagrams in ({} accepted, {} refused, {} from other senders, {} malformed), {} sent ({} failed); answered {} HAT/HOT, {} LOS, {} position ({} invalid, {} unanswered; {} deferred a frame, {} blocking reads); {} other entities not drawn",
+            "cigi: {} IG frames, {} datagrams in ({} accepted, {} refused, {} from other senders, {} malformed), {} sent ({} failed); answered {} HAT/HOT, {} LOS, {} position ({} invalid, {} unanswered; {} deferred a frame, {} blocking reads); {} collision notifications; {} other entities not drawn",
             self.ig_frame,
             c.datagrams,
             c.accepted,
@@ -631,6 +663,7 @@ impl CigiIg {
             self.answers.unanswered,
             self.answers.deferred,
             self.answers.blocking_reads,
+            self.answers.collisions,
             self.other_entities,
         )
     }
