@@ -727,14 +727,13 @@ fn clamped_entities_stand_on_a_paged_window_without_waiting_for_the_disk() {
             .expect("placed at once, from what is in memory");
         (p.position - terrain.geodetic_to_world("truth", lla).unwrap()).length()
     };
-    let first = [off(9, t.clamped.0), off(10, t.conformal.0)];
-    eprintln!(
-        "at once: {:.1} m and {:.1} m from the truth",
-        first[0], first[1]
-    );
+    // The first placement is the first height asked: its tile is not in memory. (Entity 10's,
+    // asked next, may share that tile, which the prefetcher may have read by then.)
+    let first = off(9, t.clamped.0);
+    eprintln!("at once: {first:.1} m from the truth");
     assert!(
-        first.iter().all(|d| *d > 0.01),
-        "a tile not in memory was read on the frame's thread: {first:?}"
+        first > 0.01,
+        "a tile not in memory was read on the frame's thread: {first} m"
     );
     let start = Instant::now();
     loop {
