@@ -139,6 +139,9 @@ impl Bodies {
         [t_min, t_max]: [f64; 2],
         except: Option<u16>,
     ) -> Option<BodyHit> {
+        if t_min.is_nan() || t_max.is_nan() || t_min > t_max {
+            return None;
+        }
         let mut best: Option<BodyHit> = None;
         for b in self.bodies.iter().filter(|b| Some(b.id) != except) {
             let far = best.map_or(t_max, |h| h.t);
