@@ -9,10 +9,11 @@ use super::voxel::dda;
 use crate::colour::linear_to_srgb8;
 use crate::freeform::FreeForm;
 use crate::geodesy::{self, Geodetic};
-use crate::voxel::{Bricks, VoxelInstance};
+use crate::voxel::{Bricks, VoxelInstance, VoxelModel};
 use crate::world::{BodyShape, Instances};
 use glam::{DMat3, DVec3};
-use std::sync::OnceLock;
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
 
 /// ECEF position of geodetic `[lat, lon, height]` (degrees, metres).
 pub fn ecef([lat, lon, height]: [f64; 3]) -> DVec3 {
@@ -30,14 +31,47 @@ pub fn enu_at(p: [f64; 3]) -> DMat3 {
     geodesy::enu_basis(p[0], p[1])
 }
 
+/// Brick tables of voxel models for their lines of sight, made once per model (a model's
+/// table costs 0.3–0.4 s for the 13–14 M-cell grids of `axes.vox` and `tree.vox`) and kept
+/// for the run: the models of entity templates are the same from frame to frame.
+#[derive(Default)]
+pub struct BrickCache {
+    /// By the model's address; the model is held so that the address stays its own.
+    tables: Mutex<HashMap<usize, KeptTable>>,
+}
+
+/// A model and its brick table ([`BrickCache`]).
+type KeptTable = (Arc<VoxelModel>, Arc<Bricks>);
+
+impl BrickCache {
+    /// `model`'s brick table, made now if it is not kept yet.
+    pub fn get(&self, model: &Arc<VoxelModel>) -> Arc<Bricks> {
+        let key = Arc::as_ptr(model) as usize;
+        let mut t = self.tables.lock().unwrap_or_else(|e| e.into_inner());
+        let (_, bricks) = t
+            .entry(key)
+            .or_insert_with(|| (Arc::clone(model), Arc::new(model.bricks())));
+        Arc::clone(bricks)
+    }
+
+    /// How many tables are kept.
+    pub fn len(&self) -> usize {
+        self.tables.lock().unwrap_or_else(|e| e.into_inner()).len()
+    }
+
+    /// Whether none is kept.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
 /// A body's shape at the origin of its east-north-up frame.
 enum Shape {
     Object(FreeForm),
-    /// The model, and the bricks of the frame shown (made on the first line that comes near).
+    /// The model and the frame shown (its brick table from the cache).
     Voxels {
         model: VoxelInstance,
         frame: usize,
-        bricks: OnceLock<Bricks>,
     },
 }
 
@@ -70,12 +104,13 @@ pub struct BodyHit {
 #[derive(Default)]
 pub struct Bodies {
     bodies: Vec<Body>,
+    bricks: Arc<BrickCache>,
 }
 
 impl Bodies {
     /// The bodies of `instances` (their placements and shapes), voxel models showing the
-    /// animation frame of time `time` (seconds).
-    pub fn of(instances: &Instances, time: f64) -> Bodies {
+    /// animation frame of time `time` (seconds), their brick tables from `bricks`.
+    pub fn of(instances: &Instances, time: f64, bricks: &Arc<BrickCache>) -> Bodies {
         let bodies = (instances.bodies.iter())
             .filter_map(|b| {
                 let p = &b.placement;
@@ -101,15 +136,7 @@ impl Bodies {
                         let frame = model.frame_at(time);
                         let d = model.frames[frame].dims.map(f64::from);
                         let reach = DVec3::from(d).length() * model.voxel_size;
-                        let bricks = OnceLock::new();
-                        (
-                            Shape::Voxels {
-                                model,
-                                frame,
-                                bricks,
-                            },
-                            reach,
-                        )
+                        (Shape::Voxels { model, frame }, reach)
                     }
                 };
                 Some(Body {
@@ -121,7 +148,10 @@ impl Bodies {
                 })
             })
             .collect();
-        Bodies { bodies }
+        Bodies {
+            bodies,
+            bricks: Arc::clone(bricks),
+        }
     }
 
     /// Whether there is no body.
@@ -168,15 +198,11 @@ impl Bodies {
                         (h.t, h.normal, [c[0], c[1], c[2], 255])
                     })
                 }
-                Shape::Voxels {
-                    model,
-                    frame,
-                    bricks,
-                } => {
+                Shape::Voxels { model, frame } => {
                     let m = &model.frames[*frame];
-                    let bricks = bricks.get_or_init(|| m.bricks());
+                    let bricks = self.bricks.get(m);
                     let ld = model.dir_to_local(d);
-                    let h = dda(bricks, model.to_local(o), ld, t_min, far);
+                    let h = dda(&bricks, model.to_local(o), ld, t_min, far);
                     // Axis 3: the line started in an occupied voxel.
                     h.filter(|h| h.axis < 3).map(|h| {
                         let n = model.dir_to_world(h.normal(ld));

@@ -117,6 +117,8 @@ pub struct CigiIg {
     pub entities_frame: (usize, usize, usize),
     /// The entities drawn this frame, for lines of sight (`cpu::bodies`).
     bodies: crate::cpu::bodies::Bodies,
+    /// The voxel templates' brick tables for lines of sight, made on the first frame.
+    bricks: std::sync::Arc<crate::cpu::bodies::BrickCache>,
     /// The ownship pose was off the terrain (the camera kept its last pose), frames.
     pub off_terrain: u64,
     /// Local time (s since the IG started) the current frame's camera is for.
@@ -187,6 +189,7 @@ impl CigiIg {
             other_entities: 0,
             entities_frame: (0, 0, 0),
             bodies: Default::default(),
+            bricks: Default::default(),
             off_terrain: 0,
             frame_time: 0.0,
             full: None,
@@ -430,7 +433,13 @@ impl CigiIg {
         let t = self.session.host_time_at(self.frame_time);
         let i = crate::world::entity_instances(&self.session, terrain, templates, t);
         self.entities_frame = (i.drawn.len() + i.voxels.len(), i.not_drawn, i.hidden);
-        self.bodies = crate::cpu::bodies::Bodies::of(&i, t);
+        if self.bricks.is_empty() {
+            // Every voxel template's tables, once, before any line needs them mid-run.
+            for m in templates.voxels.iter().flat_map(|v| &v.model.frames) {
+                self.bricks.get(m);
+            }
+        }
+        self.bodies = crate::cpu::bodies::Bodies::of(&i, t, &self.bricks);
         if i.not_drawn > self.other_entities {
             if self.other_entities == 0 {
                 log::warn!(
