@@ -131,7 +131,8 @@ pub struct Instances {
     /// Entities (the ownship left aside) not drawn: no template for their type, off the
     /// terrain (or attached below one that is), or beyond their template's `max`.
     pub not_drawn: usize,
-    /// Inactive entities and those attached below one (hidden).
+    /// Inactive entities, those attached below one and fully transparent ones (alpha 0):
+    /// hidden.
     pub hidden: usize,
     /// Every drawn entity: its ID, where it stands and which of `drawn` or `voxels` it is
     /// (lines of sight against entities, `cpu::bodies`).
@@ -286,7 +287,8 @@ fn conformal(terrain: &Terrain, lat: f64, lon: f64, yaw: f64) -> Option<DMat3> {
 /// template at the entity's placement at host time `t` ([`entity_placement`]: top level or
 /// attached, clamped to the ground or not): origin (a voxel model's bottom centre) there,
 /// rotated by the entity's attitude after the template's own rotation. An entity attached
-/// below an inactive one is hidden with it. The CPU reference draws these objects as the GPU
+/// below an inactive one is hidden with it; an entity whose alpha is 0 (fully transparent) is
+/// hidden (other alphas draw it opaque). The CPU reference draws these objects as the GPU
 /// does.
 pub fn entity_instances(
     session: &Session,
@@ -298,7 +300,7 @@ pub fn entity_instances(
     let mut used = vec![0usize; templates.objects.len()];
     let mut used_voxels = vec![0usize; templates.voxels.len()];
     for e in session.entities().filter(|e| e.id != 0) {
-        if e.state == EntityState::Inactive || hidden_above(session, e.parent) {
+        if e.state == EntityState::Inactive || e.alpha == 0 || hidden_above(session, e.parent) {
             out.hidden += 1;
             continue;
         }

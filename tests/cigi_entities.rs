@@ -291,6 +291,17 @@ fn attached_and_clamped_entities_are_placed_where_the_host_puts_them() {
         (4, 0, 2),
         "drawn, not drawn, hidden (the inactive entity and the one attached to it)"
     );
+    // Fully transparent (alpha 0): hidden too, and lines of sight pass through it.
+    let mut faded = Session::new();
+    let clear = EntityControl {
+        alpha: 0,
+        ..EntityControl::placed(9, 7, t.clamped_at, [0.0; 3])
+    };
+    faded
+        .receive(&message(ig_control(1, None, false), &[clear.into()]), 0.0)
+        .unwrap();
+    let none = relief::world::entity_instances(&faded, terrain, &world.templates, 0.0);
+    assert_eq!((none.drawn.len(), none.hidden), (0, 1));
 
     // Conformal Clamped Entity Control moves the conformal entity: a new position and heading,
     // its altitude, pitch and roll offsets kept from its Entity Control.
