@@ -330,6 +330,34 @@ fn segment_definition(k: u32) -> CollisionSegmentDefinition {
     }
 }
 
+fn volume_definition(k: u32) -> CollisionVolumeDefinition {
+    CollisionVolumeDefinition {
+        entity_id: 23 + k as u16,
+        volume_id: 6 + k as u8,
+        enabled: b(k, 0),
+        cuboid: b(k, 1),
+        x: 2.5 + k as f32,
+        y: -1.25 + k as f32,
+        z: 0.75 + k as f32,
+        radius_height: 4.5 + k as f32,
+        width: 3.25 + k as f32,
+        depth: 11.5 + k as f32,
+        roll: 5.0 + k as f32,
+        pitch: -7.5 + k as f32,
+        yaw: 123.0 + k as f32,
+    }
+}
+
+fn volume_notification(k: u32) -> CollisionVolumeNotification {
+    CollisionVolumeNotification {
+        entity_id: 33 + k as u16,
+        volume_id: 2 + k as u8,
+        entity_contact: b(k, 1),
+        contacted_entity_id: 4343 + k as u16,
+        contacted_volume_id: 8 + k as u8,
+    }
+}
+
 fn collision_notification(k: u32) -> CollisionSegmentNotification {
     CollisionSegmentNotification {
         entity_id: 31 + k as u16,
@@ -368,6 +396,7 @@ fn host_body(k: u32) -> Vec<HostPacket> {
         view_control(k).into(),
         view_definition(k).into(),
         segment_definition(k).into(),
+        volume_definition(k).into(),
         hat_hot_request(k).into(),
         los_segment_request(k).into(),
         los_vector_request(k).into(),
@@ -384,6 +413,7 @@ fn ig_body(k: u32) -> Vec<IgPacket> {
         los_extended_response(k).into(),
         position_response(k).into(),
         collision_notification(k).into(),
+        volume_notification(k).into(),
     ]
 }
 
@@ -470,6 +500,8 @@ fn every_packet_round_trips_in_both_byte_orders() {
             round_trip(&view_definition(k), order);
             round_trip(&segment_definition(k), order);
             round_trip(&collision_notification(k), order);
+            round_trip(&volume_definition(k), order);
+            round_trip(&volume_notification(k), order);
             round_trip(&hat_hot_request(k), order);
             round_trip(&los_segment_request(k), order);
             round_trip(&los_vector_request(k), order);
@@ -503,8 +535,8 @@ fn whole_messages_read_back_in_both_byte_orders() {
             assert_eq!(
                 m.walk,
                 Walk {
-                    packets: 14,
-                    decoded: 14,
+                    packets: 15,
+                    decoded: 15,
                     ..Walk::default()
                 }
             );
@@ -513,7 +545,7 @@ fn whole_messages_read_back_in_both_byte_orders() {
             let mut want: Vec<IgPacket> = vec![start_of_frame(k).into()];
             want.extend(ig_body(k));
             assert_eq!(m.packets, want);
-            assert_eq!(m.walk.decoded, 7);
+            assert_eq!(m.walk.decoded, 8);
         }
     }
 }
@@ -1505,6 +1537,24 @@ fn expect_host(p: &HostPacket, order: ByteOrder) -> Expect {
                 ("material_mask", f64::from(p.material_mask)),
             ],
         ),
+        HostPacket::CollisionVolumeDefinition(p) => fields(
+            "cigi.coll_det_vol_def",
+            &[
+                ("entity_id", f64::from(p.entity_id)),
+                ("volume_id", f64::from(p.volume_id)),
+                ("volume_enable", f(p.enabled)),
+                ("volume_type", f(p.cuboid)),
+                ("x", f64::from(p.x)),
+                ("y", f64::from(p.y)),
+                ("z", f64::from(p.z)),
+                ("radius_height", f64::from(p.radius_height)),
+                ("width", f64::from(p.width)),
+                ("depth", f64::from(p.depth)),
+                ("roll", f64::from(p.roll)),
+                ("pitch", f64::from(p.pitch)),
+                ("yaw", f64::from(p.yaw)),
+            ],
+        ),
         HostPacket::ViewDefinition(p) => fields(
             "cigi.view_def",
             &[
@@ -1701,6 +1751,16 @@ fn expect_ig(p: &IgPacket, order: ByteOrder) -> Expect {
                 ("contacted_entity_id", f64::from(p.contacted_entity_id)),
                 ("material_code", f64::from(p.material_code)),
                 ("intersection_distance", f64::from(p.distance)),
+            ],
+        ),
+        IgPacket::CollisionVolumeNotification(p) => fields(
+            "cigi.coll_det_vol_notification",
+            &[
+                ("entity_id", f64::from(p.entity_id)),
+                ("volume_id", f64::from(p.volume_id)),
+                ("type", f(p.entity_contact)),
+                ("contacted_entity_id", f64::from(p.contacted_entity_id)),
+                ("contacted_volume_id", f64::from(p.contacted_volume_id)),
             ],
         ),
         IgPacket::PositionResponse(p) => fields(

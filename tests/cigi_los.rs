@@ -427,3 +427,93 @@ fn collision_segments_report_the_terrain_and_the_entities_they_meet() {
 fn up(p: [f64; 3], h: f64) -> [f64; 3] {
     [p[0], p[1], p[2] + h]
 }
+
+/// Collision Detection Volumes: each frame the volumes of entities whose collision detection
+/// is on are tested against the other entities' volumes (spheres and cuboids, turned with
+/// their entity and by their own angles), and each overlap is notified to the entity that
+/// asked. Margins of 5 m each way decide every pair.
+#[test]
+fn collision_volumes_report_the_volumes_they_overlap() {
+    let _serial = one_ig_test_at_a_time();
+    let dir = temp_dir("cigi-volumes");
+    let dem = Dem::load();
+    let (served, _, _) = setup(&dir, &dem);
+    let ig = serve(&served, &dir, 2);
+    let a0 = ahead(600.0, 0.0, 0.0);
+    let a = [a0[0], a0[1], dem.height(a0[0], a0[1]) + 500.0];
+    let north = moved(a, 0.0, 100.0);
+    let south = moved(a, 0.0, -100.0);
+    let east = moved(a, 100.0, 0.0);
+    let entity = |id: u16, lla: [f64; 3], detect: bool| -> HostPacket {
+        EntityControl {
+            collision_detection: detect,
+            ..EntityControl::placed(id, 99, lla, [0.0; 3])
+        }
+        .into()
+    };
+    let sphere = |entity_id: u16, volume_id: u8, r: f32| -> HostPacket {
+        CollisionVolumeDefinition {
+            entity_id,
+            volume_id,
+            enabled: true,
+            radius_height: r,
+            ..CollisionVolumeDefinition::default()
+        }
+        .into()
+    };
+    // A box 140 m long (forward), 20 m wide and high; turned by `yaw` from its entity.
+    let bar = |entity_id: u16, volume_id: u8, yaw: f32| -> HostPacket {
+        CollisionVolumeDefinition {
+            entity_id,
+            volume_id,
+            enabled: true,
+            cuboid: true,
+            depth: 140.0,
+            width: 20.0,
+            radius_height: 20.0,
+            yaw,
+            ..CollisionVolumeDefinition::default()
+        }
+        .into()
+    };
+    let own = ownship(CAM, HEADING as f32, -3.0, 0.0);
+    let packets = vec![
+        own.into(),
+        // 50 (heading north): a sphere of 35 m, a bar along its heading, a bar turned east.
+        entity(50, a, true),
+        sphere(50, 1, 35.0),
+        bar(50, 2, 0.0),
+        bar(50, 3, 90.0),
+        // 100 m south, 51: a sphere of 25 m, 5 m short of the bar (centred on 50, it reaches
+        // 70 m each way); 100 m north, 52: 35 m, 5 m into it (detection on too).
+        entity(51, south, false),
+        sphere(51, 1, 25.0),
+        entity(52, north, true),
+        sphere(52, 1, 35.0),
+        // 100 m east: 53, a sphere of 35 m: 5 m into the turned bar.
+        entity(53, east, false),
+        sphere(53, 1, 35.0),
+    ];
+    ig.exchange(&message(ig_control(10, None, false), &packets), 10);
+    let answer = ig.exchange(&message(ig_control(11, None, false), &packets[..1]), 11);
+    ig.finish();
+    let mut got: Vec<[u16; 4]> = answer
+        .packets
+        .iter()
+        .filter_map(|p| match p {
+            IgPacket::CollisionVolumeNotification(n) => {
+                assert!(n.entity_contact, "{n:?}");
+                Some([
+                    n.entity_id,
+                    u16::from(n.volume_id),
+                    n.contacted_entity_id,
+                    u16::from(n.contacted_volume_id),
+                ])
+            }
+            _ => None,
+        })
+        .collect();
+    got.sort();
+    eprintln!("volume notifications: {got:?}");
+    assert_eq!(got, [[50, 2, 52, 1], [50, 3, 53, 1], [52, 1, 50, 2]]);
+}

@@ -89,6 +89,30 @@ cigi_packet! {
 }
 
 cigi_packet! {
+    /// Collision Detection Volume Definition (ID 23, 48 bytes): a sphere or a cuboid fixed to
+    /// an entity (centre at body offsets x forward, y right, z down, metres; a cuboid turned by
+    /// yaw, pitch and roll from the body's axes, `depth` along its x, `width` along y,
+    /// `radius_height` along z) that the IG tests against the other entities' volumes.
+    CollisionVolumeDefinition = CollisionVolumeDefinition {
+        entity_id: u16 = 2,
+        volume_id: u8 = 4,
+        enabled: bool = 5 [0; 1],
+        /// false a sphere, true a cuboid.
+        cuboid: bool = 5 [1; 1],
+        x: f32 = 8,
+        y: f32 = 12,
+        z: f32 = 16,
+        /// A sphere's radius, a cuboid's height.
+        radius_height: f32 = 20,
+        width: f32 = 24,
+        depth: f32 = 28,
+        roll: f32 = 32,
+        pitch: f32 = 36,
+        yaw: f32 = 40,
+    }
+}
+
+cigi_packet! {
     /// Rate Control (ID 8, 32 bytes): linear (m/s) and angular (°/s) rates of an entity or
     /// of one of its articulated parts.
     RateControl = RateControl {

@@ -122,3 +122,16 @@ cigi_packet! {
         distance: f32 = 12,
     }
 }
+
+cigi_packet! {
+    /// Collision Detection Volume Notification (ID 114, 16 bytes): volume `volume_id` of
+    /// `entity_id` overlaps volume `contacted_volume_id` of `contacted_entity_id` this frame.
+    CollisionVolumeNotification = CollisionVolumeNotification {
+        entity_id: u16 = 2,
+        volume_id: u8 = 4,
+        /// true: another entity's volume (the only contact volumes are tested for).
+        entity_contact: bool = 5 [0; 1],
+        contacted_entity_id: u16 = 6,
+        contacted_volume_id: u8 = 8,
+    }
+}

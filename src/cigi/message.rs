@@ -126,7 +126,8 @@ packet_set! {
     HostPacket, HostToIg, IgControl, 4 {
         IgControl, EntityControl, ConformalClampedEntityControl, RateControl,
         CelestialSphereControl, AtmosphereControl,
-        WeatherControl, ViewControl, ViewDefinition, CollisionSegmentDefinition, HatHotRequest,
+        WeatherControl, ViewControl, ViewDefinition, CollisionSegmentDefinition,
+        CollisionVolumeDefinition, HatHotRequest,
         LosSegmentRequest,
         LosVectorRequest, PositionRequest,
     }
@@ -136,7 +137,7 @@ packet_set! {
     /// An IG-to-host packet.
     IgPacket, IgToHost, StartOfFrame, 5 {
         StartOfFrame, HatHotResponse, HatHotExtendedResponse, LosResponse, LosExtendedResponse,
-        PositionResponse, CollisionSegmentNotification,
+        PositionResponse, CollisionSegmentNotification, CollisionVolumeNotification,
     }
 }
 

@@ -51,6 +51,7 @@ kinds! {
     ViewControl = 16, 32, HostToIg, "View Control";
     ViewDefinition = 21, 32, HostToIg, "View Definition";
     CollisionSegmentDefinition = 22, 40, HostToIg, "Collision Detection Segment Definition";
+    CollisionVolumeDefinition = 23, 48, HostToIg, "Collision Detection Volume Definition";
     HatHotRequest = 24, 32, HostToIg, "HAT/HOT Request";
     LosSegmentRequest = 25, 64, HostToIg, "LOS Segment Request";
     LosVectorRequest = 26, 56, HostToIg, "LOS Vector Request";
@@ -62,6 +63,7 @@ kinds! {
     LosExtendedResponse = 105, 56, IgToHost, "LOS Extended Response";
     PositionResponse = 108, 48, IgToHost, "Position Response";
     CollisionSegmentNotification = 113, 16, IgToHost, "Collision Detection Segment Notification";
+    CollisionVolumeNotification = 114, 16, IgToHost, "Collision Detection Volume Notification";
 }
 
 impl Kind {

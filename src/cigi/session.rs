@@ -190,6 +190,8 @@ pub struct Session {
     pub weather: BTreeMap<(u8, u16, u8), WeatherControl>,
     /// Enabled collision detection segments by (entity ID, segment ID).
     segments: BTreeMap<(u16, u8), CollisionSegmentDefinition>,
+    /// Enabled collision detection volumes by (entity ID, volume ID).
+    volumes: BTreeMap<(u16, u8), CollisionVolumeDefinition>,
     queries: VecDeque<Query>,
 }
 
@@ -295,6 +297,7 @@ impl Session {
                 }
             }
             HostPacket::CollisionSegmentDefinition(p) => self.segment_definition(p),
+            HostPacket::CollisionVolumeDefinition(p) => self.volume_definition(p),
             HostPacket::ViewDefinition(p) => {
                 if let Some(v) = self.view_mut(p.view_id) {
                     v.definition = Some(*p);
@@ -365,6 +368,37 @@ impl Session {
         self.counters.destroyed += (before - self.entities.len()) as u64;
         self.queries.clear();
         self.segments.retain(|&(id, _), _| id == 0);
+        self.volumes.retain(|&(id, _), _| id == 0);
+    }
+
+    /// Collision Detection Volume Definition: kept, dropped and counted as segments are
+    /// ([`MAX_SEGMENTS`] volumes at most); a negative or non-finite size is invalid.
+    fn volume_definition(&mut self, p: &CollisionVolumeDefinition) {
+        let v = [p.x, p.y, p.z, p.roll, p.pitch, p.yaw];
+        let sizes = [p.radius_height, p.width, p.depth];
+        let sizes_ok = sizes.iter().all(|s| s.is_finite() && *s >= 0.0);
+        if !v.iter().all(|x| x.is_finite()) || !sizes_ok {
+            self.counters.invalid_values += 1;
+            return;
+        }
+        let key = (p.entity_id, p.volume_id);
+        if !p.enabled {
+            self.volumes.remove(&key);
+        } else if self.volumes.len() < MAX_SEGMENTS || self.volumes.contains_key(&key) {
+            self.volumes.insert(key, *p);
+        } else {
+            self.counters.refused_capacity += 1;
+        }
+    }
+
+    /// The collision detection volumes of active entities: `(volume, whether its entity's
+    /// collision detection is on)` — those with it on are tested against every other
+    /// entity's.
+    pub fn collision_volumes(&self) -> impl Iterator<Item = (&CollisionVolumeDefinition, bool)> {
+        self.volumes.values().filter_map(|v| {
+            let e = self.entities.get(&v.entity_id)?;
+            (e.state == EntityState::Active).then_some((v, e.collision_detection))
+        })
     }
 
     /// Collision Detection Segment Definition: an enabled segment is kept (replacing the
@@ -502,6 +536,7 @@ impl Session {
             k += 1;
         }
         self.segments.retain(|&(id, _), _| !gone.contains(&id));
+        self.volumes.retain(|&(id, _), _| !gone.contains(&id));
     }
 
     /// Conformal Clamped Entity Control: a new sample of an existing top-level entity with

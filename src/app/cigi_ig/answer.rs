@@ -54,12 +54,13 @@ use crate::cpu::database::FullResolution;
 use crate::cpu::query::cast_ray;
 use crate::db::{Prefetcher, ResidentOnly, TileId};
 use crate::terrain::Terrain;
+pub use collide::{segment_collisions, volume_collisions};
 use glam::DVec3;
 pub use ground::{azimuth_elevation, direction, height_of_terrain, Ground};
 use ground::{lsn, request_point, world, EntityFrame};
-pub use los::collisions;
 use los::{los_segment, los_vector, SegmentFrames};
 
+mod collide;
 mod ground;
 mod los;
 

@@ -511,9 +511,10 @@ impl CigiIg {
         true
     }
 
-    /// This frame's Collision Detection Segment Notifications onto `msg`
-    /// ([`answer::collisions`]); on a database scene from resident tiles only, the tiles a
-    /// segment misses handed to the prefetcher (that segment is tested again next frame).
+    /// This frame's Collision Detection Segment and Volume Notifications onto `msg`
+    /// ([`answer::segment_collisions`], [`answer::volume_collisions`]); on a database scene the
+    /// segments from resident tiles only, the tiles a segment misses handed to the prefetcher
+    /// (that segment is tested again next frame).
     fn collide(&self, terrain: &Terrain, host_t: f64, msg: &mut MessageBuilder) -> u64 {
         match (&self.full, &self.deferral) {
             (Some(full), Some(d)) => {
@@ -523,9 +524,9 @@ impl CigiIg {
                     full: Some((full, &tiles)),
                     bodies: &self.bodies,
                 };
-                let n = answer::collisions(&g, &self.session, host_t, msg);
+                let n = answer::segment_collisions(&g, &self.session, host_t, msg);
                 d.prefetcher().request(tiles.missing());
-                n
+                n + answer::volume_collisions(&g, &self.session, host_t, msg)
             }
             _ => {
                 let g = answer::Ground {
@@ -533,7 +534,8 @@ impl CigiIg {
                     full: None,
                     bodies: &self.bodies,
                 };
-                answer::collisions(&g, &self.session, host_t, msg)
+                answer::segment_collisions(&g, &self.session, host_t, msg)
+                    + answer::volume_collisions(&g, &self.session, host_t, msg)
             }
         }
     }

@@ -51,9 +51,9 @@ pub fn direction(t: &Terrain, az: f64, el: f64) -> DVec3 {
 /// An entity's body frame at the frame's host time, for requests given in it.
 pub(super) struct EntityFrame {
     /// Geodetic position of its origin.
-    origin: [f64; 3],
+    pub(super) origin: [f64; 3],
     /// Columns right, forward, up in east-north-up (`geom::attitude_matrix`).
-    attitude: glam::DMat3,
+    pub(super) attitude: glam::DMat3,
 }
 
 impl EntityFrame {

@@ -4,8 +4,7 @@
 
 use super::ground::{azimuth_elevation, direction, lsn, request_point, world, EntityFrame, Ground};
 use crate::cigi::{
-    CollisionSegmentNotification, LosExtendedResponse, LosResponse, LosSegmentRequest,
-    LosVectorRequest, MessageBuilder, Session,
+    LosExtendedResponse, LosResponse, LosSegmentRequest, LosVectorRequest, MessageBuilder,
 };
 use crate::cpu::bodies::{self, Bodies, BodyHit};
 use crate::cpu::query::{cast_ray, line_of_sight};
@@ -294,61 +293,4 @@ fn vector_body(
     let enu = DVec3::new(a.sin() * e.cos(), a.cos() * e.cos(), e.sin());
     let d = bodies::enu_at(from) * enu;
     bodies.first_hit(bodies::ecef(from), d, [near, far], None)
-}
-
-/// One Collision Detection Segment Notification for each of this frame's segments
-/// (`Session::collision_segments`) that meets the terrain or another drawn entity, onto `msg`:
-/// the segment's points placed through its entity's body frame at host time `now_host`, the
-/// first surface from its first point (distance 0 where that point lies under the terrain).
-/// Segments whose entity cannot be placed, or (database scenes) whose tiles are not in memory,
-/// are skipped this frame. Returns how many were sent.
-pub fn collisions(g: &Ground, session: &Session, now_host: f64, msg: &mut MessageBuilder) -> u64 {
-    let mut sent = 0;
-    for s in session.collision_segments() {
-        let Some(frame) = EntityFrame::of(g, session, s.entity_id, now_host) else {
-            continue;
-        };
-        let f = |v: [f32; 3]| v.map(f64::from);
-        let ga = frame.point(f([s.x1, s.y1, s.z1]));
-        let gb = frame.point(f([s.x2, s.y2, s.z2]));
-        let window = g.window(ga, gb);
-        let t = match &window {
-            Some(Ok(w)) => w,
-            Some(Err(())) => continue,
-            None => g.terrain,
-        };
-        let Some((a, b)) = world(t, ga).zip(world(t, gb)) else {
-            continue;
-        };
-        let len = (b - a).length();
-        if len <= 0.0 {
-            continue;
-        }
-        let ground = if t.height_above(a).is_some_and(|h| h < 0.0) {
-            Some(0.0)
-        } else {
-            cast_ray(t, a, (b - a) / len, 0.0, len).map(|h| h.t)
-        };
-        let (ea, eb) = (bodies::ecef(ga), bodies::ecef(gb));
-        let elen = (eb - ea).length();
-        let body = g
-            .bodies
-            .first_hit(ea, (eb - ea) / elen, [0.0, elen], Some(s.entity_id))
-            .filter(|b| ground.is_none_or(|t| b.t < t));
-        let (distance, contact) = match (body, ground) {
-            (Some(b), _) => (b.t, Some(b.id)),
-            (None, Some(t)) => (t, None),
-            (None, None) => continue,
-        };
-        msg.push(&CollisionSegmentNotification {
-            entity_id: s.entity_id,
-            segment_id: s.segment_id,
-            entity_contact: contact.is_some(),
-            contacted_entity_id: contact.unwrap_or(0),
-            material_code: 0,
-            distance: distance as f32,
-        });
-        sent += 1;
-    }
-    sent
 }

@@ -1,0 +1,152 @@
+//! Collision detection for the host: each frame the segments and volumes of entities whose
+//! collision detection is on (Entity Control's bit) are tested, segments against the terrain
+//! and the entities drawn, volumes against the other entities' volumes, and each contact is
+//! notified (CIGI's Collision Detection Segment and Volume Notifications).
+
+use super::ground::{world, EntityFrame, Ground};
+use crate::cigi::{
+    CollisionSegmentNotification, CollisionVolumeDefinition, CollisionVolumeNotification,
+    MessageBuilder, Session,
+};
+use crate::cpu::bodies;
+use crate::cpu::contact::{euler_axes, overlap, Solid};
+use crate::cpu::query::cast_ray;
+use glam::{DMat3, DVec3};
+
+/// One Collision Detection Segment Notification for each of this frame's segments
+/// (`Session::collision_segments`) that meets the terrain or another drawn entity, onto `msg`:
+/// the segment's points placed through its entity's body frame at host time `now_host`, the
+/// first surface from its first point (distance 0 where that point lies under the terrain).
+/// Segments whose entity cannot be placed, or (database scenes) whose tiles are not in memory,
+/// are skipped this frame. Returns how many were sent.
+pub fn segment_collisions(
+    g: &Ground,
+    session: &Session,
+    now_host: f64,
+    msg: &mut MessageBuilder,
+) -> u64 {
+    let mut sent = 0;
+    for s in session.collision_segments() {
+        let Some(frame) = EntityFrame::of(g, session, s.entity_id, now_host) else {
+            continue;
+        };
+        let f = |v: [f32; 3]| v.map(f64::from);
+        let ga = frame.point(f([s.x1, s.y1, s.z1]));
+        let gb = frame.point(f([s.x2, s.y2, s.z2]));
+        let window = g.window(ga, gb);
+        let t = match &window {
+            Some(Ok(w)) => w,
+            Some(Err(())) => continue,
+            None => g.terrain,
+        };
+        let Some((a, b)) = world(t, ga).zip(world(t, gb)) else {
+            continue;
+        };
+        let len = (b - a).length();
+        if len <= 0.0 {
+            continue;
+        }
+        let ground = if t.height_above(a).is_some_and(|h| h < 0.0) {
+            Some(0.0)
+        } else {
+            cast_ray(t, a, (b - a) / len, 0.0, len).map(|h| h.t)
+        };
+        let (ea, eb) = (bodies::ecef(ga), bodies::ecef(gb));
+        let elen = (eb - ea).length();
+        let body = g
+            .bodies
+            .first_hit(ea, (eb - ea) / elen, [0.0, elen], Some(s.entity_id))
+            .filter(|b| ground.is_none_or(|t| b.t < t));
+        let (distance, contact) = match (body, ground) {
+            (Some(b), _) => (b.t, Some(b.id)),
+            (None, Some(t)) => (t, None),
+            (None, None) => continue,
+        };
+        msg.push(&CollisionSegmentNotification {
+            entity_id: s.entity_id,
+            segment_id: s.segment_id,
+            entity_contact: contact.is_some(),
+            contacted_entity_id: contact.unwrap_or(0),
+            material_code: 0,
+            distance: distance as f32,
+        });
+        sent += 1;
+    }
+    sent
+}
+
+/// A volume placed: its entity, its ID, whether its entity's detection is on, its solid.
+struct Placed {
+    entity: u16,
+    id: u8,
+    source: bool,
+    solid: Solid,
+}
+
+/// The solid of volume `v` of the entity whose body frame is `f`, in ECEF.
+fn solid(f: &EntityFrame, v: &CollisionVolumeDefinition) -> Solid {
+    let centre = bodies::ecef(f.point([v.x, v.y, v.z].map(f64::from)));
+    // Body axes (x forward, y right, z down) in ECEF.
+    let enu = bodies::enu_at(f.origin);
+    let m = &f.attitude;
+    let body = DMat3::from_cols(enu * m.y_axis, enu * m.x_axis, -(enu * m.z_axis));
+    if !v.cuboid {
+        return Solid::Sphere {
+            centre,
+            radius: f64::from(v.radius_height),
+        };
+    }
+    let turn = euler_axes(f64::from(v.yaw), f64::from(v.pitch), f64::from(v.roll));
+    Solid::Cuboid {
+        centre,
+        axes: body * turn,
+        half: DVec3::new(
+            f64::from(v.depth),
+            f64::from(v.width),
+            f64::from(v.radius_height),
+        ) * 0.5,
+    }
+}
+
+/// One Collision Detection Volume Notification for each pair of overlapping volumes of two
+/// entities, to the entity whose detection is on (both, each its own, where both are), onto
+/// `msg`: volumes placed through their entities' body frames at host time `now_host`. Returns
+/// how many were sent.
+pub fn volume_collisions(
+    g: &Ground,
+    session: &Session,
+    now_host: f64,
+    msg: &mut MessageBuilder,
+) -> u64 {
+    let mut frames = std::collections::BTreeMap::new();
+    let mut placed = Vec::new();
+    for (v, source) in session.collision_volumes() {
+        let frame = frames
+            .entry(v.entity_id)
+            .or_insert_with(|| EntityFrame::of(g, session, v.entity_id, now_host));
+        if let Some(f) = frame {
+            placed.push(Placed {
+                entity: v.entity_id,
+                id: v.volume_id,
+                source,
+                solid: solid(f, v),
+            });
+        }
+    }
+    let mut sent = 0;
+    for a in placed.iter().filter(|a| a.source) {
+        for b in placed.iter().filter(|b| b.entity != a.entity) {
+            if overlap(&a.solid, &b.solid) {
+                msg.push(&CollisionVolumeNotification {
+                    entity_id: a.entity,
+                    volume_id: a.id,
+                    entity_contact: true,
+                    contacted_entity_id: b.entity,
+                    contacted_volume_id: b.id,
+                });
+                sent += 1;
+            }
+        }
+    }
+    sent
+}
