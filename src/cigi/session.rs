@@ -382,13 +382,8 @@ impl Session {
             return;
         }
         let key = (p.entity_id, p.volume_id);
-        if !p.enabled {
-            self.volumes.remove(&key);
-        } else if self.volumes.len() < MAX_SEGMENTS || self.volumes.contains_key(&key) {
-            self.volumes.insert(key, *p);
-        } else {
-            self.counters.refused_capacity += 1;
-        }
+        let enabled = p.enabled.then_some(*p);
+        keep(&mut self.volumes, key, enabled, &mut self.counters);
     }
 
     /// The collision detection volumes of active entities: `(volume, whether its entity's
@@ -411,13 +406,8 @@ impl Session {
             return;
         }
         let key = (p.entity_id, p.segment_id);
-        if !p.enabled {
-            self.segments.remove(&key);
-        } else if self.segments.len() < MAX_SEGMENTS || self.segments.contains_key(&key) {
-            self.segments.insert(key, *p);
-        } else {
-            self.counters.refused_capacity += 1;
-        }
+        let enabled = p.enabled.then_some(*p);
+        keep(&mut self.segments, key, enabled, &mut self.counters);
     }
 
     /// The collision detection segments to test this frame: enabled, of an active entity
@@ -663,5 +653,25 @@ impl Session {
             last_host_frame: self.host_frame.unwrap_or(0),
         };
         MessageBuilder::ig(&sof, ByteOrder::Big)
+    }
+}
+
+/// A collision definition under `key`: kept where `value` is given (an enabled definition,
+/// replacing the one of that key; a new key refused at [`MAX_SEGMENTS`], counted), dropped
+/// where it is not (disabled).
+fn keep<T>(
+    map: &mut BTreeMap<(u16, u8), T>,
+    key: (u16, u8),
+    value: Option<T>,
+    counters: &mut Counters,
+) {
+    match value {
+        None => {
+            map.remove(&key);
+        }
+        Some(v) if map.len() < MAX_SEGMENTS || map.contains_key(&key) => {
+            map.insert(key, v);
+        }
+        Some(_) => counters.refused_capacity += 1,
     }
 }
