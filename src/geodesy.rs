@@ -57,6 +57,17 @@ pub fn to_ecef(p: Geodetic) -> DVec3 {
     )
 }
 
+/// ECEF position of geodetic `[lat, lon, height]` (degrees, metres): [`to_ecef`] of an array.
+pub fn ecef_of([lat, lon, height]: [f64; 3]) -> DVec3 {
+    to_ecef(Geodetic { lat, lon, height })
+}
+
+/// Geodetic `[lat, lon, height]` of ECEF `x`: [`from_ecef`] as an array.
+pub fn lla_of(x: DVec3) -> [f64; 3] {
+    let g = from_ecef(x);
+    [g.lat, g.lon, g.height]
+}
+
 /// Geodetic coordinates of an ECEF position: Bowring's formula, then four fixed-point steps
 /// `φ = atan(z / (p·(1 − e²·N/(N + h))))` (below a micrometre for heights from −100 km to the
 /// Moon's distance; tested to 1e-6 m from −10 km to 1000 km).

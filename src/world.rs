@@ -174,26 +174,15 @@ pub struct Placement {
 /// above mean sea level taken as above the ellipsoid: their difference is what counts).
 pub fn body_point(origin: [f64; 3], m: &DMat3, [x, y, z]: [f64; 3]) -> [f64; 3] {
     let enu = m.y_axis * x + m.x_axis * y - m.z_axis * z;
-    let o = geodesy::Geodetic {
-        lat: origin[0],
-        lon: origin[1],
-        height: origin[2],
-    };
-    let g = geodesy::from_ecef(geodesy::to_ecef(o) + geodesy::enu_basis(o.lat, o.lon) * enu);
-    [g.lat, g.lon, g.height]
+    let at = geodesy::ecef_of(origin) + geodesy::enu_basis(origin[0], origin[1]) * enu;
+    geodesy::lla_of(at)
 }
 
 /// The body offsets `[x forward, y right, z down]` of geodetic `lla` from a body at `origin`
 /// with attitude `m` (the inverse of [`body_point`]).
 pub fn body_offsets(origin: [f64; 3], m: &DMat3, lla: [f64; 3]) -> [f64; 3] {
-    let ecef = |p: [f64; 3]| {
-        geodesy::to_ecef(geodesy::Geodetic {
-            lat: p[0],
-            lon: p[1],
-            height: p[2],
-        })
-    };
-    let d = geodesy::enu_basis(origin[0], origin[1]).transpose() * (ecef(lla) - ecef(origin));
+    let d = geodesy::enu_basis(origin[0], origin[1]).transpose()
+        * (geodesy::ecef_of(lla) - geodesy::ecef_of(origin));
     [d.dot(m.y_axis), d.dot(m.x_axis), -d.dot(m.z_axis)]
 }
 

@@ -8,28 +8,12 @@ use super::freeform::{intersect, CPU_LEVELS};
 use super::voxel::dda;
 use crate::colour::linear_to_srgb8;
 use crate::freeform::FreeForm;
-use crate::geodesy::{self, Geodetic};
+use crate::geodesy::{ecef_of, enu_basis};
 use crate::voxel::{Bricks, VoxelInstance, VoxelModel};
 use crate::world::{BodyShape, Instances};
 use glam::{DMat3, DVec3};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
-
-/// ECEF position of geodetic `[lat, lon, height]` (degrees, metres).
-pub fn ecef([lat, lon, height]: [f64; 3]) -> DVec3 {
-    geodesy::to_ecef(Geodetic { lat, lon, height })
-}
-
-/// Geodetic `[lat, lon, height]` of ECEF `x`.
-pub fn geodetic(x: DVec3) -> [f64; 3] {
-    let g = geodesy::from_ecef(x);
-    [g.lat, g.lon, g.height]
-}
-
-/// The east-north-up basis at geodetic `p` (columns east, north, up in ECEF).
-pub fn enu_at(p: [f64; 3]) -> DMat3 {
-    geodesy::enu_basis(p[0], p[1])
-}
 
 /// Brick tables of voxel models for their lines of sight, made once per model (a model's
 /// table costs 0.3–0.4 s for the 13–14 M-cell grids of `axes.vox` and `tree.vox`) and kept
@@ -114,8 +98,8 @@ impl Bodies {
         let bodies = (instances.bodies.iter())
             .filter_map(|b| {
                 let p = &b.placement;
-                let origin = ecef(p.geodetic);
-                let enu = enu_at(p.geodetic);
+                let origin = ecef_of(p.geodetic);
+                let enu = enu_basis(p.geodetic[0], p.geodetic[1]);
                 let (shape, reach) = match b.shape {
                     BodyShape::Object(k) => {
                         let (_, ff) = instances.drawn.get(k)?;

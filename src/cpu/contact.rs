@@ -80,35 +80,21 @@ fn boxes_overlap(ca: DVec3, aa: &DMat3, ha: DVec3, cb: DVec3, ab: &DMat3, hb: DV
             + half.y * axes[1].dot(l).abs()
             + half.z * axes[2].dot(l).abs()
     };
-    let mut candidates = Vec::with_capacity(15);
-    candidates.extend(a);
-    candidates.extend(b);
-    for u in a {
-        for v in b {
-            let c = u.cross(v);
-            // Parallel edges: the face normals above already decide.
-            if c.length_squared() > 1e-12 {
-                candidates.push(c.normalize());
-            }
-        }
+    let mut axes = [DVec3::ZERO; 15];
+    axes[..3].copy_from_slice(&a);
+    axes[3..6].copy_from_slice(&b);
+    for (k, (u, v)) in a
+        .iter()
+        .flat_map(|u| b.iter().map(move |v| (u, v)))
+        .enumerate()
+    {
+        axes[6 + k] = u.cross(*v);
     }
-    candidates
-        .into_iter()
+    // Parallel edges give no cross product: the face normals decide there.
+    axes.iter()
+        .filter(|l| l.length_squared() > 1e-12)
+        .map(|l| l.normalize())
         .all(|l| d.dot(l).abs() <= radius(&a, ha, l) + radius(&b, hb, l))
-}
-
-/// Columns: the x, y and z axes of a frame turned by `yaw`, `pitch` and `roll` (degrees, in
-/// that order, as CIGI's Euler angles) from its parent's x forward, y right, z down axes,
-/// expressed in the parent's axes.
-pub fn euler_axes(yaw: f64, pitch: f64, roll: f64) -> DMat3 {
-    let (sy, cy) = yaw.to_radians().sin_cos();
-    let (sp, cp) = pitch.to_radians().sin_cos();
-    let (sr, cr) = roll.to_radians().sin_cos();
-    DMat3::from_cols(
-        DVec3::new(cp * cy, cp * sy, -sp),
-        DVec3::new(sr * sp * cy - cr * sy, sr * sp * sy + cr * cy, sr * cp),
-        DVec3::new(cr * sp * cy + sr * sy, cr * sp * sy - sr * cy, cr * cp),
-    )
 }
 
 #[cfg(test)]
@@ -175,15 +161,5 @@ mod tests {
             overlap(&under, &edge(2.0 * 2f64.sqrt() - 0.05)),
             "crossed edge on"
         );
-    }
-
-    #[test]
-    fn euler_axes_turn_forward_to_the_heading() {
-        let m = euler_axes(90.0, 0.0, 0.0);
-        // Yaw 90°: forward (x) points right (the parent's y).
-        assert!((m.x_axis - DVec3::Y).length() < 1e-12);
-        let m = euler_axes(0.0, 30.0, 0.0);
-        // Pitch up: forward rises, which is −z (z is down).
-        assert!((m.x_axis.z + 0.5).abs() < 1e-12);
     }
 }

@@ -553,7 +553,7 @@ impl CigiIg {
             self.session.take_queries()
         };
         let host_t = self.session.host_time_at(now);
-        let c = match (&self.full, &mut self.deferral) {
+        let mut c = match (&self.full, &mut self.deferral) {
             (Some(full), Some(d)) => {
                 // The host frame this IG frame answers for (the last IG Control received).
                 let answering = self.session.host_frame.unwrap_or(0);
@@ -575,7 +575,6 @@ impl CigiIg {
                 answer::answer(&ground, &self.session, &queries, host_t, &mut msg)
             }
         };
-        let mut c = c;
         if !kept_only {
             c.collisions = self.collide(terrain, host_t, &mut msg);
         }

@@ -8,9 +8,10 @@ use crate::cigi::{
     CollisionSegmentNotification, CollisionVolumeDefinition, CollisionVolumeNotification,
     MessageBuilder, Session,
 };
-use crate::cpu::bodies;
-use crate::cpu::contact::{euler_axes, overlap, Solid};
+use crate::cpu::contact::{overlap, Solid};
 use crate::cpu::query::cast_ray;
+use crate::geodesy::{ecef_of, enu_basis};
+use crate::geom::attitude_matrix;
 use glam::{DMat3, DVec3};
 
 /// One Collision Detection Segment Notification for each of this frame's segments
@@ -51,7 +52,7 @@ pub fn segment_collisions(
         } else {
             cast_ray(t, a, (b - a) / len, 0.0, len).map(|h| h.t)
         };
-        let (ea, eb) = (bodies::ecef(ga), bodies::ecef(gb));
+        let (ea, eb) = (ecef_of(ga), ecef_of(gb));
         let elen = (eb - ea).length();
         let body = g
             .bodies
@@ -83,23 +84,24 @@ struct Placed {
     solid: Solid,
 }
 
-/// The solid of volume `v` of the entity whose body frame is `f`, in ECEF.
+/// The solid of volume `v` of the entity whose body frame is `f`, in ECEF: a cuboid turned by
+/// its yaw, pitch and roll from the body as an attached entity turns from its parent
+/// (`world::entity_placement`).
 fn solid(f: &EntityFrame, v: &CollisionVolumeDefinition) -> Solid {
-    let centre = bodies::ecef(f.point([v.x, v.y, v.z].map(f64::from)));
-    // Body axes (x forward, y right, z down) in ECEF.
-    let enu = bodies::enu_at(f.origin);
-    let m = &f.attitude;
-    let body = DMat3::from_cols(enu * m.y_axis, enu * m.x_axis, -(enu * m.z_axis));
+    let centre = ecef_of(f.point([v.x, v.y, v.z].map(f64::from)));
     if !v.cuboid {
         return Solid::Sphere {
             centre,
             radius: f64::from(v.radius_height),
         };
     }
-    let turn = euler_axes(f64::from(v.yaw), f64::from(v.pitch), f64::from(v.roll));
+    let [yaw, pitch, roll] = [v.yaw, v.pitch, v.roll].map(f64::from);
+    // Columns right, forward, up in east-north-up; the box's x forward, y right, z down.
+    let m = f.attitude * attitude_matrix(yaw, pitch, roll);
+    let enu = enu_basis(f.origin[0], f.origin[1]);
     Solid::Cuboid {
         centre,
-        axes: body * turn,
+        axes: DMat3::from_cols(enu * m.y_axis, enu * m.x_axis, -(enu * m.z_axis)),
         half: DVec3::new(
             f64::from(v.depth),
             f64::from(v.width),

@@ -6,9 +6,10 @@ use super::ground::{azimuth_elevation, direction, lsn, request_point, world, Ent
 use crate::cigi::{
     LosExtendedResponse, LosResponse, LosSegmentRequest, LosVectorRequest, MessageBuilder,
 };
-use crate::cpu::bodies::{self, Bodies, BodyHit};
+use crate::cpu::bodies::{Bodies, BodyHit};
 use crate::cpu::query::{cast_ray, line_of_sight};
 use crate::cpu::Hit;
+use crate::geodesy::{ecef_of, enu_basis, lla_of};
 use crate::terrain::Terrain;
 use glam::DVec3;
 
@@ -64,7 +65,7 @@ pub(super) struct SegmentFrames<'a> {
 
 /// Azimuth from true north and elevation (degrees) of ECEF unit vector `v` at geodetic `at`.
 fn ecef_azimuth_elevation(at: [f64; 3], v: DVec3) -> (f64, f64) {
-    let enu = bodies::enu_at(at).transpose() * v;
+    let enu = enu_basis(at[0], at[1]).transpose() * v;
     (
         enu.x.atan2(enu.y).to_degrees(),
         enu.z.clamp(-1.0, 1.0).asin().to_degrees(),
@@ -93,7 +94,7 @@ fn push_los(t: &Terrain, a: &LosAnswer, frame: u32, los: &Los, msg: &mut Message
             rgba[3] = 255;
         }
         if let Some(b) = &los.body {
-            lla = bodies::geodetic(b.point);
+            lla = lla_of(b.point);
             (az, el) = ecef_azimuth_elevation(lla, b.normal);
             rgba = b.colour;
         }
@@ -269,7 +270,7 @@ fn segment_body(bodies: &Bodies, a: [f64; 3], b: [f64; 3]) -> Option<BodyHit> {
     if bodies.is_empty() {
         return None;
     }
-    let (a, b) = (bodies::ecef(a), bodies::ecef(b));
+    let (a, b) = (ecef_of(a), ecef_of(b));
     let len = (b - a).length();
     (len > 0.0)
         .then(|| bodies.first_hit(a, (b - a) / len, [0.0, len], None))
@@ -291,6 +292,6 @@ fn vector_body(
     }
     let (a, e) = (az.to_radians(), el.to_radians());
     let enu = DVec3::new(a.sin() * e.cos(), a.cos() * e.cos(), e.sin());
-    let d = bodies::enu_at(from) * enu;
-    bodies.first_hit(bodies::ecef(from), d, [near, far], None)
+    let d = enu_basis(from[0], from[1]) * enu;
+    bodies.first_hit(ecef_of(from), d, [near, far], None)
 }
