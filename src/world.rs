@@ -143,6 +143,9 @@ pub struct Instances {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Body {
     pub id: u16,
+    /// The entity's alpha (Entity Control; 1–255: drawn opaque, lines of sight compare it
+    /// with their alpha threshold).
+    pub alpha: u8,
     pub placement: Placement,
     pub shape: BodyShape,
 }
@@ -303,6 +306,7 @@ pub fn entity_instances(
                 used[k] += 1;
                 out.bodies.push(Body {
                     id: e.id,
+                    alpha: e.alpha,
                     placement,
                     shape: BodyShape::Object(out.drawn.len()),
                 });
@@ -322,6 +326,7 @@ pub fn entity_instances(
                 used_voxels[k] += 1;
                 out.bodies.push(Body {
                     id: e.id,
+                    alpha: e.alpha,
                     placement,
                     shape: BodyShape::Voxels(out.voxels.len()),
                 });

@@ -118,22 +118,25 @@ fn setup(dir: &std::path::Path, dem: &Dem) -> (std::path::PathBuf, [f64; 3], [f6
 
 /// `relief serve` of `scene` at 160x120 for `frames` frames, synchronous.
 fn serve(scene: &std::path::Path, dir: &std::path::Path, frames: u32) -> Ig {
+    serve_with(scene, dir, frames, &[])
+}
+
+/// [`serve`] with `extra` arguments.
+fn serve_with(scene: &std::path::Path, dir: &std::path::Path, frames: u32, extra: &[&str]) -> Ig {
     let n = frames.to_string();
     let out = dir.join("frames");
-    Ig::start(
-        scene,
-        &[
-            "--size",
-            "160x120",
-            "--no-shadows",
-            "--cigi-sync",
-            "--frames",
-            &n,
-            "--capture-frames",
-            out.to_str().unwrap(),
-        ],
-        host_socket(),
-    )
+    let mut args = vec![
+        "--size",
+        "160x120",
+        "--no-shadows",
+        "--cigi-sync",
+        "--frames",
+        &n,
+        "--capture-frames",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    Ig::start(scene, &args, host_socket())
 }
 
 #[test]
@@ -338,6 +341,124 @@ fn lines_of_sight_meet_the_entities_the_ig_draws() {
         [vox.red, vox.green, vox.blue, vox.alpha],
         voxel_truth.colour
     );
+}
+
+/// `--cigi-los every`: a line of sight is answered with one response for every surface it
+/// meets, nearest first, each saying how many there are; the request's alpha threshold lets
+/// it through entities fainter than the threshold (an entity's alpha scales its surfaces').
+/// Two spheres one above the other over the terrain, the upper one at alpha 100; truths
+/// solved in ECEF as above, the terrain's from the DEM.
+#[test]
+fn every_intersection_is_answered_and_the_alpha_threshold_lets_lines_through() {
+    let _serial = one_ig_test_at_a_time();
+    let dir = temp_dir("cigi-los-every");
+    let dem = Dem::load();
+    let (served, sphere, _) = setup(&dir, &dem);
+    let faint = up(sphere, 120.0);
+    let ig = serve_with(&served, &dir, 2, &["--cigi-los", "every"]);
+    let own = ownship(CAM, HEADING as f32, -3.0, 0.0);
+    let entities: Vec<HostPacket> = vec![
+        own.into(),
+        EntityControl::placed(30, 9, sphere, [0.0; 3]).into(),
+        EntityControl {
+            alpha: 100,
+            ..EntityControl::placed(32, 9, faint, [0.0; 3])
+        }
+        .into(),
+    ];
+    ig.exchange(&message(ig_control(10, None, false), &entities), 10);
+    let (top, bottom) = (up(sphere, 500.0), up(sphere, -500.0));
+    let threshold = |r: LosSegmentRequest, alpha: u8| LosSegmentRequest {
+        alpha_threshold: alpha,
+        ..r
+    };
+    let sky = moved(up(sphere, 1000.0), 300.0, 0.0);
+    let mut asked = entities.clone();
+    asked.extend([
+        HostPacket::from(segment(1, true, top, bottom)),
+        threshold(segment(2, true, top, bottom), 101).into(),
+        segment(3, false, top, bottom).into(),
+        threshold(segment(5, true, top, bottom), 255).into(),
+        segment(6, true, sky, moved(sky, 500.0, 0.0)).into(),
+        LosVectorRequest {
+            request_id: 4,
+            extended: true,
+            alpha_threshold: 100,
+            azimuth: 0.0,
+            elevation: -90.0,
+            min_range: 0.0,
+            max_range: 1000.0,
+            source_lat: top[0],
+            source_lon: top[1],
+            source_alt: top[2],
+            ..LosVectorRequest::default()
+        }
+        .into(),
+    ]);
+    let answer = ig.exchange(&message(ig_control(11, None, false), &asked), 11);
+    ig.finish();
+
+    let extended = |id: u16| -> Vec<LosExtendedResponse> {
+        (answer.packets.iter())
+            .filter_map(|p| match p {
+                IgPacket::LosExtendedResponse(r) if r.request_id == id => Some(*r),
+                _ => None,
+            })
+            .collect()
+    };
+    let faint_truth = segment_truth(top, bottom, faint).unwrap();
+    let sphere_truth = segment_truth(top, bottom, sphere).unwrap();
+    // Each response of a request: the entity met (0: the terrain), in the order sent.
+    let check = |id: u16, rs: &[LosExtendedResponse], entities: &[u16]| {
+        let got: Vec<(u16, f64)> = rs.iter().map(|r| (r.entity_id, r.range)).collect();
+        eprintln!("request {id}: {got:?}");
+        assert_eq!(rs.len(), entities.len(), "request {id}: {rs:?}");
+        for (r, &e) in rs.iter().zip(entities) {
+            assert_eq!(usize::from(r.count), entities.len(), "{r:?}");
+            assert!(r.valid && r.range_valid && !r.visible, "{r:?}");
+            assert_eq!(r.entity_valid, e != 0, "{r:?}");
+            assert_eq!(r.entity_id, e, "request {id}: {got:?}");
+            let truth = match e {
+                32 => faint_truth,
+                30 => sphere_truth,
+                _ => {
+                    let ground = dem.height(r.lat, r.lon);
+                    assert!((r.alt - ground).abs() < 0.5, "{} against {ground}", r.alt);
+                    continue;
+                }
+            };
+            assert!((r.range - truth).abs() < 0.01, "{r:?} against {truth}");
+            assert_eq!(r.alpha, if e == 32 { 100 } else { 255 }, "{r:?}");
+        }
+        assert!(
+            rs.windows(2).all(|w| w[0].range < w[1].range),
+            "request {id}: {got:?}"
+        );
+    };
+    check(1, &extended(1), &[32, 30, 0]);
+    check(2, &extended(2), &[30, 0]);
+    check(4, &extended(4), &[32, 30, 0]);
+    check(5, &extended(5), &[30, 0]);
+    let basic: Vec<LosResponse> = (answer.packets.iter())
+        .filter_map(|p| match p {
+            IgPacket::LosResponse(r) if r.request_id == 3 => Some(*r),
+            _ => None,
+        })
+        .collect();
+    let ids: Vec<u16> = basic.iter().map(|r| r.entity_id).collect();
+    assert_eq!(ids, [32, 30, 0], "{basic:?}");
+    assert!(basic.iter().all(|r| r.count == 3 && r.valid && !r.visible));
+    assert!((basic[0].range - faint_truth).abs() < 0.01, "{basic:?}");
+    // A line in the sky meets nothing: one response, visible.
+    let clear = extended(6);
+    assert_eq!(clear.len(), 1, "{clear:?}");
+    assert!(
+        clear[0].visible && !clear[0].range_valid && clear[0].count == 1,
+        "{clear:?}"
+    );
+    // The terrain's point lies on the segment's ray below both spheres.
+    let ground = extended(1)[2];
+    assert!(ground.range > sphere_truth + 2.0 * RADIUS, "{ground:?}");
 }
 
 /// Collision Detection Segments: each frame the IG tests the segments of entities whose

@@ -61,6 +61,8 @@ enum Shape {
 
 struct Body {
     id: u16,
+    /// The entity's alpha (its surfaces' alphas are scaled by it).
+    alpha: u8,
     origin: DVec3,
     /// Columns east, north, up at the origin, in ECEF.
     enu: DMat3,
@@ -80,7 +82,8 @@ pub struct BodyHit {
     pub point: DVec3,
     /// Unit surface normal, in ECEF.
     pub normal: DVec3,
-    /// The surface's sRGB colour and alpha.
+    /// The surface's sRGB colour and alpha (the surface's alpha — 255 for a free form, the
+    /// palette's for a voxel — scaled by the entity's).
     pub colour: [u8; 4],
 }
 
@@ -125,6 +128,7 @@ impl Bodies {
                 };
                 Some(Body {
                     id: b.id,
+                    alpha: b.alpha,
                     origin,
                     enu,
                     shape,
@@ -159,51 +163,80 @@ impl Bodies {
         let mut best: Option<BodyHit> = None;
         for b in self.bodies.iter().filter(|b| Some(b.id) != except) {
             let far = best.map_or(t_max, |h| h.t);
-            // The line in the body's east-north-up metres.
-            let to_enu = b.enu.transpose();
-            let o = to_enu * (from - b.origin);
-            let d = to_enu * dir;
-            // Lines that pass farther than the body's reach miss it.
-            let closest = (-o.dot(d)).clamp(t_min, far);
-            if (o + d * closest).length() > b.reach {
-                continue;
-            }
-            // A line that starts inside a body (a sensor in its own hull) does not meet it.
-            let hit = match &b.shape {
-                Shape::Object(ff) => {
-                    let start = ff.to_local(o + d * t_min);
-                    let [lo, hi] = ff.bounds;
-                    let inside = start.cmpge(lo).all() && start.cmple(hi).all();
-                    if inside && ff.value(start) <= 0.0 {
-                        continue;
-                    }
-                    intersect(ff, o, d, t_min, far, CPU_LEVELS).map(|h| {
-                        let c = ff.material.colour.map(|c| linear_to_srgb8(f64::from(c)));
-                        (h.t, h.normal, [c[0], c[1], c[2], 255])
-                    })
-                }
-                Shape::Voxels { model, frame } => {
-                    let m = &model.frames[*frame];
-                    let bricks = self.bricks.get(m);
-                    let ld = model.dir_to_local(d);
-                    let h = dda(&bricks, model.to_local(o), ld, t_min, far);
-                    // Axis 3: the line started in an occupied voxel.
-                    h.filter(|h| h.axis < 3).map(|h| {
-                        let n = model.dir_to_world(h.normal(ld));
-                        (h.t, n, m.palette[h.index as usize])
-                    })
-                }
-            };
-            if let Some((t, normal, colour)) = hit.filter(|h| h.0 <= far) {
-                best = Some(BodyHit {
-                    id: b.id,
-                    t,
-                    point: from + dir * t,
-                    normal: (b.enu * normal).normalize_or_zero(),
-                    colour,
-                });
+            if let Some(h) = self.hit(b, from, dir, [t_min, far]) {
+                best = Some(h);
             }
         }
         best
+    }
+
+    /// Every body on the line from ECEF `from` along the ECEF unit direction `dir` within
+    /// `[t_min, t_max]` metres whose alpha ([`BodyHit::colour`]'s) is at least `min_alpha`,
+    /// each where the line meets it first, nearest first; a body the line starts inside is
+    /// not met.
+    pub fn hits(
+        &self,
+        from: DVec3,
+        dir: DVec3,
+        [t_min, t_max]: [f64; 2],
+        min_alpha: u8,
+    ) -> Vec<BodyHit> {
+        if t_min.is_nan() || t_max.is_nan() || t_min > t_max {
+            return Vec::new();
+        }
+        let mut hits: Vec<BodyHit> = (self.bodies.iter())
+            .filter_map(|b| self.hit(b, from, dir, [t_min, t_max]))
+            .filter(|h| h.colour[3] >= min_alpha)
+            .collect();
+        hits.sort_by(|a, b| a.t.total_cmp(&b.t));
+        hits
+    }
+
+    /// Where the line from `from` along `dir` meets body `b` first within `[t_min, far]`.
+    fn hit(&self, b: &Body, from: DVec3, dir: DVec3, [t_min, far]: [f64; 2]) -> Option<BodyHit> {
+        // The line in the body's east-north-up metres.
+        let to_enu = b.enu.transpose();
+        let o = to_enu * (from - b.origin);
+        let d = to_enu * dir;
+        // Lines that pass farther than the body's reach miss it.
+        let closest = (-o.dot(d)).clamp(t_min, far);
+        if (o + d * closest).length() > b.reach {
+            return None;
+        }
+        // A line that starts inside a body (a sensor in its own hull) does not meet it.
+        let (t, normal, colour) = match &b.shape {
+            Shape::Object(ff) => {
+                let start = ff.to_local(o + d * t_min);
+                let [lo, hi] = ff.bounds;
+                let inside = start.cmpge(lo).all() && start.cmple(hi).all();
+                if inside && ff.value(start) <= 0.0 {
+                    return None;
+                }
+                let h = intersect(ff, o, d, t_min, far, CPU_LEVELS)?;
+                let c = ff.material.colour.map(|c| linear_to_srgb8(f64::from(c)));
+                (h.t, h.normal, [c[0], c[1], c[2], 255])
+            }
+            Shape::Voxels { model, frame } => {
+                let m = &model.frames[*frame];
+                let bricks = self.bricks.get(m);
+                let ld = model.dir_to_local(d);
+                let h = dda(&bricks, model.to_local(o), ld, t_min, far)?;
+                // Axis 3: the line started in an occupied voxel.
+                if h.axis >= 3 {
+                    return None;
+                }
+                let n = model.dir_to_world(h.normal(ld));
+                (h.t, n, m.palette[h.index as usize])
+            }
+        };
+        // The surface's alpha scaled by the entity's.
+        let alpha = (u32::from(colour[3]) * u32::from(b.alpha) + 127) / 255;
+        (t <= far).then(|| BodyHit {
+            id: b.id,
+            t,
+            point: from + dir * t,
+            normal: (b.enu * normal).normalize_or_zero(),
+            colour: [colour[0], colour[1], colour[2], alpha as u8],
+        })
     }
 }

@@ -318,6 +318,7 @@ fn oracle_rate(terrain: &crate::terrain::Terrain, at: [f64; 3], load: Load) -> (
         terrain,
         full: None,
         bodies: &none,
+        los: answer::LosResponses::First,
     };
     let (mut answered, mut invalid, mut spent) = (0u64, 0u64, 0.0);
     let mut frame = 0;
@@ -401,6 +402,7 @@ pub fn run(scene_path: &Path, size: (u32, u32), frames: u32) -> Result<(RunInfo,
             cigi_host: Some(socket.local_addr().map_err(io)?),
             cigi_sync: false,
             cigi_timeout: 5.0,
+            cigi_los: answer::LosResponses::First,
         },
         size: Some(size),
         display: Default::default(),

@@ -1,5 +1,7 @@
 //! Answers to the host's queries from the CPU reference (`crate::cpu::query`): HAT/HOT, line of
-//! sight (segment and vector) and position. Each query gets exactly one response packet.
+//! sight (segment and vector) and position. Each query gets exactly one response packet, but
+//! a line of sight with [`LosResponses::Every`] (`--cigi-los every`): one for each surface it
+//! meets, nearest first, `count` saying how many.
 //!
 //! * **HOT** is the height above MSL of the terrain's bilinear surface at the query's latitude
 //!   and longitude; **HAT** the query's altitude minus it. The extended response carries both
@@ -15,8 +17,9 @@
 //!   free form or voxel model in the entity's own east-north-up frame, the line taken there
 //!   through ECEF): where one comes before the terrain the response names it (`entity_valid`,
 //!   `entity_id`), with its range, intersection, normal and colour, and the segment is not
-//!   visible. A line that starts inside an entity does not meet that entity; the alpha
-//!   threshold and the material mask are not applied (every surface is opaque, one material).
+//!   visible. A line that starts inside an entity does not meet that entity, nor one whose
+//!   alpha (the entity's times its surface's) is below the request's alpha threshold; the
+//!   material mask is not applied (every surface is material 0).
 //!   A segment's destination may be given in another entity's frame (`destination_entity_valid`).
 //! * **Position**: the entity's pose at the frame's host time: geodetic where the IG put it
 //!   (clamped to the ground, or carried by its parents when attached), or, for an attached
@@ -56,7 +59,7 @@ use crate::db::{Prefetcher, ResidentOnly, TileId};
 use crate::terrain::Terrain;
 pub use collide::{segment_collisions, volume_collisions};
 use glam::DVec3;
-pub use ground::{azimuth_elevation, direction, height_of_terrain, Ground};
+pub use ground::{azimuth_elevation, direction, height_of_terrain, Ground, LosResponses};
 use ground::{lsn, request_point, world, EntityFrame};
 use los::{los_segment, los_vector, SegmentFrames};
 
@@ -238,6 +241,7 @@ impl Deferral {
                     terrain: on.terrain,
                     full: None,
                     bodies: on.bodies,
+                    los: on.los,
                 };
                 answer_one(&g, on.session, q, frame_of(q), on.now_host, msg, &mut c);
                 continue;
@@ -268,6 +272,7 @@ impl Deferral {
                     terrain: on.terrain,
                     full: Some((on.full, on.full.database())),
                     bodies: on.bodies,
+                    los: on.los,
                 };
                 answer_one(&g, on.session, &q, frame, on.now_host, msg, &mut c);
             }
@@ -285,6 +290,8 @@ pub struct OnDatabase<'a> {
     pub now_host: f64,
     /// The entities drawn this frame (lines of sight meet them).
     pub bodies: &'a Bodies,
+    /// How many intersections a line of sight is answered with.
+    pub los: LosResponses,
 }
 
 /// Answers `q` from resident tiles only onto `msg` (counted in `c`): `None`, or the tiles it
@@ -301,6 +308,7 @@ fn resident(
         terrain: on.terrain,
         full: Some((on.full, &tiles)),
         bodies: on.bodies,
+        los: on.los,
     };
     let (mark, mut one) = (msg.len(), AnswerCounts::default());
     answer_one(&g, on.session, q, frame, on.now_host, msg, &mut one);

@@ -35,6 +35,11 @@ pub struct CigiArgs {
     /// Synchronous mode: give up when no host frame came for this many seconds.
     #[arg(long, value_name = "SECONDS", default_value_t = 5.0)]
     pub cigi_timeout: f64,
+    /// Lines of sight: answer each request with its nearest intersection only (`first`), or
+    /// with one response for every surface the line meets, nearest first (`every`: each
+    /// entity, and the terrain, where the line meets it first).
+    #[arg(long, value_name = "WHICH", value_enum, default_value_t = answer::LosResponses::First)]
+    pub cigi_los: answer::LosResponses,
 }
 
 /// What [`CigiIg::camera_pose`] made of the session.
@@ -104,6 +109,8 @@ pub struct CigiIg {
     /// The host frame the last frame was started for (synchronous mode).
     last_started: Option<u32>,
     pub sync: bool,
+    /// How many intersections a line of sight is answered with (`--cigi-los`).
+    pub los: answer::LosResponses,
     timeout: Duration,
     /// Datagrams sent and send failures.
     pub sent: u64,
@@ -182,6 +189,7 @@ impl CigiIg {
             ig_frame: 0,
             last_started: None,
             sync: args.cigi_sync,
+            los: args.cigi_los,
             timeout: Duration::from_secs_f64(args.cigi_timeout),
             sent: 0,
             send_errors: 0,
@@ -523,6 +531,7 @@ impl CigiIg {
                     terrain,
                     full: Some((full, &tiles)),
                     bodies: &self.bodies,
+                    los: self.los,
                 };
                 let n = answer::segment_collisions(&g, &self.session, host_t, msg);
                 d.prefetcher().request(tiles.missing());
@@ -533,6 +542,7 @@ impl CigiIg {
                     terrain,
                     full: None,
                     bodies: &self.bodies,
+                    los: self.los,
                 };
                 answer::segment_collisions(&g, &self.session, host_t, msg)
                     + answer::volume_collisions(&g, &self.session, host_t, msg)
@@ -563,6 +573,7 @@ impl CigiIg {
                     session: &self.session,
                     now_host: host_t,
                     bodies: &self.bodies,
+                    los: self.los,
                 };
                 d.answer_frame(&on, &queries, answering, &mut msg)
             }
@@ -571,6 +582,7 @@ impl CigiIg {
                     terrain,
                     full: None,
                     bodies: &self.bodies,
+                    los: self.los,
                 };
                 answer::answer(&ground, &self.session, &queries, host_t, &mut msg)
             }

@@ -108,6 +108,19 @@ pub struct Ground<'a> {
     pub full: Option<(&'a FullResolution, &'a dyn Tiles)>,
     /// The entities drawn this frame: lines of sight meet them too.
     pub bodies: &'a Bodies,
+    /// How many intersections a line of sight is answered with.
+    pub los: LosResponses,
+}
+
+/// How many intersections a line-of-sight request is answered with (`--cigi-los`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum LosResponses {
+    /// One response: the nearest intersection (`count` 1).
+    #[default]
+    First,
+    /// One response for every surface the line meets, nearest first: each entity where it
+    /// meets it first and the terrain where it meets it first (`count` says how many).
+    Every,
 }
 
 impl Ground<'_> {

@@ -2,7 +2,9 @@
 //! and the entities drawn this frame ([`crate::cpu::bodies`]), whichever comes first; see the
 //! parent module for what each field says.
 
-use super::ground::{azimuth_elevation, direction, lsn, request_point, world, EntityFrame, Ground};
+use super::ground::{
+    azimuth_elevation, direction, lsn, request_point, world, EntityFrame, Ground, LosResponses,
+};
 use crate::cigi::{
     LosExtendedResponse, LosResponse, LosSegmentRequest, LosVectorRequest, MessageBuilder,
 };
@@ -13,13 +15,29 @@ use crate::geodesy::{ecef_of, enu_basis, lla_of};
 use crate::terrain::Terrain;
 use glam::DVec3;
 
-/// What one line-of-sight test found: the terrain's first hit, or an entity's where it comes
-/// first (then `hit` is `None`).
+/// A surface a line of sight met: the terrain or an entity.
+#[derive(Clone, Copy)]
+enum Met {
+    Terrain(Hit),
+    Body(BodyHit),
+}
+
+impl Met {
+    /// Metres from the line's start.
+    fn range(&self) -> f64 {
+        match self {
+            Met::Terrain(h) => h.t,
+            Met::Body(b) => b.t,
+        }
+    }
+}
+
+/// What one line-of-sight test found: the surfaces met, nearest first (the nearest alone
+/// unless every intersection is asked for).
 struct Los {
     valid: bool,
     visible: bool,
-    hit: Option<Hit>,
-    body: Option<BodyHit>,
+    met: Vec<Met>,
 }
 
 impl Los {
@@ -27,30 +45,32 @@ impl Los {
     const INVALID: Los = Los {
         valid: false,
         visible: false,
-        hit: None,
-        body: None,
+        met: Vec::new(),
     };
 
-    /// `self` with entity hit `body` where it comes before the terrain's hit (or the terrain
-    /// has none): the line is then blocked by it.
-    fn with_body(self, body: Option<BodyHit>) -> Los {
-        match body.filter(|b| self.hit.as_ref().is_none_or(|h| b.t < h.t)) {
-            Some(b) => Los {
-                visible: false,
-                hit: None,
-                body: Some(b),
-                ..self
-            },
-            None => self,
+    /// The test on the terrain (its first hit `hit`) and the entities `bodies` (nearest
+    /// first), as `policy` asks: the nearest surface, or all of them in order of range. A
+    /// line that meets an entity is not visible.
+    fn new(
+        valid: bool,
+        visible: bool,
+        hit: Option<Hit>,
+        bodies: Vec<BodyHit>,
+        policy: LosResponses,
+    ) -> Los {
+        let mut met: Vec<Met> = bodies.into_iter().map(Met::Body).collect();
+        let visible = visible && met.is_empty();
+        if let Some(h) = hit {
+            let at = met.partition_point(|m| m.range() < h.t);
+            met.insert(at, Met::Terrain(h));
         }
-    }
-
-    /// Metres to the intersection (0 without one).
-    fn range(&self) -> f64 {
-        match (&self.hit, &self.body) {
-            (Some(h), _) => h.t,
-            (_, Some(b)) => b.t,
-            _ => 0.0,
+        if policy == LosResponses::First {
+            met.truncate(1);
+        }
+        Los {
+            valid,
+            visible,
+            met,
         }
     }
 }
@@ -80,35 +100,61 @@ struct LosAnswer<'a> {
     in_entity: Option<&'a EntityFrame>,
 }
 
-/// One LOS response (basic or extended) from what the test found on `t`.
+/// The LOS responses (basic or extended) to one request from what the test found on `t`:
+/// one for each surface met, or one saying none was.
 fn push_los(t: &Terrain, a: &LosAnswer, frame: u32, los: &Los, msg: &mut MessageBuilder) {
+    let count = los.met.len().clamp(1, usize::from(u8::MAX)) as u8;
+    if los.met.is_empty() {
+        push_one(t, a, frame, los, None, count, msg);
+    }
+    for m in los.met.iter().take(usize::from(count)) {
+        push_one(t, a, frame, los, Some(m), count, msg);
+    }
+}
+
+/// One LOS response: surface `met` of `los` (`None`: nothing met), one of `count`.
+fn push_one(
+    t: &Terrain,
+    a: &LosAnswer,
+    frame: u32,
+    los: &Los,
+    met: Option<&Met>,
+    count: u8,
+    msg: &mut MessageBuilder,
+) {
     let (id, extended) = (a.id, a.extended);
-    let range = los.range();
-    let met = los.hit.is_some() || los.body.is_some();
-    let entity_id = los.body.map_or(0, |b| b.id);
+    let range = met.map_or(0.0, Met::range);
+    let body = match met {
+        Some(Met::Body(b)) => Some(b),
+        _ => None,
+    };
+    let entity_id = body.map_or(0, |b| b.id);
     if extended {
         let (mut lla, mut az, mut el, mut rgba) = ([0.0; 3], 0.0, 90.0, [0u8; 4]);
-        if let Some(h) = &los.hit {
-            lla = t.world_to_geodetic(h.point).unwrap_or([0.0; 3]);
-            (az, el) = azimuth_elevation(t, h.normal);
-            rgba[3] = 255;
+        match met {
+            Some(Met::Terrain(h)) => {
+                lla = t.world_to_geodetic(h.point).unwrap_or([0.0; 3]);
+                (az, el) = azimuth_elevation(t, h.normal);
+                rgba[3] = 255;
+            }
+            Some(Met::Body(b)) => {
+                lla = lla_of(b.point);
+                (az, el) = ecef_azimuth_elevation(lla, b.normal);
+                rgba = b.colour;
+            }
+            None => {}
         }
-        if let Some(b) = &los.body {
-            lla = lla_of(b.point);
-            (az, el) = ecef_azimuth_elevation(lla, b.normal);
-            rgba = b.colour;
-        }
-        if let (Some(e), true) = (a.in_entity, met) {
+        if let (Some(e), true) = (a.in_entity, met.is_some()) {
             lla = e.offsets(lla);
         }
         msg.push(&LosExtendedResponse {
             request_id: id,
             valid: los.valid,
-            entity_valid: los.body.is_some(),
-            range_valid: los.valid && met,
+            entity_valid: body.is_some(),
+            range_valid: los.valid && met.is_some(),
             visible: los.visible,
             host_frame_lsn: lsn(frame),
-            count: 1,
+            count,
             entity_id,
             range,
             lat: lla[0],
@@ -126,10 +172,10 @@ fn push_los(t: &Terrain, a: &LosAnswer, frame: u32, los: &Los, msg: &mut Message
         msg.push(&LosResponse {
             request_id: id,
             valid: los.valid,
-            entity_valid: los.body.is_some(),
+            entity_valid: body.is_some(),
             visible: los.visible,
             host_frame_lsn: lsn(frame),
-            count: 1,
+            count,
             entity_id,
             range,
         });
@@ -172,13 +218,10 @@ pub(super) fn los_segment(
             let hit = (len > 0.0)
                 .then(|| cast_ray(t, a, (b - a) / len, 0.0, len))
                 .flatten();
-            let los = Los {
-                valid: true,
-                visible: line_of_sight(t, a, b),
-                hit,
-                body: None,
-            };
-            los.with_body(placed.and_then(|(ga, gb)| segment_body(g.bodies, ga, gb)))
+            let bodies = (placed
+                .map(|(ga, gb)| segment_bodies(g.bodies, ga, gb, r.alpha_threshold)))
+            .unwrap_or_default();
+            Los::new(true, line_of_sight(t, a, b), hit, bodies, g.los)
         }
         None => Los::INVALID,
     };
@@ -238,16 +281,19 @@ pub(super) fn los_vector(
             let d = direction(t, az, el);
             let (near, far) = (f64::from(r.min_range), f64::from(r.max_range));
             let hit = cast_ray(t, a, d, near, far);
-            let body = source.and_then(|gs| vector_body(g.bodies, gs, az, el, near, far));
-            let los = Los {
-                valid: true,
-                visible: hit.is_none(),
-                hit,
-                body: None,
-            }
-            .with_body(body);
+            let bodies = (source.map(|gs| {
+                let ray = VectorRay {
+                    from: gs,
+                    az,
+                    el,
+                    range: [near, far],
+                };
+                vector_bodies(g.bodies, &ray, r.alpha_threshold)
+            }))
+            .unwrap_or_default();
+            let los = Los::new(true, hit.is_none(), hit, bodies, g.los);
             // A basic response has no range-valid flag: a vector that meets nothing is invalid.
-            let met = los.hit.is_some() || los.body.is_some();
+            let met = !los.met.is_empty();
             Los {
                 valid: r.extended || met,
                 visible: !met,
@@ -265,33 +311,37 @@ pub(super) fn los_vector(
     src.is_some() && ranges_ok && dir_ok
 }
 
-/// The first entity on the straight segment between geodetic `a` and `b`.
-fn segment_body(bodies: &Bodies, a: [f64; 3], b: [f64; 3]) -> Option<BodyHit> {
+/// The entities on the straight segment between geodetic `a` and `b` whose alpha is at least
+/// `min_alpha`, nearest first.
+fn segment_bodies(bodies: &Bodies, a: [f64; 3], b: [f64; 3], min_alpha: u8) -> Vec<BodyHit> {
     if bodies.is_empty() {
-        return None;
+        return Vec::new();
     }
     let (a, b) = (ecef_of(a), ecef_of(b));
     let len = (b - a).length();
-    (len > 0.0)
-        .then(|| bodies.first_hit(a, (b - a) / len, [0.0, len], None))
-        .flatten()
+    if len > 0.0 {
+        bodies.hits(a, (b - a) / len, [0.0, len], min_alpha)
+    } else {
+        Vec::new()
+    }
 }
 
-/// The first entity on the ray from geodetic `from` at azimuth `az` from true north and
-/// elevation `el` (degrees, at `from`) between `near` and `far` metres.
-fn vector_body(
-    bodies: &Bodies,
+/// A LOS vector: from geodetic `from` at azimuth `az` from true north and elevation `el`
+/// (degrees, at `from`), between `range[0]` and `range[1]` metres.
+struct VectorRay {
     from: [f64; 3],
     az: f64,
     el: f64,
-    near: f64,
-    far: f64,
-) -> Option<BodyHit> {
+    range: [f64; 2],
+}
+
+/// The entities on `ray` whose alpha is at least `min_alpha`, nearest first.
+fn vector_bodies(bodies: &Bodies, ray: &VectorRay, min_alpha: u8) -> Vec<BodyHit> {
     if bodies.is_empty() {
-        return None;
+        return Vec::new();
     }
-    let (a, e) = (az.to_radians(), el.to_radians());
+    let (a, e) = (ray.az.to_radians(), ray.el.to_radians());
     let enu = DVec3::new(a.sin() * e.cos(), a.cos() * e.cos(), e.sin());
-    let d = enu_basis(from[0], from[1]) * enu;
-    bodies.first_hit(ecef_of(from), d, [near, far], None)
+    let d = enu_basis(ray.from[0], ray.from[1]) * enu;
+    bodies.hits(ecef_of(ray.from), d, ray.range, min_alpha)
 }
