@@ -638,3 +638,93 @@ fn collision_volumes_report_the_volumes_they_overlap() {
     eprintln!("volume notifications: {got:?}");
     assert_eq!(got, [[50, 2, 52, 1], [50, 3, 53, 1], [52, 1, 50, 2]]);
 }
+
+/// The least and greatest DEM heights over the square `half` metres each way around `at`
+/// (a 41 x 41 grid: the DEM's cells are about 30 m, its surface bilinear between samples).
+fn heights_around(dem: &Dem, at: [f64; 3], half: f64) -> (f64, f64) {
+    let mut range = (f64::MAX, f64::MIN);
+    for i in 0..41 {
+        for j in 0..41 {
+            let f = |k: i32| (f64::from(k) / 20.0 - 1.0) * half;
+            let p = moved(at, f(i), f(j));
+            let h = dem.height(p[0], p[1]);
+            range = (range.0.min(h), range.1.max(h));
+        }
+    }
+    range
+}
+
+/// Collision Detection Volumes against the terrain: each frame a volume of an entity whose
+/// detection is on and that reaches below the terrain's surface is notified with
+/// `entity_contact` false. A sphere of 10 m and a box 40 x 10 x 6 m pitched 20° nose up (its
+/// lowest corner 20 sin 20° + 3 cos 20° = 9.66 m below its centre), each placed once 3 m into
+/// the ground (below the lowest DEM height under it) and once 3 m clear of it (above the
+/// highest), 300 m apart.
+#[test]
+fn collision_volumes_report_the_terrain_they_reach_below() {
+    let _serial = one_ig_test_at_a_time();
+    let dir = temp_dir("cigi-volumes-terrain");
+    let dem = Dem::load();
+    let (served, _, _) = setup(&dir, &dem);
+    let ig = serve(&served, &dir, 2);
+    let drop = 20.0 * 20f64.to_radians().sin() + 3.0 * 20f64.to_radians().cos();
+    let mut packets: Vec<HostPacket> = vec![ownship(CAM, HEADING as f32, -3.0, 0.0).into()];
+    let mut expected = Vec::new();
+    for (k, (cuboid, into)) in [(false, true), (false, false), (true, true), (true, false)]
+        .into_iter()
+        .enumerate()
+    {
+        let id = 70 + k as u16;
+        let at = ahead(800.0, 300.0 * k as f64, 0.0);
+        let (reach, below) = if cuboid { (21.0, drop) } else { (10.0, 10.0) };
+        let (lo, hi) = heights_around(&dem, at, reach);
+        let alt = if into {
+            lo + below - 3.0
+        } else {
+            hi + below + 3.0
+        };
+        packets.push(
+            EntityControl {
+                collision_detection: true,
+                ..EntityControl::placed(id, 99, [at[0], at[1], alt], [0.0; 3])
+            }
+            .into(),
+        );
+        packets.push(
+            CollisionVolumeDefinition {
+                entity_id: id,
+                volume_id: 1,
+                enabled: true,
+                cuboid,
+                depth: 40.0,
+                width: 10.0,
+                radius_height: if cuboid { 6.0 } else { 10.0 },
+                pitch: if cuboid { 20.0 } else { 0.0 },
+                ..CollisionVolumeDefinition::default()
+            }
+            .into(),
+        );
+        eprintln!("entity {id}: ground {lo:.1}–{hi:.1} m, centre at {alt:.1} m");
+        if into {
+            expected.push(id);
+        }
+    }
+    ig.exchange(&message(ig_control(10, None, false), &packets), 10);
+    let answer = ig.exchange(&message(ig_control(11, None, false), &packets[..1]), 11);
+    ig.finish();
+    let got: Vec<u16> = (answer.packets.iter())
+        .filter_map(|p| match p {
+            IgPacket::CollisionVolumeNotification(n) => {
+                assert!(!n.entity_contact && n.volume_id == 1, "{n:?}");
+                assert_eq!(
+                    [n.contacted_entity_id, u16::from(n.contacted_volume_id)],
+                    [0, 0]
+                );
+                Some(n.entity_id)
+            }
+            _ => None,
+        })
+        .collect();
+    eprintln!("terrain contacts: {got:?}");
+    assert_eq!(got, expected);
+}

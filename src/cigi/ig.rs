@@ -129,7 +129,7 @@ cigi_packet! {
     CollisionVolumeNotification = CollisionVolumeNotification {
         entity_id: u16 = 2,
         volume_id: u8 = 4,
-        /// true: another entity's volume (the only contact volumes are tested for).
+        /// false: the terrain; true: `contacted_entity_id`'s volume `contacted_volume_id`.
         entity_contact: bool = 5 [0; 1],
         contacted_entity_id: u16 = 6,
         contacted_volume_id: u8 = 8,

@@ -1,7 +1,8 @@
 //! Whether two solids overlap: CIGI's collision detection volumes (spheres and cuboids)
 //! placed anywhere on the earth, each held in ECEF (centre, axes, half sizes). Spheres against
 //! spheres and cuboids by their closest point, cuboids against cuboids by the separating-axis
-//! test (the 15 axes of two boxes).
+//! test (the 15 axes of two boxes). Against the terrain a solid is taken by its underside
+//! ([`underside`]): the lowest point of each of a grid of vertical lines through it.
 
 use glam::{DMat3, DVec3};
 
@@ -97,6 +98,71 @@ fn boxes_overlap(ca: DVec3, aa: &DMat3, ha: DVec3, cb: DVec3, ab: &DMat3, hb: DV
         .all(|l| d.dot(l).abs() <= radius(&a, ha, l) + radius(&b, hb, l))
 }
 
+/// The underside of `solid`: for each of `n` x `n` vertical lines (along unit `up`) through
+/// its horizontal extent (unit `east` and `north` across it), the solid's lowest point on that
+/// line, where the line meets it, and the solid's lowest point itself (first). A heightfield
+/// that holds any point of the solid below it holds one of these below it up to what lies
+/// between the lines: the solid's bottom between two of them no farther below them than its
+/// slope over their spacing allows.
+pub fn underside(solid: &Solid, [east, north, up]: [DVec3; 3], n: usize) -> Vec<DVec3> {
+    let n = n.max(2);
+    let (centre, reach) = match *solid {
+        Solid::Sphere { centre, radius } => (centre, [radius; 2]),
+        Solid::Cuboid { centre, axes, half } => {
+            let across = |e: DVec3| (axes.transpose() * e).abs().dot(half);
+            (centre, [across(east), across(north)])
+        }
+    };
+    let lowest = match *solid {
+        Solid::Sphere { centre, radius } => centre - up * radius,
+        Solid::Cuboid { centre, axes, half } => {
+            // The corner farthest down: each axis's sign against `up`.
+            let s = (axes.transpose() * up).map(|a| if a > 0.0 { -1.0 } else { 1.0 });
+            centre + axes * (s * half)
+        }
+    };
+    let mut out = vec![lowest];
+    for i in 0..n {
+        for j in 0..n {
+            let f = |k: usize| k as f64 / (n - 1) as f64 * 2.0 - 1.0;
+            let (u, v) = (f(i) * reach[0], f(j) * reach[1]);
+            let foot = centre + east * u + north * v;
+            if let Some(s) = lowest_on_line(solid, foot, up) {
+                out.push(foot + up * s);
+            }
+        }
+    }
+    out
+}
+
+/// Where the vertical line `foot + s up` enters `solid` from below: the least `s` in it.
+fn lowest_on_line(solid: &Solid, foot: DVec3, up: DVec3) -> Option<f64> {
+    match *solid {
+        Solid::Sphere { centre, radius } => {
+            let o = foot - centre;
+            let b = o.dot(up);
+            let d = b * b - (o.length_squared() - radius * radius);
+            (d >= 0.0).then(|| -b - d.sqrt())
+        }
+        Solid::Cuboid { centre, axes, half } => {
+            let (q, a) = (axes.transpose() * (foot - centre), axes.transpose() * up);
+            let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
+            for k in 0..3 {
+                if a[k].abs() < 1e-12 {
+                    if q[k].abs() > half[k] {
+                        return None;
+                    }
+                    continue;
+                }
+                let (t0, t1) = ((-half[k] - q[k]) / a[k], (half[k] - q[k]) / a[k]);
+                lo = lo.max(t0.min(t1));
+                hi = hi.min(t0.max(t1));
+            }
+            (lo <= hi).then_some(lo)
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -161,5 +227,55 @@ mod tests {
             overlap(&under, &edge(2.0 * 2f64.sqrt() - 0.05)),
             "crossed edge on"
         );
+    }
+
+    /// Every underside point lies on the solid's surface, none lower than its lowest point,
+    /// and the lowest point is the analytic one (a sphere's bottom; a pitched box's lower end).
+    #[test]
+    fn undersides_lie_on_the_surface_and_the_lowest_point_comes_first() {
+        let frame = [DVec3::X, DVec3::Y, DVec3::Z];
+        let c = DVec3::new(10.0, -4.0, 7.0);
+        let sphere = Solid::Sphere {
+            centre: c,
+            radius: 3.0,
+        };
+        let pts = underside(&sphere, frame, 9);
+        assert_eq!(pts[0], c - DVec3::Z * 3.0);
+        assert!(pts.len() > 40, "{}", pts.len());
+        for p in &pts {
+            assert!(((*p - c).length() - 3.0).abs() < 1e-9, "{p}");
+            assert!(p.z <= c.z + 1e-9 && p.z >= pts[0].z - 1e-9, "{p}");
+        }
+        // A box 40 x 10 x 6 pitched 20° nose up: its lowest edge is the tail's bottom,
+        // 20 sin 20° + 3 cos 20° below the centre.
+        let p = 20f64.to_radians();
+        let axes = DMat3::from_cols(
+            DVec3::new(p.cos(), 0.0, p.sin()),
+            DVec3::Y,
+            DVec3::new(-p.sin(), 0.0, p.cos()),
+        );
+        let half = DVec3::new(20.0, 5.0, 3.0);
+        let cuboid = Solid::Cuboid {
+            centre: c,
+            axes,
+            half,
+        };
+        let pts = underside(&cuboid, frame, 17);
+        let drop = 20.0 * p.sin() + 3.0 * p.cos();
+        assert!((pts[0].z - (c.z - drop)).abs() < 1e-9, "{}", pts[0]);
+        for q in &pts {
+            let l = axes.transpose() * (*q - c);
+            let on_face = (0..3).any(|k| (l[k].abs() - half[k]).abs() < 1e-9);
+            assert!(
+                on_face && (0..3).all(|k| l[k].abs() <= half[k] + 1e-9),
+                "{l}"
+            );
+            assert!(q.z >= pts[0].z - 1e-9, "{q}");
+        }
+        // Lines across the whole footprint: the lowest row spans the box's width.
+        let ys: Vec<f64> = pts.iter().map(|q| q.y).collect();
+        let span = ys.iter().cloned().fold(f64::MIN, f64::max)
+            - ys.iter().cloned().fold(f64::MAX, f64::min);
+        assert!((span - 10.0).abs() < 1e-9, "{span}");
     }
 }

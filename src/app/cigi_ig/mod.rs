@@ -533,9 +533,10 @@ impl CigiIg {
                     bodies: &self.bodies,
                     los: self.los,
                 };
-                let n = answer::segment_collisions(&g, &self.session, host_t, msg);
+                let n = answer::segment_collisions(&g, &self.session, host_t, msg)
+                    + answer::volume_collisions(&g, &self.session, host_t, msg);
                 d.prefetcher().request(tiles.missing());
-                n + answer::volume_collisions(&g, &self.session, host_t, msg)
+                n
             }
             _ => {
                 let g = answer::Ground {

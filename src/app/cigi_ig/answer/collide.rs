@@ -1,16 +1,16 @@
 //! Collision detection for the host: each frame the segments and volumes of entities whose
 //! collision detection is on (Entity Control's bit) are tested, segments against the terrain
-//! and the entities drawn, volumes against the other entities' volumes, and each contact is
-//! notified (CIGI's Collision Detection Segment and Volume Notifications).
+//! and the entities drawn, volumes against the other entities' volumes and the terrain, and
+//! each contact is notified (CIGI's Collision Detection Segment and Volume Notifications).
 
 use super::ground::{world, EntityFrame, Ground};
 use crate::cigi::{
     CollisionSegmentNotification, CollisionVolumeDefinition, CollisionVolumeNotification,
     MessageBuilder, Session,
 };
-use crate::cpu::contact::{overlap, Solid};
+use crate::cpu::contact::{overlap, underside, Solid};
 use crate::cpu::query::cast_ray;
-use crate::geodesy::{ecef_of, enu_basis};
+use crate::geodesy::{ecef_of, enu_basis, lla_of};
 use crate::geom::attitude_matrix;
 use glam::{DMat3, DVec3};
 
@@ -76,12 +76,34 @@ pub fn segment_collisions(
     sent
 }
 
-/// A volume placed: its entity, its ID, whether its entity's detection is on, its solid.
+/// A volume placed: its entity, its ID, whether its entity's detection is on, its solid and
+/// the east, north and up of its entity's place (ECEF).
 struct Placed {
     entity: u16,
     id: u8,
     source: bool,
     solid: Solid,
+    enu: [DVec3; 3],
+}
+
+/// The most vertical lines across a volume's underside each way, and the spacing (m) they
+/// are drawn at below that.
+const UNDERSIDE_LINES: usize = 33;
+const UNDERSIDE_SPACING: f64 = 2.0;
+
+/// Whether any point of volume `v`'s underside ([`underside`]: the lowest point of vertical
+/// lines at most [`UNDERSIDE_SPACING`] apart, [`UNDERSIDE_LINES`] each way at most) lies below
+/// the terrain's surface (`Ground::hot`; a point where it has no height does not count).
+fn under_terrain(g: &Ground, v: &Placed) -> bool {
+    let size = match v.solid {
+        Solid::Sphere { radius, .. } => 2.0 * radius,
+        Solid::Cuboid { half, .. } => 2.0 * half.length(),
+    };
+    let n = ((size / UNDERSIDE_SPACING).ceil() as usize + 1).clamp(2, UNDERSIDE_LINES);
+    underside(&v.solid, v.enu, n).into_iter().any(|p| {
+        let [lat, lon, alt] = lla_of(p);
+        g.hot(lat, lon).is_some_and(|h| alt < h)
+    })
 }
 
 /// The solid of volume `v` of the entity whose body frame is `f`, in ECEF: a cuboid turned by
@@ -111,9 +133,12 @@ fn solid(f: &EntityFrame, v: &CollisionVolumeDefinition) -> Solid {
 }
 
 /// One Collision Detection Volume Notification for each pair of overlapping volumes of two
-/// entities, to the entity whose detection is on (both, each its own, where both are), onto
-/// `msg`: volumes placed through their entities' body frames at host time `now_host`. Returns
-/// how many were sent.
+/// entities, to the entity whose detection is on (both, each its own, where both are), and one
+/// (`entity_contact` false) for each of those entities' volumes that reaches below the
+/// terrain, onto `msg`: volumes placed through their entities' body frames at host time
+/// `now_host`. On a database scene read resident only, a volume over tiles not in memory is
+/// tested against what is (the tiles it missed go to the prefetcher). Returns how many were
+/// sent.
 pub fn volume_collisions(
     g: &Ground,
     session: &Session,
@@ -127,16 +152,28 @@ pub fn volume_collisions(
             .entry(v.entity_id)
             .or_insert_with(|| EntityFrame::of(g, session, v.entity_id, now_host));
         if let Some(f) = frame {
+            let b = enu_basis(f.origin[0], f.origin[1]);
             placed.push(Placed {
                 entity: v.entity_id,
                 id: v.volume_id,
                 source,
                 solid: solid(f, v),
+                enu: [b.x_axis, b.y_axis, b.z_axis],
             });
         }
     }
     let mut sent = 0;
     for a in placed.iter().filter(|a| a.source) {
+        if under_terrain(g, a) {
+            msg.push(&CollisionVolumeNotification {
+                entity_id: a.entity,
+                volume_id: a.id,
+                entity_contact: false,
+                contacted_entity_id: 0,
+                contacted_volume_id: 0,
+            });
+            sent += 1;
+        }
         for b in placed.iter().filter(|b| b.entity != a.entity) {
             if overlap(&a.solid, &b.solid) {
                 msg.push(&CollisionVolumeNotification {
