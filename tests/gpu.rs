@@ -527,3 +527,83 @@ fn cli_render_writes_png_depth_and_metadata_that_recreate_the_rays() {
     }
     let _ = std::fs::remove_dir_all(&out);
 }
+
+/// Dusk and night (`scene::daylight`): the GPU's sky at every sky pixel is the analytic sky of
+/// the daylight the sun's elevation gives (gradient from the horizon to the zenith, the sun's
+/// glow), within one 8-bit level, from full day (30°) through sunset (1°) to night (−8°, −20°);
+/// the sunlit ground under it only darkens as the sun sinks.
+#[test]
+fn the_sky_and_the_ground_follow_the_sun_into_night() {
+    let _l = gpu_lock();
+    let terrain = terrain_from_fn(129, 10.0, |x, y| 100.0 + 0.05 * x + 0.03 * y);
+    let position = DVec3::new(640.0, 300.0, 400.0);
+    let cam = Camera::new(
+        Pose {
+            position,
+            heading: 20.0,
+            pitch: 5.0,
+            roll: 0.0,
+            fov: 80.0,
+        },
+        160,
+        120,
+    );
+    let mut ground_before = f64::INFINITY;
+    for elevation in [30.0, 5.0, 1.0, -3.0, -8.0, -20.0] {
+        let mut desc = synthetic_scene(160, 120, "position = [640.0, 300.0, 400.0]");
+        desc.sun.azimuth = 30.0;
+        desc.sun.elevation = elevation;
+        let Some(out) = render(&terrain, &desc, &cam, settings(true, true)) else {
+            return;
+        };
+        let day = desc.daylight();
+        let v = |c: [f32; 3]| DVec3::new(c[0].into(), c[1].into(), c[2].into());
+        let (zenith, horizon, sun_colour) = (v(day.zenith), v(day.horizon), v(day.sun_colour));
+        let sun = desc.sun.direction();
+        let (mut sky, mut worst, mut ground) = (0, 0i32, Vec::new());
+        for k in 0..160 * 120usize {
+            let px = &out.rgba[4 * k..4 * k + 3];
+            if out.depth[k].is_finite() {
+                ground.push(luminance(&out.rgba, k));
+                continue;
+            }
+            let d = cam.pixel_ray(k as u32 % 160, k as u32 / 160);
+            let up = d.z;
+            let mut c = if up >= 0.0 {
+                horizon.lerp(zenith, up.sqrt())
+            } else {
+                horizon * (1.0 + (0.6 - 1.0) * (-up * 4.0).clamp(0.0, 1.0))
+            };
+            let cs = d.dot(sun);
+            c += sun_colour * (0.35 * cs.max(0.0).powi(64));
+            if cs > 0.27f64.to_radians().cos() {
+                c += sun_colour * 20.0;
+            }
+            let want = [c.x, c.y, c.z].map(relief::colour::linear_to_srgb8);
+            let off = (0..3)
+                .map(|i| (i32::from(px[i]) - i32::from(want[i])).abs())
+                .max()
+                .unwrap();
+            assert!(
+                off <= 1,
+                "sun at {elevation}°: sky pixel {k} is {px:?}, the daylight's sky {want:?}"
+            );
+            worst = worst.max(off);
+            sky += 1;
+        }
+        let mean = ground.iter().sum::<f64>() / ground.len().max(1) as f64;
+        eprintln!(
+            "sun at {elevation}°: {sky} sky pixels within {worst} of the daylight's sky, ground luminance {mean:.1}"
+        );
+        assert!(
+            sky > 3000 && ground.len() > 3000,
+            "{sky} sky, {} ground",
+            ground.len()
+        );
+        assert!(
+            mean < ground_before,
+            "the ground brightened as the sun sank: {mean}"
+        );
+        ground_before = mean;
+    }
+}

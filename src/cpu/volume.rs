@@ -46,14 +46,15 @@ pub struct VolumeLight {
 impl VolumeLight {
     pub fn new(scene: &SceneDesc, terrain: &Terrain) -> VolumeLight {
         let d = |c: [f32; 3]| DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64);
+        let day = scene.daylight();
         VolumeLight {
             sun: scene.sun.direction(),
-            sun_colour: d(scene.sun.colour),
-            intensity: scene.sun.intensity as f64,
-            zenith: d(scene.sky.zenith),
-            horizon: d(scene.sky.horizon),
-            ambient: scene.sky.ambient as f64,
-            fog_colour: d(scene.fog.colour.unwrap_or(scene.sky.horizon)),
+            sun_colour: d(day.sun_colour),
+            intensity: day.intensity as f64,
+            zenith: d(day.zenith),
+            horizon: d(day.horizon),
+            ambient: day.ambient as f64,
+            fog_colour: d(day.fog_colour),
             sigma: if scene.fog.visibility > 0.0 {
                 3.912 / scene.fog.visibility
             } else {

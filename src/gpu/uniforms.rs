@@ -57,7 +57,8 @@ pub fn frame_uniforms(
     let sun = scene.sun.direction();
     let local =
         |v: glam::DVec3| glam::DVec3::new(v.dot(fr.axis_x), v.dot(fr.axis_y), v.dot(fr.normal));
-    let fog_colour = scene.fog.colour.unwrap_or(scene.sky.horizon);
+    let day = scene.daylight();
+    let fog_colour = day.fog_colour;
     let sigma = if scene.fog.visibility > 0.0 {
         3.912 / scene.fog.visibility
     } else {
@@ -106,12 +107,12 @@ pub fn frame_uniforms(
             v4(fr.normal, 0.0),
         ],
         local_from_world: [v4(fr.axis_x, 0.0), v4(fr.axis_y, 0.0), v4(fr.normal, 0.0)],
-        sun_local: v4(local(sun), scene.sun.intensity as f64),
+        sun_local: v4(local(sun), day.intensity as f64),
         sun_grid: v4(fr.world_dir_to_grid(sun) / curv.metric.extend(1.0), 0.0),
-        sun_colour: c(scene.sun.colour, (0.27f64).to_radians().cos() as f32),
+        sun_colour: c(day.sun_colour, (0.27f64).to_radians().cos() as f32),
         up_local: v4(local(glam::DVec3::Z), 0.0),
-        sky_zenith: c(scene.sky.zenith, scene.sky.ambient),
-        sky_horizon: c(scene.sky.horizon, 0.0),
+        sky_zenith: c(day.zenith, day.ambient),
+        sky_horizon: c(day.horizon, 0.0),
         fog_colour: c(fog_colour, sigma as f32),
         fog: [scene.fog.scale_height as f32, 0.0, 0.0, 0.0],
         spacing: [sx as f32, sy as f32, (1.0 / sx) as f32, (1.0 / sy) as f32],

@@ -4,10 +4,12 @@
 pub mod antialias;
 mod camera;
 pub mod cigi;
+pub mod daylight;
 pub mod solar;
 
 pub use antialias::AntialiasOption;
 pub use camera::{Camera, CameraPath, Keyframe, Pose};
+pub use daylight::Daylight;
 
 use crate::error::check_finite;
 pub use crate::terrain::desc::{HeightSource, TerrainDesc};
@@ -93,6 +95,9 @@ pub struct Sky {
     pub horizon: [f32; 3],
     /// Sky (ambient) light on the terrain.
     pub ambient: f32,
+    /// Whether a sun below 10° dims and reddens the sun and sky (dusk, twilight and night;
+    /// [`daylight`]); these colours are full day's.
+    pub twilight: bool,
 }
 
 impl Default for Sky {
@@ -101,6 +106,7 @@ impl Default for Sky {
             zenith: [0.10, 0.22, 0.55],
             horizon: [0.62, 0.74, 0.88],
             ambient: 0.55,
+            twilight: true,
         }
     }
 }
