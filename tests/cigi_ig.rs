@@ -847,6 +847,74 @@ fn the_hosts_date_time_and_visibility_set_sun_and_fog() {
     assert!(scene_sun > 1.0 && scene_fog > 1.0, "sun and fog matter");
 }
 
+/// At night the host's Celestial Sphere Control with its moon bit lights the view by the
+/// moon (`scene::lunar`, checked against Meeus in its unit tests) where the ownship is: the
+/// frame JSON gives the moon's azimuth, elevation and lit fraction, and the served frame is
+/// `relief render`'s with that sun and a `[moon]` there, and not the moonless one.
+#[test]
+fn the_hosts_night_has_its_moon() {
+    let _serial = one_ig_test_at_a_time();
+    let dir = temp_dir("cigi-moon");
+    let lla = [47.37, 9.31, 2300.0];
+    let hpr = [200.0, -4.0, 0.0];
+    let elsewhere = scene(&dir, "elsewhere", [47.6, 9.6, 900.0], [45.0, 10.0, 0.0], "");
+    let served = dir.join("served");
+    let ig = Ig::start(
+        &elsewhere,
+        &[
+            "--size",
+            "160x120",
+            "--cigi-sync",
+            "--frames",
+            "1",
+            "--capture-frames",
+            served.to_str().unwrap(),
+        ],
+        host_socket(),
+    );
+    // 22 June 2024, 01:08 UTC: a full moon, low in the south before dawn.
+    let celestial = CelestialSphereControl {
+        moon: true,
+        ..sun_at(6222024, 1, 8)
+    };
+    let own = EntityControl::placed(0, 0, lla, hpr.map(|v| v as f32));
+    ig.exchange(
+        &message(ig_control(3, None, false), &[own.into(), celestial.into()]),
+        3,
+    );
+    ig.finish();
+    let j = common::read_json(&served.join("frame_0000.json"));
+    let (sun, moon) = (&j["cigi"]["sun"], &j["cigi"]["moon"]);
+    let f = |v: &serde_json::Value, k: usize| v[k].as_f64().unwrap();
+    let t = relief::scene::solar::UtcTime::new(2024, 6, 22, 3600.0 + 8.0 * 60.0).unwrap();
+    let want = relief::scene::lunar::moon_position(t, lla[0], lla[1]);
+    eprintln!("moon from the host: {moon}, sun {sun}; at the ownship {want:?}");
+    assert!((f(moon, 0) - want.azimuth).abs() < 1e-6 && (f(moon, 1) - want.elevation).abs() < 1e-6);
+    assert!(f(moon, 1) > 5.0 && f(moon, 2) > 0.99 && f(sun, 1) < -10.0);
+    let render = |name: &str, extra: &str| {
+        let text = std::fs::read_to_string(scene(&dir, name, lla, hpr, extra)).unwrap();
+        let text = text.replace(
+            "azimuth = 245.0\nelevation = 24.0",
+            &format!("azimuth = {:?}\nelevation = {:?}", f(sun, 0), f(sun, 1)),
+        );
+        let p = dir.join(format!("{name}.toml"));
+        std::fs::write(&p, text).unwrap();
+        render_frame(&p, &dir.join(name), &[])
+    };
+    let a = image_at(&served.join("frame_0000.png"));
+    let moonlit = format!(
+        "[moon]\nazimuth = {:?}\nelevation = {:?}\nilluminated = {:?}\n",
+        f(moon, 0),
+        f(moon, 1),
+        f(moon, 2)
+    );
+    let same = mean_diff(&a, &render("moonlit", &moonlit));
+    let dark = mean_diff(&a, &render("moonless", ""));
+    eprintln!("served vs render with that moon: {same:.4}/255; without it {dark:.2}/255");
+    assert!(same <= 1.0, "{same}");
+    assert!(dark > 1.0, "the moon matters: {dark}");
+}
+
 /// Pixel position (x right, y down, pixel centres at i + 0.5) of geodetic `p` seen by a
 /// pinhole camera at `cam` with heading (from true north), pitch, zero roll, horizontal fov
 /// `fov` degrees, `w`x`h` pixels: the camera's local east-north-up frame, computed here.

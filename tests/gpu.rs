@@ -531,7 +531,8 @@ fn cli_render_writes_png_depth_and_metadata_that_recreate_the_rays() {
 /// Dusk and night (`scene::daylight`): the GPU's sky at every sky pixel is the analytic sky of
 /// the daylight the sun's elevation gives (gradient from the horizon to the zenith, the sun's
 /// glow), within one 8-bit level, from full day (30°) through sunset (1°) to night (−8°, −20°);
-/// the sunlit ground under it only darkens as the sun sinks.
+/// the sunlit ground under it only darkens as the sun sinks; a full moon at night lights it
+/// again (the sky then has the moon's glow).
 #[test]
 fn the_sky_and_the_ground_follow_the_sun_into_night() {
     let _l = gpu_lock();
@@ -549,17 +550,25 @@ fn the_sky_and_the_ground_follow_the_sun_into_night() {
         120,
     );
     let mut ground_before = f64::INFINITY;
-    for elevation in [30.0, 5.0, 1.0, -3.0, -8.0, -20.0] {
+    let moon = relief::scene::Moon {
+        azimuth: 35.0,
+        elevation: 25.0,
+        illuminated: 1.0,
+    };
+    let cases = [30.0, 5.0, 1.0, -3.0, -8.0, -20.0].map(|e| (e, None));
+    for (elevation, moon) in cases.into_iter().chain([(-20.0, Some(moon))]) {
         let mut desc = synthetic_scene(160, 120, "position = [640.0, 300.0, 400.0]");
         desc.sun.azimuth = 30.0;
         desc.sun.elevation = elevation;
+        desc.moon = moon;
         let Some(out) = render(&terrain, &desc, &cam, settings(true, true)) else {
             return;
         };
         let day = desc.daylight();
         let v = |c: [f32; 3]| DVec3::new(c[0].into(), c[1].into(), c[2].into());
         let (zenith, horizon, sun_colour) = (v(day.zenith), v(day.horizon), v(day.sun_colour));
-        let sun = desc.sun.direction();
+        let sun = day.light;
+        assert_eq!(day.moonlit, moon.is_some());
         let (mut sky, mut worst, mut ground) = (0, 0i32, Vec::new());
         for k in 0..160 * 120usize {
             let px = &out.rgba[4 * k..4 * k + 3];
@@ -593,17 +602,25 @@ fn the_sky_and_the_ground_follow_the_sun_into_night() {
         }
         let mean = ground.iter().sum::<f64>() / ground.len().max(1) as f64;
         eprintln!(
-            "sun at {elevation}°: {sky} sky pixels within {worst} of the daylight's sky, ground luminance {mean:.1}"
+            "sun at {elevation}°{}: {sky} sky pixels within {worst} of the daylight's sky, ground luminance {mean:.1}",
+            if moon.is_some() { ", a full moon 25° up" } else { "" }
         );
         assert!(
             sky > 3000 && ground.len() > 3000,
             "{sky} sky, {} ground",
             ground.len()
         );
-        assert!(
-            mean < ground_before,
-            "the ground brightened as the sun sank: {mean}"
-        );
-        ground_before = mean;
+        if moon.is_some() {
+            assert!(
+                mean > 3.0 * ground_before,
+                "moonlight: {mean} against {ground_before}"
+            );
+        } else {
+            assert!(
+                mean < ground_before,
+                "the ground brightened as the sun sank: {mean}"
+            );
+            ground_before = mean;
+        }
     }
 }

@@ -48,7 +48,7 @@ impl VolumeLight {
         let d = |c: [f32; 3]| DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64);
         let day = scene.daylight();
         VolumeLight {
-            sun: scene.sun.direction(),
+            sun: day.light,
             sun_colour: d(day.sun_colour),
             intensity: day.intensity as f64,
             zenith: d(day.zenith),

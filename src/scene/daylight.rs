@@ -7,6 +7,12 @@
 //! [`FULL_DAY`] (every demo scene) nothing changes. `[sky] twilight = false` keeps the scene's
 //! colours whatever the sun does.
 //!
+//! **The moon** (`[moon]`, or a CIGI host's Celestial Sphere Control): once the direct sun is
+//! gone (a degree below the horizon) a moon above the horizon becomes the light — its
+//! direction, a pale blue-white of [`MOONLIGHT`] times the sun's strength scaled by its lit
+//! fraction and reddened low as the sun is, its disc and glow in the sky, its shadows — and
+//! brightens the night sky by up to three times [`NIGHT`] (full, overhead).
+//!
 //! The sky's dimming is a display curve, not photometry: daylight to a moonless night spans
 //! about 10⁸ in illuminance, which no projector shows; like an adapted eye, the curve falls to
 //! 0.13 of day at the end of civil twilight (−6°) and to [`NIGHT`], 1/50, at the end of
@@ -14,6 +20,7 @@
 //! terrain's silhouette against it still visible.
 
 use super::SceneDesc;
+use glam::DVec3;
 
 /// Sun elevation (degrees) at and above which the scene's colours hold as given.
 pub const FULL_DAY: f64 = 10.0;
@@ -39,6 +46,13 @@ const SKY: [(f64, f64); 10] = [
 /// The sky's brightness at night (the sun 18° or more below the horizon), relative to day.
 pub const NIGHT: f64 = 1.0 / 50.0;
 
+/// Moonlight at full moon against the sun's colour and strength: a display level (the full
+/// moon's illuminance is about 1/400,000 of the sun's), as the night sky's [`NIGHT`] is.
+pub const MOONLIGHT: f64 = 0.025;
+
+/// Moonlight's colour (linear RGB): a pale blue-white, as night scenes are shown.
+const MOON_COLOUR: [f64; 3] = [0.85, 0.9, 1.0];
+
 /// A sunset horizon's colour at the luminance of 1 (Rec. 709 weights).
 const SUNSET: [f64; 3] = [1.70, 0.85, 0.425];
 
@@ -48,7 +62,11 @@ const DEEP_ZENITH: [f64; 3] = [0.6, 0.75, 1.2];
 /// The sun and sky that shading uses: the scene's, as its sun elevation makes them.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Daylight {
-    /// Direct sun: linear RGB and irradiance scale.
+    /// Unit vector (world) towards the light: the sun, or at night the moon.
+    pub light: DVec3,
+    /// Whether the light is the moon.
+    pub moonlit: bool,
+    /// Direct light (the sun's, or the moon's): linear RGB and irradiance scale.
     pub sun_colour: [f32; 3],
     pub intensity: f32,
     /// Sky at the zenith and the horizon (linear RGB) and the scale of its light on surfaces
@@ -110,6 +128,8 @@ impl SceneDesc {
         let e = sun.elevation;
         if !sky.twilight || e >= FULL_DAY {
             return Daylight {
+                light: sun.direction(),
+                moonlit: false,
                 sun_colour: sun.colour,
                 intensity: sun.intensity,
                 zenith: sky.zenith,
@@ -118,8 +138,17 @@ impl SceneDesc {
                 fog_colour: self.fog.colour.unwrap_or(sky.horizon),
             };
         }
-        let t = sun_transmittance(e);
-        let s = sky_brightness(e);
+        let mut t = sun_transmittance(e);
+        let mut s = sky_brightness(e);
+        let mut light = (sun.direction(), false);
+        let moon = (self.moon).filter(|m| e <= -1.0 && m.elevation > 0.0 && m.illuminated > 0.0);
+        if let Some(m) = moon {
+            let k = m.illuminated;
+            let tm = sun_transmittance(m.elevation);
+            t = [0, 1, 2].map(|c| MOON_COLOUR[c] * MOONLIGHT * k * tm[c]);
+            s = s.max(NIGHT * (1.0 + 2.0 * k * m.elevation.to_radians().sin()));
+            light = (m.direction(), true);
+        }
         // The horizon warms around sunset (most at 1° up), the zenith deepens from 6° down.
         let ramp = ((FULL_DAY - e) / 5.0).clamp(0.0, 1.0);
         let warm = 0.7 * ramp * (-((e - 1.0) / 3.5).powi(2)).exp();
@@ -132,8 +161,12 @@ impl SceneDesc {
             Some(c) => f(c).map(|v| v * s),
             None => horizon,
         };
+        // The moon's light is its own colour, not the sun's.
+        let colour = if light.1 { [1.0; 3] } else { f(sun.colour) };
         Daylight {
-            sun_colour: g([0, 1, 2].map(|k| f64::from(sun.colour[k]) * t[k])),
+            light: light.0,
+            moonlit: light.1,
+            sun_colour: g([0, 1, 2].map(|k| colour[k] * t[k])),
             intensity: sun.intensity,
             zenith: g(zenith),
             horizon: g(horizon),
@@ -166,7 +199,11 @@ mod tests {
         assert_eq!(day.zenith, s.sky.zenith);
         assert_eq!(day.horizon, s.sky.horizon);
         assert_eq!(day.ambient, s.sky.ambient);
-        assert_eq!(scene(45.0).daylight(), day);
+        let colours = |d: Daylight| Daylight {
+            light: DVec3::ZERO,
+            ..d
+        };
+        assert_eq!(colours(scene(45.0).daylight()), colours(day));
         let below = scene(FULL_DAY - 1e-6).daylight();
         let close = |a: [f32; 3], b: [f32; 3]| (0..3).all(|k| (a[k] - b[k]).abs() < 1e-5);
         assert!(close(below.sun_colour, day.sun_colour), "{below:?}");
@@ -174,7 +211,40 @@ mod tests {
         assert!((below.ambient - day.ambient).abs() < 1e-5);
         let mut off = scene(-10.0);
         off.sky.twilight = false;
-        assert_eq!(off.daylight(), day);
+        assert_eq!(colours(off.daylight()), colours(day));
+    }
+
+    /// At night a moon above the horizon is the light: its direction, a light scaled by its
+    /// lit fraction, a brighter sky; below the horizon, new, or with the sun up it is not.
+    #[test]
+    fn the_moon_lights_the_night() {
+        let mut night = scene(-20.0);
+        let dark = night.daylight();
+        night.moon = Some(crate::scene::Moon {
+            azimuth: 120.0,
+            elevation: 40.0,
+            illuminated: 1.0,
+        });
+        let lit = night.daylight();
+        assert!(lit.moonlit && !dark.moonlit);
+        assert!((lit.light - night.moon.unwrap().direction()).length() < 1e-12);
+        let want = (MOONLIGHT * MOON_COLOUR[2]) as f32;
+        assert!((lit.sun_colour[2] - want).abs() < 1e-6, "{lit:?}");
+        assert!(lit.zenith[2] > 1.5 * dark.zenith[2], "{lit:?} {dark:?}");
+        let half = |k: f64| {
+            let mut n = night.clone();
+            n.moon.as_mut().unwrap().illuminated = k;
+            n.daylight()
+        };
+        assert!((half(0.5).sun_colour[2] - want / 2.0).abs() < 1e-6);
+        assert_eq!(half(0.0), dark);
+        let mut set = night.clone();
+        set.moon.as_mut().unwrap().elevation = -2.0;
+        assert_eq!(set.daylight(), dark);
+        let mut day = night.clone();
+        day.sun.elevation = 30.0;
+        assert!(!day.daylight().moonlit);
+        assert_eq!(day.daylight().light, day.sun.direction());
     }
 
     /// As the sun sinks the sky and its light only dim, the sun reddens and is gone a degree

@@ -5,6 +5,7 @@ pub mod antialias;
 mod camera;
 pub mod cigi;
 pub mod daylight;
+pub mod lunar;
 pub mod solar;
 
 pub use antialias::AntialiasOption;
@@ -28,6 +29,10 @@ pub struct SceneDesc {
     pub sun: Sun,
     #[serde(default)]
     pub sky: Sky,
+    /// The moon (`[moon]`), where it shines: at night (the sun a degree or more below the
+    /// horizon) it lights the scene instead of the sun ([`daylight`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub moon: Option<Moon>,
     #[serde(default)]
     pub fog: Fog,
     pub camera: CameraDesc,
@@ -82,6 +87,35 @@ impl Sun {
     pub fn direction(&self) -> DVec3 {
         let (a, e) = (self.azimuth.to_radians(), self.elevation.to_radians());
         DVec3::new(a.sin() * e.cos(), a.cos() * e.cos(), e.sin())
+    }
+}
+
+/// `[moon]`: where the moon is and how much of it is lit.
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Moon {
+    /// Degrees clockwise from north (+y).
+    pub azimuth: f64,
+    /// Degrees above the horizon.
+    pub elevation: f64,
+    /// Illuminated fraction of its disc, 0 (new) to 1 (full).
+    #[serde(default = "full")]
+    pub illuminated: f64,
+}
+
+fn full() -> f64 {
+    1.0
+}
+
+impl Moon {
+    /// Unit vector towards the moon in the world frame.
+    pub fn direction(&self) -> DVec3 {
+        Sun {
+            azimuth: self.azimuth,
+            elevation: self.elevation,
+            ..Sun::default()
+        }
+        .direction()
     }
 }
 
@@ -384,7 +418,7 @@ impl Scene {
             .enumerate()
             .map(|(i, v)| {
                 let mut v = v.build(i, &self.base_dir, terrain)?;
-                v.set_sun(self.desc.sun.direction());
+                v.set_sun(self.desc.daylight().light);
                 Ok(v)
             })
             .collect::<Result<Vec<_>>>()?;
@@ -453,6 +487,18 @@ impl SceneDesc {
                 "output.width/height",
                 format!("must be 1..=16384 pixels, got {}x{}", o.width, o.height),
             ));
+        }
+        if let Some(m) = &self.moon {
+            check_finite("moon.azimuth/elevation", &[m.azimuth, m.elevation])?;
+            if !(-90.0..=90.0).contains(&m.elevation) || !(0.0..=1.0).contains(&m.illuminated) {
+                return Err(Error::invalid(
+                    "moon",
+                    format!(
+                        "elevation must be in -90..=90 degrees and illuminated in 0..=1, got {} and {}",
+                        m.elevation, m.illuminated
+                    ),
+                ));
+            }
         }
         let s = &self.sun;
         check_finite("sun.azimuth/elevation", &[s.azimuth, s.elevation])?;

@@ -49,6 +49,33 @@ impl UtcTime {
     }
 }
 
+/// The sun's apparent ecliptic longitude (degrees) at `jc` Julian centuries from J2000.
+pub fn apparent_longitude(jc: f64) -> f64 {
+    let sin = |d: f64| d.to_radians().sin();
+    let l0 = (280.46646 + jc * (36000.76983 + jc * 0.0003032)).rem_euclid(360.0);
+    let m = 357.52911 + jc * (35999.05029 - 0.0001537 * jc);
+    let c = sin(m) * (1.914602 - jc * (0.004817 + 0.000014 * jc))
+        + sin(2.0 * m) * (0.019993 - 0.000101 * jc)
+        + sin(3.0 * m) * 0.000289;
+    let omega = 125.04 - 1934.136 * jc;
+    l0 + c - 0.00569 - 0.00478 * sin(omega)
+}
+
+/// Azimuth (clockwise from true north, [0, 360)) and elevation (degrees) of a body at
+/// declination `decl` and local hour angle `ha` (degrees, west positive) seen from latitude
+/// `lat`.
+pub fn horizontal(lat: f64, decl: f64, ha: f64) -> (f64, f64) {
+    let (sin, cos) = (|d: f64| d.to_radians().sin(), |d: f64| d.to_radians().cos());
+    let el = (sin(lat) * sin(decl) + cos(lat) * cos(decl) * cos(ha))
+        .clamp(-1.0, 1.0)
+        .asin()
+        .to_degrees();
+    let az = sin(ha)
+        .atan2(cos(ha) * sin(lat) - decl.to_radians().tan() * cos(lat))
+        .to_degrees();
+    ((az + 180.0).rem_euclid(360.0), el)
+}
+
 /// The sun seen from latitude `lat`, longitude `lon` (degrees, east positive) at `t`:
 /// `(azimuth, elevation)` in degrees, azimuth clockwise from true north in [0, 360),
 /// elevation above the horizon (negative at night).
@@ -58,11 +85,8 @@ pub fn sun_position(t: UtcTime, lat: f64, lon: f64) -> (f64, f64) {
     let l0 = (280.46646 + jc * (36000.76983 + jc * 0.0003032)).rem_euclid(360.0);
     let m = 357.52911 + jc * (35999.05029 - 0.0001537 * jc);
     let e = 0.016708634 - jc * (0.000042037 + 0.0000001267 * jc);
-    let c = sin(m) * (1.914602 - jc * (0.004817 + 0.000014 * jc))
-        + sin(2.0 * m) * (0.019993 - 0.000101 * jc)
-        + sin(3.0 * m) * 0.000289;
     let omega = 125.04 - 1934.136 * jc;
-    let lambda = l0 + c - 0.00569 - 0.00478 * sin(omega);
+    let lambda = apparent_longitude(jc);
     let eps0 =
         23.0 + (26.0 + (21.448 - jc * (46.815 + jc * (0.00059 - jc * 0.001813))) / 60.0) / 60.0;
     let eps = eps0 + 0.00256 * cos(omega);

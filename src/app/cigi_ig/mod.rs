@@ -138,6 +138,8 @@ pub struct CigiIg {
     /// The frame's sun `(azimuth, elevation)` from Celestial Sphere Control, and fog
     /// visibility (m) from Atmosphere/Weather Control, when the host gave them.
     pub sun: Option<(f64, f64)>,
+    /// The frame's moon from Celestial Sphere Control's date, time and moon-enable bit.
+    pub moon: Option<crate::scene::Moon>,
     pub visibility: Option<f64>,
     /// Celestial Sphere Control with a date or time that does not exist, frames.
     pub bad_dates: u64,
@@ -203,6 +205,7 @@ impl CigiIg {
             full: None,
             deferral: None,
             sun: None,
+            moon: None,
             visibility: None,
             bad_dates: 0,
             buf: vec![0; 65536],
@@ -393,6 +396,7 @@ impl CigiIg {
     /// the scene's.
     pub fn environment(&mut self, desc: &mut SceneDesc, at: Option<[f64; 3]>) {
         self.sun = None;
+        self.moon = None;
         if let (Some(c), Some([lat, lon, _])) = (self.session.celestial, at) {
             let t = UtcTime::new(
                 (c.date % 10_000) as i32,
@@ -406,6 +410,16 @@ impl CigiIg {
                     desc.sun.azimuth = azimuth;
                     desc.sun.elevation = elevation;
                     self.sun = Some((azimuth, elevation));
+                    // The moon where the host enables it (else none).
+                    desc.moon = c.moon.then(|| {
+                        let m = crate::scene::lunar::moon_position(t, lat, lon);
+                        crate::scene::Moon {
+                            azimuth: m.azimuth,
+                            elevation: m.elevation,
+                            illuminated: m.illuminated,
+                        }
+                    });
+                    self.moon = desc.moon;
                 }
                 None if c.date_time_valid => {
                     self.bad_dates += 1;
@@ -614,6 +628,7 @@ impl CigiIg {
             "ig_frame": ig_frame,
             "ig_time_s": self.frame_time,
             "sun": self.sun.map(|(a, e)| [a, e]),
+            "moon": self.moon.map(|m| [m.azimuth, m.elevation, m.illuminated]),
             "visibility": self.visibility,
             "sync": self.sync,
             "datagrams": c.datagrams,

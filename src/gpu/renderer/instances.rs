@@ -190,7 +190,7 @@ impl TerrainRenderer {
                 v.instances(),
                 &boxes,
                 cam,
-                job.scene.sun.direction(),
+                job.scene.daylight().light,
                 // No surface lies lower: the terrain's lowest point, the free
                 // forms' and the models' own (their boxes start the sweep); a curved
                 // terrain's drop.
