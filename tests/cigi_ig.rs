@@ -773,14 +773,15 @@ fn the_sun_agrees_with_the_almanac_within_a_tenth_of_a_degree() {
     assert!(UtcTime::new(2024, 4, 30, 86400.0).is_none());
 }
 
-#[test]
-fn the_hosts_date_time_and_visibility_set_sun_and_fog() {
-    let _serial = one_ig_test_at_a_time();
-    let dir = temp_dir("cigi-environment");
-    let lla = [47.37, 9.31, 2300.0];
-    // The IG's scene: sun at 245°/24°, fog 90 km; the host says 21 June 2024, 07:40 UTC, and
-    // 15 km visibility.
-    let elsewhere = scene(&dir, "elsewhere", [47.6, 9.6, 900.0], [45.0, 10.0, 0.0], "");
+/// One frame of `relief serve` (its scene elsewhere) given `packets` with the ownship at
+/// `lla` and heading, pitch, roll `hpr`: the frame's JSON and picture.
+fn serve_one_frame(
+    dir: &std::path::Path,
+    lla: [f64; 3],
+    hpr: [f64; 3],
+    packets: &[HostPacket],
+) -> (serde_json::Value, image::RgbaImage) {
+    let elsewhere = scene(dir, "elsewhere", [47.6, 9.6, 900.0], [45.0, 10.0, 0.0], "");
     let served = dir.join("served");
     let ig = Ig::start(
         &elsewhere,
@@ -795,6 +796,47 @@ fn the_hosts_date_time_and_visibility_set_sun_and_fog() {
         ],
         host_socket(),
     );
+    let own = EntityControl::placed(0, 0, lla, hpr.map(|v| v as f32));
+    let mut all = vec![own.into()];
+    all.extend_from_slice(packets);
+    ig.exchange(&message(ig_control(3, None, false), &all), 3);
+    ig.finish();
+    (
+        common::read_json(&served.join("frame_0000.json")),
+        image_at(&served.join("frame_0000.png")),
+    )
+}
+
+/// `relief render` of the test scene at `lla`, `hpr` with the sun at `sun` (azimuth,
+/// elevation), fog visibility `vis` (m) and `extra` scene lines, named `name` in `dir`.
+fn render_at(
+    dir: &std::path::Path,
+    name: &str,
+    (lla, hpr): ([f64; 3], [f64; 3]),
+    sun: (f64, f64),
+    vis: f64,
+    extra: &str,
+) -> image::RgbaImage {
+    let text = std::fs::read_to_string(scene(dir, name, lla, hpr, extra)).unwrap();
+    let text = text
+        .replace(
+            "azimuth = 245.0\nelevation = 24.0",
+            &format!("azimuth = {:?}\nelevation = {:?}", sun.0, sun.1),
+        )
+        .replace("visibility = 90000.0", &format!("visibility = {vis:?}"));
+    let p = dir.join(format!("{name}.toml"));
+    std::fs::write(&p, text).unwrap();
+    render_frame(&p, &dir.join(name), &[])
+}
+
+#[test]
+fn the_hosts_date_time_and_visibility_set_sun_and_fog() {
+    let _serial = one_ig_test_at_a_time();
+    let dir = temp_dir("cigi-environment");
+    let pose = ([47.37, 9.31, 2300.0], [100.0, -4.0, 0.0]);
+    let lla = pose.0;
+    // The IG's scene: sun at 245°/24°, fog 90 km; the host says 21 June 2024, 07:40 UTC, and
+    // 15 km visibility.
     let celestial = sun_at(6212024, 7, 40); // 21 June 2024 (MMDDYYYY), 07:40 UTC
     let atmosphere = AtmosphereControl {
         model_enable: true,
@@ -806,17 +848,8 @@ fn the_hosts_date_time_and_visibility_set_sun_and_fog() {
         wind_direction: 0.0,
         pressure: 1013.25,
     };
-    let own = EntityControl::placed(0, 0, lla, [100.0, -4.0, 0.0]);
-    ig.exchange(
-        &message(
-            ig_control(3, None, false),
-            &[own.into(), celestial.into(), atmosphere.into()],
-        ),
-        3,
-    );
-    ig.finish();
+    let (j, a) = serve_one_frame(&dir, lla, pose.1, &[celestial.into(), atmosphere.into()]);
     let (az, el) = almanac_sun(2024, 6, 21, 7.0 + 40.0 / 60.0, lla[0], lla[1]);
-    let j = common::read_json(&served.join("frame_0000.json"));
     let sun = &j["cigi"]["sun"];
     let (saz, sel) = (sun[0].as_f64().unwrap(), sun[1].as_f64().unwrap());
     eprintln!(
@@ -825,23 +858,17 @@ fn the_hosts_date_time_and_visibility_set_sun_and_fog() {
     );
     assert!((saz - az).abs() <= 0.1 && (sel - el).abs() <= 0.1);
     assert_eq!(j["cigi"]["visibility"], 15000.0);
+    assert!(j["cigi"]["moon"].is_null(), "no moon bit, no moon");
     // `relief render` of a scene with that sun and fog at the ownship's pose.
-    let render = |name: &str, sun: (f64, f64), vis: f64| {
-        let text = std::fs::read_to_string(scene(&dir, name, lla, [100.0, -4.0, 0.0], "")).unwrap();
-        let text = text
-            .replace(
-                "azimuth = 245.0\nelevation = 24.0",
-                &format!("azimuth = {:?}\nelevation = {:?}", sun.0, sun.1),
-            )
-            .replace("visibility = 90000.0", &format!("visibility = {vis:?}"));
-        let p = dir.join(format!("{name}.toml"));
-        std::fs::write(&p, text).unwrap();
-        render_frame(&p, &dir.join(name), &[])
-    };
-    let a = image_at(&served.join("frame_0000.png"));
-    let same = mean_diff(&a, &render("same", (az, el), 15000.0));
-    let scene_sun = mean_diff(&a, &render("scene_sun", (245.0, 24.0), 15000.0));
-    let scene_fog = mean_diff(&a, &render("scene_fog", (az, el), 90000.0));
+    let same = mean_diff(&a, &render_at(&dir, "same", pose, (az, el), 15000.0, ""));
+    let scene_sun = mean_diff(
+        &a,
+        &render_at(&dir, "scene_sun", pose, (245.0, 24.0), 15000.0, ""),
+    );
+    let scene_fog = mean_diff(
+        &a,
+        &render_at(&dir, "scene_fog", pose, (az, el), 90000.0, ""),
+    );
     eprintln!("served vs render with the almanac's sun and 15 km fog: {same:.4}/255; with the scene's sun {scene_sun:.2}/255; with the scene's fog {scene_fog:.2}/255");
     assert!(same <= 1.0, "{same}");
     assert!(scene_sun > 1.0 && scene_fog > 1.0, "sun and fog matter");
@@ -855,35 +882,14 @@ fn the_hosts_date_time_and_visibility_set_sun_and_fog() {
 fn the_hosts_night_has_its_moon() {
     let _serial = one_ig_test_at_a_time();
     let dir = temp_dir("cigi-moon");
-    let lla = [47.37, 9.31, 2300.0];
-    let hpr = [200.0, -4.0, 0.0];
-    let elsewhere = scene(&dir, "elsewhere", [47.6, 9.6, 900.0], [45.0, 10.0, 0.0], "");
-    let served = dir.join("served");
-    let ig = Ig::start(
-        &elsewhere,
-        &[
-            "--size",
-            "160x120",
-            "--cigi-sync",
-            "--frames",
-            "1",
-            "--capture-frames",
-            served.to_str().unwrap(),
-        ],
-        host_socket(),
-    );
+    let pose = ([47.37, 9.31, 2300.0], [200.0, -4.0, 0.0]);
+    let lla = pose.0;
     // 22 June 2024, 01:08 UTC: a full moon, low in the south before dawn.
     let celestial = CelestialSphereControl {
         moon: true,
         ..sun_at(6222024, 1, 8)
     };
-    let own = EntityControl::placed(0, 0, lla, hpr.map(|v| v as f32));
-    ig.exchange(
-        &message(ig_control(3, None, false), &[own.into(), celestial.into()]),
-        3,
-    );
-    ig.finish();
-    let j = common::read_json(&served.join("frame_0000.json"));
+    let (j, a) = serve_one_frame(&dir, lla, pose.1, &[celestial.into()]);
     let (sun, moon) = (&j["cigi"]["sun"], &j["cigi"]["moon"]);
     let f = |v: &serde_json::Value, k: usize| v[k].as_f64().unwrap();
     let t = relief::scene::solar::UtcTime::new(2024, 6, 22, 3600.0 + 8.0 * 60.0).unwrap();
@@ -891,25 +897,18 @@ fn the_hosts_night_has_its_moon() {
     eprintln!("moon from the host: {moon}, sun {sun}; at the ownship {want:?}");
     assert!((f(moon, 0) - want.azimuth).abs() < 1e-6 && (f(moon, 1) - want.elevation).abs() < 1e-6);
     assert!(f(moon, 1) > 5.0 && f(moon, 2) > 0.99 && f(sun, 1) < -10.0);
-    let render = |name: &str, extra: &str| {
-        let text = std::fs::read_to_string(scene(&dir, name, lla, hpr, extra)).unwrap();
-        let text = text.replace(
-            "azimuth = 245.0\nelevation = 24.0",
-            &format!("azimuth = {:?}\nelevation = {:?}", f(sun, 0), f(sun, 1)),
-        );
-        let p = dir.join(format!("{name}.toml"));
-        std::fs::write(&p, text).unwrap();
-        render_frame(&p, &dir.join(name), &[])
-    };
-    let a = image_at(&served.join("frame_0000.png"));
     let moonlit = format!(
         "[moon]\nazimuth = {:?}\nelevation = {:?}\nilluminated = {:?}\n",
         f(moon, 0),
         f(moon, 1),
         f(moon, 2)
     );
-    let same = mean_diff(&a, &render("moonlit", &moonlit));
-    let dark = mean_diff(&a, &render("moonless", ""));
+    let sun = (f(sun, 0), f(sun, 1));
+    let same = mean_diff(
+        &a,
+        &render_at(&dir, "moonlit", pose, sun, 90000.0, &moonlit),
+    );
+    let dark = mean_diff(&a, &render_at(&dir, "moonless", pose, sun, 90000.0, ""));
     eprintln!("served vs render with that moon: {same:.4}/255; without it {dark:.2}/255");
     assert!(same <= 1.0, "{same}");
     assert!(dark > 1.0, "the moon matters: {dark}");
