@@ -859,6 +859,7 @@ fn the_hosts_date_time_and_visibility_set_sun_and_fog() {
     assert!((saz - az).abs() <= 0.1 && (sel - el).abs() <= 0.1);
     assert_eq!(j["cigi"]["visibility"], 15000.0);
     assert!(j["cigi"]["moon"].is_null(), "no moon bit, no moon");
+    assert_eq!(j["lighting"]["light"], "sun", "{}", j["lighting"]);
     // `relief render` of a scene with that sun and fog at the ownship's pose.
     let same = mean_diff(&a, &render_at(&dir, "same", pose, (az, el), 15000.0, ""));
     let scene_sun = mean_diff(
@@ -897,6 +898,8 @@ fn the_hosts_night_has_its_moon() {
     eprintln!("moon from the host: {moon}, sun {sun}; at the ownship {want:?}");
     assert!((f(moon, 0) - want.azimuth).abs() < 1e-6 && (f(moon, 1) - want.elevation).abs() < 1e-6);
     assert!(f(moon, 1) > 5.0 && f(moon, 2) > 0.99 && f(sun, 1) < -10.0);
+    assert_eq!(j["lighting"]["light"], "moon", "{}", j["lighting"]);
+    assert_eq!(j["lighting"]["moon"]["deg"][1], *moon.get(1).unwrap());
     let moonlit = format!(
         "[moon]\nazimuth = {:?}\nelevation = {:?}\nilluminated = {:?}\n",
         f(moon, 0),

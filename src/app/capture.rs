@@ -38,6 +38,24 @@ pub fn world_from_file_grid(scene: &Scene, terrain: &Terrain) -> glam::DMat4 {
     m
 }
 
+/// The frame's light (`scene::daylight`): the sun's and the moon's directions, which of them
+/// lights the frame, and the sun and sky colours used.
+fn lighting(desc: &crate::scene::SceneDesc) -> serde_json::Value {
+    let day = desc.daylight();
+    json!({
+        "sun_deg": [desc.sun.azimuth, desc.sun.elevation],
+        "moon": desc.moon.map(|m| json!({
+            "deg": [m.azimuth, m.elevation],
+            "illuminated": m.illuminated,
+        })),
+        "light": if day.moonlit { "moon" } else { "sun" },
+        "twilight": desc.sky.twilight,
+        "light_colour": day.sun_colour,
+        "sky_zenith": day.zenith,
+        "sky_horizon": day.horizon,
+    })
+}
+
 /// Metadata describing exactly how a frame's pixels were made.
 pub fn frame_metadata(
     gpu: &Gpu,
@@ -70,6 +88,7 @@ pub fn frame_metadata(
             },
         },
         "time_s": scene.desc.path.as_ref().map(|p| frame as f64 / p.fps),
+        "lighting": lighting(&scene.desc),
         "width": out.width,
         "height": out.height,
         "camera": {
