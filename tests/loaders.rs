@@ -686,13 +686,16 @@ fn scene_base_text_is_valid() {
 
 #[test]
 fn scene_errors_name_the_field() {
-    let cases: [(&str, String, &[&str]); 10] = [
+    let cases: [(&str, String, &[&str]); 13] = [
         ("fov 0", BASE_SCENE.replace("1000.0]", "1000.0]\nfov = 0.0"), &["camera.fov"]),
         ("fov 180", BASE_SCENE.replace("1000.0]", "1000.0]\nfov = 180.0"), &["camera.fov"]),
         ("misspelt key", BASE_SCENE.replace("[camera]\n", "[camera]\npositon = [1.0, 2.0, 3.0]\n"), &["positon"]),
         ("unknown terrain key", BASE_SCENE.replace("[terrain]\n", "[terrain]\ncolour_mode = 1\n"), &["colour_mode"]),
         ("output width 0", format!("{BASE_SCENE}[output]\nwidth = 0\n"), &["output.width"]),
         ("sun elevation 120", format!("{BASE_SCENE}[sun]\nelevation = 120.0\n"), &["sun.elevation"]),
+        ("moon elevation 95", format!("{BASE_SCENE}[moon]\nazimuth = 10.0\nelevation = 95.0\n"), &["moon", "elevation"]),
+        ("moon lit 1.5", format!("{BASE_SCENE}[moon]\nazimuth = 10.0\nelevation = 5.0\nilluminated = 1.5\n"), &["moon", "illuminated"]),
+        ("moon azimuth nan", format!("{BASE_SCENE}[moon]\nazimuth = nan\nelevation = 5.0\n"), &["moon.azimuth"]),
         (
             "keyframes not increasing",
             format!(
