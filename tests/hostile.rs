@@ -745,7 +745,8 @@ fn bourke_samples() -> Vec<Sample> {
 }
 
 const SCENE_SAMPLE: &str = "[terrain]\nsource = \"N47E009.hgt\"\nvertical_scale = 1.5\n\
-[sun]\nazimuth = 200.0\nelevation = 30.0\n[fog]\nvisibility = 20000.0\n\
+[sun]\nazimuth = 200.0\nelevation = -12.0\n[moon]\nazimuth = 100.0\nelevation = 20.0\nilluminated = 0.6\n\
+[sky]\ntwilight = true\n[fog]\nvisibility = 20000.0\n\
 [camera]\nposition = [100.0, 200.0, 1500.0]\nheading = 30.0\npitch = -10.0\nfov = 60.0\n\
 [output]\nwidth = 64\nheight = 48\n\
 [path]\nfps = 30.0\nkeyframes = [\n { time = 0.0, position = [0.0, 0.0, 1000.0] },\n { time = 2.0, position = [100.0, 0.0, 1100.0], heading = 10.0 },\n]\n\
