@@ -54,7 +54,6 @@ pub fn frame_uniforms(
     // A grid step in the eye's metric (the frame's spacing on a flat terrain).
     let [sx, sy] = [fr.spacing[0] * curv.metric.x, fr.spacing[1] * curv.metric.y];
     let eye = fr.world_to_grid(cam.pose.position);
-
     let local =
         |v: glam::DVec3| glam::DVec3::new(v.dot(fr.axis_x), v.dot(fr.axis_y), v.dot(fr.normal));
     let day = scene.daylight();
