@@ -355,7 +355,7 @@ fn every_intersection_is_answered_and_the_alpha_threshold_lets_lines_through() {
     let dem = Dem::load();
     let (served, sphere, _) = setup(&dir, &dem);
     let faint = up(sphere, 120.0);
-    let ig = serve_with(&served, &dir, 2, &["--cigi-los", "every"]);
+    let ig = serve_with(&served, &dir, 3, &["--cigi-los", "every"]);
     let own = ownship(CAM, HEADING as f32, -3.0, 0.0);
     let entities: Vec<HostPacket> = vec![
         own.into(),
@@ -396,7 +396,33 @@ fn every_intersection_is_answered_and_the_alpha_threshold_lets_lines_through() {
         .into(),
     ]);
     let answer = ig.exchange(&message(ig_control(11, None, false), &asked), 11);
+    // 700 such requests would need 117,600 bytes of responses: past the budget each gets its
+    // nearest only, and the datagram stays whole.
+    let many: Vec<HostPacket> = (100..800)
+        .map(|id| segment(id, true, top, bottom).into())
+        .collect();
+    let (flood, raw) = ig.exchange_raw(&message(ig_control(12, None, false), &many), 12);
     ig.finish();
+    let mut per_id = std::collections::BTreeMap::<u16, Vec<u8>>::new();
+    for p in &flood.packets {
+        if let IgPacket::LosExtendedResponse(r) = p {
+            per_id.entry(r.request_id).or_default().push(r.count);
+        }
+    }
+    let full = per_id.values().filter(|c| c.len() == 3).count();
+    eprintln!(
+        "700 requests: a datagram of {} bytes, {full} answered with all 3 intersections",
+        raw.len()
+    );
+    assert!(raw.len() <= 65_507 && per_id.len() == 700);
+    assert!(per_id
+        .values()
+        .all(|c| c.iter().all(|&n| usize::from(n) == c.len())));
+    let budget = relief::app::cigi_ig::answer::EVERY_BUDGET;
+    assert!(
+        full >= budget / (3 * 56) - 1 && full < 700,
+        "{full} against {budget} bytes"
+    );
 
     let extended = |id: u16| -> Vec<LosExtendedResponse> {
         (answer.packets.iter())

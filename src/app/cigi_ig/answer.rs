@@ -61,6 +61,7 @@ pub use collide::{segment_collisions, volume_collisions};
 use glam::DVec3;
 pub use ground::{azimuth_elevation, direction, height_of_terrain, Ground, LosResponses};
 use ground::{lsn, request_point, world, EntityFrame};
+pub use los::EVERY_BUDGET;
 use los::{los_segment, los_vector, SegmentFrames};
 
 mod collide;

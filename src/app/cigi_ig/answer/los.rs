@@ -6,7 +6,7 @@ use super::ground::{
     azimuth_elevation, direction, lsn, request_point, world, EntityFrame, Ground, LosResponses,
 };
 use crate::cigi::{
-    LosExtendedResponse, LosResponse, LosSegmentRequest, LosVectorRequest, MessageBuilder,
+    LosExtendedResponse, LosResponse, LosSegmentRequest, LosVectorRequest, MessageBuilder, Packet,
 };
 use crate::cpu::bodies::{Bodies, BodyHit};
 use crate::cpu::query::{cast_ray, line_of_sight};
@@ -100,10 +100,24 @@ struct LosAnswer<'a> {
     in_entity: Option<&'a EntityFrame>,
 }
 
+/// How far an IG datagram may fill with intersections beyond each LOS request's nearest
+/// ([`LosResponses::Every`]): UDP's 65,507 bytes less Start of Frame, one extended response
+/// (56 bytes, the largest) for each of the most queries a frame takes
+/// ([`MAX_QUERIES`](crate::cigi::session::MAX_QUERIES)) and 1 KiB: 7,115 bytes, 127 extended
+/// responses.
+pub const EVERY_BUDGET: usize = 65_507 - 24 - crate::cigi::session::MAX_QUERIES * 56 - 1024;
+
 /// The LOS responses (basic or extended) to one request from what the test found on `t`:
-/// one for each surface met, or one saying none was.
+/// one for each surface met, or one saying none was. Past [`EVERY_BUDGET`] bytes of the
+/// datagram a request gets its nearest intersection only (`count` says what was sent).
 fn push_los(t: &Terrain, a: &LosAnswer, frame: u32, los: &Los, msg: &mut MessageBuilder) {
-    let count = los.met.len().clamp(1, usize::from(u8::MAX)) as u8;
+    let size = if a.extended {
+        LosExtendedResponse::KIND.size()
+    } else {
+        LosResponse::KIND.size()
+    };
+    let room = EVERY_BUDGET.saturating_sub(msg.len()) / size;
+    let count = los.met.len().min(room).clamp(1, usize::from(u8::MAX)) as u8;
     if los.met.is_empty() {
         push_one(t, a, frame, los, None, count, msg);
     }
