@@ -1158,11 +1158,9 @@ fn an_entity_from_a_scene_template_appears_moves_hides_and_vanishes() {
     );
 }
 
-#[test]
-fn hot_and_los_on_a_database_scene_come_from_full_resolution() {
-    let _serial = one_ig_test_at_a_time();
-    let dem = Dem::load();
-    let dir = temp_dir("cigi-database");
+/// `dir/world.reliefdb` (ETOPO20 under N47E009) and `dir/scene.toml` rendering its level 7
+/// over the Alpstein; returns the scene.
+fn world_database_scene(dir: &std::path::Path) -> std::path::PathBuf {
     let db = dir.join("world.reliefdb");
     let t = Instant::now();
     relief::db::build(
@@ -1176,7 +1174,6 @@ fn hot_and_los_on_a_database_scene_come_from_full_resolution() {
     )
     .unwrap();
     eprintln!("database built in {:.2} s", t.elapsed().as_secs_f64());
-    // The scene renders level 7 (48″ samples); the answers must be the 3″ samples' surface.
     let scene = dir.join("scene.toml");
     std::fs::write(
         &scene,
@@ -1184,6 +1181,83 @@ fn hot_and_los_on_a_database_scene_come_from_full_resolution() {
          [camera]\ngeodetic = [47.37, 9.31, 2300.0]\n[output]\nwidth = 160\nheight = 120\n",
     )
     .unwrap();
+    scene
+}
+
+/// On a database scene a frame answers the last frame's kept queries before its own; where
+/// both would pass UDP's 65,507 bytes (1,000 extended HOT requests kept from a cold frame, 40
+/// bytes of answer each, and 1,000 new ones), the new ones the datagram has no room for are
+/// kept for the next frame (`no_room`), the datagram is sent whole, and every request is
+/// answered exactly once.
+#[test]
+fn database_answers_that_fill_the_datagram_wait_a_frame() {
+    let _serial = one_ig_test_at_a_time();
+    let dir = temp_dir("cigi-database-full");
+    let scene = world_database_scene(&dir);
+    let ig = Ig::start(
+        &scene,
+        &["--size", "64x48", "--cigi-sync", "--frames", "4"],
+        host_socket(),
+    );
+    let requests = |first: u16| -> Vec<HostPacket> {
+        (first..first + 1000)
+            .map(|id| {
+                let k = f64::from(id % 100);
+                HatHotRequest {
+                    request_id: id,
+                    request_type: 2,
+                    lat: 47.2 + 0.003 * k,
+                    lon: 9.3 + 0.004 * k,
+                    alt: 3000.0,
+                    ..HatHotRequest::default()
+                }
+                .into()
+            })
+            .collect()
+    };
+    let own: HostPacket = ownship([47.37, 9.31, 2300.0], 0.0, 0.0, 0.0).into();
+    ig.exchange(&message(ig_control(3, None, false), &[own]), 3);
+    let mut seen = std::collections::BTreeMap::<u16, u32>::new();
+    let (mut sizes, mut counts) = (Vec::new(), Vec::new());
+    for (frame, first) in [(4, Some(0)), (5, Some(1000)), (6, None)] {
+        let asked = first.map(requests).unwrap_or_default();
+        let (m, raw) = ig.exchange_raw(&message(ig_control(frame, None, false), &asked), frame);
+        sizes.push(raw.len());
+        let mut n = 0;
+        for p in &m.packets {
+            if let IgPacket::HatHotExtendedResponse(r) = p {
+                *seen.entry(r.request_id).or_default() += 1;
+                n += 1;
+            }
+        }
+        counts.push(n);
+    }
+    let out = ig.finish();
+    let counters = out
+        .lines()
+        .find_map(|l| l.strip_prefix("cigi-counters: "))
+        .expect("the counters line");
+    let c: serde_json::Value = serde_json::from_str(counters).unwrap();
+    eprintln!(
+        "answers {counts:?} in datagrams of {sizes:?} bytes; deferred {}, no room {}",
+        c["deferred"], c["no_room"]
+    );
+    assert!(sizes.iter().all(|&n| n <= 65_507), "{sizes:?}");
+    assert_eq!(seen.len(), 2000);
+    assert!(seen.values().all(|&n| n == 1), "each answered once");
+    // Frame 5: the 1,000 kept, then new ones while a largest answer (56 bytes) still fits.
+    let room = (65_507 - 56 - 24 - 1000 * 40) / 40 + 1;
+    assert_eq!(counts, [0, 1000 + room, 1000 - room], "{counts:?}");
+    assert_eq!(c["no_room"].as_u64(), Some(1000 - room as u64));
+}
+
+#[test]
+fn hot_and_los_on_a_database_scene_come_from_full_resolution() {
+    let _serial = one_ig_test_at_a_time();
+    let dem = Dem::load();
+    let dir = temp_dir("cigi-database");
+    // The scene renders level 7 (48″ samples); the answers must be the 3″ samples' surface.
+    let scene = world_database_scene(&dir);
     let ig = Ig::start(
         &scene,
         &["--size", "160x120", "--cigi-sync", "--frames", "5"],

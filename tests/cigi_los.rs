@@ -754,3 +754,72 @@ fn collision_volumes_report_the_terrain_they_reach_below() {
     eprintln!("terrain contacts: {got:?}");
     assert_eq!(got, expected);
 }
+
+/// A frame whose answers and collision notifications would pass UDP's 65,507 bytes: 1,000
+/// extended LOS requests (56,000 bytes of responses) and 1,024 collision segments that all
+/// meet the ground (16,384 bytes). Every query is answered, the notifications fill what room
+/// is left and the rest are dropped and counted (they come again next frame); the datagram is
+/// sent whole.
+#[test]
+fn a_full_datagram_drops_collision_notifications_not_answers() {
+    let _serial = one_ig_test_at_a_time();
+    let dir = temp_dir("cigi-full-datagram");
+    let dem = Dem::load();
+    let (served, sphere, _) = setup(&dir, &dem);
+    let ig = serve(&served, &dir, 2);
+    let p = ahead(800.0, -300.0, 0.0);
+    let low = [p[0], p[1], dem.height(p[0], p[1]) + 30.0];
+    let mut packets: Vec<HostPacket> = vec![ownship(CAM, HEADING as f32, -3.0, 0.0).into()];
+    for entity_id in 60..64u16 {
+        packets.push(
+            EntityControl {
+                collision_detection: true,
+                ..EntityControl::placed(entity_id, 99, low, [0.0; 3])
+            }
+            .into(),
+        );
+        for segment_id in 0..=255u8 {
+            packets.push(
+                CollisionSegmentDefinition {
+                    entity_id,
+                    segment_id,
+                    enabled: true,
+                    z2: 50.0,
+                    ..CollisionSegmentDefinition::default()
+                }
+                .into(),
+            );
+        }
+    }
+    ig.exchange(&message(ig_control(10, None, false), &packets), 10);
+    let (top, bottom) = (up(sphere, 500.0), up(sphere, -500.0));
+    let asked: Vec<HostPacket> = (0..1000)
+        .map(|id| segment(id, true, top, bottom).into())
+        .collect();
+    let (answer, raw) = ig.exchange_raw(&message(ig_control(11, None, false), &asked), 11);
+    let out = ig.finish();
+    let los = (answer.packets.iter())
+        .filter(|p| matches!(p, IgPacket::LosExtendedResponse(_)))
+        .count();
+    let notified = (answer.packets.iter())
+        .filter(|p| matches!(p, IgPacket::CollisionSegmentNotification(_)))
+        .count();
+    let room = (65_507 - 24 - 1000 * 56) / 16;
+    eprintln!(
+        "a datagram of {} bytes: {los} LOS responses, {notified} of 1024 notifications (room for {room})",
+        raw.len()
+    );
+    assert!(raw.len() <= 65_507, "{}", raw.len());
+    assert_eq!(los, 1000);
+    assert_eq!(notified, room);
+    let counters = out
+        .lines()
+        .find_map(|l| l.strip_prefix("cigi-counters: "))
+        .expect("the counters line");
+    let j: serde_json::Value = serde_json::from_str(counters).unwrap();
+    eprintln!(
+        "collisions {} dropped {}",
+        j["collisions"], j["collisions_dropped"]
+    );
+    assert_eq!(j["collisions_dropped"].as_u64(), Some(1024 - room as u64));
+}

@@ -242,6 +242,10 @@ pub struct MessageBuilder {
     bytes: Vec<u8>,
 }
 
+/// The most bytes one UDP datagram carries over IPv4 (65,535 less the IP and UDP headers): a
+/// message past it cannot be sent.
+pub const DATAGRAM_LIMIT: usize = 65_507;
+
 impl MessageBuilder {
     /// A host message starting with `ig_control`.
     pub fn host(ig_control: &IgControl, order: ByteOrder) -> Self {
@@ -267,6 +271,11 @@ impl MessageBuilder {
     pub fn push_any(&mut self, p: &impl PacketSet) -> &mut Self {
         p.encode_into(self.order, &mut self.bytes);
         self
+    }
+
+    /// Whether `bytes` more still fit in one datagram ([`DATAGRAM_LIMIT`]).
+    pub fn fits(&self, bytes: usize) -> bool {
+        self.bytes.len() + bytes <= DATAGRAM_LIMIT
     }
 
     /// Bytes so far.

@@ -29,7 +29,7 @@ pub use host::*;
 pub use ig::*;
 pub use message::{
     read_host_message, read_ig_message, HostMessage, HostPacket, IgMessage, IgPacket,
-    MessageBuilder, PacketSet, Rejection, Stop, Walk,
+    MessageBuilder, PacketSet, Rejection, Stop, Walk, DATAGRAM_LIMIT,
 };
 pub use packet::{Direction, Kind, Packet};
 pub use session::{Counters, Query, Session};

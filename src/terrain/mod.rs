@@ -128,6 +128,9 @@ pub struct Terrain {
     pub hollow: Option<hollow::Hollow>,
 }
 
+/// Terrains of fewer samples than this (query windows) log their making at `debug`.
+const QUIET_BELOW: usize = 1 << 16;
+
 impl Terrain {
     /// Places a height field in the world and builds its pyramid.
     pub fn new(
@@ -142,7 +145,15 @@ impl Terrain {
         let (min_height, max_height) = checked_range(field.range(), vertical_scale)?;
         let t = std::time::Instant::now();
         let pyramid = MaxPyramid::build(&field);
-        log::info!(
+        // A scene's terrain is worth a line; the small windows queries build (one per CIGI
+        // query on a database scene) are not.
+        let level = if field.width * field.height >= QUIET_BELOW {
+            log::Level::Info
+        } else {
+            log::Level::Debug
+        };
+        log::log!(
+            level,
             "terrain {}x{} samples, {:.2}x{:.2} m spacing, heights {min_height}..{max_height} m; pyramid of {} levels in {:.1} ms",
             field.width,
             field.height,

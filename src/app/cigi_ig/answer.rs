@@ -57,7 +57,7 @@ use crate::cpu::database::FullResolution;
 use crate::cpu::query::cast_ray;
 use crate::db::{Prefetcher, ResidentOnly, TileId};
 use crate::terrain::Terrain;
-pub use collide::{segment_collisions, volume_collisions};
+pub use collide::{segment_collisions, volume_collisions, Notified};
 use glam::DVec3;
 pub use ground::{azimuth_elevation, direction, height_of_terrain, Ground, LosResponses};
 use ground::{lsn, request_point, world, EntityFrame};
@@ -67,6 +67,9 @@ use los::{los_segment, los_vector, SegmentFrames};
 mod collide;
 mod ground;
 mod los;
+
+/// The largest response one query may add past [`EVERY_BUDGET`] (a LOS extended response).
+const LARGEST_ANSWER: usize = 56;
 
 /// What the answers of one frame did.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -78,13 +81,19 @@ pub struct AnswerCounts {
     pub invalid: u64,
     /// Not answered (unknown entity, unsupported object class).
     pub unanswered: u64,
-    /// Database scenes: kept for the next frame (a tile they need was not in memory).
+    /// Database scenes: kept for the next frame (a tile they need was not in memory, or the
+    /// frame's datagram had no room left: `no_room`).
     pub deferred: u64,
+    /// Database scenes: of those, kept because the datagram had no room for their answer (the
+    /// last frame's kept queries and a full frame of new ones: [`Deferral::answer_frame`]).
+    pub no_room: u64,
     /// Database scenes: kept queries whose tiles the prefetcher had not read by the frame that
     /// answers them (or the run's end), read there synchronously.
     pub blocking_reads: u64,
-    /// Collision Detection Segment Notifications sent.
+    /// Collision Detection Segment and Volume Notifications sent.
     pub collisions: u64,
+    /// Collision notifications dropped: the frame's datagram had no room left for them.
+    pub collisions_dropped: u64,
 }
 
 impl AnswerCounts {
@@ -96,8 +105,10 @@ impl AnswerCounts {
         self.invalid += o.invalid;
         self.unanswered += o.unanswered;
         self.deferred += o.deferred;
+        self.no_room += o.no_room;
         self.blocking_reads += o.blocking_reads;
         self.collisions += o.collisions;
+        self.collisions_dropped += o.collisions_dropped;
     }
 }
 
@@ -237,6 +248,12 @@ impl Deferral {
         let mut c = self.answer_kept(on, frame, msg);
         let mut missing = Vec::new();
         for q in queries {
+            if !msg.fits(LARGEST_ANSWER) {
+                c.deferred += 1;
+                c.no_room += 1;
+                self.kept.push(*q);
+                continue;
+            }
             if matches!(q, Query::Position(..)) {
                 let g = Ground {
                     terrain: on.terrain,
@@ -258,7 +275,7 @@ impl Deferral {
     }
 
     /// Answers every kept query onto `msg` with `frame`'s LSN (resident, else read now:
-    /// `blocking_reads`); none is kept after.
+    /// `blocking_reads`); none is kept after but those the datagram has no room for.
     pub fn answer_kept(
         &mut self,
         on: &OnDatabase,
@@ -267,6 +284,11 @@ impl Deferral {
     ) -> AnswerCounts {
         let mut c = AnswerCounts::default();
         for q in std::mem::take(&mut self.kept) {
+            if !msg.fits(LARGEST_ANSWER) {
+                c.no_room += 1;
+                self.kept.push(q);
+                continue;
+            }
             if resident(on, &q, frame, msg, &mut c).is_some() {
                 c.blocking_reads += 1;
                 let g = Ground {
@@ -419,5 +441,27 @@ fn position_response(r: &PositionRequest, coordinate_system: u8, p: &Pose) -> Po
         roll: p.roll as f32,
         pitch: p.pitch as f32,
         yaw: p.yaw as f32,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::LARGEST_ANSWER;
+    use crate::cigi::{
+        HatHotExtendedResponse, HatHotResponse, LosExtendedResponse, LosResponse, Packet,
+        PositionResponse,
+    };
+
+    /// No response a query gets is larger than what the datagram check leaves room for.
+    #[test]
+    fn the_largest_answer_is_the_largest_response() {
+        let sizes = [
+            HatHotResponse::KIND.size(),
+            HatHotExtendedResponse::KIND.size(),
+            LosResponse::KIND.size(),
+            LosExtendedResponse::KIND.size(),
+            PositionResponse::KIND.size(),
+        ];
+        assert_eq!(sizes.into_iter().max(), Some(LARGEST_ANSWER));
     }
 }

@@ -537,7 +537,12 @@ impl CigiIg {
     /// ([`answer::segment_collisions`], [`answer::volume_collisions`]); on a database scene the
     /// segments from resident tiles only, the tiles a segment misses handed to the prefetcher
     /// (that segment is tested again next frame).
-    fn collide(&self, terrain: &Terrain, host_t: f64, msg: &mut MessageBuilder) -> u64 {
+    fn collide(
+        &self,
+        terrain: &Terrain,
+        host_t: f64,
+        msg: &mut MessageBuilder,
+    ) -> answer::Notified {
         match (&self.full, &self.deferral) {
             (Some(full), Some(d)) => {
                 let tiles = crate::db::ResidentOnly::new(full.database());
@@ -548,7 +553,7 @@ impl CigiIg {
                     los: self.los,
                 };
                 let n = answer::segment_collisions(&g, &self.session, host_t, msg)
-                    + answer::volume_collisions(&g, &self.session, host_t, msg);
+                    .and(answer::volume_collisions(&g, &self.session, host_t, msg));
                 d.prefetcher().request(tiles.missing());
                 n
             }
@@ -560,7 +565,7 @@ impl CigiIg {
                     los: self.los,
                 };
                 answer::segment_collisions(&g, &self.session, host_t, msg)
-                    + answer::volume_collisions(&g, &self.session, host_t, msg)
+                    .and(answer::volume_collisions(&g, &self.session, host_t, msg))
             }
         }
     }
@@ -603,7 +608,8 @@ impl CigiIg {
             }
         };
         if !kept_only {
-            c.collisions = self.collide(terrain, host_t, &mut msg);
+            let n = self.collide(terrain, host_t, &mut msg);
+            (c.collisions, c.collisions_dropped) = (n.sent, n.dropped);
         }
         self.answers.add(&c);
         let bytes = msg.finish();
@@ -676,8 +682,10 @@ impl CigiIg {
             "sent": self.sent,
             "send_errors": self.send_errors,
             "deferred": self.answers.deferred,
+            "no_room": self.answers.no_room,
             "blocking_reads": self.answers.blocking_reads,
             "collisions": self.answers.collisions,
+            "collisions_dropped": self.answers.collisions_dropped,
         })
     }
 
@@ -685,7 +693,7 @@ impl CigiIg {
     pub fn summary(&self) -> String {
         let c = &self.session.counters;
         format!(
-            "cigi: {} IG frames, {} datagrams in ({} accepted, {} refused, {} from other senders, {} malformed), {} sent ({} failed); answered {} HAT/HOT, {} LOS, {} position ({} invalid, {} unanswered; {} deferred a frame, {} blocking reads); {} collision notifications; {} other entities not drawn",
+            "cigi: {} IG frames, {} datagrams in ({} accepted, {} refused, {} from other senders, {} malformed), {} sent ({} failed); answered {} HAT/HOT, {} LOS, {} position ({} invalid, {} unanswered; {} deferred a frame, {} blocking reads); {} collision notifications ({} dropped: no room in the datagram); {} other entities not drawn",
             self.ig_frame,
             c.datagrams,
             c.accepted,
@@ -702,6 +710,7 @@ impl CigiIg {
             self.answers.deferred,
             self.answers.blocking_reads,
             self.answers.collisions,
+            self.answers.collisions_dropped,
             self.other_entities,
         )
     }

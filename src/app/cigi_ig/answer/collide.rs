@@ -6,7 +6,7 @@
 use super::ground::{world, EntityFrame, Ground};
 use crate::cigi::{
     CollisionSegmentNotification, CollisionVolumeDefinition, CollisionVolumeNotification,
-    MessageBuilder, Session,
+    MessageBuilder, Packet, Session,
 };
 use crate::cpu::contact::{overlap, underside, Solid};
 use crate::cpu::query::cast_ray;
@@ -19,14 +19,15 @@ use glam::{DMat3, DVec3};
 /// the segment's points placed through its entity's body frame at host time `now_host`, the
 /// first surface from its first point (distance 0 where that point lies under the terrain).
 /// Segments whose entity cannot be placed, or (database scenes) whose tiles are not in memory,
-/// are skipped this frame. Returns how many were sent.
+/// are skipped this frame; a notification the datagram has no room for is dropped (it comes
+/// again next frame while the contact lasts).
 pub fn segment_collisions(
     g: &Ground,
     session: &Session,
     now_host: f64,
     msg: &mut MessageBuilder,
-) -> u64 {
-    let mut sent = 0;
+) -> Notified {
+    let mut sent = Notified::default();
     for s in session.collision_segments() {
         let Some(frame) = EntityFrame::of(g, session, s.entity_id, now_host) else {
             continue;
@@ -63,17 +64,46 @@ pub fn segment_collisions(
             (None, Some(t)) => (t, None),
             (None, None) => continue,
         };
-        msg.push(&CollisionSegmentNotification {
-            entity_id: s.entity_id,
-            segment_id: s.segment_id,
-            entity_contact: contact.is_some(),
-            contacted_entity_id: contact.unwrap_or(0),
-            material_code: 0,
-            distance: distance as f32,
-        });
-        sent += 1;
+        sent.push(
+            msg,
+            &CollisionSegmentNotification {
+                entity_id: s.entity_id,
+                segment_id: s.segment_id,
+                entity_contact: contact.is_some(),
+                contacted_entity_id: contact.unwrap_or(0),
+                material_code: 0,
+                distance: distance as f32,
+            },
+        );
     }
     sent
+}
+
+/// Collision notifications of a frame: sent, and dropped for want of room in the datagram.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Notified {
+    pub sent: u64,
+    pub dropped: u64,
+}
+
+impl Notified {
+    /// Pushes `n` onto `msg` where it fits in the datagram, else counts it dropped.
+    fn push<P: Packet>(&mut self, msg: &mut MessageBuilder, n: &P) {
+        if msg.fits(P::KIND.size()) {
+            msg.push(n);
+            self.sent += 1;
+        } else {
+            self.dropped += 1;
+        }
+    }
+
+    /// The sum of `self` and `o`.
+    pub fn and(self, o: Notified) -> Notified {
+        Notified {
+            sent: self.sent + o.sent,
+            dropped: self.dropped + o.dropped,
+        }
+    }
 }
 
 /// A volume placed: its entity, its ID, whether its entity's detection is on, its solid and
@@ -137,14 +167,14 @@ fn solid(f: &EntityFrame, v: &CollisionVolumeDefinition) -> Solid {
 /// (`entity_contact` false) for each of those entities' volumes that reaches below the
 /// terrain, onto `msg`: volumes placed through their entities' body frames at host time
 /// `now_host`. On a database scene read resident only, a volume over tiles not in memory is
-/// tested against what is (the tiles it missed go to the prefetcher). Returns how many were
-/// sent.
+/// tested against what is (the tiles it missed go to the prefetcher). A notification the
+/// datagram has no room for is dropped.
 pub fn volume_collisions(
     g: &Ground,
     session: &Session,
     now_host: f64,
     msg: &mut MessageBuilder,
-) -> u64 {
+) -> Notified {
     let mut frames = std::collections::BTreeMap::new();
     let mut placed = Vec::new();
     for (v, source) in session.collision_volumes() {
@@ -162,28 +192,28 @@ pub fn volume_collisions(
             });
         }
     }
-    let mut sent = 0;
+    let mut sent = Notified::default();
     for a in placed.iter().filter(|a| a.source) {
         if under_terrain(g, a) {
-            msg.push(&CollisionVolumeNotification {
+            let n = CollisionVolumeNotification {
                 entity_id: a.entity,
                 volume_id: a.id,
                 entity_contact: false,
                 contacted_entity_id: 0,
                 contacted_volume_id: 0,
-            });
-            sent += 1;
+            };
+            sent.push(msg, &n);
         }
         for b in placed.iter().filter(|b| b.entity != a.entity) {
             if overlap(&a.solid, &b.solid) {
-                msg.push(&CollisionVolumeNotification {
+                let n = CollisionVolumeNotification {
                     entity_id: a.entity,
                     volume_id: a.id,
                     entity_contact: true,
                     contacted_entity_id: b.entity,
                     contacted_volume_id: b.id,
-                });
-                sent += 1;
+                };
+                sent.push(msg, &n);
             }
         }
     }
