@@ -36,8 +36,10 @@
 //! **next** IG frame, before that frame's own queries, with that frame's host frame LSN (the
 //! last IG Control received before the answer was calculated), reading synchronously only the
 //! tiles the prefetcher has not read by then (counted: `blocking_reads`). So no answer is more
-//! than one frame late; position requests are never kept. Queries kept when the run ends are
-//! answered in one more datagram (`CigiIg::finish`).
+//! than one frame late, but where the frame's datagram has no room left for it (the last
+//! frame's kept queries and a full frame of new ones; `no_room`): a query is then kept
+//! another frame, whatever its kind. Position requests are otherwise never kept. Queries kept
+//! when the run ends are answered in one more datagram (`CigiIg::finish`).
 //!
 //! **Requests in an entity's frame** (HAT/HOT `entity_frame`, LOS `source_entity_frame`,
 //! `destination_entity_frame`, `response_entity_frame`) are taken through the entity's
