@@ -72,7 +72,7 @@ fn database_queries_answer_at_full_resolution_through_the_tile_cache() {
         rng ^= rng << 17;
         (rng >> 11) as f64 / (1u64 << 53) as f64
     };
-    let (mut worst, mut coarse_off) = (0.0f64, 0.0f64);
+    let (mut worst, mut coarse_off, mut top) = (0.0f64, 0.0f64, f64::NEG_INFINITY);
     for _ in 0..200 {
         let (lat, lon) = (47.02 + 0.96 * next(), 9.02 + 0.96 * next());
         let p = terrain.geodetic_to_world("test", [lat, lon, 0.0]).unwrap();
@@ -83,6 +83,7 @@ fn database_queries_answer_at_full_resolution_through_the_tile_cache() {
         assert_eq!(h.level, 11, "the finest level answers");
         let truth = srtm_height(&srtm, lat, lon);
         worst = worst.max((h.height - truth).abs());
+        top = top.max(h.height);
         let rendered = terrain.point_below(p).unwrap().z;
         coarse_off = coarse_off.max((rendered - truth).abs());
     }
@@ -98,6 +99,15 @@ fn database_queries_answer_at_full_resolution_through_the_tile_cache() {
         "the coarse window is within {coarse_off} m"
     );
     println!("200 heights: worst {worst:.2e} m off SRTM (the rendered 48″ level: up to {coarse_off:.0} m)");
+    // The bound collision volumes are skipped by (`FullResolution::highest`): above every
+    // height answered (the Säntis, 2,502 m, is in the database) and no higher than the
+    // world's highest summit (the database holds ETOPO20's whole world).
+    let highest = full.highest();
+    println!("highest {highest:.1} m, the highest of the 200: {top:.1} m");
+    assert!(
+        highest >= top && (2502.0..=8849.0).contains(&highest),
+        "{highest}"
+    );
 
     // Lines of sight at full resolution agree with the .hgt terrain's, on 100 segments.
     let flat = {

@@ -148,14 +148,16 @@ impl Bodies {
     }
 
     /// The first body on the line from ECEF `from` along the ECEF unit direction `dir`, with
-    /// `t` metres from `from` in `[t_min, t_max]`, body `except` left out; a body the line
-    /// starts inside (at `t_min`) is not met.
+    /// `t` metres from `from` in `[t_min, t_max]`, body `except` left out and those whose alpha
+    /// ([`BodyHit::colour`]'s) is below `min_alpha` passed; a body the line starts inside (at
+    /// `t_min`) is not met.
     pub fn first_hit(
         &self,
         from: DVec3,
         dir: DVec3,
         [t_min, t_max]: [f64; 2],
         except: Option<u16>,
+        min_alpha: u8,
     ) -> Option<BodyHit> {
         if t_min.is_nan() || t_max.is_nan() || t_min > t_max {
             return None;
@@ -163,7 +165,8 @@ impl Bodies {
         let mut best: Option<BodyHit> = None;
         for b in self.bodies.iter().filter(|b| Some(b.id) != except) {
             let far = best.map_or(t_max, |h| h.t);
-            if let Some(h) = self.hit(b, from, dir, [t_min, far]) {
+            let hit = self.hit(b, from, dir, [t_min, far]);
+            if let Some(h) = hit.filter(|h| h.colour[3] >= min_alpha) {
                 best = Some(h);
             }
         }

@@ -113,15 +113,7 @@ pub fn underside(solid: &Solid, [east, north, up]: [DVec3; 3], n: usize) -> Vec<
             (centre, [across(east), across(north)])
         }
     };
-    let lowest = match *solid {
-        Solid::Sphere { centre, radius } => centre - up * radius,
-        Solid::Cuboid { centre, axes, half } => {
-            // The corner farthest down: each axis's sign against `up`.
-            let s = (axes.transpose() * up).map(|a| if a > 0.0 { -1.0 } else { 1.0 });
-            centre + axes * (s * half)
-        }
-    };
-    let mut out = vec![lowest];
+    let mut out = vec![lowest_point(solid, up)];
     for i in 0..n {
         for j in 0..n {
             let f = |k: usize| k as f64 / (n - 1) as f64 * 2.0 - 1.0;
@@ -133,6 +125,18 @@ pub fn underside(solid: &Solid, [east, north, up]: [DVec3; 3], n: usize) -> Vec<
         }
     }
     out
+}
+
+/// The lowest point of `solid` along unit `up`: a sphere's bottom, a cuboid's lowest corner.
+pub fn lowest_point(solid: &Solid, up: DVec3) -> DVec3 {
+    match *solid {
+        Solid::Sphere { centre, radius } => centre - up * radius,
+        Solid::Cuboid { centre, axes, half } => {
+            // The corner farthest down: each axis's sign against `up`.
+            let s = (axes.transpose() * up).map(|a| if a > 0.0 { -1.0 } else { 1.0 });
+            centre + axes * (s * half)
+        }
+    }
 }
 
 /// Where the vertical line `foot + s up` enters `solid` from below: the least `s` in it.

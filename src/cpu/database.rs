@@ -18,6 +18,8 @@ pub struct FullResolution {
     db: Arc<Database>,
     desc: TerrainDesc,
     base_dir: PathBuf,
+    /// No surface height it answers is higher ([`Self::highest`]).
+    highest: f64,
 }
 
 impl FullResolution {
@@ -26,11 +28,23 @@ impl FullResolution {
         let Some(path) = &desc.database else {
             return Ok(None);
         };
+        let db = Database::open(&base_dir.join(path))?;
+        // Every tile's maximum bounds its finer samples; after sea level and the vertical
+        // scale, as the heights answered.
+        let top = (db.entries().iter()).fold(f64::NEG_INFINITY, |m, e| m.max(f64::from(e.max)));
+        let top = desc.sea_level.map_or(top, |sea| top.max(sea));
         Ok(Some(FullResolution {
-            db: Arc::new(Database::open(&base_dir.join(path))?),
+            db: Arc::new(db),
             desc: desc.clone(),
             base_dir: base_dir.to_path_buf(),
+            highest: top * desc.vertical_scale,
         }))
+    }
+
+    /// A height no surface height this answers exceeds (metres above mean sea level): the
+    /// database's highest tile maximum.
+    pub fn highest(&self) -> f64 {
+        self.highest
     }
 
     pub fn database(&self) -> &Database {

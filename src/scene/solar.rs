@@ -100,26 +100,5 @@ pub fn sun_position(t: UtcTime, lat: f64, lon: f64) -> (f64, f64) {
     // True solar time (minutes) and the hour angle (degrees, 0 at local noon, west positive).
     let tst = (t.seconds / 60.0 + eot + 4.0 * lon).rem_euclid(1440.0);
     let ha = tst / 4.0 - 180.0;
-    let cos_zen = (sin(lat) * sin(decl) + cos(lat) * cos(decl) * cos(ha)).clamp(-1.0, 1.0);
-    let zen = cos_zen.acos();
-    let elevation = 90.0 - zen.to_degrees();
-    let denom = cos(lat) * zen.sin();
-    let azimuth = if denom.abs() < 1e-12 {
-        if lat >= decl {
-            180.0
-        } else {
-            0.0
-        }
-    } else {
-        let a = ((sin(lat) * cos_zen - sin(decl)) / denom)
-            .clamp(-1.0, 1.0)
-            .acos()
-            .to_degrees();
-        if ha > 0.0 {
-            (a + 180.0).rem_euclid(360.0)
-        } else {
-            (540.0 - a).rem_euclid(360.0)
-        }
-    };
-    (azimuth, elevation)
+    horizontal(lat, decl, ha)
 }

@@ -64,14 +64,11 @@ use glam::DVec3;
 pub use ground::{azimuth_elevation, direction, height_of_terrain, Ground, LosResponses};
 use ground::{lsn, request_point, world, EntityFrame};
 pub use los::EVERY_BUDGET;
-use los::{los_segment, los_vector, SegmentFrames};
+use los::{los_segment, los_vector, SegmentFrames, LARGEST_ANSWER};
 
 mod collide;
 mod ground;
 mod los;
-
-/// The largest response one query may add past [`EVERY_BUDGET`] (a LOS extended response).
-const LARGEST_ANSWER: usize = 56;
 
 /// What the answers of one frame did.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -448,10 +445,11 @@ fn position_response(r: &PositionRequest, coordinate_system: u8, p: &Pose) -> Po
 
 #[cfg(test)]
 mod tests {
+    use super::los::START_OF_FRAME;
     use super::LARGEST_ANSWER;
     use crate::cigi::{
         HatHotExtendedResponse, HatHotResponse, LosExtendedResponse, LosResponse, Packet,
-        PositionResponse,
+        PositionResponse, StartOfFrame,
     };
 
     /// No response a query gets is larger than what the datagram check leaves room for.
@@ -465,5 +463,6 @@ mod tests {
             PositionResponse::KIND.size(),
         ];
         assert_eq!(sizes.into_iter().max(), Some(LARGEST_ANSWER));
+        assert_eq!(StartOfFrame::KIND.size(), START_OF_FRAME);
     }
 }

@@ -8,7 +8,7 @@ use crate::cigi::{
     CollisionSegmentNotification, CollisionVolumeDefinition, CollisionVolumeNotification,
     MessageBuilder, Packet, Session,
 };
-use crate::cpu::contact::{overlap, underside, Solid};
+use crate::cpu::contact::{lowest_point, overlap, underside, Solid};
 use crate::cpu::query::cast_ray;
 use crate::geodesy::{ecef_of, enu_basis, lla_of};
 use crate::geom::attitude_matrix;
@@ -57,7 +57,7 @@ pub fn segment_collisions(
         let elen = (eb - ea).length();
         let body = g
             .bodies
-            .first_hit(ea, (eb - ea) / elen, [0.0, elen], Some(s.entity_id))
+            .first_hit(ea, (eb - ea) / elen, [0.0, elen], Some(s.entity_id), 0)
             .filter(|b| ground.is_none_or(|t| b.t < t));
         let (distance, contact) = match (body, ground) {
             (Some(b), _) => (b.t, Some(b.id)),
@@ -123,8 +123,12 @@ const UNDERSIDE_SPACING: f64 = 2.0;
 
 /// Whether any point of volume `v`'s underside ([`underside`]: the lowest point of vertical
 /// lines at most [`UNDERSIDE_SPACING`] apart, [`UNDERSIDE_LINES`] each way at most) lies below
-/// the terrain's surface (`Ground::hot`; a point where it has no height does not count).
+/// the terrain's surface (`Ground::hot`; a point where it has no height does not count). A
+/// volume whose lowest point is above every height the ground has is not sampled at all.
 fn under_terrain(g: &Ground, v: &Placed) -> bool {
+    if lla_of(lowest_point(&v.solid, v.enu[2]))[2] >= g.highest() {
+        return false;
+    }
     let size = match v.solid {
         Solid::Sphere { radius, .. } => 2.0 * radius,
         Solid::Cuboid { half, .. } => 2.0 * half.length(),

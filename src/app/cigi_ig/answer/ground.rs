@@ -138,6 +138,15 @@ impl Ground<'_> {
         }
     }
 
+    /// A height no [`Ground::hot`] answer exceeds: the scene terrain's highest sample, or the
+    /// database's highest tile maximum.
+    pub(super) fn highest(&self) -> f64 {
+        match self.full {
+            None => f64::from(self.terrain.max_height),
+            Some((f, _)) => f.highest(),
+        }
+    }
+
     /// The database's finest-level window around geodetic `a` and `b` (`None` without a
     /// database: the scene's terrain is used; `Some(Err)`: off the database, or a tile not
     /// resident, which the resident-only tiles record).

@@ -100,12 +100,21 @@ struct LosAnswer<'a> {
     in_entity: Option<&'a EntityFrame>,
 }
 
+/// The largest response one query gets (a LOS extended response), bytes.
+pub(super) const LARGEST_ANSWER: usize = 56;
+
+/// The size of the Start of Frame each IG datagram begins with, bytes.
+pub(super) const START_OF_FRAME: usize = 24;
+
 /// How far an IG datagram may fill with intersections beyond each LOS request's nearest
-/// ([`LosResponses::Every`]): UDP's 65,507 bytes less Start of Frame, one extended response
-/// (56 bytes, the largest) for each of the most queries a frame takes
+/// ([`LosResponses::Every`]): UDP's 65,507 bytes less Start of Frame, the largest answer for
+/// each of the most queries a frame takes
 /// ([`MAX_QUERIES`](crate::cigi::session::MAX_QUERIES)) and 1 KiB: 7,115 bytes, 127 extended
 /// responses.
-pub const EVERY_BUDGET: usize = 65_507 - 24 - crate::cigi::session::MAX_QUERIES * 56 - 1024;
+pub const EVERY_BUDGET: usize = crate::cigi::DATAGRAM_LIMIT
+    - START_OF_FRAME
+    - crate::cigi::session::MAX_QUERIES * LARGEST_ANSWER
+    - 1024;
 
 /// The LOS responses (basic or extended) to one request from what the test found on `t`:
 /// one for each surface met, or one saying none was. Past [`EVERY_BUDGET`] bytes of the
@@ -233,7 +242,7 @@ pub(super) fn los_segment(
                 .then(|| cast_ray(t, a, (b - a) / len, 0.0, len))
                 .flatten();
             let bodies = (placed
-                .map(|(ga, gb)| segment_bodies(g.bodies, ga, gb, r.alpha_threshold)))
+                .map(|(ga, gb)| segment_bodies(g.bodies, [ga, gb], r.alpha_threshold, g.los)))
             .unwrap_or_default();
             Los::new(true, line_of_sight(t, a, b), hit, bodies, g.los)
         }
@@ -302,7 +311,7 @@ pub(super) fn los_vector(
                     el,
                     range: [near, far],
                 };
-                vector_bodies(g.bodies, &ray, r.alpha_threshold)
+                vector_bodies(g.bodies, &ray, r.alpha_threshold, g.los)
             }))
             .unwrap_or_default();
             let los = Los::new(true, hit.is_none(), hit, bodies, g.los);
@@ -325,16 +334,35 @@ pub(super) fn los_vector(
     src.is_some() && ranges_ok && dir_ok
 }
 
-/// The entities on the straight segment between geodetic `a` and `b` whose alpha is at least
-/// `min_alpha`, nearest first.
-fn segment_bodies(bodies: &Bodies, a: [f64; 3], b: [f64; 3], min_alpha: u8) -> Vec<BodyHit> {
-    if bodies.is_empty() {
-        return Vec::new();
+/// The entities on the line from ECEF `from` along unit `dir` within `range` metres whose
+/// alpha is at least `min_alpha`, nearest first: all of them, or the nearest alone.
+fn bodies_on(
+    bodies: &Bodies,
+    (from, dir): (DVec3, DVec3),
+    range: [f64; 2],
+    min_alpha: u8,
+    policy: LosResponses,
+) -> Vec<BodyHit> {
+    match policy {
+        _ if bodies.is_empty() => Vec::new(),
+        LosResponses::First => (bodies.first_hit(from, dir, range, None, min_alpha))
+            .into_iter()
+            .collect(),
+        LosResponses::Every => bodies.hits(from, dir, range, min_alpha),
     }
+}
+
+/// [`bodies_on`] the straight segment between geodetic `a` and `b`.
+fn segment_bodies(
+    bodies: &Bodies,
+    [a, b]: [[f64; 3]; 2],
+    min_alpha: u8,
+    policy: LosResponses,
+) -> Vec<BodyHit> {
     let (a, b) = (ecef_of(a), ecef_of(b));
     let len = (b - a).length();
     if len > 0.0 {
-        bodies.hits(a, (b - a) / len, [0.0, len], min_alpha)
+        bodies_on(bodies, (a, (b - a) / len), [0.0, len], min_alpha, policy)
     } else {
         Vec::new()
     }
@@ -349,13 +377,15 @@ struct VectorRay {
     range: [f64; 2],
 }
 
-/// The entities on `ray` whose alpha is at least `min_alpha`, nearest first.
-fn vector_bodies(bodies: &Bodies, ray: &VectorRay, min_alpha: u8) -> Vec<BodyHit> {
-    if bodies.is_empty() {
-        return Vec::new();
-    }
+/// [`bodies_on`] `ray`.
+fn vector_bodies(
+    bodies: &Bodies,
+    ray: &VectorRay,
+    min_alpha: u8,
+    policy: LosResponses,
+) -> Vec<BodyHit> {
     let (a, e) = (ray.az.to_radians(), ray.el.to_radians());
     let enu = DVec3::new(a.sin() * e.cos(), a.cos() * e.cos(), e.sin());
     let d = enu_basis(ray.from[0], ray.from[1]) * enu;
-    bodies.hits(ecef_of(ray.from), d, ray.range, min_alpha)
+    bodies_on(bodies, (ecef_of(ray.from), d), ray.range, min_alpha, policy)
 }
