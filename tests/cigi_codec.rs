@@ -1284,13 +1284,23 @@ fn environment_views_and_the_start_of_frame_message() {
         scope: 0,
         enable: true,
         visibility: 800.0,
+        layer_id: 0,
+        ..weather(1)
+    });
+    // A cloud layer's visibility is the one inside the cloud, not the global one.
+    m.push(&WeatherControl {
+        scope: 0,
+        enable: true,
+        visibility: 50.0,
+        layer_id: 1,
         ..weather(1)
     });
     s.receive(&m.finish(), 0.0).unwrap();
     assert_eq!(s.celestial, Some(celestial(0)));
     assert_eq!(s.views[&300].control, Some(view_control(0)));
     assert_eq!(s.views[&301].definition, Some(view_definition(0)));
-    // No atmosphere model: the enabled global weather layer's visibility.
+    // No atmosphere model: the enabled global weather layer's visibility (ground fog, not
+    // the cloud layer's 50 m).
     assert_eq!(s.visibility(), Some(800.0));
     let mut m = MessageBuilder::host(&ig_control_at(78, None), ByteOrder::Big);
     m.push(&atmosphere(0));

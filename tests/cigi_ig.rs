@@ -917,6 +917,79 @@ fn the_hosts_night_has_its_moon() {
     assert!(dark > 1.0, "the moon matters: {dark}");
 }
 
+/// The host's cloud layer (Weather Control, global layer 1, stratocumulus) is drawn: the
+/// frame JSON gives it as a `[[clouds]]` layer, and the served frame is `relief render`'s with
+/// that layer in the scene, and not the cloudless one. A disabled layer takes it away again.
+#[test]
+fn the_hosts_cloud_layer_is_drawn() {
+    let _serial = one_ig_test_at_a_time();
+    let dir = temp_dir("cigi-clouds");
+    // The ownship at 2,300 m looking up 8° under a broken deck from 2,600 to 2,900 m.
+    let pose = ([47.37, 9.31, 2300.0], [200.0, 8.0, 0.0]);
+    let deck = WeatherControl {
+        entity_region_id: 0,
+        layer_id: 1,
+        humidity: 90,
+        enable: true,
+        scud: false,
+        random_winds: false,
+        random_lightning: false,
+        cloud_type: 9,
+        scope: 0,
+        severity: 0,
+        air_temperature: 5.0,
+        visibility: 120.0,
+        scud_frequency: 0.0,
+        coverage: 60.0,
+        base_elevation: 2600.0,
+        thickness: 300.0,
+        transition_band: 0.0,
+        horizontal_wind: 0.0,
+        vertical_wind: 0.0,
+        wind_direction: 0.0,
+        pressure: 1013.25,
+        aerosol: 0.0,
+    };
+    let (j, a) = serve_one_frame(&dir, pose.0, pose.1, &[deck.into()]);
+    let layers = j["cigi"]["clouds"].as_array().expect("cigi.clouds");
+    assert_eq!(layers.len(), 1, "{}", j["cigi"]);
+    let l = &layers[0];
+    let f = |k: &str| l[k].as_f64().unwrap();
+    assert_eq!((f("base"), f("thickness")), (2600.0, 300.0));
+    assert!((f("coverage") - 0.6).abs() < 1e-6 && f("visibility") == 120.0);
+    // The global visibility is not the cloud's.
+    assert!(j["cigi"]["visibility"].is_null(), "{}", j["cigi"]);
+    let clouds = format!(
+        "[[clouds]]\nbase = {:?}\nthickness = {:?}\ncoverage = {:?}\nvisibility = {:?}\nfeature = {:?}\nseed = {}\n",
+        f("base"),
+        f("thickness"),
+        f("coverage"),
+        f("visibility"),
+        f("feature"),
+        l["seed"]
+    );
+    let sun = (245.0, 24.0);
+    let same = mean_diff(&a, &render_at(&dir, "cloudy", pose, sun, 90000.0, &clouds));
+    let clear = mean_diff(&a, &render_at(&dir, "clear", pose, sun, 90000.0, ""));
+    eprintln!("served vs render with that layer: {same:.4}/255; without it {clear:.2}/255");
+    assert!(same <= 0.01, "{same}");
+    assert!(clear > 5.0, "the layer matters: {clear}");
+    // Disabled: no layers, the cloudless frame.
+    let (j, a) = serve_one_frame(
+        &dir,
+        pose.0,
+        pose.1,
+        &[WeatherControl {
+            enable: false,
+            ..deck
+        }
+        .into()],
+    );
+    assert_eq!(j["cigi"]["clouds"], serde_json::json!([]));
+    let clear = mean_diff(&a, &render_at(&dir, "clear", pose, sun, 90000.0, ""));
+    assert!(clear <= 0.01, "{clear}");
+}
+
 /// Pixel position (x right, y down, pixel centres at i + 0.5) of geodetic `p` seen by a
 /// pinhole camera at `cam` with heading (from true north), pitch, zero roll, horizontal fov
 /// `fov` degrees, `w`x`h` pixels: the camera's local east-north-up frame, computed here.

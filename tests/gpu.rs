@@ -565,9 +565,6 @@ fn the_sky_and_the_ground_follow_the_sun_into_night() {
             return;
         };
         let day = desc.daylight();
-        let v = |c: [f32; 3]| DVec3::new(c[0].into(), c[1].into(), c[2].into());
-        let (zenith, horizon, sun_colour) = (v(day.zenith), v(day.horizon), v(day.sun_colour));
-        let sun = day.light;
         assert_eq!(day.moonlit, moon.is_some());
         let (mut sky, mut worst, mut ground) = (0, 0i32, Vec::new());
         for k in 0..160 * 120usize {
@@ -576,18 +573,7 @@ fn the_sky_and_the_ground_follow_the_sun_into_night() {
                 ground.push(luminance(&out.rgba, k));
                 continue;
             }
-            let d = cam.pixel_ray(k as u32 % 160, k as u32 / 160);
-            let up = d.z;
-            let mut c = if up >= 0.0 {
-                horizon.lerp(zenith, up.sqrt())
-            } else {
-                horizon * (1.0 + (0.6 - 1.0) * (-up * 4.0).clamp(0.0, 1.0))
-            };
-            let cs = d.dot(sun);
-            c += sun_colour * (0.35 * cs.max(0.0).powi(64));
-            if cs > 0.27f64.to_radians().cos() {
-                c += sun_colour * 20.0;
-            }
+            let c = common::daylight_sky(&day, cam.pixel_ray(k as u32 % 160, k as u32 / 160));
             let want = [c.x, c.y, c.z].map(relief::colour::linear_to_srgb8);
             let off = (0..3)
                 .map(|i| (i32::from(px[i]) - i32::from(want[i])).abs())

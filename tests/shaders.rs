@@ -54,6 +54,9 @@ fn every_specialised_variant_validates_with_naga() {
             paged: [0, 2][bit(bits, 6) as usize],
             drape_mips: bit(bits, 7),
             near: bit(bits, 8),
+            // Cloud layers on in half of the combinations (odd parity: on and off with each
+            // state of every other switch and each pair of them), not doubling the 512.
+            clouds: bits.count_ones() % 2 == 1,
         };
         validate(&format!("shade {f:?}"), &shaders::shade(f));
         for tables in [

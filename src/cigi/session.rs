@@ -24,6 +24,10 @@ use std::net::SocketAddr;
 pub const MAX_ENTITIES: usize = 4096;
 /// Most views (View Control / View Definition IDs) held.
 pub const MAX_VIEWS: usize = 256;
+/// Weather Control's cloud layers (CIGI 3.3: 1, 2 and 3; 0 is ground fog, 4–9 precipitation
+/// and particles).
+pub const CLOUD_LAYER_IDS: std::ops::RangeInclusive<u8> = 1..=3;
+
 /// Most weather layers (scope, region or entity, layer) held.
 pub const MAX_WEATHER: usize = 256;
 /// Most queries waiting for the IG's answers.
@@ -626,7 +630,8 @@ impl Session {
     }
 
     /// The global visibility (m): Atmosphere Control's when the atmospheric model is on,
-    /// else the lowest of the enabled global weather layers, else `None`.
+    /// else the lowest of the enabled global weather layers other than the cloud layers
+    /// ([`CLOUD_LAYER_IDS`], whose visibility is the one inside the cloud), else `None`.
     pub fn visibility(&self) -> Option<f32> {
         if let Some(a) = self.atmosphere.filter(|a| a.model_enable) {
             return Some(a.visibility);
@@ -634,6 +639,7 @@ impl Session {
         self.weather
             .values()
             .filter(|w| w.enable && w.scope == 0 && w.visibility.is_finite())
+            .filter(|w| !CLOUD_LAYER_IDS.contains(&w.layer_id))
             .map(|w| w.visibility)
             .reduce(f32::min)
     }

@@ -3,6 +3,7 @@
 //! as `gpu/shaders/terrain_traverse.wgsl`, step for step.
 
 pub mod bodies;
+pub mod clouds;
 pub mod contact;
 pub mod database;
 pub mod distortion;

@@ -485,6 +485,7 @@ impl TerrainRenderer {
             paged: self.paged.as_ref().map_or(0, |p| p.bindings()),
             drape_mips: self.base.data.has_drape && s.antialias.is_on(),
             near: false,
+            clouds: !job.scene.clouds.is_empty(),
         };
         if features.lod {
             self.base.prepare_cast_lod(gpu);

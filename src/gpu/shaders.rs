@@ -59,6 +59,7 @@ const FF_BINS: &str = include_str!("shaders/ff_bins.wgsl");
 pub const FF_CONSTS: &str = include_str!("shaders/ff_consts.wgsl");
 const SRGB: &str = include_str!("shaders/srgb.wgsl");
 const HAZE: &str = include_str!("shaders/haze.wgsl");
+const CLOUDS: &str = include_str!("shaders/clouds.wgsl");
 pub(crate) const VOXEL_DDA: &str = include_str!("shaders/voxel_dda.wgsl");
 const VOLUME_TYPES: &str = include_str!("shaders/volume_types.wgsl");
 
@@ -250,6 +251,7 @@ pub fn shade(f: ShadeFeatures) -> String {
         GBUFFER,
         SRGB,
         HAZE,
+        CLOUDS,
         include_str!("shaders/shade.wgsl"),
         include_str!("shaders/shade_terrain_only.wgsl"),
     ]
@@ -271,6 +273,7 @@ pub fn shade_objects(f: ShadeFeatures, tables: FfTables) -> String {
         &freeform(false, tables),
         SRGB,
         HAZE,
+        CLOUDS,
         include_str!("shaders/shade.wgsl"),
         include_str!("shaders/shade_objects.wgsl"),
     ]

@@ -37,6 +37,11 @@ pub struct FrameUniforms {
     pub curvature: [f32; 4],
     /// Footprint LOD: x = `render.lod` scale · 2 / larger spacing (0: off), yzw unused.
     pub lod: [f32; 4],
+    /// Cloud layers (`cpu::clouds::Deck`): two rows each, (base, top, extinction,
+    /// threshold) and (mean density, 1 / feature, seed, 0).
+    pub clouds: [[f32; 4]; 2 * crate::scene::clouds::MAX_CLOUD_LAYERS],
+    /// Layers, grid spacing x, y (m), unused.
+    pub cloud_info: [f32; 4],
     pub levels: [[u32; 4]; MAX_LEVELS],
 }
 
@@ -52,7 +57,7 @@ pub struct RayGenUniforms {
     pub eye: [f32; 4],
 }
 
-const _: () = assert!(std::mem::size_of::<FrameUniforms>() == 16 * (30 + MAX_LEVELS));
+const _: () = assert!(std::mem::size_of::<FrameUniforms>() == 16 * (37 + MAX_LEVELS));
 const _: () = assert!(std::mem::size_of::<RayGenUniforms>() == 96);
 
 /// Mirrors WGSL `FfObject` in `shaders/freeform.wgsl`: one placed free form.

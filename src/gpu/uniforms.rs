@@ -3,6 +3,8 @@
 
 use super::frame::{RenderSettings, TraceMode};
 use super::types::{FrameUniforms, RayGenUniforms, MAX_LEVELS};
+use crate::cpu::clouds::Deck;
+use crate::scene::clouds::{CloudLayer, MAX_CLOUD_LAYERS};
 use crate::scene::{Camera, SceneDesc};
 use crate::terrain::Terrain;
 
@@ -155,6 +157,24 @@ pub fn frame_uniforms(
             0.0,
             0.0,
         ],
+        clouds: cloud_rows(&scene.clouds),
+        cloud_info: [
+            scene.clouds.len().min(MAX_CLOUD_LAYERS) as f32,
+            fr.spacing[0] as f32,
+            fr.spacing[1] as f32,
+            0.0,
+        ],
         levels,
     }
+}
+
+/// The frame block's rows of the cloud layers (`clouds.wgsl`).
+fn cloud_rows(layers: &[CloudLayer]) -> [[f32; 4]; 2 * MAX_CLOUD_LAYERS] {
+    let mut rows = [[0.0; 4]; 2 * MAX_CLOUD_LAYERS];
+    for (k, l) in layers.iter().take(MAX_CLOUD_LAYERS).enumerate() {
+        let d = Deck::new(l);
+        rows[2 * k] = [d.base, d.top, d.sigma, d.threshold].map(|v| v as f32);
+        rows[2 * k + 1] = [d.mean as f32, d.inv_feature as f32, d.seed as f32, 0.0];
+    }
+    rows
 }

@@ -48,6 +48,9 @@ pub struct ShadeFeatures {
     /// Anti-aliasing's centre rays (`NEAR`): the terrain sun ray looks for rises its
     /// footprint's beam passes within reach of (near misses, flag 64).
     pub near: bool,
+    /// Cloud layers (`CLOUDS`, `clouds.wgsl`): composited over every pixel, and the sun
+    /// dimmed through them on surfaces.
+    pub clouds: bool,
 }
 
 impl ShadeFeatures {
@@ -62,6 +65,7 @@ impl ShadeFeatures {
         paged: 0,
         drape_mips: true,
         near: true,
+        clouds: true,
     };
     /// None compiled in.
     pub const NONE: ShadeFeatures = ShadeFeatures {
@@ -74,6 +78,7 @@ impl ShadeFeatures {
         paged: 0,
         drape_mips: false,
         near: false,
+        clouds: false,
     };
 }
 
@@ -89,6 +94,7 @@ impl Switches for ShadeFeatures {
             ("PAGED", self.paged > 0),
             ("NEAR", self.near),
             ("DRAPE_MIPS", self.drape_mips),
+            ("CLOUDS", self.clouds),
         ])
     }
 }

@@ -4,6 +4,7 @@
 pub mod antialias;
 mod camera;
 pub mod cigi;
+pub mod clouds;
 pub mod daylight;
 pub mod lunar;
 pub mod solar;
@@ -35,6 +36,9 @@ pub struct SceneDesc {
     pub moon: Option<Moon>,
     #[serde(default)]
     pub fog: Fog,
+    /// Cloud layers (`[[clouds]]`), at most [`clouds::MAX_CLOUD_LAYERS`].
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub clouds: Vec<clouds::CloudLayer>,
     pub camera: CameraDesc,
     #[serde(default)]
     pub output: Output,
@@ -549,6 +553,7 @@ impl SceneDesc {
                 format!("must be ≥ 0 metres, got {}", f.scale_height),
             ));
         }
+        clouds::validate(&self.clouds)?;
         let r = &self.render;
         if !(16..=1 << 20).contains(&r.max_steps) {
             return Err(Error::invalid(

@@ -349,3 +349,22 @@ impl Drop for Xvfb {
         let _ = self.child.wait();
     }
 }
+
+/// The shade pass's sky (`sky` in `shade.wgsl`, from the scene's daylight), linear, seen along
+/// world direction `d` on a terrain whose up is +z: written out here as the tests' truth.
+pub fn daylight_sky(day: &relief::scene::Daylight, d: glam::DVec3) -> glam::DVec3 {
+    let v = |c: [f32; 3]| glam::DVec3::new(c[0].into(), c[1].into(), c[2].into());
+    let (zenith, horizon, sun_colour) = (v(day.zenith), v(day.horizon), v(day.sun_colour));
+    let up = d.z;
+    let mut c = if up >= 0.0 {
+        horizon.lerp(zenith, up.sqrt())
+    } else {
+        horizon * (1.0 + (0.6 - 1.0) * (-up * 4.0).clamp(0.0, 1.0))
+    };
+    let cs = d.dot(day.light);
+    c += sun_colour * (0.35 * cs.max(0.0).powi(64));
+    if cs > 0.27f64.to_radians().cos() {
+        c += sun_colour * 20.0;
+    }
+    c
+}

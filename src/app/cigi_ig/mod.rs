@@ -5,6 +5,7 @@
 //! render, then [`CigiIg::end_frame`] ([docs/cigi.md](../../../docs/cigi.md)).
 
 pub mod answer;
+pub mod weather;
 
 use crate::cigi::{MessageBuilder, Session};
 use crate::scene::solar::{self, UtcTime};
@@ -141,6 +142,10 @@ pub struct CigiIg {
     /// The frame's moon from Celestial Sphere Control's date, time and moon-enable bit.
     pub moon: Option<crate::scene::Moon>,
     pub visibility: Option<f64>,
+    /// The frame's cloud layers from Weather Control ([`weather::host_clouds`]).
+    pub clouds: Option<Vec<crate::scene::clouds::CloudLayer>>,
+    /// Host cloud layers not drawn (bad values, overlaps), frames times layers.
+    pub clouds_dropped: u64,
     /// Celestial Sphere Control with a date or time that does not exist, frames.
     pub bad_dates: u64,
     buf: Vec<u8>,
@@ -207,6 +212,8 @@ impl CigiIg {
             sun: None,
             moon: None,
             visibility: None,
+            clouds: None,
+            clouds_dropped: 0,
             bad_dates: 0,
             buf: vec![0; 65536],
         })
@@ -391,8 +398,9 @@ impl CigiIg {
 
     /// The host's environment into the frame's scene: the sun of Celestial Sphere Control
     /// (date and time of day, read as UTC; its date/time-valid bit set) seen from `at` (the
-    /// ownship's geodetic position), and the session's visibility as the fog's (Koschmieder
-    /// extinction 3.912 / visibility in the frame uniforms). What the host has not sent stays
+    /// ownship's geodetic position), the session's visibility as the fog's (Koschmieder
+    /// extinction 3.912 / visibility in the frame uniforms) and its cloud layers (Weather
+    /// Control's layers 1–3) as the scene's `[[clouds]]`. What the host has not sent stays
     /// the scene's.
     pub fn environment(&mut self, desc: &mut SceneDesc, at: Option<[f64; 3]>) {
         self.sun = None;
@@ -442,6 +450,10 @@ impl CigiIg {
             .filter(|v| v.is_finite() && *v > 0.0);
         if let Some(v) = self.visibility {
             desc.fog.visibility = v;
+        }
+        self.clouds = weather::host_clouds(&self.session, &mut self.clouds_dropped);
+        if let Some(c) = &self.clouds {
+            desc.clouds = c.clone();
         }
     }
 
@@ -636,6 +648,8 @@ impl CigiIg {
             "sun": self.sun.map(|(a, e)| [a, e]),
             "moon": self.moon.map(|m| [m.azimuth, m.elevation, m.illuminated]),
             "visibility": self.visibility,
+            "clouds": self.clouds,
+            "clouds_dropped": self.clouds_dropped,
             "sync": self.sync,
             "datagrams": c.datagrams,
             "accepted": c.accepted,

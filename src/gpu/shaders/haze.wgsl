@@ -24,10 +24,14 @@ fn haze_transmittance(t: f32, ze: f32, zp: f32) -> f32 {
     return exp(-tau);
 }
 
+// The haze's own colour seen along dl (in-scattered light, brighter towards the sun).
+fn haze_scatter(dl: vec3<f32>) -> vec3<f32> {
+    return frame.fog_colour.xyz + frame.sun_colour.xyz * (0.25 * pow(max(dot(dl, frame.sun_local.xyz), 0.0), 8.0));
+}
+
 // Haze between the eye and a point at distance t and local height zp, seen along dl.
 fn aerial_perspective(c: vec3<f32>, t: f32, zp: f32, dl: vec3<f32>) -> vec3<f32> {
     let tau = haze_transmittance(t, frame.eye.z, zp);
-    let scatter = frame.fog_colour.xyz + frame.sun_colour.xyz * (0.25 * pow(max(dot(dl, frame.sun_local.xyz), 0.0), 8.0));
-    return c * tau + scatter * (1.0 - tau);
+    return c * tau + haze_scatter(dl) * (1.0 - tau);
 }
 

@@ -195,6 +195,9 @@ fn fs_shade(@builtin(position) pos: vec4<f32>) -> Out {
         // Sky, or (flag 8) no screen under this pixel: black.
         let no_screen = (g.w & 8u) != 0u;
         c = select(sky(dl), vec3<f32>(0.0), no_screen);
+        if (CLOUDS) {
+            c = select(clouds_over(c, BIG, dir_w, dl), c, no_screen);
+        }
         // Flag 64 of the data: the cast's near miss (G-buffer bit 31, anti-aliased frames).
         let near = select(0u, 64u, (g.w >> 31u) != 0u);
         out.data = select(vec4<u32>(INF_BITS, g.z, min((g.w >> 8u) & 0x7fffffu, 0xffffu), (g.w & 0xffu) | near), vec4<u32>(INF_BITS, 0u, 0u, g.w & 0xffu), no_screen);
@@ -298,6 +301,9 @@ fn shade_surface(px: vec2<u32>, g: vec4<u32>, dir_w: vec3<f32>, dl: vec3<f32>) -
     if (VOLUME_SHADOWS) {
         lit *= textureLoad(volume_sun, vec2<i32>(px), 0).x;
     }
+    if (CLOUDS) {
+        lit *= cloud_sun(vec3<f32>(p.xy, p_msl.z));
+    }
     // Flag 64 (blocked by a voxel model, set by the voxel shadow pass) is folded into 2; it
     // then says a near miss of anti-aliased frames: on terrain and free forms the cast's or a
     // voxel model's sun rays' (G-buffer bit 31; a voxel hit keeps its steps there), on any
@@ -325,6 +331,10 @@ fn shade_surface(px: vec2<u32>, g: vec4<u32>, dir_w: vec3<f32>, dl: vec3<f32>) -
         c = base * (diffuse + ambient_light(n));
         out.data = vec4<u32>(g.x, gbuffer_steps(g.z), min(patches, 0xffffu) | (min(shadow_steps, 0xffffu) << 16u), flags);
     }
-    out.colour = vec4<f32>(aerial_perspective(c, t, p_msl.z, dl), 1.0);
+    var hazed = aerial_perspective(c, t, p_msl.z, dl);
+    if (CLOUDS) {
+        hazed = clouds_over(hazed, t, dir_w, dl);
+    }
+    out.colour = vec4<f32>(hazed, 1.0);
     return out;
 }

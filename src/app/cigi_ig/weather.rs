@@ -1,0 +1,51 @@
+//! The host's cloud layers: Weather Control's global layers 1–3 as the frame's `[[clouds]]`.
+
+use crate::cigi::session::{Session, CLOUD_LAYER_IDS};
+use crate::scene::clouds::{self, CloudLayer};
+
+/// Size of the host's cloud cells (m): Weather Control does not give one.
+pub const HOST_CLOUD_CELL: f64 = 2500.0;
+
+/// The cloud layers the host gives, or `None` when it has sent no global cloud layer (the
+/// scene's `[[clouds]]` then stay). A layer is drawn while enabled with a cloud type other
+/// than None (0): from its base elevation (m above MSL) through its thickness, its coverage
+/// (%) and its visibility range as the visibility inside the cloud; the pattern's seed is
+/// the layer ID. Values out of `[[clouds]]`' ranges are brought into them (a thickness or
+/// visibility that is not a positive number drops the layer), and a layer overlapping a lower
+/// layer ID's is dropped; each drop is counted in `dropped`.
+pub fn host_clouds(session: &Session, dropped: &mut u64) -> Option<Vec<CloudLayer>> {
+    let mut sent = false;
+    let mut layers = Vec::new();
+    for ((scope, _, id), w) in &session.weather {
+        if *scope != 0 || !CLOUD_LAYER_IDS.contains(id) {
+            continue;
+        }
+        sent = true;
+        if !w.enable || w.cloud_type == 0 {
+            continue;
+        }
+        let positive = |v: f32| v.is_finite() && v > 0.0;
+        if !w.base_elevation.is_finite() || !positive(w.thickness) || !positive(w.visibility) {
+            *dropped += 1;
+            continue;
+        }
+        let layer = CloudLayer {
+            base: f64::from(w.base_elevation).clamp(-1000.0, 30_000.0),
+            thickness: f64::from(w.thickness).clamp(1.0, 20_000.0),
+            coverage: if w.coverage.is_finite() {
+                (f64::from(w.coverage) / 100.0).clamp(0.0, 1.0)
+            } else {
+                1.0
+            },
+            visibility: f64::from(w.visibility).clamp(1.0, 100_000.0),
+            feature: HOST_CLOUD_CELL,
+            seed: u32::from(*id),
+        };
+        layers.push(layer);
+        if clouds::validate(&layers).is_err() {
+            layers.pop();
+            *dropped += 1;
+        }
+    }
+    sent.then_some(layers)
+}

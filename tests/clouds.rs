@@ -1,0 +1,225 @@
+//! Cloud layers (`[[clouds]]`) on the GPU against the CPU reference (`cpu::clouds`): the
+//! layers seen against the sky, and the sun through them on the ground.
+
+mod common;
+
+use common::{gpu, gpu_lock, save_failure_image, settings, synthetic_scene, terrain_from_fn};
+use glam::DVec3;
+use relief::colour::{linear_to_srgb8, srgb_to_linear};
+use relief::cpu::clouds::{composite, sun_transmittance, CloudLight, CloudRay, Deck};
+use relief::gpu::{FrameOutput, TerrainRenderer};
+use relief::scene::clouds::CloudLayer;
+use relief::scene::{Camera, Pose, SceneDesc};
+use relief::terrain::Terrain;
+
+const W: u32 = 160;
+const H: u32 = 120;
+
+fn render(terrain: &Terrain, desc: &SceneDesc, cam: &Camera) -> Option<FrameOutput> {
+    let g = gpu()?;
+    let mut r = TerrainRenderer::new(g, terrain).expect("renderer");
+    Some(
+        r.capture(g, terrain, desc, cam, &settings(true, true))
+            .expect("capture"),
+    )
+}
+
+fn ramp() -> Terrain {
+    terrain_from_fn(129, 10.0, |x, y| 100.0 + 0.05 * x + 0.03 * y)
+}
+
+fn camera(pitch: f64) -> Camera {
+    let pose = Pose {
+        position: DVec3::new(640.0, 300.0, 400.0),
+        heading: 20.0,
+        pitch,
+        roll: 0.0,
+        fov: 80.0,
+    };
+    Camera::new(pose, W, H)
+}
+
+fn scene(layers: &[CloudLayer], sun_intensity: f32) -> SceneDesc {
+    let mut desc = synthetic_scene(W, H, "position = [640.0, 300.0, 400.0]");
+    desc.sun.azimuth = 30.0;
+    desc.sun.elevation = 40.0;
+    desc.sun.intensity = sun_intensity;
+    desc.clouds = layers.to_vec();
+    desc.validate().unwrap();
+    desc
+}
+
+fn layer(base: f64, thickness: f64, coverage: f64, visibility: f64, feature: f64) -> CloudLayer {
+    CloudLayer {
+        base,
+        thickness,
+        coverage,
+        visibility,
+        feature,
+        seed: base as u32,
+    }
+}
+
+fn lin(px: &[u8]) -> DVec3 {
+    DVec3::new(
+        srgb_to_linear(px[0]),
+        srgb_to_linear(px[1]),
+        srgb_to_linear(px[2]),
+    )
+}
+
+fn off(px: &[u8], want: DVec3) -> i32 {
+    let want = [want.x, want.y, want.z].map(linear_to_srgb8);
+    (0..3)
+        .map(|i| (i32::from(px[i]) - i32::from(want[i])).abs())
+        .max()
+        .unwrap()
+}
+
+/// Two layers over a camera looking up through haze: a broken deck of dense cloud 500 m above
+/// it and a thin overcast higher up. Every sky pixel is the CPU's composite of the layers over
+/// the daylight's sky, within a level (f32 against f64 along paths of up to 200 km).
+#[test]
+fn cloud_layers_against_the_sky_match_the_cpu_reference() {
+    let _l = gpu_lock();
+    let terrain = ramp();
+    let cam = camera(25.0);
+    let layers = [
+        layer(900.0, 300.0, 0.5, 80.0, 600.0),
+        layer(2000.0, 200.0, 1.0, 1500.0, 2500.0),
+    ];
+    // Uniform haze of 20 km visibility over the clouds (the sky behind them is not hazed).
+    let hazy = |layers: &[CloudLayer]| {
+        let mut d = scene(layers, 2.6);
+        d.fog.visibility = 20_000.0;
+        d.fog.scale_height = 0.0;
+        d
+    };
+    let desc = hazy(&layers);
+    let Some(out) = render(&terrain, &desc, &cam) else {
+        return;
+    };
+    let Some(clear) = render(&terrain, &hazy(&[]), &cam) else {
+        return;
+    };
+    let day = desc.daylight();
+    let v = |c: [f32; 3]| DVec3::new(c[0].into(), c[1].into(), c[2].into());
+    let light = CloudLight {
+        sun: day.light,
+        sun_colour: v(day.sun_colour) * f64::from(day.intensity),
+        ambient: (v(day.zenith) + v(day.horizon)) * (0.5 * f64::from(day.ambient)),
+    };
+    let decks: Vec<Deck> = layers.iter().map(Deck::new).collect();
+    let fr = &terrain.frame;
+    let eye = fr.world_to_grid(cam.pose.position);
+    let (mut sky, mut worst, mut beyond_one, mut changed) = (0, 0, 0, 0);
+    for k in 0..(W * H) as usize {
+        if out.depth[k].is_finite() {
+            continue;
+        }
+        let d = cam.pixel_ray(k as u32 % W, k as u32 / W);
+        let ray = CloudRay {
+            eye,
+            dir: fr.world_dir_to_grid(d),
+            a: 0.0,
+            spacing: fr.spacing,
+        };
+        let behind = common::daylight_sky(&day, d);
+        // `aerial_perspective`: c τ + the haze's colour (1 − τ), here for light c of opacity w.
+        let scatter = v(day.fog_colour)
+            + light.sun_colour / f64::from(day.intensity)
+                * (0.25 * d.dot(day.light).max(0.0).powi(8));
+        let haze = |c: DVec3, w: f64, s: f64, _z: f64| {
+            let tau = (-3.912 / 20_000.0 * s).exp();
+            c * tau + scatter * ((1.0 - tau) * w)
+        };
+        let want = composite(&decks, &ray, f64::INFINITY, behind, &light, haze);
+        let px = &out.rgba[4 * k..4 * k + 3];
+        let o = off(px, want);
+        worst = worst.max(o);
+        beyond_one += usize::from(o > 1);
+        changed += usize::from(off(&clear.rgba[4 * k..4 * k + 3], want) > 10);
+        sky += 1;
+    }
+    eprintln!(
+        "{sky} sky pixels: worst {worst} level(s) from the CPU's clouds, {beyond_one} beyond one; {changed} more than 10 levels from the cloudless sky"
+    );
+    if worst > 1 {
+        let p = save_failure_image("clouds-sky", W, H, &out.rgba);
+        panic!(
+            "sky pixels up to {worst} levels from the CPU reference ({beyond_one} beyond one); {}",
+            p.display()
+        );
+    }
+    assert!(sky > 8000, "{sky} sky pixels");
+    assert!(
+        changed > sky / 3,
+        "the clouds changed only {changed} sky pixels"
+    );
+}
+
+/// The ground seen from under a broken deck: each pixel is lit by the sun times the CPU's
+/// transmittance through the cloud above it (the frames without the clouds, with and without
+/// the sun, give the pixel's sunlit and its ambient part), within 2 levels (8-bit rounding of
+/// the two frames it is made from); pixels whose sunlit colour is clipped at white are left
+/// out.
+#[test]
+fn the_ground_under_a_layer_takes_the_sun_through_it() {
+    let _l = gpu_lock();
+    let terrain = ramp();
+    let cam = camera(-35.0);
+    let layers = [layer(900.0, 300.0, 0.5, 300.0, 1200.0)];
+    let desc = scene(&layers, 2.6);
+    let (Some(cloudy), Some(sunny), Some(shade)) = (
+        render(&terrain, &desc, &cam),
+        render(&terrain, &scene(&[], 2.6), &cam),
+        render(&terrain, &scene(&[], 0.0), &cam),
+    ) else {
+        return;
+    };
+    let day = desc.daylight();
+    let decks: Vec<Deck> = layers.iter().map(Deck::new).collect();
+    let fr = &terrain.frame;
+    let sun_grid = fr.world_dir_to_grid(day.light);
+    let (mut ground, mut saturated, mut worst, mut t_min, mut t_max) = (0, 0, 0, 1.0f64, 0.0f64);
+    for k in 0..(W * H) as usize {
+        let t = f64::from(cloudy.depth[k]);
+        if !t.is_finite() {
+            continue;
+        }
+        let d = cam.pixel_ray(k as u32 % W, k as u32 / W);
+        let p = fr.world_to_grid(cam.pose.position + d * t);
+        let tr = sun_transmittance(&decks, p, sun_grid, fr.spacing);
+        if sunny.rgba[4 * k..4 * k + 3].contains(&255) {
+            // Sunlit white (snow at the ramp's top): the sunlit part is clipped there.
+            saturated += 1;
+            continue;
+        }
+        let (lit, dark) = (lin(&sunny.rgba[4 * k..]), lin(&shade.rgba[4 * k..]));
+        let want = dark + (lit - dark) * tr;
+        let o = off(&cloudy.rgba[4 * k..4 * k + 3], want);
+        if o > 10 && k % 7 == 0 {
+            let got = lin(&cloudy.rgba[4 * k..]);
+            eprintln!(
+                "DBG k {k} p {p:?} cpu T {tr:.3} gpu T {:.3}",
+                (got.y - dark.y) / (lit.y - dark.y)
+            );
+        }
+        worst = worst.max(o);
+        t_min = t_min.min(tr);
+        t_max = t_max.max(tr);
+        ground += 1;
+    }
+    eprintln!(
+        "{ground} ground pixels within {worst} level(s) of the sun through the CPU's cloud ({saturated} sunlit white left out); transmittance {t_min:.3}..{t_max:.3}"
+    );
+    if worst > 2 {
+        let p = save_failure_image("clouds-ground", W, H, &cloudy.rgba);
+        panic!("ground pixels up to {worst} levels off; {}", p.display());
+    }
+    assert!(ground > 8000, "{ground} ground pixels checked");
+    assert!(
+        t_min < 0.2 && t_max > 0.95,
+        "the deck's shadow and its gaps: {t_min}..{t_max}"
+    );
+}
