@@ -223,3 +223,34 @@ fn the_ground_under_a_layer_takes_the_sun_through_it() {
         "the deck's shadow and its gaps: {t_min}..{t_max}"
     );
 }
+
+/// `relief bench clouds --json`: the frame with the scene's layers against the same frame
+/// without them, both timed; a scene without layers is refused by name.
+#[test]
+fn the_bench_times_the_frame_with_and_without_the_layers() {
+    if gpu().is_none() {
+        return;
+    }
+    let _l = gpu_lock();
+    let scene = common::terrains().join("overcast.toml");
+    let scene = scene.to_str().unwrap();
+    let args = [
+        "bench", "clouds", scene, "--size", "160x90", "--frames", "2", "--json",
+    ];
+    let o = common::relief_cli(&args, &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let d = &v["details"];
+    assert_eq!(d["layers"], 2, "{d}");
+    let (clear, clouds, ratio) = (
+        d["clear_ms"].as_f64().unwrap(),
+        d["clouds_ms"].as_f64().unwrap(),
+        d["ratio"].as_f64().unwrap(),
+    );
+    assert!(clear > 0.0 && clouds > 0.0, "{d}");
+    assert!((ratio - clouds / clear).abs() < 1e-9, "{d}");
+    let alps = common::terrains().join("alps.toml");
+    let o = common::relief_cli(&["bench", "clouds", alps.to_str().unwrap()], &[]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("[[clouds]]"), "{err}");
+}

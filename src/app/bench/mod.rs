@@ -10,6 +10,7 @@
 //! * [`display`]: a display channel's table regeneration and direct frame vs pinhole;
 //! * [`antialias`]: edge anti-aliasing: frame time against none, extra rays, error and
 //!   temporal excess against the 16-rays reference;
+//! * [`clouds`]: the frame with the scene's cloud layers against the same frame without;
 //! * [`cigi`]: the CIGI IG under an in-process host: query rates, latency, frame period;
 //! * [`soak`]: a long run watching memory, wgpu objects and frame times;
 //! * [`report`]: the report, its JSON and its printed form;
@@ -18,6 +19,7 @@
 
 pub mod antialias;
 pub mod cigi;
+pub mod clouds;
 pub mod db;
 pub mod display;
 pub mod freeforms;
@@ -136,6 +138,12 @@ pub enum BenchCommand {
         #[command(flatten)]
         args: BenchArgs,
     },
+    /// Cloud layers: the frame with the scene's `[[clouds]]` against the same frame without
+    /// them, frames alternated (default scene: terrains/overcast.toml).
+    Clouds {
+        #[command(flatten)]
+        args: BenchArgs,
+    },
     /// The terrain database: build throughput (synthetic mosaic), the scene through a database
     /// against its .hgt, and a scripted flight through the pager.
     Db {
@@ -159,6 +167,7 @@ impl BenchCommand {
             | BenchCommand::Soak { args, .. }
             | BenchCommand::Cigi { args }
             | BenchCommand::Antialias { args }
+            | BenchCommand::Clouds { args }
             | BenchCommand::Db { args, .. } => args,
         }
     }
@@ -169,6 +178,7 @@ impl BenchCommand {
             BenchCommand::Freeforms { .. } => "terrains/airfield.toml",
             BenchCommand::Volume { .. } => "terrains/brain.toml",
             BenchCommand::Voxels { .. } => "terrains/tree.toml",
+            BenchCommand::Clouds { .. } => "terrains/overcast.toml",
             _ => super::scenes::DEFAULT_SCENE,
         }
     }
@@ -245,6 +255,10 @@ impl BenchCommand {
             BenchCommand::Antialias { .. } => {
                 let (run, d) = antialias::run(scene, size, frames)?;
                 (run, Details::Antialias(d))
+            }
+            BenchCommand::Clouds { .. } => {
+                let (run, d) = clouds::run(scene, size, frames)?;
+                (run, Details::Clouds(d))
             }
             BenchCommand::Db { db: a, .. } => {
                 let (run, d) = db::run(scene, size, frames, a)?;

@@ -15,6 +15,7 @@
 
 use super::antialias::AntialiasBench;
 use super::cigi::CigiBench;
+use super::clouds::CloudsBench;
 use super::db::DbBench;
 use super::display::DisplayBench;
 use super::freeforms::FreeFormBench;
@@ -42,6 +43,7 @@ pub enum Details {
     Db(DbBench),
     Cigi(CigiBench),
     Antialias(AntialiasBench),
+    Clouds(CloudsBench),
 }
 
 impl Details {
@@ -58,6 +60,7 @@ impl Details {
             Details::Db(_) => "db",
             Details::Cigi(_) => "cigi",
             Details::Antialias(_) => "antialias",
+            Details::Clouds(_) => "clouds",
         }
     }
 
@@ -74,6 +77,7 @@ impl Details {
             Details::Db(d) => d.table(),
             Details::Cigi(d) => d.table(),
             Details::Antialias(d) => d.table(),
+            Details::Clouds(d) => d.table(),
         }
     }
 }
