@@ -254,3 +254,87 @@ fn the_bench_times_the_frame_with_and_without_the_layers() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && err.contains("[[clouds]]"), "{err}");
 }
+
+/// On the curved earth (SRTM N47E009 with `terrain.curved`) a layer is a shell: a view ray's
+/// height above it grows by `a s²`. Looking just above the horizon from 3 km, under a broken
+/// layer from 3.5 to 3.8 km, every sky pixel is the CPU's composite with the curvature of the
+/// eye's grid, within a level; on the flat earth the same rays give other pictures.
+#[test]
+fn a_layer_follows_the_curved_earth() {
+    let _l = gpu_lock();
+    let Some(g) = gpu() else {
+        return;
+    };
+    let hgt = common::terrains().join("N47E009.hgt");
+    let text = |curved: bool| {
+        format!(
+            "[terrain]\nsource = {hgt:?}\ncurved = {curved}\n[sun]\nazimuth = 200.0\nelevation = 30.0\n\
+             [fog]\nvisibility = 0.0\n[camera]\ngeodetic = [47.5, 9.5, 3000.0]\nheading = 90.0\npitch = 4.0\nfov = 60.0\n\
+             [output]\nwidth = {W}\nheight = {H}\n\
+             [[clouds]]\nbase = 3500.0\nthickness = 300.0\ncoverage = 0.5\nvisibility = 150.0\nfeature = 4000.0\nseed = 5\n"
+        )
+    };
+    let mut frames = Vec::new();
+    for curved in [true, false] {
+        let path = common::temp_dir("clouds-curved").join(format!("curved-{curved}.toml"));
+        std::fs::write(&path, text(curved)).unwrap();
+        let scene = relief::scene::Scene::load(&path).unwrap();
+        let terrain = scene.load_terrain().unwrap();
+        assert_eq!(terrain.curved, curved);
+        let cam = scene.camera(0, &terrain);
+        let mut r = TerrainRenderer::new(g, &terrain).expect("renderer");
+        let out = r
+            .capture(g, &terrain, &scene.desc, &cam, &settings(true, true))
+            .expect("capture");
+        frames.push((scene, terrain, cam, out));
+    }
+    let (scene, terrain, cam, out) = &frames[0];
+    let desc = &scene.desc;
+    let day = desc.daylight();
+    let v = |c: [f32; 3]| DVec3::new(c[0].into(), c[1].into(), c[2].into());
+    let light = CloudLight {
+        sun: day.light,
+        sun_colour: v(day.sun_colour) * f64::from(day.intensity),
+        ambient: (v(day.zenith) + v(day.horizon)) * (0.5 * f64::from(day.ambient)),
+    };
+    let decks: Vec<Deck> = desc.clouds.iter().map(Deck::new).collect();
+    let fr = &terrain.frame;
+    let curv = terrain.curvature(cam.pose.position);
+    let eye = fr.world_to_grid(cam.pose.position);
+    let (mut sky, mut worst, mut differs) = (0, 0, 0);
+    for k in 0..(W * H) as usize {
+        if out.depth[k].is_finite() {
+            continue;
+        }
+        let d = cam.pixel_ray(k as u32 % W, k as u32 / W);
+        let g = fr.world_dir_to_grid(d) / curv.metric.extend(1.0);
+        let ray = CloudRay {
+            eye,
+            dir: g,
+            a: curv.k.x * g.x * g.x + curv.k.y * g.y * g.y,
+            spacing: fr.spacing,
+        };
+        let behind = common::daylight_sky(&day, d);
+        let want = composite(&decks, &ray, f64::INFINITY, behind, &light, |c, _, _, _| c);
+        let px = &out.rgba[4 * k..4 * k + 3];
+        worst = worst.max(off(px, want));
+        differs += usize::from(px != &frames[1].3.rgba[4 * k..4 * k + 3]);
+        sky += 1;
+    }
+    eprintln!(
+        "curved earth: {sky} sky pixels within {worst} level(s) of the CPU's layer (a = {:.3e} per m² ahead); {differs} differ from the flat earth's",
+        curv.k.x / (fr.spacing[0] * curv.metric.x).powi(2)
+    );
+    if worst > 1 {
+        let p = save_failure_image("clouds-curved", W, H, &out.rgba);
+        panic!(
+            "sky pixels up to {worst} levels from the CPU reference; {}",
+            p.display()
+        );
+    }
+    assert!(sky > 8000, "{sky} sky pixels");
+    assert!(
+        differs > sky / 10,
+        "the curvature changed only {differs} pixels"
+    );
+}
