@@ -957,16 +957,19 @@ fn the_hosts_cloud_layer_is_drawn() {
     let f = |k: &str| l[k].as_f64().unwrap();
     assert_eq!((f("base"), f("thickness")), (2600.0, 300.0));
     assert!((f("coverage") - 0.6).abs() < 1e-6 && f("visibility") == 120.0);
+    // Stratocumulus (9): domed cells of 3 km.
+    assert_eq!((f("relief"), f("feature")), (0.7, 3000.0));
     // The global visibility is not the cloud's.
     assert!(j["cigi"]["visibility"].is_null(), "{}", j["cigi"]);
     let clouds = format!(
-        "[[clouds]]\nbase = {:?}\nthickness = {:?}\ncoverage = {:?}\nvisibility = {:?}\nfeature = {:?}\nseed = {}\n",
+        "[[clouds]]\nbase = {:?}\nthickness = {:?}\ncoverage = {:?}\nvisibility = {:?}\nfeature = {:?}\nseed = {}\nrelief = {:?}\n",
         f("base"),
         f("thickness"),
         f("coverage"),
         f("visibility"),
         f("feature"),
-        l["seed"]
+        l["seed"],
+        f("relief")
     );
     let sun = (245.0, 24.0);
     let same = mean_diff(&a, &render_at(&dir, "cloudy", pose, sun, 90000.0, &clouds));

@@ -57,6 +57,7 @@ fn layer(base: f64, thickness: f64, coverage: f64, visibility: f64, feature: f64
         visibility,
         feature,
         seed: base as u32,
+        relief: 1.0,
     }
 }
 

@@ -66,6 +66,8 @@ pub struct Deck {
     pub mean: f64,
     pub inv_feature: f64,
     pub seed: u32,
+    /// How domed the cells are (`[[clouds]] relief`).
+    pub relief: f64,
 }
 
 impl Deck {
@@ -90,6 +92,7 @@ impl Deck {
             mean: 0.0,
             inv_feature: 1.0 / l.feature,
             seed: l.seed,
+            relief: l.relief,
         };
         // The mean over the slab: a column's cover times the part of the thickness below its
         // top (the soft top counted at half its depth).
@@ -106,13 +109,15 @@ impl Deck {
     }
 
     /// The cloud column of pattern value `n`: its cover (0..=1, the soft edge) and the height
-    /// of its top (cells are domes: [`EDGE_TOP`] of the thickness at their edge, the whole
-    /// thickness [`RELIEF`] above the cut; an overcast deck is flat).
+    /// of its top (with `relief` 1 cells are domes: [`EDGE_TOP`] of the thickness at their
+    /// edge, the whole thickness [`RELIEF`] above the cut; with 0 flat at the layer's top; an
+    /// overcast deck is flat).
     fn cell(&self, n: f64) -> (f64, f64) {
         let e = n - self.threshold;
         let cover = (e / SOFT).clamp(0.0, 1.0);
         let rise = (e / RELIEF).clamp(0.0, 1.0).sqrt();
-        let top = self.base + (self.top - self.base) * (EDGE_TOP + (1.0 - EDGE_TOP) * rise);
+        let sink = self.relief * (1.0 - EDGE_TOP) * (1.0 - rise);
+        let top = self.base + (self.top - self.base) * (1.0 - sink);
         (cover, top)
     }
 
@@ -388,6 +393,7 @@ mod tests {
             visibility: 60.0,
             feature: 2000.0,
             seed: 7,
+            relief: 1.0,
         }
     }
 
@@ -410,6 +416,27 @@ mod tests {
             );
             assert!(d.mean <= coverage + 1e-9, "{coverage}: mean {}", d.mean);
         }
+    }
+
+    #[test]
+    fn relief_domes_the_cells_or_leaves_them_flat() {
+        let lowest_top = |relief: f64| {
+            let d = Deck::new(&CloudLayer {
+                relief,
+                ..layer(0.5)
+            });
+            (0..2000)
+                .map(|i| d.column(37.0 * i as f64, 11.0 * i as f64))
+                .filter(|(cover, _)| *cover > 0.0)
+                .map(|(_, top)| top)
+                .fold(f64::INFINITY, f64::min)
+        };
+        // Flat: every clouded column reaches the layer's top (1,400 m).
+        assert_eq!(lowest_top(0.0), 1400.0);
+        // Domed: at a cell's edge the top is EDGE_TOP of the 400 m up.
+        let edge = lowest_top(1.0);
+        assert!(edge < 1000.0 + 400.0 * (EDGE_TOP + 0.15), "{edge}");
+        assert!(edge >= 1000.0 + 400.0 * EDGE_TOP, "{edge}");
     }
 
     #[test]

@@ -38,7 +38,7 @@ pub struct FrameUniforms {
     /// Footprint LOD: x = `render.lod` scale · 2 / larger spacing (0: off), yzw unused.
     pub lod: [f32; 4],
     /// Cloud layers (`cpu::clouds::Deck`): two rows each, (base, top, extinction,
-    /// threshold) and (mean density, 1 / feature, seed, 0).
+    /// threshold) and (mean density, 1 / feature, seed, relief).
     pub clouds: [[f32; 4]; 2 * crate::scene::clouds::MAX_CLOUD_LAYERS],
     /// Layers, grid spacing x, y (m), unused.
     pub cloud_info: [f32; 4],

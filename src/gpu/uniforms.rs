@@ -174,7 +174,12 @@ fn cloud_rows(layers: &[CloudLayer]) -> [[f32; 4]; 2 * MAX_CLOUD_LAYERS] {
     for (k, l) in layers.iter().take(MAX_CLOUD_LAYERS).enumerate() {
         let d = Deck::new(l);
         rows[2 * k] = [d.base, d.top, d.sigma, d.threshold].map(|v| v as f32);
-        rows[2 * k + 1] = [d.mean as f32, d.inv_feature as f32, d.seed as f32, 0.0];
+        rows[2 * k + 1] = [
+            d.mean as f32,
+            d.inv_feature as f32,
+            d.seed as f32,
+            d.relief as f32,
+        ];
     }
     rows
 }

@@ -29,6 +29,14 @@ pub struct CloudLayer {
     /// Seed of the cloud pattern (layers with the same seed and feature look alike).
     #[serde(default)]
     pub seed: u32,
+    /// How domed the cells are, 0..=1: 0 flat tops at the layer's top (stratus), 1 tops
+    /// rising from a third of the thickness at a cell's edge (cumulus).
+    #[serde(default = "domed")]
+    pub relief: f64,
+}
+
+fn domed() -> f64 {
+    1.0
 }
 
 fn overcast() -> f64 {
@@ -94,6 +102,13 @@ pub fn validate(layers: &[CloudLayer]) -> Result<()> {
                 1.0e6,
                 "metres (the size of a cloud cell)",
             ),
+            (
+                "relief",
+                l.relief,
+                0.0,
+                1.0,
+                "(0: flat tops, 1: domed cells)",
+            ),
         ];
         for (name, v, lo, hi, unit) in checks {
             if !v.is_finite() || !(lo..=hi).contains(&v) {
@@ -140,6 +155,7 @@ mod tests {
             visibility: 60.0,
             feature: 2500.0,
             seed: 0,
+            relief: 1.0,
         }
     }
 
@@ -162,6 +178,9 @@ mod tests {
         l.feature = 2500.0;
         l.seed = 1 << 24;
         assert!(msg(&[l]).contains("clouds[0].seed"));
+        l.seed = 0;
+        l.relief = -0.1;
+        assert!(msg(&[l]).contains("clouds[0].relief"));
         let four: Vec<_> = (0..4).map(|k| deck(1000.0 * k as f64, 300.0)).collect();
         assert!(msg(&four).contains("at most 3"));
     }

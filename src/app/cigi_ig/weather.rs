@@ -3,14 +3,29 @@
 use crate::cigi::session::{Session, CLOUD_LAYER_IDS};
 use crate::scene::clouds::{self, CloudLayer};
 
-/// Size of the host's cloud cells (m): Weather Control does not give one.
-pub const HOST_CLOUD_CELL: f64 = 2500.0;
+/// Relief and cell size (m) of a Weather Control cloud type (CIGI 3.3: 1 altocumulus, 2
+/// altostratus, 3 cirrocumulus, 4 cirrostratus, 5 cirrus, 6 cumulonimbus, 7 cumulus, 8
+/// nimbostratus, 9 stratocumulus, 10 stratus, 11–15 IG-defined): the layered (stratiform)
+/// types flat-topped with wide cells, the heaped (cumuliform) ones domed.
+pub fn cloud_shape(cloud_type: u8) -> (f64, f64) {
+    match cloud_type {
+        1 => (0.7, 1500.0),
+        2 | 8 => (0.15, 5000.0),
+        3 => (0.5, 800.0),
+        4 | 10 => (0.0, 5000.0),
+        5 => (0.2, 3000.0),
+        6 => (1.0, 6000.0),
+        7 => (1.0, 2500.0),
+        9 => (0.7, 3000.0),
+        _ => (0.5, 2500.0),
+    }
+}
 
 /// The cloud layers the host gives, or `None` when it has sent no global cloud layer (the
 /// scene's `[[clouds]]` then stay). A layer is drawn while enabled with a cloud type other
 /// than None (0): from its base elevation (m above MSL) through its thickness, its coverage
-/// (%) and its visibility range as the visibility inside the cloud; the pattern's seed is
-/// the layer ID. Values out of `[[clouds]]`' ranges are brought into them (a thickness or
+/// (%) and its visibility range as the visibility inside the cloud, shaped by its cloud type
+/// ([`cloud_shape`]); the pattern's seed is the layer ID. Values out of `[[clouds]]`' ranges are brought into them (a thickness or
 /// visibility that is not a positive number drops the layer), and a layer overlapping a lower
 /// layer ID's is dropped; each drop is counted in `dropped`.
 pub fn host_clouds(session: &Session, dropped: &mut u64) -> Option<Vec<CloudLayer>> {
@@ -29,6 +44,7 @@ pub fn host_clouds(session: &Session, dropped: &mut u64) -> Option<Vec<CloudLaye
             *dropped += 1;
             continue;
         }
+        let (relief, feature) = cloud_shape(w.cloud_type);
         let layer = CloudLayer {
             base: f64::from(w.base_elevation).clamp(-1000.0, 30_000.0),
             thickness: f64::from(w.thickness).clamp(1.0, 20_000.0),
@@ -38,8 +54,9 @@ pub fn host_clouds(session: &Session, dropped: &mut u64) -> Option<Vec<CloudLaye
                 1.0
             },
             visibility: f64::from(w.visibility).clamp(1.0, 100_000.0),
-            feature: HOST_CLOUD_CELL,
+            feature,
             seed: u32::from(*id),
+            relief,
         };
         layers.push(layer);
         if clouds::validate(&layers).is_err() {

@@ -1,6 +1,6 @@
 // Cloud layers (`[[clouds]]`, CIGI weather layers 1-3): `cpu::clouds`, step for step, in
 // f32. Layer k is frame.clouds[2k] = (base, top, extinction, threshold) and
-// frame.clouds[2k + 1] = (mean density, 1 / feature, seed, 0); frame.cloud_info = (layers,
+// frame.clouds[2k + 1] = (mean density, 1 / feature, seed, relief); frame.cloud_info = (layers,
 // grid spacing x, y in metres, 0). Needs frame.wgsl, haze.wgsl and to_grid_dir.
 
 const CLOUD_VIEW_SAMPLES: u32 = 8u;
@@ -60,7 +60,8 @@ fn cloud_column(k: u32, q: vec2<f32>) -> vec2<f32> {
     let e = cloud_pattern(m.x, m.y, u32(b.z)) - a.w;
     let cover = clamp(e / CLOUD_SOFT, 0.0, 1.0);
     let rise = sqrt(clamp(e / CLOUD_RELIEF, 0.0, 1.0));
-    return vec2<f32>(cover, a.x + (a.y - a.x) * (CLOUD_EDGE_TOP + (1.0 - CLOUD_EDGE_TOP) * rise));
+    let sink = b.w * (1.0 - CLOUD_EDGE_TOP) * (1.0 - rise);
+    return vec2<f32>(cover, a.x + (a.y - a.x) * (1.0 - sink));
 }
 
 // Density of layer k at height z in column col, faded to the layer's mean where a sample

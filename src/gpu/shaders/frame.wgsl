@@ -67,7 +67,7 @@ struct Frame {
     // (m), times a pixel's cone half-angle: `lod_k` of `lod_stops`; 0 = off.
     lod: vec4<f32>,
     // Cloud layers (`CLOUDS` pipelines, clouds.wgsl): layer k is clouds[2k] = (base, top,
-    // extinction, threshold), clouds[2k + 1] = (mean density, 1 / feature, seed, 0).
+    // extinction, threshold), clouds[2k + 1] = (mean density, 1 / feature, seed, relief).
     clouds: array<vec4<f32>, 6>,
     // x: layers, y, z: grid spacing in metres (the clouds' pattern is fixed to the ground).
     cloud_info: vec4<f32>,
