@@ -25,9 +25,10 @@ pub fn cloud_shape(cloud_type: u8) -> (f64, f64) {
 /// scene's `[[clouds]]` then stay). A layer is drawn while enabled with a cloud type other
 /// than None (0): from its base elevation (m above MSL) through its thickness, its coverage
 /// (%) and its visibility range as the visibility inside the cloud, shaped by its cloud type
-/// ([`cloud_shape`]); the pattern's seed is the layer ID. Values out of `[[clouds]]`' ranges are brought into them (a thickness or
-/// visibility that is not a positive number drops the layer), and a layer overlapping a lower
-/// layer ID's is dropped; each drop is counted in `dropped`.
+/// ([`cloud_shape`]); the pattern's seed is the layer ID. Values out of `[[clouds]]`' ranges
+/// are brought into them (a thickness or visibility that is not a positive number drops the
+/// layer), and a layer overlapping a lower layer ID's is dropped; each drop is counted in
+/// `dropped`.
 pub fn host_clouds(session: &Session, dropped: &mut u64) -> Option<Vec<CloudLayer>> {
     let mut sent = false;
     let mut layers = Vec::new();
