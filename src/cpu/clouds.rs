@@ -72,40 +72,19 @@ pub struct Deck {
 
 impl Deck {
     /// The layer with its threshold and mean density measured on a 256 x 256 lattice over
-    /// 16 x 16 cells of its pattern (sorted once per seed and kept: a frame's layers cost a
-    /// pass over the lattice).
+    /// 16 x 16 cells of its pattern ([`cut`]).
     pub fn new(l: &CloudLayer) -> Deck {
-        let v = sorted_lattice(l.seed);
-        let threshold = if l.coverage >= 1.0 {
-            -1.0
-        } else if l.coverage <= 0.0 {
-            2.0
-        } else {
-            let k = ((1.0 - l.coverage) * v.len() as f64) as usize;
-            v[k.min(v.len() - 1)]
-        };
-        let mut deck = Deck {
+        let (threshold, mean) = cut(l.seed, l.coverage, l.relief);
+        Deck {
             base: l.base,
             top: l.top(),
             sigma: 3.912 / l.visibility,
             threshold,
-            mean: 0.0,
+            mean,
             inv_feature: 1.0 / l.feature,
             seed: l.seed,
             relief: l.relief,
-        };
-        // The mean over the slab: a column's cover times the part of the thickness below its
-        // top (the soft top counted at half its depth).
-        let h = deck.top - deck.base;
-        deck.mean = v
-            .iter()
-            .map(|&n| {
-                let (cover, top) = deck.cell(n);
-                cover * ((top - deck.base) / h - 0.5 * TOP_SOFT).max(0.0)
-            })
-            .sum::<f64>()
-            / v.len() as f64;
-        deck
+        }
     }
 
     /// The cloud column of pattern value `n`: its cover (0..=1, the soft edge) and the height
@@ -140,6 +119,59 @@ impl Deck {
     pub fn density(&self, x: f64, y: f64, z: f64) -> f64 {
         self.density_in(self.column(x, y), z)
     }
+}
+
+/// The pattern value where the cloud of `coverage` starts and the slab's mean density with
+/// `relief` (a column's cover times the part of the thickness below its top, the soft top
+/// counted at half its depth), kept for the last few layers: a frame's layers cost a lookup,
+/// a new coverage a pass over the sorted lattice.
+fn cut(seed: u32, coverage: f64, relief: f64) -> (f64, f64) {
+    use std::sync::Mutex;
+    type Key = (u32, u64, u64);
+    static KEPT: Mutex<Vec<(Key, (f64, f64))>> = Mutex::new(Vec::new());
+    let key = (seed, coverage.to_bits(), relief.to_bits());
+    if let Some((_, c)) = KEPT
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .iter()
+        .find(|(k, _)| *k == key)
+    {
+        return *c;
+    }
+    let v = sorted_lattice(seed);
+    let threshold = if coverage >= 1.0 {
+        -1.0
+    } else if coverage <= 0.0 {
+        2.0
+    } else {
+        let k = ((1.0 - coverage) * v.len() as f64) as usize;
+        v[k.min(v.len() - 1)]
+    };
+    // A layer of unit thickness: the tops as fractions of it.
+    let unit = Deck {
+        base: 0.0,
+        top: 1.0,
+        sigma: 0.0,
+        threshold,
+        mean: 0.0,
+        inv_feature: 0.0,
+        seed,
+        relief,
+    };
+    let mean = v
+        .iter()
+        .map(|&n| {
+            let (cover, top) = unit.cell(n);
+            cover * (top - 0.5 * TOP_SOFT).max(0.0)
+        })
+        .sum::<f64>()
+        / v.len() as f64;
+    let mut kept = KEPT.lock().unwrap_or_else(|e| e.into_inner());
+    if kept.len() >= 16 {
+        kept.remove(0);
+    }
+    kept.push((key, (threshold, mean)));
+    (threshold, mean)
 }
 
 /// The pattern on the lattice [`Deck::new`] measures, sorted; kept for the last few seeds.
@@ -365,7 +397,7 @@ pub fn composite(
 pub fn sun_transmittance(decks: &[Deck], p: DVec3, sun_grid: DVec3, spacing: [f64; 2]) -> f64 {
     let sun_z = sun_grid.z.max(SUN_Z_MIN);
     let mut tau = 0.0;
-    for d in decks {
+    for d in decks.iter().filter(|d| p.z < d.top) {
         let s0 = (d.base - p.z).max(0.0) / sun_z;
         let s1 = (d.top - p.z).max(0.0) / sun_z;
         let ds = (s1 - s0) / SUN_SAMPLES as f64;

@@ -67,3 +67,67 @@ pub fn host_clouds(session: &Session, dropped: &mut u64) -> Option<Vec<CloudLaye
     }
     sent.then_some(layers)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cigi::host::WeatherControl;
+
+    fn layer(id: u8, base: f32, thickness: f32) -> WeatherControl {
+        WeatherControl {
+            layer_id: id,
+            enable: true,
+            cloud_type: 10,
+            visibility: 100.0,
+            coverage: 50.0,
+            base_elevation: base,
+            thickness,
+            ..Default::default()
+        }
+    }
+
+    fn host(layers: &[WeatherControl]) -> (Option<Vec<CloudLayer>>, u64) {
+        let mut s = Session::new();
+        for w in layers {
+            s.weather
+                .insert((w.scope, w.entity_region_id, w.layer_id), *w);
+        }
+        let mut dropped = 0;
+        (host_clouds(&s, &mut dropped), dropped)
+    }
+
+    #[test]
+    fn hostile_layers_are_dropped_or_brought_into_range_and_counted() {
+        // No cloud layer sent: the scene's stay. Ground fog (0) is not a cloud layer.
+        assert_eq!(host(&[layer(0, 0.0, 100.0)]), (None, 0));
+        // A layer's values out of range are brought in; stratus is flat with 5 km cells.
+        let w = WeatherControl {
+            coverage: 150.0,
+            visibility: 1.0e9,
+            ..layer(1, 1000.0, 300.0)
+        };
+        let (got, dropped) = host(&[w]);
+        let l = got.unwrap()[0];
+        assert_eq!((l.coverage, l.visibility, dropped), (1.0, 100_000.0, 0));
+        assert_eq!((l.relief, l.feature, l.seed), (0.0, 5000.0, 1));
+        // Not a number, a negative thickness, and a layer overlapping layer 1: dropped.
+        let (got, dropped) = host(&[
+            layer(1, 1000.0, 300.0),
+            layer(2, f32::NAN, 300.0),
+            layer(3, 1100.0, 300.0),
+        ]);
+        assert_eq!((got.unwrap().len(), dropped), (1, 2));
+        let (got, dropped) = host(&[layer(2, 1000.0, -5.0)]);
+        assert_eq!((got.unwrap().len(), dropped), (0, 1));
+        // Disabled, or cloud type None: sent, so no layers (the scene's go too).
+        let off = WeatherControl {
+            enable: false,
+            ..layer(1, 1000.0, 300.0)
+        };
+        let none = WeatherControl {
+            cloud_type: 0,
+            ..layer(2, 3000.0, 300.0)
+        };
+        assert_eq!(host(&[off, none]), (Some(Vec::new()), 0));
+    }
+}

@@ -217,6 +217,10 @@ fn cloud_sun(p: vec3<f32>) -> f32 {
     var tau = 0.0;
     for (var k = 0u; k < n; k++) {
         let c = frame.clouds[2u * k];
+        if (p.z >= c.y) {
+            // Above the layer: the sun's path does not cross it.
+            continue;
+        }
         let inv_feature = frame.clouds[2u * k + 1u].y;
         let s0 = max(c.x - p.z, 0.0) / sun_z;
         let s1 = max(c.y - p.z, 0.0) / sun_z;
